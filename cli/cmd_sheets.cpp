@@ -1,0 +1,90 @@
+// dicer sheets: the dicer sheets of a coarse mesh and the interval each would get.
+#include <cstdio>
+
+#include "common.hpp"
+#include "dicer/coarse_mesh.hpp"
+#include "dicer/intervals.hpp"
+#include "dicer/sheets.hpp"
+#include "dicer/topology.hpp"
+
+namespace dicer::cli {
+
+static const char* kHelp = R"(Usage: dicer sheets MESH [--json] [--edges] [interval options]
+
+A dicer sheet is a set of coarse edges that must all be cut into the same
+number of intervals, so that the fine mesh stays conforming: opposite edges
+of every quad face are in the same sheet. A structured a x b x c box has
+a+b+c sheets. Sheet ids depend only on the input file, so you can name them
+in --sheet-interval or an intervals file.
+
+Prints per sheet: id, number of edges, blocks it touches and the interval it
+gets under the interval options (same as `dice`; default 1).
+
+Options:
+  --json          one JSON object: {"mode", "sheets": [{"id", "edge_count",
+                  "blocks", "interval", "edges"?}], "notes"}
+  --edges         also list each sheet's edges as node-id pairs, numbered as
+                  in the input file
+  --interval N, --block-interval B=N, --sheet-interval S=N, --size H,
+  --intervals-file FILE      see `dicer dice --help`
+)";
+
+int cmd_sheets(const std::vector<std::string>& argv) {
+  for (const auto& a : argv)
+    if (a == "--help" || a == "-h") return std::fputs(kHelp, stdout), 0;
+  Args args("sheets", argv, kIntervalFlags, {"--json", "--edges"}, 1);
+  const CoarseMesh mesh = read_coarse_mesh(args.need_positional(0, "MESH"));
+  const Topology topo = build_topology(mesh);
+  const Sheets sheets = find_sheets(mesh, topo);
+  const IntervalPlan plan = resolve_intervals(mesh, topo, sheets, interval_request(args));
+  const bool json = args.has("--json"), edges = args.has("--edges");
+  for (const auto& w : mesh.warnings) std::fprintf(stderr, "dicer sheets: warning: %s: %s\n", mesh.source.c_str(), w.c_str());
+  for (const auto& n : plan.notes) std::fprintf(stderr, "dicer sheets: note: %s\n", n.c_str());
+
+  std::vector<std::vector<Id>> sheet_edges;
+  if (edges) {
+    sheet_edges.resize(static_cast<size_t>(sheets.num_sheets()));
+    for (Id e = 0; e < topo.num_edges(); ++e) sheet_edges[sheets.edge_sheet[e]].push_back(e);
+  }
+  if (json) std::printf("{\"mode\":\"%s\",\"sheets\":[", mode_name(mesh.mode));
+  else std::printf("%lld sheets in %s\n%8s %8s %8s  %s\n", static_cast<long long>(sheets.num_sheets()), mesh.source.c_str(),
+                   "sheet", "edges", "interval", "blocks");
+  for (Id s = 0; s < sheets.num_sheets(); ++s) {
+    std::string blocks;
+    for (Id i = sheets.block_offset[s]; i < sheets.block_offset[s + 1]; ++i)
+      blocks += (blocks.empty() ? "" : json ? "," : " ") + std::to_string(mesh.blocks[sheets.block_index[i]].id);
+    if (json) {
+      std::printf("%s{\"id\":%lld,\"edge_count\":%lld,\"blocks\":[%s],\"interval\":%lld", s ? "," : "",
+                  static_cast<long long>(s), static_cast<long long>(sheets.edge_count[s]), blocks.c_str(),
+                  static_cast<long long>(plan.sheet_interval[s]));
+      if (edges) {
+        std::printf(",\"edges\":[");
+        for (size_t q = 0; q < sheet_edges[s].size(); ++q) {
+          const Id e = sheet_edges[s][q];
+          std::printf("%s[%lld,%lld]", q ? "," : "", static_cast<long long>(mesh.vertex_file_id[topo.edge_v[2 * e]]),
+                      static_cast<long long>(mesh.vertex_file_id[topo.edge_v[2 * e + 1]]));
+        }
+        std::printf("]");
+      }
+      std::printf("}");
+    } else {
+      std::printf("%8lld %8lld %8lld  %s\n", static_cast<long long>(s), static_cast<long long>(sheets.edge_count[s]),
+                  static_cast<long long>(plan.sheet_interval[s]), blocks.c_str());
+      if (edges) {
+        std::printf("         edges:");
+        for (Id e : sheet_edges[s])
+          std::printf(" %lld-%lld", static_cast<long long>(mesh.vertex_file_id[topo.edge_v[2 * e]]),
+                      static_cast<long long>(mesh.vertex_file_id[topo.edge_v[2 * e + 1]]));
+        std::printf("\n");
+      }
+    }
+  }
+  if (json) {
+    std::printf("],\"notes\":[");
+    for (size_t i = 0; i < plan.notes.size(); ++i) std::printf("%s%s", i ? "," : "", json_string(plan.notes[i]).c_str());
+    std::printf("]}\n");
+  }
+  return 0;
+}
+
+}  // namespace dicer::cli

@@ -1,0 +1,79 @@
+#pragma once
+// Shared plumbing of the dicer command: argument parsing, JSON helpers,
+// human-readable sizes, progress bars. Subcommands stay thin.
+#include <cstdint>
+#include <cstdio>
+#include <functional>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "dicer/intervals.hpp"
+#include "dicer/types.hpp"
+
+namespace dicer::cli {
+
+// Exit codes (documented in `dicer --help` and README): 0 success, 1 verify
+// found a defect, then int(ErrorKind): 2 usage, 3 bad input, 4 unsupported,
+// 5 I/O, 6 overflow, 7 geometry, 8 corrupt store; 70 internal error.
+inline constexpr int kExitDefect = 1;
+inline constexpr int kExitInternal = 70;
+
+// Flags: "--name value", "--name=value", boolean "--name". Unknown flags,
+// missing values and stray positionals are usage errors naming the flag.
+class Args {
+ public:
+  Args(std::string command, std::vector<std::string> argv, std::vector<std::string> value_flags,
+       std::vector<std::string> bool_flags, int max_positional);
+  bool has(const std::string& flag) const { return values_.count(flag) > 0; }
+  std::optional<std::string> value(const std::string& flag) const;
+  std::vector<std::string> values(const std::string& flag) const;
+  const std::vector<std::string>& positional() const { return positional_; }
+  std::string need_positional(size_t i, const std::string& what) const;
+  std::int64_t int_value(const std::string& flag, std::int64_t fallback) const;
+
+ private:
+  std::string command_;
+  std::map<std::string, std::vector<std::string>> values_;
+  std::vector<std::string> positional_;
+};
+
+std::int64_t parse_int(const std::string& what, const std::string& text);
+double parse_double(const std::string& what, const std::string& text);
+// "a:b" -> [a, b); "a" -> [a, a+1).
+std::pair<std::int64_t, std::int64_t> parse_range(const std::string& what, const std::string& text);
+
+// Interval flags shared by `sheets` and `dice`.
+IntervalRequest interval_request(const Args& args);
+inline const std::vector<std::string> kIntervalFlags = {"--interval", "--block-interval", "--sheet-interval", "--size",
+                                                        "--intervals-file"};
+
+std::string json_string(const std::string& s);
+std::string json_double(double d);  // 17 significant digits: round-trips exactly
+std::string human_bytes(std::uint64_t bytes);
+std::string human_count(std::int64_t n);
+
+// A progress bar on stderr, drawn only when stderr is a terminal and not
+// --quiet; at most ~10 redraws per second.
+class Progress {
+ public:
+  Progress(std::string label, std::int64_t total, bool quiet);
+  ~Progress();
+  void update(std::int64_t done);
+
+ private:
+  std::string label_;
+  std::int64_t total_;
+  bool enabled_;
+  double start_, last_ = -1;
+};
+
+using Command = std::function<int(const std::vector<std::string>&)>;
+int cmd_sheets(const std::vector<std::string>& argv);
+int cmd_dice(const std::vector<std::string>& argv);
+int cmd_info(const std::vector<std::string>& argv);
+int cmd_query(const std::vector<std::string>& argv);
+int cmd_verify(const std::vector<std::string>& argv);
+
+}  // namespace dicer::cli

@@ -1,0 +1,222 @@
+// Reading dispatch and the invariants every coarse mesh must satisfy before
+// topology is built (see include/dicer/coarse_mesh.hpp).
+#include "dicer/coarse_mesh.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <fstream>
+#include <numeric>
+
+#include "dicer/error.hpp"
+#include "dicer/orientation.hpp"
+
+namespace dicer {
+namespace {
+
+std::string element_name(const CoarseMesh& m, Id e) {
+  const Id fid = e < static_cast<Id>(m.element_file_id.size()) ? m.element_file_id[e] : e + 1;
+  return "element " + std::to_string(fid);
+}
+
+// Signs of the 8 corner Jacobians: +1 all positive, -1 all negative, 0 mixed
+// or degenerate.
+int hex_handedness(const CoarseMesh& m, const Id* c) {
+  int pos = 0, neg = 0;
+  for (int k = 0; k < 8; ++k) {
+    const Vec3 o = m.vertex(c[k]);
+    Vec3 e[3];
+    for (int d = 0; d < 3; ++d) {
+      const Vec3 p = m.vertex(c[kHexCornerNbr[k][d]]);
+      e[d] = {p.x - o.x, p.y - o.y, p.z - o.z};
+    }
+    const double det = e[0].x * (e[1].y * e[2].z - e[1].z * e[2].y) -
+                       e[0].y * (e[1].x * e[2].z - e[1].z * e[2].x) +
+                       e[0].z * (e[1].x * e[2].y - e[1].y * e[2].x);
+    if (det > 0) ++pos;
+    else if (det < 0) ++neg;
+  }
+  return pos == 8 ? 1 : neg == 8 ? -1 : 0;
+}
+
+// Mirror i <-> j: turns a left-handed hex right-handed, corner 0 fixed.
+constexpr int kMirror[8] = {0, 3, 2, 1, 4, 7, 6, 5};
+
+void reorient_left_handed(CoarseMesh& m) {
+  const Id ne = m.num_elements();
+  for (Id e = 0; e < ne; ++e) {
+    Id* c = &m.conn[static_cast<size_t>(e) * 8];
+    Id old[8];
+    std::copy(c, c + 8, old);
+    for (int k = 0; k < 8; ++k) c[k] = old[kMirror[k]];
+  }
+  // Side s of the old numbering has the corners old[kHexSideCorners[s]];
+  // find the new side with the same corner set.
+  int side_map[6];
+  for (int s = 0; s < 6; ++s) {
+    std::array<int, 4> want;
+    for (int q = 0; q < 4; ++q) want[q] = kHexSideCorners[s][q];
+    std::sort(want.begin(), want.end());
+    for (int t = 0; t < 6; ++t) {
+      std::array<int, 4> have;
+      for (int q = 0; q < 4; ++q) have[q] = kMirror[kHexSideCorners[t][q]];
+      std::sort(have.begin(), have.end());
+      if (have == want) side_map[s] = t;
+    }
+  }
+  for (auto& ss : m.side_sets)
+    for (auto& s : ss.side)
+      if (s >= 0 && s < 6) s = static_cast<std::int8_t>(side_map[s]);
+}
+
+}  // namespace
+
+CoarseMesh read_coarse_mesh(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw Error(ErrorKind::Io, path + ": cannot open file for reading");
+  char head[16] = {};
+  in.read(head, sizeof head);
+  const std::string h(head, static_cast<size_t>(in.gcount()));
+  CoarseMesh mesh;
+  // netCDF classic/64-bit ("CDF\1", "CDF\2", "CDF\5") or netCDF-4 (HDF5).
+  if (h.rfind("CDF", 0) == 0 || h.rfind("\x89HDF", 0) == 0) {
+    mesh = read_exodus(path);
+  } else if (h.find("$Mesh") != std::string::npos) {
+    mesh = read_msh(path);
+  } else if (h.empty()) {
+    throw Error(ErrorKind::BadInput, path + ": file is empty");
+  } else {
+    throw Error(ErrorKind::BadInput,
+                path + ": not an Exodus II (netCDF) or Gmsh MSH file (unrecognised first bytes)");
+  }
+  if (mesh.source.empty()) mesh.source = path;
+  validate_coarse_mesh(mesh);
+  return mesh;
+}
+
+void validate_coarse_mesh(CoarseMesh& m) {
+  const std::string& f = m.source;
+  const int nc = m.corners_per_element();
+  const Id nv = m.num_vertices();
+  if (m.y.size() != m.x.size() || m.z.size() != m.x.size())
+    throw Error(ErrorKind::BadInput, f + ": coordinate arrays differ in length");
+  if (m.conn.size() % static_cast<size_t>(nc) != 0)
+    throw Error(ErrorKind::BadInput, f + ": connectivity length is not a multiple of " + std::to_string(nc));
+  const Id ne = m.num_elements();
+  if (ne == 0) throw Error(ErrorKind::BadInput, f + ": mesh has no " +
+                                                    (m.mode == Mode::Volume ? "hexahedra" : "quadrilaterals"));
+  if (m.vertex_file_id.empty()) {
+    m.vertex_file_id.resize(static_cast<size_t>(nv));
+    std::iota(m.vertex_file_id.begin(), m.vertex_file_id.end(), Id{1});
+  }
+  if (m.element_file_id.empty()) {
+    m.element_file_id.resize(static_cast<size_t>(ne));
+    std::iota(m.element_file_id.begin(), m.element_file_id.end(), Id{1});
+  }
+  if (m.blocks.empty()) m.blocks.push_back(Block{1, ""});
+  if (m.element_block.empty()) m.element_block.assign(static_cast<size_t>(ne), 0);
+  if (static_cast<Id>(m.element_block.size()) != ne || static_cast<Id>(m.element_file_id.size()) != ne ||
+      static_cast<Id>(m.vertex_file_id.size()) != nv)
+    throw Error(ErrorKind::BadInput, f + ": per-element or per-vertex arrays have inconsistent lengths");
+
+  for (Id v = 0; v < nv; ++v)
+    if (!std::isfinite(m.x[v]) || !std::isfinite(m.y[v]) || !std::isfinite(m.z[v]))
+      throw Error(ErrorKind::BadInput, f + ": node " + std::to_string(m.vertex_file_id[v]) +
+                                           ": coordinate is not finite (NaN or Inf)");
+  for (Id e = 0; e < ne; ++e) {
+    const Id* c = &m.conn[static_cast<size_t>(e) * nc];
+    for (int k = 0; k < nc; ++k)
+      if (c[k] < 0 || c[k] >= nv)
+        throw Error(ErrorKind::BadInput, f + ": " + element_name(m, e) + ": corner " + std::to_string(k) +
+                                             " references a node that does not exist");
+    for (int a = 0; a < nc; ++a)
+      for (int b = a + 1; b < nc; ++b)
+        if (c[a] == c[b])
+          throw Error(ErrorKind::BadInput, f + ": " + element_name(m, e) + ": node " +
+                                               std::to_string(m.vertex_file_id[c[a]]) +
+                                               " appears twice (degenerate element)");
+    if (m.element_block[e] < 0 || m.element_block[e] >= static_cast<std::int32_t>(m.blocks.size()))
+      throw Error(ErrorKind::BadInput, f + ": " + element_name(m, e) + ": block index out of range");
+  }
+
+  // Duplicated elements: same corner set.
+  {
+    std::vector<std::pair<std::array<Id, 8>, Id>> keys(static_cast<size_t>(ne));
+    for (Id e = 0; e < ne; ++e) {
+      std::array<Id, 8> k;
+      k.fill(-1);
+      std::copy_n(&m.conn[static_cast<size_t>(e) * nc], nc, k.begin());
+      std::sort(k.begin(), k.begin() + nc);
+      keys[e] = {k, e};
+    }
+    std::sort(keys.begin(), keys.end());
+    for (size_t i = 1; i < keys.size(); ++i)
+      if (keys[i].first == keys[i - 1].first)
+        throw Error(ErrorKind::BadInput, f + ": " + element_name(m, keys[i].second) + " duplicates " +
+                                             element_name(m, keys[i - 1].second) + " (same nodes)");
+  }
+
+  // Handedness (volume mode).
+  if (m.mode == Mode::Volume) {
+    Id right = 0, left = 0, first_right = -1, first_left = -1;
+    for (Id e = 0; e < ne; ++e) {
+      const int h = hex_handedness(m, &m.conn[static_cast<size_t>(e) * 8]);
+      if (h == 0)
+        throw Error(ErrorKind::BadInput, f + ": " + element_name(m, e) +
+                                             " is inverted or degenerate (its corner Jacobians are not all of "
+                                             "one sign)");
+      if (h > 0) {
+        if (right++ == 0) first_right = e;
+      } else if (left++ == 0) {
+        first_left = e;
+      }
+    }
+    if (right > 0 && left > 0) {
+      const Id bad = left < right ? first_left : first_right;
+      throw Error(ErrorKind::BadInput, f + ": mixed handedness: " + std::to_string(right) + " right-handed and " +
+                                           std::to_string(left) + " left-handed hexes; " + element_name(m, bad) +
+                                           " is " + (left < right ? "left" : "right") + "-handed");
+    }
+    if (left > 0) {
+      reorient_left_handed(m);
+      m.warnings.push_back("all " + std::to_string(left) +
+                           " hexes are numbered left-handed; reoriented them (mirrored local i and j)");
+    }
+  }
+
+  // Drop vertices used by no element (boundary-only or orphan nodes).
+  std::vector<Id> remap(static_cast<size_t>(nv), -1);
+  for (Id c : m.conn) remap[c] = 0;
+  Id used = 0;
+  for (Id v = 0; v < nv; ++v)
+    if (remap[v] == 0) remap[v] = used++;
+  if (used != nv) {
+    auto compact = [&](auto& arr) {
+      if (arr.size() != static_cast<size_t>(nv)) return;
+      for (Id v = 0; v < nv; ++v)
+        if (remap[v] >= 0) arr[remap[v]] = arr[v];
+      arr.resize(static_cast<size_t>(used));
+    };
+    compact(m.x), compact(m.y), compact(m.z), compact(m.vertex_file_id);
+    compact(m.vertex_geo_dim), compact(m.vertex_geo_tag);
+    for (Id& c : m.conn) c = remap[c];
+    for (auto& ns : m.node_sets) {
+      std::vector<Id> kept;
+      for (Id v : ns.vertex)
+        if (v >= 0 && v < nv && remap[v] >= 0) kept.push_back(remap[v]);
+      ns.vertex = std::move(kept);
+    }
+    m.warnings.push_back("dropped " + std::to_string(nv - used) + " node(s) used by no " +
+                         (m.mode == Mode::Volume ? "hexahedron" : "quadrilateral"));
+  }
+  for (auto& ss : m.side_sets) {
+    if (ss.element.size() != ss.side.size())
+      throw Error(ErrorKind::BadInput, f + ": side set " + std::to_string(ss.id) + ": element and side lists differ");
+    for (size_t i = 0; i < ss.element.size(); ++i)
+      if (ss.element[i] < 0 || ss.element[i] >= ne || ss.side[i] < 0 || ss.side[i] >= 6)
+        throw Error(ErrorKind::BadInput, f + ": side set " + std::to_string(ss.id) + ": entry " + std::to_string(i) +
+                                             " is out of range");
+  }
+}
+
+}  // namespace dicer

@@ -1,0 +1,305 @@
+// The implicit fine mesh: classification of grid points to their owning
+// entity, and evaluation of the TFI recipe in that entity's canonical frame.
+#include "dicer/fine_mesh.hpp"
+
+#include <algorithm>
+
+#include "dicer/error.hpp"
+#include "dicer/orientation.hpp"
+#include "dicer/tfi.hpp"
+
+namespace dicer {
+
+FineMesh::FineMesh(CoarseMesh coarse, Topology topo, Numbering numbering, std::vector<Id> sheet_interval)
+    : coarse_(std::move(coarse)),
+      topo_(std::move(topo)),
+      num_(std::move(numbering)),
+      sheet_interval_(std::move(sheet_interval)) {}
+
+FineMesh FineMesh::dice(CoarseMesh coarse, const IntervalRequest& request, std::vector<std::string>* notes) {
+  Topology topo = build_topology(coarse);
+  Sheets sheets = find_sheets(coarse, topo);
+  IntervalPlan plan = resolve_intervals(coarse, topo, sheets, request);
+  if (notes) *notes = plan.notes;
+  Numbering num(topo, edge_intervals(sheets, plan));
+  return FineMesh(std::move(coarse), std::move(topo), std::move(num), std::move(plan.sheet_interval));
+}
+
+Vec3 FineMesh::edge_point(Id e, Id t) const {
+  const Id a = topo_.edge_v[2 * e], b = topo_.edge_v[2 * e + 1];
+  const Id n = num_.edge_n(e);
+  if (t == 0) return coarse_.vertex(a);
+  if (t == n) return coarse_.vertex(b);
+  const double s = tfi::weight(t, n);
+  return {tfi::edge(coarse_.x[a], coarse_.x[b], s), tfi::edge(coarse_.y[a], coarse_.y[b], s),
+          tfi::edge(coarse_.z[a], coarse_.z[b], s)};
+}
+
+Vec3 FineMesh::face_point(Id f, Id u, Id v) const {
+  const auto [nu, nv] = num_.face_n(f);
+  const Id* fe = &topo_.face_edge[4 * f];
+  const std::uint8_t* rev = &topo_.face_edge_rev[4 * f];
+  auto along = [&](int k, Id s) {
+    const Id n = num_.edge_n(fe[k]);
+    return edge_point(fe[k], rev[k] ? n - s : s);
+  };
+  // Points on the face boundary belong to its edges and vertices.
+  if (v == 0) return along(0, u);
+  if (v == nv) return along(1, u);
+  if (u == 0) return along(2, v);
+  if (u == nu) return along(3, v);
+  const Vec3 b = along(0, u), t = along(1, u), l = along(2, v), r = along(3, v);
+  const Vec3 p0 = coarse_.vertex(topo_.face_v[4 * f]), p1 = coarse_.vertex(topo_.face_v[4 * f + 1]),
+             p2 = coarse_.vertex(topo_.face_v[4 * f + 2]), p3 = coarse_.vertex(topo_.face_v[4 * f + 3]);
+  const double s = tfi::weight(u, nu), w = tfi::weight(v, nv);
+  return {tfi::coons(s, w, b.x, t.x, l.x, r.x, p0.x, p1.x, p2.x, p3.x),
+          tfi::coons(s, w, b.y, t.y, l.y, r.y, p0.y, p1.y, p2.y, p3.y),
+          tfi::coons(s, w, b.z, t.z, l.z, r.z, p0.z, p1.z, p2.z, p3.z)};
+}
+
+NodeRef FineMesh::grid_node(Id h, Id i, Id j, Id k) const {
+  const auto n = num_.elem_n(h);
+  NodeRef r;
+  if (coarse_.mode == Mode::Surface) {
+    const int ex = (i == 0 || i == n[0]) + (j == 0 || j == n[1]);
+    const Id* c = &coarse_.conn[static_cast<size_t>(h) * 4];
+    if (ex == 2) {
+      static constexpr int kCorner[2][2] = {{0, 3}, {1, 2}};  // [i>0][j>0]
+      r.kind = EntityKind::Vertex;
+      r.entity = c[kCorner[i > 0][j > 0]];
+      return r;
+    }
+    if (ex == 1) {
+      const int le = j == 0 ? 0 : j == n[1] ? 1 : i == 0 ? 2 : 3;
+      const Id t = le < 2 ? i : j;
+      const Id e = topo_.elem_edge[4 * h + le];
+      r.kind = EntityKind::Edge;
+      r.entity = e;
+      r.local[0] = topo_.elem_edge_rev[4 * h + le] ? num_.edge_n(e) - t : t;
+      return r;
+    }
+    const Id f = topo_.elem_face[h];
+    const auto fn = num_.face_n(f);
+    const FaceMap fm = face_map(topo_.elem_face_code[h], fn[0], fn[1]);
+    r.kind = EntityKind::Face;
+    r.entity = f;
+    r.local = {fm.u(i, j), fm.v(i, j), 0};
+    return r;
+  }
+  const Id p[3] = {i, j, k};
+  int ext[3];  // -1 interior, 0 low side, 1 high side
+  int count = 0;
+  for (int a = 0; a < 3; ++a) {
+    ext[a] = p[a] == 0 ? 0 : p[a] == n[a] ? 1 : -1;
+    count += ext[a] >= 0;
+  }
+  if (count == 3) {
+    static constexpr int kCorner[2][2][2] = {{{0, 4}, {3, 7}}, {{1, 5}, {2, 6}}};  // [i][j][k]
+    r.kind = EntityKind::Vertex;
+    r.entity = coarse_.conn[static_cast<size_t>(h) * 8 + kCorner[ext[0]][ext[1]][ext[2]]];
+    return r;
+  }
+  if (count == 2) {
+    const int axis = ext[0] < 0 ? 0 : ext[1] < 0 ? 1 : 2;
+    int le;
+    if (axis == 0) le = ext[1] + 2 * ext[2];
+    else if (axis == 1) le = 4 + ext[0] + 2 * ext[2];
+    else le = 8 + (ext[1] ? 3 - ext[0] : ext[0]);  // (0,0)->8 (1,0)->9 (1,1)->10 (0,1)->11
+    const Id e = topo_.elem_edge[12 * h + le];
+    r.kind = EntityKind::Edge;
+    r.entity = e;
+    r.local[0] = topo_.elem_edge_rev[12 * h + le] ? num_.edge_n(e) - p[axis] : p[axis];
+    return r;
+  }
+  if (count == 1) {
+    const int axis = ext[0] >= 0 ? 0 : ext[1] >= 0 ? 1 : 2;
+    const int lf = 2 * axis + ext[axis];
+    const Id f = topo_.elem_face[6 * h + lf];
+    const auto fn = num_.face_n(f);
+    const FaceMap fm = face_map(topo_.elem_face_code[6 * h + lf], fn[0], fn[1]);
+    const Id a = p[kHexFaceAxes[lf][0]], b = p[kHexFaceAxes[lf][1]];
+    r.kind = EntityKind::Face;
+    r.entity = f;
+    r.local = {fm.u(a, b), fm.v(a, b), 0};
+    return r;
+  }
+  r.kind = EntityKind::Cell;
+  r.entity = h;
+  r.local = {i, j, k};
+  return r;
+}
+
+Vec3 FineMesh::cell_point(Id h, Id i, Id j, Id k) const {
+  const auto n = num_.elem_n(h);
+  const Id P[6][3] = {{0, j, k}, {n[0], j, k}, {i, 0, k}, {i, n[1], k}, {i, j, 0}, {i, j, n[2]}};
+  const Id E[12][3] = {{i, 0, 0},    {i, n[1], 0},    {i, 0, n[2]},    {i, n[1], n[2]},
+                       {0, j, 0},    {n[0], j, 0},    {0, j, n[2]},    {n[0], j, n[2]},
+                       {0, 0, k},    {n[0], 0, k},    {n[0], n[1], k}, {0, n[1], k}};
+  double f[3][6], e[3][12], c[3][8];
+  for (int q = 0; q < 6; ++q) {
+    const Vec3 x = node(grid_node(h, P[q][0], P[q][1], P[q][2]));
+    f[0][q] = x.x, f[1][q] = x.y, f[2][q] = x.z;
+  }
+  for (int q = 0; q < 12; ++q) {
+    const Vec3 x = node(grid_node(h, E[q][0], E[q][1], E[q][2]));
+    e[0][q] = x.x, e[1][q] = x.y, e[2][q] = x.z;
+  }
+  for (int q = 0; q < 8; ++q) {
+    const Vec3 x = coarse_.vertex(coarse_.conn[static_cast<size_t>(h) * 8 + q]);
+    c[0][q] = x.x, c[1][q] = x.y, c[2][q] = x.z;
+  }
+  const double u = tfi::weight(i, n[0]), v = tfi::weight(j, n[1]), w = tfi::weight(k, n[2]);
+  return {tfi::hex(u, v, w, f[0], e[0], c[0]), tfi::hex(u, v, w, f[1], e[1], c[1]),
+          tfi::hex(u, v, w, f[2], e[2], c[2])};
+}
+
+Vec3 FineMesh::node(const NodeRef& r) const {
+  switch (r.kind) {
+    case EntityKind::Vertex: return coarse_.vertex(r.entity);
+    case EntityKind::Edge: return edge_point(r.entity, r.local[0]);
+    case EntityKind::Face: return face_point(r.entity, r.local[0], r.local[1]);
+    case EntityKind::Cell: return cell_point(r.entity, r.local[0], r.local[1], r.local[2]);
+  }
+  return {};
+}
+
+Vec3 FineMesh::node(Id id) const {
+  if (id < 0 || id >= num_nodes())
+    throw Error(ErrorKind::Usage, "node id " + std::to_string(id) + " is out of range (the mesh has " +
+                                      std::to_string(num_nodes()) + " nodes)");
+  return node(num_.locate_node(id));
+}
+
+FineElement FineMesh::element(Id id) const {
+  if (id < 0 || id >= num_elements())
+    throw Error(ErrorKind::Usage, "element id " + std::to_string(id) + " is out of range (the mesh has " +
+                                      std::to_string(num_elements()) + " elements)");
+  FineElement el;
+  el.id = id;
+  el.coarse_element = num_.locate_element(id, el.ijk);
+  el.block = coarse_.element_block[el.coarse_element];
+  const auto [i, j, k] = el.ijk;
+  const Id h = el.coarse_element;
+  if (mode() == Mode::Volume) {
+    el.num_nodes = 8;
+    for (int q = 0; q < 8; ++q)
+      el.nodes[q] = num_.node_id(grid_node(h, i + kHexCorner[q][0], j + kHexCorner[q][1], k + kHexCorner[q][2]));
+  } else {
+    el.num_nodes = 4;
+    for (int q = 0; q < 4; ++q)
+      el.nodes[q] = num_.node_id(grid_node(h, i + kHexCorner[q][0], j + kHexCorner[q][1], 0));
+  }
+  return el;
+}
+
+void FineMesh::fill_block(Id h, FineBlock& b) const {
+  const auto n = num_.elem_n(h);
+  const bool vol = mode() == Mode::Volume;
+  b.coarse_element = h;
+  b.n = n;
+  b.first_element = num_.elem_first_element(h);
+  const Id ni = n[0] + 1, nj = n[1] + 1, nk = vol ? n[2] + 1 : 1;
+  const size_t np = static_cast<size_t>(ni * nj * nk);
+  b.node_id.resize(np);
+  b.x.resize(np), b.y.resize(np), b.z.resize(np);
+  // Boundary points from their owners; interior ids directly.
+  for (Id k = 0; k < nk; ++k)
+    for (Id j = 0; j < nj; ++j)
+      for (Id i = 0; i < ni; ++i) {
+        const Id g = b.point_index(i, j, k);
+        const NodeRef r = grid_node(h, i, j, k);
+        b.node_id[g] = num_.node_id(r);
+        if (r.kind == EntityKind::Cell) continue;
+        const Vec3 x = node(r);
+        b.x[g] = x.x, b.y[g] = x.y, b.z[g] = x.z;
+      }
+  if (vol && n[0] > 1 && n[1] > 1 && n[2] > 1) {
+    // Hex interior: the same tfi::hex as cell_point, fed from the boundary
+    // values just computed (bit-identical to the owners' evaluations).
+    double c[3][8];
+    for (int q = 0; q < 8; ++q) {
+      const Id g = b.point_index(kHexCorner[q][0] * n[0], kHexCorner[q][1] * n[1], kHexCorner[q][2] * n[2]);
+      c[0][q] = b.x[g], c[1][q] = b.y[g], c[2][q] = b.z[g];
+    }
+    const double* arr[3] = {b.x.data(), b.y.data(), b.z.data()};
+    double* out[3] = {b.x.data(), b.y.data(), b.z.data()};
+    for (Id k = 1; k < n[2]; ++k) {
+      const double w = tfi::weight(k, n[2]);
+      for (Id j = 1; j < n[1]; ++j) {
+        const double v = tfi::weight(j, n[1]);
+        const Id P[6] = {0, 0, b.point_index(0, 0, k), b.point_index(0, n[1], k), b.point_index(0, j, 0),
+                         b.point_index(0, j, n[2])};
+        const Id E[12] = {0, 0, 0, 0, b.point_index(0, j, 0), b.point_index(n[0], j, 0), b.point_index(0, j, n[2]),
+                          b.point_index(n[0], j, n[2]), b.point_index(0, 0, k), b.point_index(n[0], 0, k),
+                          b.point_index(n[0], n[1], k), b.point_index(0, n[1], k)};
+        const Id f0 = b.point_index(0, j, k), f1 = b.point_index(n[0], j, k);
+        for (Id i = 1; i < n[0]; ++i) {
+          const double u = tfi::weight(i, n[0]);
+          const Id g = b.point_index(i, j, k);
+          for (int d = 0; d < 3; ++d) {
+            const double* a = arr[d];
+            const double f[6] = {a[f0], a[f1], a[P[2] + i], a[P[3] + i], a[P[4] + i], a[P[5] + i]};
+            const double e[12] = {a[b.point_index(i, 0, 0)], a[b.point_index(i, n[1], 0)],
+                                  a[b.point_index(i, 0, n[2])], a[b.point_index(i, n[1], n[2])],
+                                  a[E[4]], a[E[5]], a[E[6]], a[E[7]], a[E[8]], a[E[9]], a[E[10]], a[E[11]]};
+            out[d][g] = tfi::hex(u, v, w, f, e, c[d]);
+          }
+        }
+      }
+    }
+  }
+  // Connectivity.
+  const int nc = corners();
+  b.conn.resize(static_cast<size_t>(b.num_elements()) * nc);
+  Id* out = b.conn.data();
+  for (Id k = 0; k < n[2]; ++k)
+    for (Id j = 0; j < n[1]; ++j)
+      for (Id i = 0; i < n[0]; ++i)
+        for (int q = 0; q < nc; ++q)
+          *out++ = b.node_id[b.point_index(i + kHexCorner[q][0], j + kHexCorner[q][1], vol ? k + kHexCorner[q][2] : 0)];
+}
+
+std::vector<Id> FineMesh::block_fine_elements() const {
+  std::vector<Id> count(coarse_.blocks.size(), 0);
+  for (Id h = 0; h < num_coarse_elements(); ++h) count[coarse_.element_block[h]] += num_.elem_num_elements(h);
+  return count;
+}
+
+NodeCursor::NodeCursor(const FineMesh& mesh, Id begin, Id end)
+    : mesh_(mesh), next_(std::max<Id>(begin, 0)), end_(std::min(end, mesh.num_nodes())) {}
+
+bool NodeCursor::next(Id& id, Vec3& xyz) {
+  if (next_ >= end_) return false;
+  id = next_++;
+  const NodeRef r = mesh_.numbering().locate_node(id);
+  if (r.kind != EntityKind::Cell) {
+    xyz = mesh_.node(r);
+    return true;
+  }
+  if (block_cell_ != r.entity) {
+    mesh_.fill_block(r.entity, block_);
+    block_cell_ = r.entity;
+  }
+  const Id g = block_.point_index(r.local[0], r.local[1], r.local[2]);
+  xyz = {block_.x[g], block_.y[g], block_.z[g]};
+  return true;
+}
+
+ElementCursor::ElementCursor(const FineMesh& mesh, Id begin, Id end)
+    : mesh_(mesh), next_(std::max<Id>(begin, 0)), end_(std::min(end, mesh.num_elements())) {}
+
+bool ElementCursor::next(FineElement& el) {
+  if (next_ >= end_) return false;
+  el.id = next_++;
+  const Numbering& num = mesh_.numbering();
+  el.coarse_element = num.locate_element(el.id, el.ijk);
+  if (block_.coarse_element != el.coarse_element || block_.node_id.empty())
+    mesh_.fill_block(el.coarse_element, block_);
+  el.block = mesh_.coarse().element_block[el.coarse_element];
+  el.num_nodes = mesh_.corners();
+  const Id local = el.id - block_.first_element;
+  std::copy_n(&block_.conn[static_cast<size_t>(local) * el.num_nodes], el.num_nodes, el.nodes.begin());
+  return true;
+}
+
+}  // namespace dicer

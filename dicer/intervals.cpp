@@ -1,0 +1,179 @@
+#include "dicer/intervals.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>  // Debian's nlohmann-json3-dev: a small, well-kept parser beats our own
+
+#include "dicer/error.hpp"
+
+namespace dicer {
+
+namespace {
+constexpr Id kMaxInterval = Id{1} << 40;  // any larger overflows counts long before
+
+Id checked_interval(const std::string& what, long double n) {
+  if (!(n >= 1) || n != std::floor(n))
+    throw Error(ErrorKind::Usage, what + ": interval must be a whole number >= 1 (got " +
+                                      std::to_string(static_cast<double>(n)) + ")");
+  if (n > kMaxInterval)
+    throw Error(ErrorKind::Overflow, what + ": interval " + std::to_string(static_cast<double>(n)) +
+                                         " is too large (limit 2^40)");
+  return static_cast<Id>(n);
+}
+}  // namespace
+
+IntervalRequest read_interval_file(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw Error(ErrorKind::Io, path + ": cannot open intervals file");
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::exception& e) {
+    throw Error(ErrorKind::Usage, path + ": not valid JSON: " + e.what());
+  }
+  if (!j.is_object()) throw Error(ErrorKind::Usage, path + ": top level must be a JSON object");
+  IntervalRequest r;
+  auto number = [&](const nlohmann::json& v, const std::string& where) -> long double {
+    if (!v.is_number()) throw Error(ErrorKind::Usage, path + ": " + where + ": must be a number");
+    return v.get<long double>();
+  };
+  for (auto it = j.begin(); it != j.end(); ++it) {
+    const std::string& k = it.key();
+    if (k == "global") {
+      r.global = checked_interval(path + ": global", number(*it, k));
+    } else if (k == "size") {
+      const double s = static_cast<double>(number(*it, k));
+      if (!(s > 0) || !std::isfinite(s)) throw Error(ErrorKind::Usage, path + ": size must be a positive number");
+      r.size = s;
+    } else if (k == "blocks" || k == "sheets") {
+      if (!it->is_object()) throw Error(ErrorKind::Usage, path + ": " + k + " must be an object");
+      for (auto b = it->begin(); b != it->end(); ++b) {
+        const Id n = checked_interval(path + ": " + k + " \"" + b.key() + "\"", number(*b, k + "." + b.key()));
+        if (k == "blocks") {
+          r.blocks.emplace_back(b.key(), n);
+        } else {
+          char* end = nullptr;
+          const long long s = std::strtoll(b.key().c_str(), &end, 10);
+          if (b.key().empty() || *end != '\0' || s < 0)
+            throw Error(ErrorKind::Usage, path + ": sheets: \"" + b.key() + "\" is not a sheet id");
+          r.sheets.emplace_back(s, n);
+        }
+      }
+    } else {
+      throw Error(ErrorKind::Usage, path + ": unknown key \"" + k + "\" (known: global, size, blocks, sheets)");
+    }
+  }
+  return r;
+}
+
+IntervalRequest merge(IntervalRequest base, const IntervalRequest& over) {
+  if (over.global) base.global = over.global;
+  if (over.size) base.size = over.size;
+  for (const auto& b : over.blocks) {
+    std::erase_if(base.blocks, [&](const auto& x) { return x.first == b.first; });
+    base.blocks.push_back(b);
+  }
+  for (const auto& s : over.sheets) {
+    std::erase_if(base.sheets, [&](const auto& x) { return x.first == s.first; });
+    base.sheets.push_back(s);
+  }
+  return base;
+}
+
+IntervalPlan resolve_intervals(const CoarseMesh& mesh, const Topology& topo, const Sheets& sheets,
+                               const IntervalRequest& req) {
+  const Id ns = sheets.num_sheets();
+  IntervalPlan plan;
+  plan.sheet_interval.assign(static_cast<size_t>(ns), 0);
+
+  // Block requests by block index.
+  std::vector<Id> block_n(mesh.blocks.size(), 0);
+  for (const auto& [key, n] : req.blocks) {
+    checked_interval("block " + key, static_cast<long double>(n));
+    int found = -1;
+    for (size_t b = 0; b < mesh.blocks.size() && found < 0; ++b)
+      if (std::to_string(mesh.blocks[b].id) == key) found = static_cast<int>(b);
+    for (size_t b = 0; b < mesh.blocks.size() && found < 0; ++b)
+      if (!mesh.blocks[b].name.empty() && mesh.blocks[b].name == key) found = static_cast<int>(b);
+    if (found < 0) {
+      std::string known;
+      for (const auto& b : mesh.blocks)
+        known += (known.empty() ? "" : ", ") + std::to_string(b.id) + (b.name.empty() ? "" : " (" + b.name + ")");
+      throw Error(ErrorKind::Usage, mesh.source + ": no block with id or name \"" + key + "\" (blocks: " + known + ")");
+    }
+    block_n[found] = n;
+  }
+  std::vector<Id> sheet_n(static_cast<size_t>(ns), 0);
+  for (const auto& [s, n] : req.sheets) {
+    checked_interval("sheet " + std::to_string(s), static_cast<long double>(n));
+    if (s < 0 || s >= ns)
+      throw Error(ErrorKind::Usage, mesh.source + ": no sheet " + std::to_string(s) + " (the mesh has " +
+                                        std::to_string(ns) + " sheets, ids 0.." + std::to_string(ns - 1) + ")");
+    sheet_n[s] = n;
+  }
+  if (req.global) checked_interval("--interval", static_cast<long double>(*req.global));
+  if (req.size && !(*req.size > 0 && std::isfinite(*req.size)))
+    throw Error(ErrorKind::Usage, "--size must be a positive number");
+
+  // Size rule: longest edge of each sheet.
+  std::vector<double> longest;
+  if (req.size) {
+    longest.assign(static_cast<size_t>(ns), 0.0);
+    for (Id e = 0; e < topo.num_edges(); ++e) {
+      const Vec3 a = mesh.vertex(topo.edge_v[2 * e]), b = mesh.vertex(topo.edge_v[2 * e + 1]);
+      const double len = std::sqrt((b.x - a.x) * (b.x - a.x) + (b.y - a.y) * (b.y - a.y) + (b.z - a.z) * (b.z - a.z));
+      longest[sheets.edge_sheet[e]] = std::max(longest[sheets.edge_sheet[e]], len);
+    }
+  }
+  auto block_label = [&](std::int32_t b) {
+    return "block " + std::to_string(mesh.blocks[b].id) +
+           (mesh.blocks[b].name.empty() ? "" : " (" + mesh.blocks[b].name + ")");
+  };
+
+  for (Id s = 0; s < ns; ++s) {
+    // Block requests touching this sheet.
+    Id bmax = 0;
+    std::string touched;
+    bool differ = false;
+    for (Id i = sheets.block_offset[s]; i < sheets.block_offset[s + 1]; ++i) {
+      const std::int32_t b = sheets.block_index[i];
+      if (block_n[b] == 0) continue;
+      if (bmax != 0 && block_n[b] != bmax) differ = true;
+      bmax = std::max(bmax, block_n[b]);
+      touched += (touched.empty() ? "" : ", ") + block_label(b) + " asks " + std::to_string(block_n[b]);
+    }
+    Id n = 0;
+    if (sheet_n[s] > 0) {
+      n = sheet_n[s];
+      if (bmax > 0 && (differ || bmax != n))
+        plan.notes.push_back("sheet " + std::to_string(s) + ": sheet interval " + std::to_string(n) +
+                             " overrides its blocks (" + touched + ")");
+    } else if (bmax > 0) {
+      n = bmax;
+      if (differ)
+        plan.notes.push_back("sheet " + std::to_string(s) + " touches blocks with different intervals (" + touched +
+                             "): using the largest, " + std::to_string(n));
+    } else if (req.size) {
+      const long double q = std::ceil(static_cast<long double>(longest[s]) / *req.size);
+      n = checked_interval("sheet " + std::to_string(s) + " at --size", std::max<long double>(q, 1));
+    } else if (req.global) {
+      n = *req.global;
+    } else {
+      n = 1;
+    }
+    plan.sheet_interval[s] = n;
+  }
+  if (req.size && req.global)
+    plan.notes.push_back("both --size and --interval given: --size sets every sheet without a sheet or block "
+                         "request; --interval is unused");
+  return plan;
+}
+
+std::vector<Id> edge_intervals(const Sheets& sheets, const IntervalPlan& plan) {
+  std::vector<Id> n(sheets.edge_sheet.size());
+  for (size_t e = 0; e < n.size(); ++e) n[e] = plan.sheet_interval[sheets.edge_sheet[e]];
+  return n;
+}
+
+}  // namespace dicer

@@ -1,0 +1,49 @@
+// Canonical orientation (see include/dicer/orientation.hpp): the only file
+// that turns local corner orders into canonical ones.
+#include "dicer/orientation.hpp"
+
+namespace dicer {
+
+FaceCode compose(FaceCode a, FaceCode b) {
+  for (int c = 0; c < 8; ++c) {
+    bool ok = true;
+    for (int m = 0; m < 4 && ok; ++m)
+      ok = code_corner(static_cast<FaceCode>(c), m) == code_corner(a, code_corner(b, m));
+    if (ok) return static_cast<FaceCode>(c);
+  }
+  return 0;  // unreachable: D4 is closed under composition
+}
+
+FaceCode inverse(FaceCode a) {
+  for (int c = 0; c < 8; ++c)
+    if (compose(static_cast<FaceCode>(c), a) == 0) return static_cast<FaceCode>(c);
+  return 0;  // unreachable
+}
+
+CanonicalQuad canonical_quad(const std::array<Id, 4>& h) {
+  int r = 0;
+  for (int m = 1; m < 4; ++m)
+    if (h[m] < h[r]) r = m;
+  const int s = h[(r + 1) % 4] < h[(r + 3) % 4] ? 1 : -1;
+  CanonicalQuad q{};
+  for (int m = 0; m < 4; ++m) q.v[m] = h[((r + s * m) % 4 + 4) % 4];
+  // Local corner m is canonical corner k with r + s*k == m, i.e. k = s*(m - r).
+  q.code = make_code((s == 1 ? -r : r) & 3, s == -1);
+  return q;
+}
+
+FaceMap face_map(FaceCode code, std::int64_t nu, std::int64_t nv) {
+  // Canonical grid position of canonical corner k.
+  auto corner = [&](int k, std::int64_t& u, std::int64_t& v) {
+    u = (k == 1 || k == 2) ? nu : 0;
+    v = (k == 2 || k == 3) ? nv : 0;
+  };
+  std::int64_t u0, v0, u1, v1, u3, v3;
+  corner(code_corner(code, 0), u0, v0);
+  corner(code_corner(code, 1), u1, v1);
+  corner(code_corner(code, 3), u3, v3);
+  auto sgn = [](std::int64_t d) -> std::int64_t { return (d > 0) - (d < 0); };
+  return FaceMap{u0, v0, sgn(u1 - u0), sgn(u3 - u0), sgn(v1 - v0), sgn(v3 - v0)};
+}
+
+}  // namespace dicer

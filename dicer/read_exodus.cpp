@@ -1,0 +1,577 @@
+// Exodus II reader: builds a CoarseMesh through the Exodus II C library.
+//
+// The file is opened read-only with 8-byte floats and the int64 API, so all
+// ids, counts and connectivity come back as int64 and float32 coordinates are
+// widened by the library. Every failing library call becomes a dicer::Error
+// naming the file and the entity; the file is always closed (ExodusFile).
+//
+// Counts from the header are checked against the file size before anything
+// is allocated, so a hostile header cannot make us allocate terabytes.
+// Geometry (handedness, duplicates, unused vertices) is left to
+// validate_coarse_mesh.
+#include <exodusII.h>
+#include <fcntl.h>
+#include <netcdf.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <limits>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "dicer/coarse_mesh.hpp"
+#include "dicer/error.hpp"
+
+namespace dicer {
+namespace {
+
+// ---------------------------------------------------------------- errors ---
+
+// The library keeps its last message in a static buffer; we clear it before
+// each call so that a failure reports its own message, never a stale one.
+void clear_exodus_error() { ex_err("dicer", "", EX_MSG); }
+
+std::string exodus_reason(int rc) {
+  const char* msg = nullptr;
+  const char* func = nullptr;
+  int code = 0;
+  ex_get_err(&msg, &func, &code);
+  std::string text = (msg != nullptr) ? msg : "";
+  // Library messages contain tabs and newlines; keep the error on one line.
+  for (char& c : text)
+    if (c == '\n' || c == '\t') c = ' ';
+  while (!text.empty() && text.back() == ' ') text.pop_back();
+  if (text.rfind("Error: ", 0) == 0) text.erase(0, 7);
+  if (code != 0 && code != EX_MSG && code > -1000 && code < 1000) {
+    if (!text.empty()) text += ": ";
+    text += nc_strerror(code);
+  }
+  if (text.empty()) text = "exodus error code " + std::to_string(rc);
+  return text;
+}
+
+[[noreturn]] void fail(ErrorKind kind, const std::string& path, const std::string& what) {
+  throw Error(kind, path + ": " + what);
+}
+
+// Checks the return code of an Exodus call: negative is an error (positive
+// values are warnings such as "no names stored", which are harmless here).
+void check(int rc, const std::string& path, const std::string& what) {
+  if (rc < 0) fail(ErrorKind::BadInput, path, what + " failed (" + exodus_reason(rc) + ")");
+}
+
+// ----------------------------------------------------------- file access ---
+
+class ExodusFile {
+ public:
+  explicit ExodusFile(int id) : id_(id) {}
+  ~ExodusFile() {
+    if (id_ >= 0) ex_close(id_);
+  }
+  ExodusFile(const ExodusFile&) = delete;
+  ExodusFile& operator=(const ExodusFile&) = delete;
+  int id() const { return id_; }
+
+ private:
+  int id_;
+};
+
+struct FileFacts {
+  std::int64_t size = 0;
+  bool netcdf_magic = false;  // "CDF\1", "CDF\2", "CDF\5" or the HDF5 signature
+};
+
+// Opens the file with the OS first so that a missing or unreadable file is
+// an I/O error, not a "bad Exodus file".
+FileFacts probe_file(const std::string& path) {
+  int fd = ::open(path.c_str(), O_RDONLY);
+  if (fd < 0) fail(ErrorKind::Io, path, std::string("cannot open: ") + std::strerror(errno));
+  struct stat st {};
+  if (::fstat(fd, &st) != 0) {
+    int err = errno;
+    ::close(fd);
+    fail(ErrorKind::Io, path, std::string("cannot stat: ") + std::strerror(err));
+  }
+  if (S_ISDIR(st.st_mode)) {
+    ::close(fd);
+    fail(ErrorKind::Io, path, "is a directory");
+  }
+  unsigned char magic[8] = {};
+  ssize_t got = ::read(fd, magic, sizeof magic);
+  int err = errno;
+  ::close(fd);
+  if (got < 0) fail(ErrorKind::Io, path, std::string("cannot read: ") + std::strerror(err));
+
+  FileFacts facts;
+  facts.size = static_cast<std::int64_t>(st.st_size);
+  const bool cdf = got >= 4 && magic[0] == 'C' && magic[1] == 'D' && magic[2] == 'F' &&
+                   (magic[3] == 1 || magic[3] == 2 || magic[3] == 5);
+  static const unsigned char hdf5[8] = {0x89, 'H', 'D', 'F', '\r', '\n', 0x1a, '\n'};
+  const bool h5 = got == 8 && std::memcmp(magic, hdf5, 8) == 0;
+  facts.netcdf_magic = cdf || h5;
+  return facts;
+}
+
+// Saturating a * b for non-negative sizes.
+std::uint64_t mul_sat(std::uint64_t a, std::uint64_t b) {
+  if (a != 0 && b > std::numeric_limits<std::uint64_t>::max() / a)
+    return std::numeric_limits<std::uint64_t>::max();
+  return a * b;
+}
+std::uint64_t add_sat(std::uint64_t a, std::uint64_t b) {
+  return (b > std::numeric_limits<std::uint64_t>::max() - a) ? std::numeric_limits<std::uint64_t>::max()
+                                                             : a + b;
+}
+
+// netCDF-3 (classic, 64-bit offset, CDF5) reads past the end of a truncated
+// file as zeros without any error. The data of all variables must fit in the
+// file, so a file shorter than the sum of their sizes is truncated (or its
+// header lies). HDF5-based files detect truncation themselves.
+void check_classic_not_truncated(int ncid, const std::string& path, std::int64_t file_size) {
+  int format = 0;
+  if (nc_inq_format(ncid, &format) != NC_NOERR) return;
+  if (format != NC_FORMAT_CLASSIC && format != NC_FORMAT_64BIT_OFFSET && format != NC_FORMAT_64BIT_DATA)
+    return;
+  int nvars = 0, unlim = -1;
+  if (nc_inq_nvars(ncid, &nvars) != NC_NOERR) return;
+  nc_inq_unlimdim(ncid, &unlim);
+  std::size_t numrecs = 0;
+  if (unlim >= 0) nc_inq_dimlen(ncid, unlim, &numrecs);
+
+  std::uint64_t needed = 0;
+  for (int v = 0; v < nvars; ++v) {
+    nc_type type{};
+    int ndims = 0;
+    if (nc_inq_var(ncid, v, nullptr, &type, &ndims, nullptr, nullptr) != NC_NOERR) return;
+    std::vector<int> dims(static_cast<std::size_t>(std::max(ndims, 0)));
+    if (nc_inq_vardimid(ncid, v, dims.data()) != NC_NOERR) return;
+    std::size_t type_size = 0;
+    if (nc_inq_type(ncid, type, nullptr, &type_size) != NC_NOERR) return;
+    std::uint64_t bytes = type_size;
+    for (int d : dims) {
+      std::size_t len = 0;
+      if (nc_inq_dimlen(ncid, d, &len) != NC_NOERR) return;
+      bytes = mul_sat(bytes, d == unlim ? numrecs : len);  // len of unlim dim is numrecs too
+    }
+    needed = add_sat(needed, bytes);
+  }
+  if (needed > static_cast<std::uint64_t>(file_size)) {
+    std::ostringstream os;
+    os << "not a readable Exodus II file (truncated: its header describes at least " << needed
+       << " bytes of data, but the file has " << file_size << " bytes)";
+    fail(ErrorKind::BadInput, path, os.str());
+  }
+}
+
+// Bytes the file may hold per stored byte: 1 for netCDF-3; HDF5 files can be
+// compressed, so allow a generous ratio there.
+std::uint64_t storage_budget(int ncid, std::int64_t file_size) {
+  int format = 0;
+  nc_inq_format(ncid, &format);
+  const bool compressible = format == NC_FORMAT_NETCDF4 || format == NC_FORMAT_NETCDF4_CLASSIC;
+  return mul_sat(static_cast<std::uint64_t>(std::max<std::int64_t>(file_size, 0)), compressible ? 1024 : 1);
+}
+
+// A count read from the header must be non-negative and its data (at least
+// bytes_each bytes per item) must fit in the file.
+void check_count(std::int64_t count, std::uint64_t bytes_each, std::uint64_t budget, std::int64_t file_size,
+                 const std::string& path, const std::string& what) {
+  if (count < 0) fail(ErrorKind::BadInput, path, "header claims a negative number of " + what);
+  if (mul_sat(static_cast<std::uint64_t>(count), bytes_each) > budget) {
+    std::ostringstream os;
+    os << "header claims " << count << " " << what << ", more than a file of " << file_size
+       << " bytes can hold (corrupt or hostile header)";
+    fail(ErrorKind::BadInput, path, os.str());
+  }
+}
+
+// ------------------------------------------------------------ small utils ---
+
+std::string trim(std::string s) {
+  while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back()))) s.pop_back();
+  std::size_t i = 0;
+  while (i < s.size() && std::isspace(static_cast<unsigned char>(s[i]))) ++i;
+  return s.substr(i);
+}
+
+std::string upper(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  return s;
+}
+
+// Names of all entities of one type, in ex_get_ids order ("" where unnamed).
+std::vector<std::string> read_names(int exoid, ex_entity_type type, std::int64_t count, int name_len,
+                                    const std::string& path, const std::string& what) {
+  std::vector<std::string> names(static_cast<std::size_t>(count));
+  if (count == 0) return names;
+  std::vector<std::vector<char>> buffers(static_cast<std::size_t>(count),
+                                         std::vector<char>(static_cast<std::size_t>(name_len) + 1, '\0'));
+  std::vector<char*> pointers;
+  for (auto& b : buffers) pointers.push_back(b.data());
+  clear_exodus_error();
+  check(ex_get_names(exoid, type, pointers.data()), path, "reading " + what + " names");
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    buffers[i].back() = '\0';
+    names[i] = trim(buffers[i].data());
+  }
+  return names;
+}
+
+std::vector<std::int64_t> read_ids(int exoid, ex_entity_type type, std::int64_t count, const std::string& path,
+                                   const std::string& what) {
+  std::vector<std::int64_t> ids(static_cast<std::size_t>(count));
+  if (count == 0) return ids;
+  clear_exodus_error();
+  check(ex_get_ids(exoid, type, ids.data()), path, "reading " + what + " ids");
+  return ids;
+}
+
+// A file id map (node or element). Without a stored map the library returns
+// 1..n. A map of all zeros (legacy files) or with duplicates is useless for
+// messages, so fall back to 1..n with a warning.
+std::vector<Id> read_id_map(int exoid, ex_entity_type type, std::int64_t count, const std::string& path,
+                            const std::string& what, std::vector<std::string>& warnings) {
+  std::vector<Id> map(static_cast<std::size_t>(count));
+  if (count == 0) return map;
+  clear_exodus_error();
+  check(ex_get_id_map(exoid, type, map.data()), path, "reading the " + what + " id map");
+  std::vector<Id> sorted = map;
+  std::sort(sorted.begin(), sorted.end());
+  const bool all_zero = sorted.front() == 0 && sorted.back() == 0;
+  const bool duplicates = std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end();
+  if (all_zero || duplicates) {
+    warnings.push_back(path + ": the " + what + " id map " +
+                       (all_zero ? "is all zeros" : "has duplicate ids") + "; using " + what + " ids 1.." +
+                       std::to_string(count));
+    for (std::size_t i = 0; i < map.size(); ++i) map[i] = static_cast<Id>(i) + 1;
+  }
+  return map;
+}
+
+// ----------------------------------------------------------- block types ---
+
+enum class Shape { Hex, Quad, Shell, Other };
+
+Shape classify(const std::string& type, std::int64_t nodes_per_element) {
+  const std::string t = upper(type);
+  if ((t == "HEX8" || t == "HEX" || t == "HEXAHEDRON") && nodes_per_element == 8) return Shape::Hex;
+  if ((t == "QUAD4" || t == "QUAD") && nodes_per_element == 4) return Shape::Quad;
+  if ((t == "SHELL4" || t == "SHELL") && nodes_per_element == 4) return Shape::Shell;
+  return Shape::Other;
+}
+
+struct BlockInfo {
+  std::int64_t id = 0;
+  std::string name;
+  std::string type;
+  std::int64_t count = 0;
+  std::int64_t nodes_per_element = 0;
+  Shape shape = Shape::Other;
+  bool kept = false;          // its elements go into the mesh
+  std::int32_t index = -1;    // position in mesh.blocks when kept
+};
+
+std::string describe_type(const BlockInfo& b) {
+  std::string t = b.type.empty() ? std::string("(untyped)") : b.type;
+  // A generic name with an unexpected node count ("HEX" with 20 nodes).
+  const std::string u = upper(b.type);
+  const bool generic = u == "HEX" || u == "HEX8" || u == "HEXAHEDRON" || u == "QUAD" || u == "QUAD4" ||
+                       u == "SHELL" || u == "SHELL4";
+  if (generic) t += " with " + std::to_string(b.nodes_per_element) + " nodes per element";
+  return t;
+}
+
+}  // namespace
+
+CoarseMesh read_exodus(const std::string& path) {
+  const FileFacts facts = probe_file(path);
+
+  // Let netCDF try first: when it cannot open the file, ex_open prints its
+  // own guess (a misleading "netcdf-4 not supported") straight to stderr.
+  {
+    int ncid = -1;
+    const int status = nc_open(path.c_str(), NC_NOWRITE, &ncid);
+    if (status != NC_NOERR) {
+      const std::string reason = facts.size == 0          ? "the file is empty"
+                                 : !facts.netcdf_magic ? "no netCDF or HDF5 signature"
+                                                       : std::string(nc_strerror(status));
+      fail(ErrorKind::BadInput, path, "not a readable Exodus II file (" + reason + ")");
+    }
+    nc_close(ncid);
+  }
+
+  ex_opts(0);  // no chatter on stderr, never abort; we report errors ourselves
+  int cpu_word_size = 8, io_word_size = 0;
+  float version = 0;
+  clear_exodus_error();
+  const int exoid = ex_open(path.c_str(), EX_READ, &cpu_word_size, &io_word_size, &version);
+  if (exoid < 0)
+    fail(ErrorKind::BadInput, path, "not a readable Exodus II file (" + exodus_reason(exoid) + ")");
+  ExodusFile file(exoid);
+  clear_exodus_error();
+  check(ex_set_int64_status(exoid, EX_ALL_INT64_API), path, "selecting the 64-bit integer API");
+
+  ex_init_params init{};
+  clear_exodus_error();
+  if (ex_get_init_ext(exoid, &init) < 0)
+    fail(ErrorKind::BadInput, path,
+         "not a readable Exodus II file (reading the header failed: " + exodus_reason(-1) + ")");
+
+  // ---- sanity of the header counts before any allocation ----
+  const std::uint64_t budget = storage_budget(exoid, facts.size);
+  if (init.num_dim < 1 || init.num_dim > 3)
+    fail(ErrorKind::BadInput, path, "header claims " + std::to_string(init.num_dim) + " dimensions");
+  check_count(init.num_nodes, 4 * static_cast<std::uint64_t>(init.num_dim), budget, facts.size, path, "nodes");
+  check_count(init.num_elem, 4, budget, facts.size, path, "elements");
+  check_count(init.num_elem_blk, 4, budget, facts.size, path, "element blocks");
+  check_count(init.num_side_sets, 4, budget, facts.size, path, "side sets");
+  check_count(init.num_node_sets, 4, budget, facts.size, path, "node sets");
+  check_classic_not_truncated(exoid, path, facts.size);
+
+  CoarseMesh mesh;
+  mesh.source = path;
+
+  // Longest stored name (CUBIT uses 32; newer files up to 256).
+  std::int64_t name_len = ex_inquire_int(exoid, EX_INQ_DB_MAX_USED_NAME_LENGTH);
+  name_len = std::clamp<std::int64_t>(name_len, 32, 256);
+  ex_set_max_name_length(exoid, static_cast<int>(name_len));
+  const int name_buf = static_cast<int>(name_len);
+
+  // ---- element blocks: types first, to decide the mode ----
+  const std::vector<std::int64_t> block_ids =
+      read_ids(exoid, EX_ELEM_BLOCK, init.num_elem_blk, path, "element block");
+  const std::vector<std::string> block_names =
+      read_names(exoid, EX_ELEM_BLOCK, init.num_elem_blk, name_buf, path, "element block");
+  std::vector<BlockInfo> blocks(block_ids.size());
+  std::int64_t total_elements = 0;
+  for (std::size_t b = 0; b < blocks.size(); ++b) {
+    BlockInfo& info = blocks[b];
+    info.id = block_ids[b];
+    info.name = block_names[b];
+    char type[MAX_STR_LENGTH + 1] = {};
+    std::int64_t edges = 0, faces = 0, attrs = 0;
+    const std::string what = "element block " + std::to_string(info.id);
+    clear_exodus_error();
+    check(ex_get_block(exoid, EX_ELEM_BLOCK, info.id, type, &info.count, &info.nodes_per_element, &edges,
+                       &faces, &attrs),
+          path, "reading " + what);
+    type[MAX_STR_LENGTH] = '\0';
+    info.type = trim(type);
+    check_count(info.count, 4, budget, facts.size, path, "elements in " + what);
+    if (info.nodes_per_element < 0 || info.nodes_per_element > 1000)
+      fail(ErrorKind::BadInput, path,
+           what + ": header claims " + std::to_string(info.nodes_per_element) + " nodes per element");
+    info.shape = classify(info.type, info.nodes_per_element);
+    total_elements += info.count;
+    if (total_elements > init.num_elem)
+      fail(ErrorKind::BadInput, path,
+           "element blocks hold more elements than the header's " + std::to_string(init.num_elem));
+  }
+  if (total_elements != init.num_elem)
+    fail(ErrorKind::BadInput, path,
+         "element blocks hold " + std::to_string(total_elements) + " elements but the header claims " +
+             std::to_string(init.num_elem));
+
+  bool has_hex = false, has_quad = false;
+  std::vector<std::string> unsupported;
+  for (const BlockInfo& b : blocks) {
+    if (b.count == 0) continue;
+    if (b.shape == Shape::Hex) has_hex = true;
+    if (b.shape == Shape::Quad || b.shape == Shape::Shell) has_quad = true;
+    if (b.shape == Shape::Other)
+      unsupported.push_back(std::to_string(b.count) + " " + describe_type(b) + " (block " + std::to_string(b.id) +
+                            ")");
+  }
+  if (!unsupported.empty()) {
+    std::string list;
+    for (const std::string& u : unsupported) list += (list.empty() ? "" : ", ") + u;
+    fail(ErrorKind::Unsupported, path,
+         "unsupported elements: " + list + "; dicer needs all-hex (HEX8) or all-quad (QUAD4/SHELL4) meshes");
+  }
+  mesh.mode = (has_quad && !has_hex) ? Mode::Surface : Mode::Volume;
+  if (mesh.mode == Mode::Volume && init.num_dim != 3 && has_hex)
+    fail(ErrorKind::BadInput, path,
+         "hexahedral mesh needs 3 coordinate dimensions, the file has " + std::to_string(init.num_dim));
+  if (mesh.mode == Mode::Surface && init.num_dim < 2)
+    fail(ErrorKind::BadInput, path,
+         "quadrilateral mesh needs 2 or 3 coordinate dimensions, the file has " + std::to_string(init.num_dim));
+
+  for (BlockInfo& b : blocks) {
+    const bool wanted = mesh.mode == Mode::Volume ? b.shape == Shape::Hex
+                                                  : (b.shape == Shape::Quad || b.shape == Shape::Shell);
+    if (b.count > 0 && !wanted) {
+      mesh.warnings.push_back(path + ": element block " + std::to_string(b.id) + ": skipped " +
+                              std::to_string(b.count) + " " + b.type + " elements (boundary faces of a hex mesh)");
+      continue;
+    }
+    b.kept = true;
+    b.index = static_cast<std::int32_t>(mesh.blocks.size());
+    mesh.blocks.push_back(Block{b.id, b.name});
+  }
+
+  // ---- nodes ----
+  const std::size_t num_nodes = static_cast<std::size_t>(init.num_nodes);
+  mesh.vertex_file_id = read_id_map(exoid, EX_NODE_MAP, init.num_nodes, path, "node", mesh.warnings);
+  mesh.x.assign(num_nodes, 0.0);
+  mesh.y.assign(num_nodes, 0.0);
+  mesh.z.assign(num_nodes, 0.0);
+  if (num_nodes > 0) {
+    clear_exodus_error();
+    check(ex_get_coord(exoid, mesh.x.data(), mesh.y.data(), init.num_dim >= 3 ? mesh.z.data() : nullptr), path,
+          "reading node coordinates");
+  }
+  bool all_zero = true;
+  for (std::size_t v = 0; v < num_nodes; ++v) {
+    all_zero = all_zero && mesh.x[v] == 0 && mesh.y[v] == 0 && mesh.z[v] == 0;
+    if (!std::isfinite(mesh.x[v]) || !std::isfinite(mesh.y[v]) || !std::isfinite(mesh.z[v])) {
+      std::ostringstream os;
+      os << "node " << mesh.vertex_file_id[v] << ": coordinate is not finite (" << mesh.x[v] << ", " << mesh.y[v]
+         << ", " << mesh.z[v] << ")";
+      fail(ErrorKind::BadInput, path, os.str());
+    }
+  }
+
+  // Exodus writes in netCDF no-fill mode, so coordinates that were never
+  // written read back as zeros: refuse that rather than dice a point.
+  if (all_zero && num_nodes > 1)
+    fail(ErrorKind::BadInput, path,
+         "node coordinates: all " + std::to_string(num_nodes) +
+             " nodes are at the origin (coordinates missing or never written)");
+
+  // ---- elements ----
+  const std::vector<Id> file_elem_id = read_id_map(exoid, EX_ELEM_MAP, init.num_elem, path, "element", mesh.warnings);
+  // File element index (0-based over all blocks) -> mesh element, -1 if skipped.
+  std::vector<Id> mesh_element(static_cast<std::size_t>(init.num_elem), -1);
+  // Per mesh element: does its block use QUAD numbering (edges 1..4)?
+  std::vector<bool> quad_numbering;
+  const int corners = mesh.corners_per_element();
+  std::int64_t kept_elements = 0;
+  for (const BlockInfo& b : blocks)
+    if (b.kept) kept_elements += b.count;
+  mesh.conn.reserve(static_cast<std::size_t>(kept_elements * corners));
+  mesh.element_file_id.reserve(static_cast<std::size_t>(kept_elements));
+  mesh.element_block.reserve(static_cast<std::size_t>(kept_elements));
+  std::size_t file_index = 0;
+  for (const BlockInfo& b : blocks) {
+    const std::size_t first = file_index;
+    file_index += static_cast<std::size_t>(b.count);
+    if (!b.kept || b.count == 0) continue;
+    const std::string what = "element block " + std::to_string(b.id);
+    std::vector<std::int64_t> conn(static_cast<std::size_t>(b.count * b.nodes_per_element));
+    clear_exodus_error();
+    check(ex_get_conn(exoid, EX_ELEM_BLOCK, b.id, conn.data(), nullptr, nullptr), path,
+          "reading the connectivity of " + what);
+    for (std::int64_t e = 0; e < b.count; ++e) {
+      const std::size_t fe = first + static_cast<std::size_t>(e);
+      for (int k = 0; k < corners; ++k) {
+        const std::int64_t node = conn[static_cast<std::size_t>(e * b.nodes_per_element + k)];
+        if (node < 1 || node > init.num_nodes) {
+          std::ostringstream os;
+          os << what << ": element " << file_elem_id[fe] << " references node " << node << " (file has "
+             << init.num_nodes << " nodes)";
+          fail(ErrorKind::BadInput, path, os.str());
+        }
+        mesh.conn.push_back(node - 1);
+      }
+      mesh_element[fe] = static_cast<Id>(mesh.element_file_id.size());
+      mesh.element_file_id.push_back(file_elem_id[fe]);
+      mesh.element_block.push_back(b.index);
+      quad_numbering.push_back(b.shape == Shape::Quad);
+    }
+  }
+
+  // ---- side sets ----
+  const std::vector<std::int64_t> side_set_ids = read_ids(exoid, EX_SIDE_SET, init.num_side_sets, path, "side set");
+  const std::vector<std::string> side_set_names =
+      read_names(exoid, EX_SIDE_SET, init.num_side_sets, name_buf, path, "side set");
+  for (std::size_t s = 0; s < side_set_ids.size(); ++s) {
+    SideSet set;
+    set.id = side_set_ids[s];
+    set.name = side_set_names[s];
+    const std::string what = "side set " + std::to_string(set.id);
+    std::int64_t count = 0, num_df = 0;
+    clear_exodus_error();
+    check(ex_get_set_param(exoid, EX_SIDE_SET, set.id, &count, &num_df), path, "reading " + what);
+    check_count(count, 8, budget, facts.size, path, "sides in " + what);
+    std::vector<std::int64_t> elems(static_cast<std::size_t>(count)), sides(static_cast<std::size_t>(count));
+    if (count > 0) {
+      clear_exodus_error();
+      check(ex_get_set(exoid, EX_SIDE_SET, set.id, elems.data(), sides.data()), path, "reading " + what);
+    }
+    std::int64_t dropped = 0;
+    for (std::size_t i = 0; i < elems.size(); ++i) {
+      const std::int64_t fe = elems[i];
+      if (fe < 1 || fe > init.num_elem) {
+        std::ostringstream os;
+        os << what << ": entry " << i + 1 << " references element " << fe << " (file has " << init.num_elem
+           << " elements)";
+        fail(ErrorKind::BadInput, path, os.str());
+      }
+      const Id e = mesh_element[static_cast<std::size_t>(fe - 1)];
+      if (e < 0) {
+        ++dropped;
+        continue;
+      }
+      // Exodus side numbers are 1-based: hex 1..6, shell 1..6 (1,2 faces,
+      // 3..6 edges), quad 1..4 (edges, stored as shell edges 2..5).
+      const bool quad = mesh.mode == Mode::Surface && quad_numbering[static_cast<std::size_t>(e)];
+      const std::int64_t max_side = quad ? 4 : 6;
+      const std::int64_t side = sides[i];
+      if (side < 1 || side > max_side) {
+        std::ostringstream os;
+        os << what << ": element " << mesh.element_file_id[static_cast<std::size_t>(e)] << " has side " << side
+           << " (a " << (mesh.mode == Mode::Volume ? "hex" : quad ? "quad" : "shell") << " has sides 1.." << max_side
+           << ")";
+        fail(ErrorKind::BadInput, path, os.str());
+      }
+      set.element.push_back(e);
+      set.side.push_back(static_cast<std::int8_t>(quad ? side + 1 : side - 1));
+    }
+    if (dropped > 0)
+      mesh.warnings.push_back(path + ": " + what + ": dropped " + std::to_string(dropped) +
+                              " sides on elements of skipped blocks");
+    mesh.side_sets.push_back(std::move(set));
+  }
+
+  // ---- node sets ----
+  const std::vector<std::int64_t> node_set_ids = read_ids(exoid, EX_NODE_SET, init.num_node_sets, path, "node set");
+  const std::vector<std::string> node_set_names =
+      read_names(exoid, EX_NODE_SET, init.num_node_sets, name_buf, path, "node set");
+  for (std::size_t s = 0; s < node_set_ids.size(); ++s) {
+    NodeSet set;
+    set.id = node_set_ids[s];
+    set.name = node_set_names[s];
+    const std::string what = "node set " + std::to_string(set.id);
+    std::int64_t count = 0, num_df = 0;
+    clear_exodus_error();
+    check(ex_get_set_param(exoid, EX_NODE_SET, set.id, &count, &num_df), path, "reading " + what);
+    check_count(count, 4, budget, facts.size, path, "nodes in " + what);
+    std::vector<std::int64_t> nodes(static_cast<std::size_t>(count));
+    if (count > 0) {
+      clear_exodus_error();
+      check(ex_get_set(exoid, EX_NODE_SET, set.id, nodes.data(), nullptr), path, "reading " + what);
+    }
+    set.vertex.reserve(nodes.size());
+    for (std::size_t i = 0; i < nodes.size(); ++i) {
+      if (nodes[i] < 1 || nodes[i] > init.num_nodes) {
+        std::ostringstream os;
+        os << what << ": entry " << i + 1 << " references node " << nodes[i] << " (file has " << init.num_nodes
+           << " nodes)";
+        fail(ErrorKind::BadInput, path, os.str());
+      }
+      set.vertex.push_back(nodes[i] - 1);
+    }
+    mesh.node_sets.push_back(std::move(set));
+  }
+
+  return mesh;
+}
+
+}  // namespace dicer

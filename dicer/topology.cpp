@@ -1,0 +1,130 @@
+// Unique edges and faces by sorting keys: O(n log n), no hashing, and ids
+// that depend only on vertex ids.
+#include "dicer/topology.hpp"
+
+#include <algorithm>
+#include <array>
+#include <tuple>
+
+#include "dicer/error.hpp"
+
+namespace dicer {
+
+Id find_edge(const Topology& t, Id a, Id b) {
+  if (a > b) std::swap(a, b);
+  Id lo = 0, hi = t.num_edges();
+  while (lo < hi) {
+    const Id mid = lo + (hi - lo) / 2;
+    const Id ma = t.edge_v[2 * mid], mb = t.edge_v[2 * mid + 1];
+    if (ma < a || (ma == a && mb < b)) lo = mid + 1;
+    else hi = mid;
+  }
+  return (lo < t.num_edges() && t.edge_v[2 * lo] == a && t.edge_v[2 * lo + 1] == b) ? lo : -1;
+}
+
+Topology build_topology(const CoarseMesh& m) {
+  Topology t;
+  t.mode = m.mode;
+  t.num_vertices = m.num_vertices();
+  const Id ne = m.num_elements();
+  const int nc = m.corners_per_element();
+  const int epe = t.edges_per_element();
+  const bool vol = m.mode == Mode::Volume;
+  auto local_edge = [&](int k, int end) { return vol ? kHexEdge[k][end] : kQuadEdge[k][end]; };
+
+  // Edges: sort (lo, hi, slot) triples.
+  {
+    std::vector<std::tuple<Id, Id, Id>> keys;
+    keys.reserve(static_cast<size_t>(ne) * epe);
+    for (Id e = 0; e < ne; ++e) {
+      const Id* c = &m.conn[static_cast<size_t>(e) * nc];
+      for (int k = 0; k < epe; ++k) {
+        const Id a = c[local_edge(k, 0)], b = c[local_edge(k, 1)];
+        keys.emplace_back(std::min(a, b), std::max(a, b), e * epe + k);
+      }
+    }
+    std::sort(keys.begin(), keys.end());
+    t.elem_edge.resize(keys.size());
+    t.elem_edge_rev.resize(keys.size());
+    Id id = -1;
+    for (size_t i = 0; i < keys.size(); ++i) {
+      const auto& [a, b, slot] = keys[i];
+      if (i == 0 || std::get<0>(keys[i - 1]) != a || std::get<1>(keys[i - 1]) != b) {
+        ++id;
+        t.edge_v.push_back(a);
+        t.edge_v.push_back(b);
+      }
+      t.elem_edge[slot] = id;
+      const Id e = slot / epe;
+      const int k = static_cast<int>(slot % epe);
+      t.elem_edge_rev[slot] = m.conn[static_cast<size_t>(e) * nc + local_edge(k, 0)] > a ? 1 : 0;
+    }
+  }
+
+  // Faces.
+  if (vol) {
+    std::vector<std::pair<std::array<Id, 4>, Id>> keys;
+    keys.reserve(static_cast<size_t>(ne) * 6);
+    std::vector<FaceCode> codes(static_cast<size_t>(ne) * 6);
+    for (Id e = 0; e < ne; ++e) {
+      const Id* c = &m.conn[static_cast<size_t>(e) * 8];
+      for (int k = 0; k < 6; ++k) {
+        const CanonicalQuad q = canonical_quad(
+            {c[kHexFace[k][0]], c[kHexFace[k][1]], c[kHexFace[k][2]], c[kHexFace[k][3]]});
+        keys.emplace_back(q.v, e * 6 + k);
+        codes[e * 6 + k] = q.code;
+      }
+    }
+    std::sort(keys.begin(), keys.end());
+    t.elem_face.resize(keys.size());
+    t.elem_face_code = std::move(codes);
+    Id id = -1;
+    for (size_t i = 0; i < keys.size(); ++i) {
+      const Id slot = keys[i].second;
+      if (i == 0 || keys[i - 1].first != keys[i].first) {
+        ++id;
+        for (Id v : keys[i].first) t.face_v.push_back(v);
+        t.face_elem.push_back(slot / 6);
+        t.face_elem.push_back(-1);
+      } else if (t.face_elem[2 * id + 1] < 0) {
+        t.face_elem[2 * id + 1] = slot / 6;
+      } else {
+        const auto& v = keys[i].first;
+        auto fid = [&](Id x) { return std::to_string(m.vertex_file_id[x]); };
+        auto eid = [&](Id x) { return std::to_string(m.element_file_id[x]); };
+        throw Error(ErrorKind::BadInput,
+                    m.source + ": non-manifold face (nodes " + fid(v[0]) + " " + fid(v[1]) + " " + fid(v[2]) + " " +
+                        fid(v[3]) + ") is shared by more than two hexes: elements " + eid(t.face_elem[2 * id]) +
+                        ", " + eid(t.face_elem[2 * id + 1]) + ", " + eid(slot / 6));
+      }
+      t.elem_face[slot] = id;
+    }
+  } else {
+    t.elem_face.resize(static_cast<size_t>(ne));
+    t.elem_face_code.resize(static_cast<size_t>(ne));
+    for (Id e = 0; e < ne; ++e) {
+      const Id* c = &m.conn[static_cast<size_t>(e) * 4];
+      const CanonicalQuad q = canonical_quad({c[0], c[1], c[2], c[3]});
+      for (Id v : q.v) t.face_v.push_back(v);
+      t.elem_face[e] = e;
+      t.elem_face_code[e] = q.code;
+      t.face_elem.push_back(e);
+      t.face_elem.push_back(-1);
+    }
+  }
+
+  // Face -> edges in the canonical frame.
+  const Id nf = t.num_faces();
+  t.face_edge.resize(static_cast<size_t>(nf) * 4);
+  t.face_edge_rev.resize(static_cast<size_t>(nf) * 4);
+  for (Id f = 0; f < nf; ++f) {
+    for (int k = 0; k < 4; ++k) {
+      const Id a = t.face_v[4 * f + kQuadEdge[k][0]], b = t.face_v[4 * f + kQuadEdge[k][1]];
+      t.face_edge[4 * f + k] = find_edge(t, a, b);
+      t.face_edge_rev[4 * f + k] = a > b ? 1 : 0;
+    }
+  }
+  return t;
+}
+
+}  // namespace dicer

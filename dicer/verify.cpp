@@ -1,0 +1,307 @@
+#include "dicer/verify.hpp"
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cmath>
+#include <cstring>
+
+#include "dicer/orientation.hpp"
+
+namespace dicer {
+namespace {
+
+std::uint64_t mix(std::uint64_t h, std::uint64_t v) {
+  // splitmix64 step over the running value: order-dependent within a face,
+  // summed (order-independent) across faces.
+  h ^= v + 0x9e3779b97f4a7c15ull + (h << 6) + (h >> 2);
+  h += 0x9e3779b97f4a7c15ull;
+  h = (h ^ (h >> 30)) * 0xbf58476d1ce4e5b9ull;
+  h = (h ^ (h >> 27)) * 0x94d049bb133111ebull;
+  return h ^ (h >> 31);
+}
+std::uint64_t bits(double d) { return std::bit_cast<std::uint64_t>(d); }
+
+void note(VerifyReport& r, const std::string& s) {
+  if (r.problems.size() < 20) r.problems.push_back(s);
+}
+
+struct FaceSide {
+  std::uint64_t hash = 0;
+  Id count = 0;
+  bool seen = false;
+};
+
+double hex_min_scaled_jacobian(const FineBlock& b, Id i, Id j, Id k) {
+  double best = 2.0;
+  Id g[8];
+  for (int q = 0; q < 8; ++q) g[q] = b.point_index(i + kHexCorner[q][0], j + kHexCorner[q][1], k + kHexCorner[q][2]);
+  for (int q = 0; q < 8; ++q) {
+    double e[3][3];
+    for (int d = 0; d < 3; ++d) {
+      const Id o = g[q], p = g[kHexCornerNbr[q][d]];
+      e[d][0] = b.x[p] - b.x[o], e[d][1] = b.y[p] - b.y[o], e[d][2] = b.z[p] - b.z[o];
+    }
+    const double det = e[0][0] * (e[1][1] * e[2][2] - e[1][2] * e[2][1]) -
+                       e[0][1] * (e[1][0] * e[2][2] - e[1][2] * e[2][0]) +
+                       e[0][2] * (e[1][0] * e[2][1] - e[1][1] * e[2][0]);
+    const double l = std::sqrt((e[0][0] * e[0][0] + e[0][1] * e[0][1] + e[0][2] * e[0][2]) *
+                               (e[1][0] * e[1][0] + e[1][1] * e[1][1] + e[1][2] * e[1][2]) *
+                               (e[2][0] * e[2][0] + e[2][1] * e[2][1] + e[2][2] * e[2][2]));
+    best = std::min(best, l > 0 ? det / l : -1.0);
+  }
+  return best;
+}
+
+double quad_min_scaled_jacobian(const FineBlock& b, Id i, Id j, const double nrm[3]) {
+  static constexpr int kQuadNbr[4][2] = {{1, 3}, {2, 0}, {3, 1}, {0, 2}};
+  Id g[4];
+  for (int q = 0; q < 4; ++q) g[q] = b.point_index(i + kHexCorner[q][0], j + kHexCorner[q][1], 0);
+  double best = 2.0;
+  const double nl = std::sqrt(nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]);
+  for (int q = 0; q < 4; ++q) {
+    double e[2][3];
+    for (int d = 0; d < 2; ++d) {
+      const Id o = g[q], p = g[kQuadNbr[q][d]];
+      e[d][0] = b.x[p] - b.x[o], e[d][1] = b.y[p] - b.y[o], e[d][2] = b.z[p] - b.z[o];
+    }
+    const double c[3] = {e[0][1] * e[1][2] - e[0][2] * e[1][1], e[0][2] * e[1][0] - e[0][0] * e[1][2],
+                         e[0][0] * e[1][1] - e[0][1] * e[1][0]};
+    const double l = std::sqrt((e[0][0] * e[0][0] + e[0][1] * e[0][1] + e[0][2] * e[0][2]) *
+                               (e[1][0] * e[1][0] + e[1][1] * e[1][1] + e[1][2] * e[1][2])) * nl;
+    best = std::min(best, l > 0 ? (c[0] * nrm[0] + c[1] * nrm[1] + c[2] * nrm[2]) / l : -1.0);
+  }
+  return best;
+}
+
+}  // namespace
+
+VerifyReport verify(const FineMesh& mesh, const std::function<void(Id, Id)>& progress) {
+  VerifyReport r;
+  const Topology& t = mesh.topology();
+  const Numbering& num = mesh.numbering();
+  const CoarseMesh& cm = mesh.coarse();
+  const bool vol = mesh.mode() == Mode::Volume;
+  const int nc = mesh.corners();
+
+  // Closed formula from the edge intervals alone (not from Numbering's prefixes).
+  {
+    const auto& en = num.edge_intervals();
+    Id nodes = t.num_vertices, elems = 0;
+    for (Id e = 0; e < t.num_edges(); ++e) nodes += en[e] - 1;
+    for (Id f = 0; f < t.num_faces(); ++f) nodes += (en[t.face_edge[4 * f]] - 1) * (en[t.face_edge[4 * f + 2]] - 1);
+    const int epe = t.edges_per_element();
+    for (Id h = 0; h < t.num_elements(); ++h) {
+      const Id* ee = &t.elem_edge[h * epe];
+      if (vol) {
+        nodes += (en[ee[0]] - 1) * (en[ee[4]] - 1) * (en[ee[8]] - 1);
+        elems += en[ee[0]] * en[ee[4]] * en[ee[8]];
+      } else {
+        elems += en[ee[0]] * en[ee[2]];
+      }
+    }
+    r.nodes_formula = nodes;
+    r.elements_formula = elems;
+    r.nodes = mesh.num_nodes();
+    r.elements = mesh.num_elements();
+    Id by_block = 0;
+    for (Id c : mesh.block_fine_elements()) by_block += c;
+    if (!r.counts_ok() || by_block != elems) {
+      r.id_errors += 1;
+      note(r, "counts differ from the closed formula: nodes " + std::to_string(r.nodes) + " vs " +
+                  std::to_string(nodes) + ", elements " + std::to_string(r.elements) + " vs " + std::to_string(elems));
+    }
+  }
+
+  // Coincident coarse vertices (the only nodes two blocks can share by position alone).
+  {
+    std::vector<std::array<double, 3>> pts(static_cast<size_t>(cm.num_vertices()));
+    for (Id v = 0; v < cm.num_vertices(); ++v) pts[v] = {cm.x[v], cm.y[v], cm.z[v]};
+    std::sort(pts.begin(), pts.end());
+    for (size_t i = 1; i < pts.size(); ++i)
+      if (pts[i] == pts[i - 1]) {
+        ++r.coincident_nodes;
+        note(r, "two coarse vertices share coordinates");
+      }
+  }
+
+  std::vector<FaceSide> side(static_cast<size_t>(t.num_faces()) * 2);
+  std::vector<std::uint64_t> edge_hash(static_cast<size_t>(t.num_edges()), 0);
+  std::vector<std::uint8_t> edge_seen(static_cast<size_t>(t.num_edges()), 0);
+
+  FineBlock b;
+  std::vector<std::pair<Id, Id>> ids;          // (id, point)
+  std::vector<std::array<double, 4>> coords;   // (x, y, z, id)
+  std::vector<std::pair<std::array<Id, 4>, int>> faces;  // sorted ids, boundary side (-1 interior)
+  const Id nh = t.num_elements();
+  for (Id h = 0; h < nh; ++h) {
+    mesh.fill_block(h, b);
+    const auto n = b.n;
+    const Id ni = n[0] + 1, nj = n[1] + 1, nk = vol ? n[2] + 1 : 1;
+
+    // Ids: range, round trip, bit identity.
+    ids.clear();
+    coords.clear();
+    for (Id k = 0; k < nk; ++k)
+      for (Id j = 0; j < nj; ++j)
+        for (Id i = 0; i < ni; ++i) {
+          const Id g = b.point_index(i, j, k), id = b.node_id[g];
+          ids.emplace_back(id, g);
+          coords.push_back({b.x[g], b.y[g], b.z[g], static_cast<double>(id)});
+          if (id < 0 || id >= r.nodes) {
+            ++r.id_errors;
+            note(r, "coarse element " + std::to_string(h) + ": node id " + std::to_string(id) + " out of range");
+            continue;
+          }
+          const NodeRef ref = num.locate_node(id);
+          if (num.node_id(ref) != id || !(ref == mesh.grid_node(h, i, j, k))) {
+            ++r.id_errors;
+            note(r, "node " + std::to_string(id) + " does not round-trip through its owner");
+          }
+          const bool interior = ref.kind == EntityKind::Cell;
+          if (!interior || (i == j && (!vol || j == k))) {
+            const Vec3 p = mesh.node(ref);
+            if (bits(p.x) != bits(b.x[g]) || bits(p.y) != bits(b.y[g]) || bits(p.z) != bits(b.z[g])) {
+              ++r.bit_identity_errors;
+              note(r, "node " + std::to_string(id) + ": node(id) differs from the block fill");
+            }
+          }
+        }
+    std::sort(ids.begin(), ids.end());
+    for (size_t q = 1; q < ids.size(); ++q)
+      if (ids[q].first == ids[q - 1].first) {
+        ++r.id_errors;
+        note(r, "coarse element " + std::to_string(h) + ": node id " + std::to_string(ids[q].first) +
+                    " used at two grid points");
+      }
+    std::sort(coords.begin(), coords.end());
+    for (size_t q = 1; q < coords.size(); ++q)
+      if (coords[q][0] == coords[q - 1][0] && coords[q][1] == coords[q - 1][1] && coords[q][2] == coords[q - 1][2] &&
+          coords[q][3] != coords[q - 1][3]) {
+        ++r.coincident_nodes;
+        note(r, "coarse element " + std::to_string(h) + ": nodes " + std::to_string(Id(coords[q][3])) + " and " +
+                    std::to_string(Id(coords[q - 1][3])) + " coincide");
+      }
+
+    // Fine faces (hex) or edges (quad) of every element, with the block side they lie on.
+    faces.clear();
+    const Id ne = b.num_elements();
+    double normal[3] = {0, 0, 0};
+    if (!vol) {  // coarse quad normal (cross product of its diagonals) orients the fine quads
+      const Id* cc = &cm.conn[static_cast<size_t>(h) * 4];
+      const Vec3 a = cm.vertex(cc[0]), q1 = cm.vertex(cc[1]), q2 = cm.vertex(cc[2]), q3 = cm.vertex(cc[3]);
+      const double d1[3] = {q2.x - a.x, q2.y - a.y, q2.z - a.z}, d2[3] = {q3.x - q1.x, q3.y - q1.y, q3.z - q1.z};
+      normal[0] = d1[1] * d2[2] - d1[2] * d2[1];
+      normal[1] = d1[2] * d2[0] - d1[0] * d2[2];
+      normal[2] = d1[0] * d2[1] - d1[1] * d2[0];
+    }
+    static constexpr int kQuadSides[4][2] = {{0, 1}, {1, 2}, {2, 3}, {3, 0}};
+    for (Id e = 0; e < ne; ++e) {
+      const Id i = e % n[0], j = (e / n[0]) % n[1], k = e / (n[0] * n[1]);
+      const Id* c = &b.conn[static_cast<size_t>(e) * nc];
+      if (vol) {
+        for (int lf = 0; lf < 6; ++lf) {
+          std::array<Id, 4> key;
+          for (int q = 0; q < 4; ++q) key[q] = c[kHexFace[lf][q]];
+          std::sort(key.begin(), key.end());
+          const int axis = lf / 2;
+          const Id p = axis == 0 ? i : axis == 1 ? j : k;
+          const bool on = (lf % 2 == 0) ? p == 0 : p == n[axis] - 1;
+          faces.emplace_back(key, on ? lf : -1);
+        }
+      } else {
+        for (int s = 0; s < 4; ++s) {
+          std::array<Id, 4> key{std::min(c[kQuadSides[s][0]], c[kQuadSides[s][1]]),
+                                std::max(c[kQuadSides[s][0]], c[kQuadSides[s][1]]), -1, -1};
+          // side s: 0 j=0, 1 i=n, 2 j=n, 3 i=0 -> quad local edge 0, 3, 1, 2
+          static constexpr int kEdgeOfSide[4] = {0, 3, 1, 2};
+          const bool on = s == 0 ? j == 0 : s == 1 ? i == n[0] - 1 : s == 2 ? j == n[1] - 1 : i == 0;
+          faces.emplace_back(key, on ? kEdgeOfSide[s] : -1);
+        }
+      }
+      const double sj = vol ? hex_min_scaled_jacobian(b, i, j, k) : quad_min_scaled_jacobian(b, i, j, normal);
+      r.min_scaled_jacobian = std::min(r.min_scaled_jacobian, sj);
+      if (sj <= 0) {
+        ++r.inverted;
+        note(r, "fine element " + std::to_string(b.first_element + e) + " is inverted (scaled Jacobian " +
+                    std::to_string(sj) + ")");
+      }
+    }
+    std::sort(faces.begin(), faces.end());
+    r.fine_faces_checked += static_cast<Id>(faces.size());
+    for (size_t q = 0; q < faces.size();) {
+      size_t q2 = q;
+      while (q2 < faces.size() && faces[q2].first == faces[q].first) ++q2;
+      const Id count = static_cast<Id>(q2 - q);
+      const bool boundary = faces[q].second >= 0;
+      if (count != (boundary ? 1 : 2)) {
+        ++r.conformity_errors;
+        note(r, "coarse element " + std::to_string(h) + ": a fine face is shared by " + std::to_string(count) +
+                    " fine elements");
+      }
+      q = q2;
+    }
+
+    // Coarse faces (volume) / coarse edges (both modes): hash what this block sees.
+    if (vol) {
+      for (int lf = 0; lf < 6; ++lf) {
+        const Id f = t.elem_face[6 * h + lf];
+        FaceSide& fs = side[2 * f + (t.face_elem[2 * f] == h ? 0 : 1)];
+        fs.seen = true;
+        for (const auto& [key, s] : faces) {
+          if (s != lf) continue;
+          std::uint64_t hv = 0;
+          for (Id id : key) {
+            const auto it = std::lower_bound(ids.begin(), ids.end(), std::make_pair(id, Id{-1}));
+            const Id g = it->second;
+            hv = mix(mix(mix(mix(hv, static_cast<std::uint64_t>(id)), bits(b.x[g])), bits(b.y[g])), bits(b.z[g]));
+          }
+          fs.hash += hv;
+          ++fs.count;
+        }
+      }
+    }
+    const int epe = t.edges_per_element();
+    for (int le = 0; le < epe; ++le) {
+      const Id e = t.elem_edge[epe * h + le];
+      const int axis = vol ? le / 4 : le / 2;
+      const int a = vol ? kHexEdge[le][0] : kQuadEdge[le][0];
+      std::uint64_t hv = 0;
+      const Id ne_ = n[axis];
+      for (Id s = 0; s <= ne_; ++s) {
+        const Id tt = t.elem_edge_rev[epe * h + le] ? ne_ - s : s;  // canonical order
+        Id p[3] = {kHexCorner[a][0] * n[0], kHexCorner[a][1] * n[1], vol ? kHexCorner[a][2] * n[2] : 0};
+        p[axis] = tt;
+        const Id g = b.point_index(p[0], p[1], p[2]);
+        hv = mix(mix(mix(mix(hv, static_cast<std::uint64_t>(b.node_id[g])), bits(b.x[g])), bits(b.y[g])),
+                 bits(b.z[g]));
+      }
+      if (!edge_seen[e]) {
+        edge_seen[e] = 1;
+        edge_hash[e] = hv;
+      } else if (edge_hash[e] != hv) {
+        ++r.conformity_errors;
+        note(r, "coarse edge " + std::to_string(e) + ": neighbours disagree on its fine nodes");
+      }
+    }
+    if (progress) progress(h + 1, nh);
+  }
+
+  if (vol) {
+    for (Id f = 0; f < t.num_faces(); ++f) {
+      const auto fn = num.face_n(f);
+      const Id want = fn[0] * fn[1];
+      const FaceSide &a = side[2 * f], &c = side[2 * f + 1];
+      const bool interior = t.face_elem[2 * f + 1] >= 0;
+      if (a.count != want || (interior && (c.count != want || c.hash != a.hash))) {
+        ++r.conformity_errors;
+        note(r, "coarse face " + std::to_string(f) + ": its fine faces do not match up (" + std::to_string(a.count) +
+                    " and " + std::to_string(c.count) + " seen, " + std::to_string(want) + " expected)");
+      }
+      if (!interior) r.boundary_fine_faces += a.count;
+    }
+  }
+  return r;
+}
+
+}  // namespace dicer

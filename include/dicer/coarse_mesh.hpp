@@ -1,0 +1,89 @@
+#pragma once
+// CoarseMesh: the input of dicing, as read from an Exodus II or Gmsh MSH file.
+//
+// Layout: vertex coordinates as three arrays (structure of arrays); element
+// connectivity as one flat array of corners_per_element() vertex indices per
+// element, in VTK/Exodus order (HEX8: bottom 0-3 counter-clockwise seen from
+// the top, then top 4-7 above them; QUAD4: counter-clockwise). Indices are
+// 0-based positions in x/y/z, never the ids printed in the file; those are
+// kept in vertex_file_id / element_file_id for messages and for `sheets`.
+//
+// Invariants after read_coarse_mesh() returns (validate_coarse_mesh checks
+// them, so a mesh built in memory can be checked the same way):
+//  - every coordinate is finite; every connectivity entry is in range;
+//  - no element repeats a vertex, no two elements share all their corners;
+//  - every vertex is used by at least one element (unused ones are dropped);
+//  - volume mode: every hex is right-handed (all 8 corner Jacobians > 0);
+//    a wholly left-handed file is reoriented with a warning;
+//  - element_block[e] indexes blocks.
+// Cost: memory is O(coarse mesh); nothing here grows with the fine mesh.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "dicer/types.hpp"
+
+namespace dicer {
+
+struct Block {
+  std::int64_t id = 0;   // as in the file (Exodus block id, MSH physical tag)
+  std::string name;      // may be empty
+};
+
+// Sides in Exodus numbering, 0-based: hex side s of element e is the face
+// with local corners kHexSideCorners[s]; shell sides 0,1 are the two faces of
+// the quad, 2..5 its edges.
+struct SideSet {
+  std::int64_t id = 0;
+  std::string name;
+  std::vector<Id> element;          // 0-based element index
+  std::vector<std::int8_t> side;    // 0-based Exodus side
+};
+
+struct NodeSet {
+  std::int64_t id = 0;
+  std::string name;
+  std::vector<Id> vertex;           // 0-based vertex index
+};
+
+// Exodus HEX8 side -> local corners (outward normal, right-handed hex).
+inline constexpr int kHexSideCorners[6][4] = {
+    {0, 1, 5, 4}, {1, 2, 6, 5}, {2, 3, 7, 6}, {0, 4, 7, 3}, {0, 3, 2, 1}, {4, 5, 6, 7}};
+
+struct CoarseMesh {
+  std::string source;                 // path of the file it came from (messages)
+  Mode mode = Mode::Volume;
+  std::vector<double> x, y, z;        // vertex coordinates
+  std::vector<Id> vertex_file_id;     // id of each vertex as numbered in the file
+  std::vector<Id> conn;               // corners_per_element() entries per element
+  std::vector<Id> element_file_id;    // id of each element as numbered in the file
+  std::vector<std::int32_t> element_block;  // index into blocks
+  std::vector<Block> blocks;
+  std::vector<SideSet> side_sets;
+  std::vector<NodeSet> node_sets;
+  // Geometric classification of each vertex (Gmsh entity dim 0..3 and tag),
+  // -1 where unknown (Exodus files, MSH 2.2 without it). Empty or sized V.
+  std::vector<std::int8_t> vertex_geo_dim;
+  std::vector<std::int32_t> vertex_geo_tag;
+  std::vector<std::string> warnings;  // quirks accepted (reoriented, dropped nodes)
+
+  int corners_per_element() const { return mode == Mode::Volume ? 8 : 4; }
+  Id num_vertices() const { return static_cast<Id>(x.size()); }
+  Id num_elements() const { return static_cast<Id>(conn.size()) / corners_per_element(); }
+  Vec3 vertex(Id v) const { return {x[v], y[v], z[v]}; }
+};
+
+// Reads an Exodus II (.e, .exo, .ex2, .g) or Gmsh MSH 2.2/4.1 file, chosen by
+// content (netCDF/HDF5 magic vs "$MeshFormat"), then validate_coarse_mesh().
+// Throws Error{BadInput|Unsupported|Io} naming the file and what is wrong.
+CoarseMesh read_coarse_mesh(const std::string& path);
+
+// Format readers: parse only; they leave validation to validate_coarse_mesh.
+CoarseMesh read_msh(const std::string& path);
+CoarseMesh read_exodus(const std::string& path);
+
+// Checks the invariants above, drops unused vertices, reorients a wholly
+// left-handed mesh (warning) and refuses mixed handedness or an inverted hex.
+void validate_coarse_mesh(CoarseMesh& mesh);
+
+}  // namespace dicer

@@ -1,0 +1,35 @@
+#pragma once
+// The one exception type the library throws at its public boundary.
+//
+// Three tiers (STYLE.md #8): bad files, bad arguments and I/O failures throw
+// dicer::Error; expected outcomes (a verify that finds a defect) are return
+// values; programmer errors are assertions. The library never calls exit or
+// abort.
+#include <stdexcept>
+#include <string>
+
+namespace dicer {
+
+enum class ErrorKind {
+  Usage = 2,        // bad command-line argument or API parameter
+  BadInput = 3,     // malformed, truncated, hostile or inconsistent input file
+  Unsupported = 4,  // valid file, but content dicer cannot dice (tets, HEX20...)
+  Io = 5,           // the OS or HDF5 failed to read or write
+  Overflow = 6,     // requested fine counts do not fit 64-bit ids
+  Geometry = 7,     // mesh and CAD do not match (later issues)
+  Corrupt = 8,      // store page checksum or structure mismatch
+};
+
+// Message convention: "<file>: <entity>: <what is wrong>". The CLI prints
+// what() on one line and exits with int(kind()).
+class Error : public std::runtime_error {
+ public:
+  Error(ErrorKind kind, const std::string& message)
+      : std::runtime_error(message), kind_(kind) {}
+  ErrorKind kind() const noexcept { return kind_; }
+
+ private:
+  ErrorKind kind_;
+};
+
+}  // namespace dicer

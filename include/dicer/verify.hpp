@@ -1,0 +1,54 @@
+#pragma once
+// verify: a streaming check of DESIGN.md invariants 3 (numbering, counts)
+// and 4 (conformity), plus element quality. Memory: O(coarse mesh) plus one
+// block; time: one fill per coarse element.
+//
+// What is checked, per coarse element block:
+//  - every grid point's id is in range and round-trips id -> entity -> id;
+//    node(id) returns the block's coordinates bit for bit (all boundary
+//    points, interior points on the block diagonal);
+//  - no two grid points of the block share an id unless they are the same
+//    point, no two distinct ids share coordinates;
+//  - every fine face inside the block is shared by exactly two fine
+//    elements, every fine face on the block boundary by one;
+// and across blocks:
+//  - both hexes of an interior coarse face see the same fine faces (ids and
+//    coordinates, order-independent hash), each coarse face is covered by
+//    nu*nv fine faces exactly, boundary ones included;
+//  - every hex around a coarse edge sees the same fine nodes on it;
+//  - node and element counts equal the closed formula of invariant 3;
+//  - minimum scaled Jacobian and the number of inverted fine elements
+//    (scaled Jacobian <= 0 at some corner).
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "dicer/fine_mesh.hpp"
+
+namespace dicer {
+
+struct VerifyReport {
+  Id nodes = 0, nodes_formula = 0;
+  Id elements = 0, elements_formula = 0;
+  Id fine_faces_checked = 0;
+  Id boundary_fine_faces = 0;
+  Id id_errors = 0;            // out of range or not round-tripping
+  Id bit_identity_errors = 0;  // node(id) differs from the block's value
+  Id coincident_nodes = 0;     // distinct ids at identical coordinates
+  Id conformity_errors = 0;    // fine faces/edges that do not match up
+  Id inverted = 0;
+  double min_scaled_jacobian = 1.0;
+  std::vector<std::string> problems;  // the first few, human readable
+
+  bool counts_ok() const { return nodes == nodes_formula && elements == elements_formula; }
+  bool ok() const {
+    return counts_ok() && id_errors == 0 && bit_identity_errors == 0 && coincident_nodes == 0 &&
+           conformity_errors == 0 && inverted == 0;
+  }
+};
+
+// progress(done, total) is called after each coarse element when given.
+VerifyReport verify(const FineMesh& mesh, const std::function<void(Id, Id)>& progress = {});
+
+}  // namespace dicer

@@ -1,0 +1,15 @@
+#!/usr/bin/env bash
+# Installs the Debian packages dicer needs (skips those already present).
+set -euo pipefail
+pkgs=(cmake g++ make pkg-config libhdf5-dev liblz4-dev libexodusii-dev libnetcdf-dev libgmsh-dev
+      libgtest-dev libbenchmark-dev nlohmann-json3-dev)
+missing=()
+for p in "${pkgs[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "installing: ${missing[*]}"
+  SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO=sudo
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi

@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# The main job on a bundled real mesh: install, build, list sheets, dice,
+# print the summary, query, verify.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/install_deps.sh
+bash scripts/build.sh
+out=${DICER_EXAMPLE_OUT:-build/example}
+mkdir -p "$out"
+set -x
+build/dicer sheets examples/cardinal_sphere.e | head -8
+build/dicer dice examples/cardinal_sphere.e --interval 16 --sheet-interval 0=24 -o "$out/sphere.dice.h5"
+build/dicer info "$out/sphere.dice.h5"
+build/dicer query "$out/sphere.dice.h5" --element 123456 --json
+build/dicer query "$out/sphere.dice.h5" --nodes 1000:1003 --json
+build/dicer verify "$out/sphere.dice.h5"
+build/dicer dice examples/dealii_step-49_example.msh --interval 8 -o "$out/plate.dice.h5"
+build/dicer verify "$out/plate.dice.h5" --quiet

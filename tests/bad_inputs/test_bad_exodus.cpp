@@ -1,0 +1,389 @@
+// Bad Exodus inputs: each must give a dicer::Error of the right kind whose
+// message starts with the path and names what is wrong. Fixtures are written
+// with the Exodus library itself, or made by corrupting real files.
+#include <exodusII.h>
+#include <gtest/gtest.h>
+#include <netcdf.h>
+
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <initializer_list>
+#include <limits>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "dicer/coarse_mesh.hpp"
+#include "dicer/error.hpp"
+#include "test_support.hpp"
+
+namespace {
+
+using dicer::ErrorKind;
+using dicer::test::data_path;
+using dicer::test::TempDir;
+
+// A small Exodus file written with the Exodus library itself (test fixture).
+struct FixtureBlock {
+  std::int64_t id = 1;
+  std::string type = "HEX8";
+  std::int64_t nodes_per_element = 8;
+  std::vector<std::int64_t> conn;  // 1-based node numbers
+  std::string name;
+};
+struct FixtureSideSet {
+  std::int64_t id = 1;
+  std::vector<std::int64_t> element, side;  // 1-based, as Exodus stores them
+};
+struct FixtureNodeSet {
+  std::int64_t id = 1;
+  std::vector<std::int64_t> node;  // 1-based
+};
+struct Fixture {
+  int create_mode = EX_CLOBBER;  // | EX_NETCDF4 for an HDF5-based file
+  int num_dim = 3;
+  std::vector<double> x, y, z;
+  bool write_coords = true;
+  std::vector<FixtureBlock> blocks;
+  std::vector<FixtureSideSet> side_sets;
+  std::vector<FixtureNodeSet> node_sets;
+  std::vector<std::int64_t> node_map, elem_map;  // empty: none stored
+};
+
+// Two unit hexes side by side along x: nodes (i, j, k), i in 0..2, j, k in 0..1,
+// node number 1 + i + 3 j + 6 k; elements 1 and 2 in block 1.
+Fixture two_hexes() {
+  Fixture f;
+  for (int k = 0; k < 2; ++k)
+    for (int j = 0; j < 2; ++j)
+      for (int i = 0; i < 3; ++i) {
+        f.x.push_back(i);
+        f.y.push_back(j);
+        f.z.push_back(k);
+      }
+  FixtureBlock b;
+  for (int i = 0; i < 2; ++i) {
+    const std::int64_t n = 1 + i;
+    for (std::int64_t v : {n, n + 1, n + 4, n + 3, n + 6, n + 7, n + 10, n + 9}) b.conn.push_back(v);
+  }
+  f.blocks.push_back(b);
+  return f;
+}
+
+void exo_check(int rc, const char* what) {
+  if (rc < 0) throw std::runtime_error(std::string("fixture: ") + what + " failed");
+}
+
+void write_exodus(const std::string& path, const Fixture& f) {
+  int cpu_ws = 8, io_ws = 8;
+  const int exoid = ex_create(path.c_str(), f.create_mode, &cpu_ws, &io_ws);
+  if (exoid < 0) throw std::runtime_error("fixture: ex_create failed for " + path);
+  ex_set_int64_status(exoid, EX_ALL_INT64_API);
+  std::int64_t num_elem = 0;
+  for (const auto& b : f.blocks) num_elem += static_cast<std::int64_t>(b.conn.size()) / b.nodes_per_element;
+  exo_check(ex_put_init(exoid, "dicer fixture", f.num_dim, static_cast<std::int64_t>(f.x.size()), num_elem,
+                        static_cast<std::int64_t>(f.blocks.size()), static_cast<std::int64_t>(f.node_sets.size()),
+                        static_cast<std::int64_t>(f.side_sets.size())),
+            "ex_put_init");
+  if (f.write_coords)
+    exo_check(ex_put_coord(exoid, f.x.data(), f.y.data(), f.num_dim >= 3 ? f.z.data() : nullptr), "ex_put_coord");
+  if (!f.node_map.empty()) exo_check(ex_put_id_map(exoid, EX_NODE_MAP, f.node_map.data()), "node map");
+  if (!f.elem_map.empty()) exo_check(ex_put_id_map(exoid, EX_ELEM_MAP, f.elem_map.data()), "elem map");
+  for (const auto& b : f.blocks) {
+    const std::int64_t n = static_cast<std::int64_t>(b.conn.size()) / b.nodes_per_element;
+    exo_check(ex_put_block(exoid, EX_ELEM_BLOCK, b.id, b.type.c_str(), n, b.nodes_per_element, 0, 0, 0),
+              "ex_put_block");
+    if (n > 0) exo_check(ex_put_conn(exoid, EX_ELEM_BLOCK, b.id, b.conn.data(), nullptr, nullptr), "ex_put_conn");
+    if (!b.name.empty()) exo_check(ex_put_name(exoid, EX_ELEM_BLOCK, b.id, b.name.c_str()), "ex_put_name");
+  }
+  for (const auto& s : f.side_sets) {
+    exo_check(ex_put_set_param(exoid, EX_SIDE_SET, s.id, static_cast<std::int64_t>(s.element.size()), 0),
+              "side set param");
+    exo_check(ex_put_set(exoid, EX_SIDE_SET, s.id, s.element.data(), s.side.data()), "side set");
+  }
+  for (const auto& s : f.node_sets) {
+    exo_check(ex_put_set_param(exoid, EX_NODE_SET, s.id, static_cast<std::int64_t>(s.node.size()), 0),
+              "node set param");
+    exo_check(ex_put_set(exoid, EX_NODE_SET, s.id, s.node.data(), nullptr), "node set");
+  }
+  exo_check(ex_close(exoid), "ex_close");
+}
+
+// Reads the file, expecting an Error of `kind` whose message starts with the
+// path and contains every one of `parts`. Returns the message.
+std::string expect_error(const std::string& path, ErrorKind kind, std::initializer_list<std::string> parts) {
+  try {
+    dicer::read_exodus(path);
+  } catch (const dicer::Error& e) {
+    const std::string msg = e.what();
+    EXPECT_EQ(static_cast<int>(e.kind()), static_cast<int>(kind)) << msg;
+    EXPECT_EQ(msg.rfind(path + ": ", 0), 0u) << msg;
+    for (const std::string& p : parts) EXPECT_NE(msg.find(p), std::string::npos) << "missing '" << p << "' in: " << msg;
+    return msg;
+  } catch (const std::exception& e) {
+    ADD_FAILURE() << "expected dicer::Error, got std::exception: " << e.what();
+    return {};
+  }
+  ADD_FAILURE() << "expected an error reading " << path;
+  return {};
+}
+
+TEST(BadExodus, MissingFileIsIo) {
+  TempDir tmp;
+  const std::string path = tmp.path("does_not_exist.e");
+  expect_error(path, ErrorKind::Io, {"No such file"});
+}
+
+TEST(BadExodus, DirectoryIsIo) {
+  TempDir tmp;
+  expect_error(tmp.dir().string(), ErrorKind::Io, {"directory"});
+}
+
+TEST(BadExodus, TextGarbageIsBadInput) {
+  TempDir tmp;
+  const std::string path = tmp.path("garbage.e");
+  dicer::test::write_file(path, "this is not a mesh\n$MeshFormat? no.\n" + std::string(500, 'x'));
+  expect_error(path, ErrorKind::BadInput, {"not a readable Exodus II file"});
+}
+
+TEST(BadExodus, EmptyFileIsBadInput) {
+  TempDir tmp;
+  const std::string path = tmp.path("empty.e");
+  dicer::test::write_file(path, "");
+  expect_error(path, ErrorKind::BadInput, {"not a readable Exodus II file", "empty"});
+}
+
+TEST(BadExodus, NetcdfButNotExodusIsBadInput) {
+  TempDir tmp;
+  const std::string path = tmp.path("plain.nc");
+  int ncid = -1, dim = -1, var = -1;
+  ASSERT_EQ(nc_create(path.c_str(), NC_CLOBBER, &ncid), NC_NOERR);
+  ASSERT_EQ(nc_def_dim(ncid, "n", 4, &dim), NC_NOERR);
+  ASSERT_EQ(nc_def_var(ncid, "values", NC_DOUBLE, 1, &dim, &var), NC_NOERR);
+  ASSERT_EQ(nc_enddef(ncid), NC_NOERR);
+  const double values[4] = {1, 2, 3, 4};
+  ASSERT_EQ(nc_put_var_double(ncid, var, values), NC_NOERR);
+  ASSERT_EQ(nc_close(ncid), NC_NOERR);
+  expect_error(path, ErrorKind::BadInput, {"not a readable Exodus II file"});
+}
+
+TEST(BadExodus, TruncatedRealFileIsBadInput) {
+  TempDir tmp;
+  for (const char* name : {"cardinal_pincell.e", "vtkdata_disk_out_ref.ex2", "vtkdata_mug.e"}) {
+    const std::string bytes = dicer::test::read_file(data_path(name));
+    ASSERT_GT(bytes.size(), 1000u) << name;
+    const std::string path = tmp.path(std::string("half_") + name);
+    dicer::test::write_file(path, bytes.substr(0, bytes.size() / 2));
+    expect_error(path, ErrorKind::BadInput, {"not a readable Exodus II file", "truncated"});
+  }
+}
+
+TEST(BadExodus, HeaderOnlyCutIsBadInput) {
+  TempDir tmp;
+  const std::string bytes = dicer::test::read_file(data_path("cardinal_sphere.e"));
+  const std::string path = tmp.path("cut.e");
+  dicer::test::write_file(path, bytes.substr(0, 100));
+  expect_error(path, ErrorKind::BadInput, {"not a readable Exodus II file"});
+}
+
+// Patches the length of a netCDF-3 dimension in the header of `bytes`.
+void patch_dimension(std::string& bytes, const std::string& name, std::uint32_t value) {
+  // Header entry: 4-byte name length, name padded to 4 bytes, 4-byte length.
+  std::string key(4, '\0');
+  key[3] = static_cast<char>(name.size());
+  key += name;
+  const std::size_t at = bytes.find(key);
+  ASSERT_NE(at, std::string::npos) << name;
+  const std::size_t len_at = at + 4 + (name.size() + 3) / 4 * 4;
+  for (int i = 0; i < 4; ++i) bytes[len_at + i] = static_cast<char>((value >> (8 * (3 - i))) & 0xff);
+}
+
+// A netCDF header with the Exodus attributes and dimensions but no data: a
+// hostile file claiming 10^12 nodes in about 1 kB. CDF5 allows 64-bit
+// dimensions; with no variables using them, netCDF itself sees nothing wrong.
+void write_hostile_header(const std::string& path, long long num_nodes, long long num_elem) {
+  int ncid = -1, dim = -1;
+  ASSERT_EQ(nc_create(path.c_str(), NC_CLOBBER | NC_64BIT_DATA, &ncid), NC_NOERR);
+  const float version = 6.02f;
+  const int word_size = 8, one = 1;
+  const std::string title = "hostile";
+  ASSERT_EQ(nc_put_att_text(ncid, NC_GLOBAL, "title", title.size(), title.c_str()), NC_NOERR);
+  ASSERT_EQ(nc_put_att_float(ncid, NC_GLOBAL, "api_version", NC_FLOAT, 1, &version), NC_NOERR);
+  ASSERT_EQ(nc_put_att_float(ncid, NC_GLOBAL, "version", NC_FLOAT, 1, &version), NC_NOERR);
+  ASSERT_EQ(nc_put_att_int(ncid, NC_GLOBAL, "floating_point_word_size", NC_INT, 1, &word_size), NC_NOERR);
+  ASSERT_EQ(nc_put_att_int(ncid, NC_GLOBAL, "file_size", NC_INT, 1, &one), NC_NOERR);
+  ASSERT_EQ(nc_def_dim(ncid, "len_string", 33, &dim), NC_NOERR);
+  ASSERT_EQ(nc_def_dim(ncid, "len_name", 33, &dim), NC_NOERR);
+  ASSERT_EQ(nc_def_dim(ncid, "len_line", 81, &dim), NC_NOERR);
+  ASSERT_EQ(nc_def_dim(ncid, "four", 4, &dim), NC_NOERR);
+  ASSERT_EQ(nc_def_dim(ncid, "time_step", NC_UNLIMITED, &dim), NC_NOERR);
+  ASSERT_EQ(nc_def_dim(ncid, "num_dim", 3, &dim), NC_NOERR);
+  ASSERT_EQ(nc_def_dim(ncid, "num_nodes", static_cast<size_t>(num_nodes), &dim), NC_NOERR);
+  ASSERT_EQ(nc_def_dim(ncid, "num_elem", static_cast<size_t>(num_elem), &dim), NC_NOERR);
+  ASSERT_EQ(nc_def_dim(ncid, "num_el_blk", 1, &dim), NC_NOERR);
+  ASSERT_EQ(nc_close(ncid), NC_NOERR);
+}
+
+TEST(BadExodus, HostileNodeCountIsBadInputNotBadAlloc) {
+  TempDir tmp;
+  const std::string path = tmp.path("hostile_nodes.e");
+  write_hostile_header(path, 1000000000000LL, 1);
+  ASSERT_LT(dicer::test::read_file(path).size(), 4096u);
+  expect_error(path, ErrorKind::BadInput, {"header claims 1000000000000 nodes", "bytes"});
+}
+
+TEST(BadExodus, HostileElementCountIsBadInputNotBadAlloc) {
+  TempDir tmp;
+  const std::string path = tmp.path("hostile_elems.e");
+  write_hostile_header(path, 8, 1000000000000LL);
+  expect_error(path, ErrorKind::BadInput, {"header claims 1000000000000 elements"});
+}
+
+// A real header whose node dimension was patched: netCDF's own consistency
+// checks or ours must refuse it, as BadInput.
+TEST(BadExodus, PatchedDimensionsAreBadInput) {
+  TempDir tmp;
+  const std::string good = tmp.path("good.e");
+  Fixture f = two_hexes();
+  f.side_sets.push_back({1, {1, 2}, {1, 2}});
+  write_exodus(good, f);
+  const std::string bytes = dicer::test::read_file(good);
+  for (const char* dim : {"num_nodes", "num_elem", "num_el_in_blk1", "num_side_ss1"}) {
+    std::string patched = bytes;
+    patch_dimension(patched, dim, 0x08000000u);
+    const std::string path = tmp.path(std::string("patched_") + dim + ".e");
+    dicer::test::write_file(path, patched);
+    expect_error(path, ErrorKind::BadInput, {});
+  }
+}
+
+TEST(BadExodus, TruncatedNetcdf4FileIsBadInput) {
+  TempDir tmp;
+  const std::string good = tmp.path("hdf5.e");
+  Fixture f = two_hexes();
+  f.create_mode = EX_CLOBBER | EX_NETCDF4;
+  write_exodus(good, f);
+  const std::string bytes = dicer::test::read_file(good);
+  const std::string path = tmp.path("half_hdf5.e");
+  dicer::test::write_file(path, bytes.substr(0, bytes.size() / 2));
+  expect_error(path, ErrorKind::BadInput, {"not a readable Exodus II file"});
+}
+
+TEST(BadExodus, TetraBlockIsUnsupported) {
+  TempDir tmp;
+  const std::string path = tmp.path("tets.e");
+  Fixture f = two_hexes();
+  FixtureBlock tets;
+  tets.id = 2;
+  tets.type = "TETRA4";
+  tets.nodes_per_element = 4;
+  tets.conn = {1, 2, 4, 7, 2, 5, 4, 8, 2, 3, 5, 9};
+  f.blocks.push_back(tets);
+  write_exodus(path, f);
+  expect_error(path, ErrorKind::Unsupported, {"unsupported elements", "3 TETRA4 (block 2)", "HEX8"});
+}
+
+TEST(BadExodus, Hex20BlockIsUnsupported) {
+  TempDir tmp;
+  const std::string path = tmp.path("hex20.e");
+  Fixture f = two_hexes();
+  f.blocks[0].id = 5;
+  f.blocks[0].type = "HEX";
+  f.blocks[0].nodes_per_element = 20;
+  std::vector<std::int64_t> conn;
+  for (int i = 0; i < 20; ++i) conn.push_back(1 + i % 12);
+  f.blocks[0].conn = conn;  // one element with 20 nodes
+  write_exodus(path, f);
+  expect_error(path, ErrorKind::Unsupported, {"1 HEX with 20 nodes per element (block 5)"});
+}
+
+TEST(BadExodus, ConnectivityOutOfRangeIsBadInput) {
+  TempDir tmp;
+  const std::string path = tmp.path("conn.e");
+  Fixture f = two_hexes();
+  f.blocks[0].id = 76;
+  f.blocks[0].conn[13] = 99999;  // element 2, corner 6
+  f.elem_map = {1233, 1234};
+  write_exodus(path, f);
+  expect_error(path, ErrorKind::BadInput,
+               {"element block 76: element 1234 references node 99999 (file has 12 nodes)"});
+}
+
+TEST(BadExodus, ConnectivityZeroIsBadInput) {
+  TempDir tmp;
+  const std::string path = tmp.path("conn0.e");
+  Fixture f = two_hexes();
+  f.blocks[0].conn[0] = 0;
+  write_exodus(path, f);
+  expect_error(path, ErrorKind::BadInput, {"element block 1: element 1 references node 0"});
+}
+
+TEST(BadExodus, TwoDimensionalHexMeshIsBadInput) {
+  TempDir tmp;
+  const std::string path = tmp.path("hex2d.e");
+  Fixture f = two_hexes();
+  f.num_dim = 2;
+  write_exodus(path, f);
+  expect_error(path, ErrorKind::BadInput, {"3 coordinate dimensions", "has 2"});
+}
+
+TEST(BadExodus, SideNumberNineIsBadInput) {
+  TempDir tmp;
+  const std::string path = tmp.path("side9.e");
+  Fixture f = two_hexes();
+  f.elem_map = {41, 42};
+  f.side_sets.push_back({5, {1, 2}, {3, 9}});
+  write_exodus(path, f);
+  expect_error(path, ErrorKind::BadInput, {"side set 5: element 42 has side 9"});
+}
+
+TEST(BadExodus, SideSetElementOutOfRangeIsBadInput) {
+  TempDir tmp;
+  const std::string path = tmp.path("sideelem.e");
+  Fixture f = two_hexes();
+  f.side_sets.push_back({3, {1, 7}, {1, 2}});
+  write_exodus(path, f);
+  expect_error(path, ErrorKind::BadInput, {"side set 3", "element 7", "file has 2 elements"});
+}
+
+TEST(BadExodus, NodeSetOutOfRangeIsBadInput) {
+  TempDir tmp;
+  const std::string path = tmp.path("nodeset.e");
+  Fixture f = two_hexes();
+  f.node_sets.push_back({4, {1, 2, 13}});
+  write_exodus(path, f);
+  expect_error(path, ErrorKind::BadInput, {"node set 4", "node 13", "file has 12 nodes"});
+}
+
+TEST(BadExodus, NanCoordinateIsBadInput) {
+  TempDir tmp;
+  const std::string path = tmp.path("nan.e");
+  Fixture f = two_hexes();
+  for (std::int64_t i = 0; i < 12; ++i) f.node_map.push_back(1000 + i);
+  f.y[6] = std::numeric_limits<double>::quiet_NaN();
+  write_exodus(path, f);
+  expect_error(path, ErrorKind::BadInput, {"node 1006", "not finite"});
+}
+
+TEST(BadExodus, InfiniteCoordinateIsBadInput) {
+  TempDir tmp;
+  const std::string path = tmp.path("inf.e");
+  Fixture f = two_hexes();
+  f.z[11] = -std::numeric_limits<double>::infinity();
+  write_exodus(path, f);
+  expect_error(path, ErrorKind::BadInput, {"node 12", "not finite"});
+}
+
+// Exodus creates files in netCDF no-fill mode: coordinates never written
+// read back as zeros.
+TEST(BadExodus, NoCoordinatesWrittenIsBadInput) {
+  TempDir tmp;
+  const std::string path = tmp.path("nocoords.e");
+  Fixture f = two_hexes();
+  f.write_coords = false;
+  write_exodus(path, f);
+  expect_error(path, ErrorKind::BadInput, {"all 12 nodes are at the origin"});
+}
+
+}  // namespace

@@ -1,0 +1,282 @@
+// Property tests over random coarse meshes: random vertex renumbering,
+// random local numbering of every hex (all 24 rotations), shuffled element
+// order, mixed intervals. Expected values come from the structured geometry
+// (an a x b x c box diced with per-slab intervals is a structured grid), not
+// from dicer's own output.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <map>
+#include <numeric>
+#include <random>
+
+#include "dicer/fine_mesh.hpp"
+#include "dicer/verify.hpp"
+#include "random_mesh.hpp"
+
+using namespace dicer;
+
+namespace {
+
+// Dominant axis and slab (rounded mid-point coordinate) of a sheet's first edge.
+std::pair<int, long> sheet_axis_slab(const CoarseMesh& m, const Topology& t, const Sheets& s, Id sheet) {
+  for (Id e = 0; e < t.num_edges(); ++e) {
+    if (s.edge_sheet[e] != sheet) continue;
+    const Vec3 a = m.vertex(t.edge_v[2 * e]), b = m.vertex(t.edge_v[2 * e + 1]);
+    const double d[3] = {std::fabs(b.x - a.x), std::fabs(b.y - a.y), std::fabs(b.z - a.z)};
+    const int axis = static_cast<int>(std::max_element(d, d + 3) - d);
+    const double mid[3] = {(a.x + b.x) / 2, (a.y + b.y) / 2 / 1.3, (a.z + b.z) / 2 / 0.7};
+    return {axis, std::lround(std::floor(mid[axis]))};
+  }
+  return {-1, 0};
+}
+
+// Interval request fixed by geometry, so that any renumbering of the same
+// box gets the same fine mesh.
+IntervalRequest geometric_intervals(const CoarseMesh& m) {
+  const Topology t = build_topology(m);
+  const Sheets s = find_sheets(m, t);
+  IntervalRequest r;
+  for (Id q = 0; q < s.num_sheets(); ++q) {
+    const auto [axis, slab] = sheet_axis_slab(m, t, s, q);
+    r.sheets.emplace_back(q, 1 + (axis * 7 + slab * 3) % 4);
+  }
+  return r;
+}
+
+// Same mesh, different numbering: vertex permutation, hex rotations, element shuffle.
+CoarseMesh scramble(const CoarseMesh& in, std::mt19937_64& rng) {
+  CoarseMesh m = in;
+  const Id nv = in.num_vertices(), ne = in.num_elements();
+  std::vector<Id> perm(static_cast<size_t>(nv));
+  std::iota(perm.begin(), perm.end(), Id{0});
+  std::shuffle(perm.begin(), perm.end(), rng);
+  for (Id v = 0; v < nv; ++v) m.x[perm[v]] = in.x[v], m.y[perm[v]] = in.y[v], m.z[perm[v]] = in.z[v];
+  std::vector<Id> order(static_cast<size_t>(ne));
+  std::iota(order.begin(), order.end(), Id{0});
+  std::shuffle(order.begin(), order.end(), rng);
+  const auto rots = test::hex_rotations();
+  std::uniform_int_distribution<size_t> pick(0, rots.size() - 1);
+  m.conn.clear();
+  m.element_block.clear();
+  for (Id e : order) {
+    const auto& r = rots[pick(rng)];
+    for (int q = 0; q < 8; ++q) m.conn.push_back(perm[in.conn[8 * e + r[q]]]);
+    m.element_block.push_back(in.element_block[e]);
+  }
+  m.element_file_id.clear();
+  m.vertex_file_id.clear();
+  validate_coarse_mesh(m);
+  return m;
+}
+
+std::vector<std::array<double, 3>> sorted_nodes(const FineMesh& f) {
+  std::vector<std::array<double, 3>> out;
+  NodeCursor c(f);
+  Id id;
+  Vec3 p;
+  while (c.next(id, p)) out.push_back({p.x, p.y, p.z});
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+std::vector<std::array<double, 3>> sorted_centroids(const FineMesh& f) {
+  std::vector<std::array<double, 3>> out;
+  FineBlock b;
+  for (Id h = 0; h < f.num_coarse_elements(); ++h) {
+    f.fill_block(h, b);
+    for (Id e = 0; e < b.num_elements(); ++e) {
+      std::array<double, 3> c{0, 0, 0};
+      for (int q = 0; q < 8; ++q) {
+        const Vec3 p = f.node(b.conn[8 * e + q]);
+        c[0] += p.x / 8, c[1] += p.y / 8, c[2] += p.z / 8;
+      }
+      out.push_back(c);
+    }
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+void expect_close_sets(const std::vector<std::array<double, 3>>& a, const std::vector<std::array<double, 3>>& b) {
+  ASSERT_EQ(a.size(), b.size());
+  // Sorting with a tolerance: compare after snapping to a 1e-9 grid.
+  auto snap = [](std::vector<std::array<double, 3>> v) {
+    for (auto& p : v)
+      for (double& x : p) x = std::round(x * 1e9) / 1e9;
+    std::sort(v.begin(), v.end());
+    return v;
+  };
+  const auto sa = snap(a), sb = snap(b);
+  for (size_t i = 0; i < sa.size(); ++i)
+    for (int d = 0; d < 3; ++d) ASSERT_NEAR(sa[i][d], sb[i][d], 1e-9) << "point " << i;
+}
+
+}  // namespace
+
+TEST(RandomMeshes, StructuredBoxHasABCSheetsAndGridCounts) {
+  std::mt19937_64 rng(12345);
+  for (int trial = 0; trial < 12; ++trial) {
+    test::BoxSpec spec;
+    spec.a = 1 + trial % 4, spec.b = 1 + (trial / 2) % 3, spec.c = 1 + (trial * 5) % 3;
+    spec.blocks = 1 + trial % 2;
+    const CoarseMesh m = test::random_box(spec, rng);
+    const Topology t = build_topology(m);
+    const Sheets s = find_sheets(m, t);
+    EXPECT_EQ(s.num_sheets(), spec.a + spec.b + spec.c);
+    // Mixed intervals: random per sheet.
+    IntervalRequest req;
+    std::uniform_int_distribution<Id> n(1, 5);
+    Id total[3] = {0, 0, 0};
+    for (Id q = 0; q < s.num_sheets(); ++q) {
+      const Id v = n(rng);
+      req.sheets.emplace_back(q, v);
+      total[sheet_axis_slab(m, t, s, q).first] += v;
+    }
+    const FineMesh f = FineMesh::dice(m, req);
+    EXPECT_EQ(f.num_elements(), total[0] * total[1] * total[2]);
+    EXPECT_EQ(f.num_nodes(), (total[0] + 1) * (total[1] + 1) * (total[2] + 1));
+    const VerifyReport r = verify(f);
+    EXPECT_TRUE(r.ok()) << (r.problems.empty() ? "" : r.problems[0]);
+    EXPECT_GT(r.min_scaled_jacobian, 0.0);
+    // Boundary fine faces: the surface of an X x Y x Z grid.
+    EXPECT_EQ(r.boundary_fine_faces, 2 * (total[0] * total[1] + total[1] * total[2] + total[0] * total[2]));
+  }
+}
+
+TEST(RandomMeshes, RenumberedAndRotatedMeshGivesTheSameGeometricFineMesh) {
+  std::mt19937_64 rng(777);
+  for (int trial = 0; trial < 6; ++trial) {
+    test::BoxSpec spec;
+    spec.a = 2 + trial % 2, spec.b = 2, spec.c = 1 + trial % 3;
+    spec.renumber = false, spec.rotate = false;
+    const CoarseMesh base = test::random_box(spec, rng);
+    const CoarseMesh other = scramble(base, rng);
+    const FineMesh fa = FineMesh::dice(base, geometric_intervals(base));
+    const FineMesh fb = FineMesh::dice(other, geometric_intervals(other));
+    ASSERT_EQ(fa.num_nodes(), fb.num_nodes());
+    ASSERT_EQ(fa.num_elements(), fb.num_elements());
+    expect_close_sets(sorted_nodes(fa), sorted_nodes(fb));
+    expect_close_sets(sorted_centroids(fa), sorted_centroids(fb));
+    EXPECT_TRUE(verify(fb).ok());
+  }
+}
+
+TEST(RandomMeshes, EveryAccessPathIsBitIdentical) {
+  std::mt19937_64 rng(99);
+  test::BoxSpec spec;
+  spec.a = 3, spec.b = 2, spec.c = 2;
+  const CoarseMesh m = test::random_box(spec, rng);
+  IntervalRequest req;
+  req.global = 3;
+  req.sheets = {{0, 5}, {2, 2}};
+  const FineMesh f = FineMesh::dice(m, req);
+  // node(id) vs the cursor.
+  std::vector<Vec3> by_id(static_cast<size_t>(f.num_nodes()));
+  for (Id id = 0; id < f.num_nodes(); ++id) by_id[id] = f.node(id);
+  NodeCursor c(f);
+  Id id;
+  Vec3 p;
+  Id seen = 0;
+  while (c.next(id, p)) {
+    ASSERT_EQ(id, seen++);
+    ASSERT_EQ(std::bit_cast<std::uint64_t>(p.x), std::bit_cast<std::uint64_t>(by_id[id].x));
+    ASSERT_EQ(std::bit_cast<std::uint64_t>(p.y), std::bit_cast<std::uint64_t>(by_id[id].y));
+    ASSERT_EQ(std::bit_cast<std::uint64_t>(p.z), std::bit_cast<std::uint64_t>(by_id[id].z));
+  }
+  EXPECT_EQ(seen, f.num_nodes());
+  // Every block (so both neighbours of every shared face) vs node(id).
+  FineBlock b;
+  for (Id h = 0; h < f.num_coarse_elements(); ++h) {
+    f.fill_block(h, b);
+    for (Id g = 0; g < b.num_points(); ++g) {
+      const Vec3 q = by_id[b.node_id[g]];
+      ASSERT_TRUE(q.x == b.x[g] && q.y == b.y[g] && q.z == b.z[g]) << "coarse " << h << " point " << g;
+    }
+    // element(id) vs the block's connectivity.
+    for (Id e = 0; e < b.num_elements(); ++e) {
+      const FineElement el = f.element(b.first_element + e);
+      ASSERT_EQ(el.coarse_element, h);
+      for (int q = 0; q < 8; ++q) ASSERT_EQ(el.nodes[q], b.conn[8 * e + q]);
+    }
+  }
+  // Element cursor vs element(id).
+  ElementCursor ec(f);
+  FineElement el;
+  while (ec.next(el)) {
+    const FineElement ref = f.element(el.id);
+    ASSERT_EQ(ref.nodes, el.nodes);
+    ASSERT_EQ(ref.ijk, el.ijk);
+  }
+}
+
+TEST(RandomMeshes, NumberingRoundTripsAndFollowsTheLayout) {
+  std::mt19937_64 rng(5);
+  test::BoxSpec spec;
+  spec.a = 2, spec.b = 3, spec.c = 2;
+  const CoarseMesh m = test::random_box(spec, rng);
+  IntervalRequest req;
+  req.global = 4;
+  req.sheets = {{1, 2}, {3, 1}};
+  const FineMesh f = FineMesh::dice(m, req);
+  const Numbering& num = f.numbering();
+  const auto off = num.kind_offsets();
+  EXPECT_EQ(off[1], m.num_vertices());  // vertices first
+  EXPECT_TRUE(off[1] <= off[2] && off[2] <= off[3] && off[3] <= off[4]);
+  Id prev_entity = -1;
+  int prev_kind = -1;
+  for (Id id = 0; id < f.num_nodes(); ++id) {
+    const NodeRef r = num.locate_node(id);
+    ASSERT_EQ(num.node_id(r), id);
+    // Entities appear in order: kind, then entity id, never going back.
+    const int kind = static_cast<int>(r.kind);
+    ASSERT_TRUE(kind > prev_kind || (kind == prev_kind && r.entity >= prev_entity));
+    prev_kind = kind, prev_entity = r.entity;
+  }
+  for (Id e = 0; e < f.num_elements(); ++e) {
+    std::array<Id, 3> ijk;
+    const Id h = num.locate_element(e, ijk);
+    ASSERT_EQ(num.element_id(h, ijk[0], ijk[1], ijk[2]), e);
+  }
+}
+
+TEST(RandomMeshes, SurfaceSheetCountsAndConformity) {
+  std::mt19937_64 rng(31);
+  for (int trial = 0; trial < 6; ++trial) {
+    const int a = 2 + trial, b = 1 + trial % 3;
+    const CoarseMesh m = test::random_quad_sheet(a, b, trial % 2 == 0, rng);
+    const Topology t = build_topology(m);
+    const Sheets s = find_sheets(m, t);
+    EXPECT_EQ(s.num_sheets(), a + b);
+    IntervalRequest req;
+    req.global = 2 + trial % 3;
+    const FineMesh f = FineMesh::dice(m, req);
+    const Id n = *req.global;
+    EXPECT_EQ(f.num_elements(), a * n * b * n);
+    EXPECT_EQ(f.num_nodes(), (a * n + 1) * (b * n + 1));
+    const VerifyReport r = verify(f);
+    EXPECT_TRUE(r.ok()) << (r.problems.empty() ? "" : r.problems[0]);
+  }
+}
+
+TEST(RandomMeshes, VerifyCatchesABrokenMesh) {
+  // A mesh with a crack: two hexes side by side whose shared face uses
+  // duplicated vertices at the same coordinates. Dicing works, verify fails
+  // on coincident nodes.
+  CoarseMesh m;
+  m.source = "crack";
+  const double pts[12][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 1}, {1, 0, 1},
+                             {1, 1, 1}, {0, 1, 1}, {2, 0, 0}, {2, 1, 0}, {2, 0, 1}, {2, 1, 1}};
+  for (auto& p : pts) m.x.push_back(p[0]), m.y.push_back(p[1]), m.z.push_back(p[2]);
+  // duplicates of 1,2,5,6
+  for (int v : {1, 2, 5, 6}) m.x.push_back(pts[v][0]), m.y.push_back(pts[v][1]), m.z.push_back(pts[v][2]);
+  m.conn = {0, 1, 2, 3, 4, 5, 6, 7, 12, 8, 9, 13, 14, 10, 11, 15};
+  validate_coarse_mesh(m);
+  IntervalRequest req;
+  req.global = 2;
+  const VerifyReport r = verify(FineMesh::dice(m, req));
+  EXPECT_FALSE(r.ok());
+  EXPECT_GT(r.coincident_nodes, 0);
+}

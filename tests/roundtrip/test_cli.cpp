@@ -1,0 +1,195 @@
+// The dicer command end to end: JSON contracts, exactness of printed
+// coordinates, exit codes of refusals. JSON is parsed with nlohmann::json.
+#include <gtest/gtest.h>
+#include <hdf5.h>
+
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "dicer/store.hpp"
+#include "test_support.hpp"
+
+using namespace dicer;
+using test::run_cli;
+using Json = nlohmann::json;
+
+namespace {
+std::vector<Json> json_lines(const std::string& out) {
+  std::vector<Json> v;
+  std::istringstream in(out);
+  std::string line;
+  while (std::getline(in, line))
+    if (!line.empty()) v.push_back(Json::parse(line));
+  return v;
+}
+}  // namespace
+
+TEST(Cli, DiceInfoQueryVerifyOnARealMesh) {
+  test::TempDir tmp;
+  const std::string store = tmp.path("sphere.dice.h5");
+  auto r = run_cli({"dice", test::data_path("cardinal_sphere.e"), "--interval", "3", "-o", store});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  r = run_cli({"info", store, "--json"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const Json info = Json::parse(r.out);
+  EXPECT_EQ(info["mode"], "volume");
+  EXPECT_EQ(info["coarse_vertices"], 321);  // PROVENANCE.md
+  EXPECT_EQ(info["coarse_elements"], 256);
+  EXPECT_EQ(info["fine_elements"], 256 * 27);
+  for (const char* k : {"coarse_edges", "coarse_faces", "sheets", "fine_nodes", "format_version", "store_bytes"})
+    EXPECT_TRUE(info.contains(k)) << k;
+  ASSERT_EQ(info["blocks"].size(), 1u);
+  EXPECT_EQ(info["blocks"][0]["fine_elements"], 256 * 27);
+  // V - E + F - H = 1 for a solid ball, on the coarse mesh.
+  const long long euler = info["coarse_vertices"].get<long long>() - info["coarse_edges"].get<long long>() +
+                          info["coarse_faces"].get<long long>() - info["coarse_elements"].get<long long>();
+  EXPECT_EQ(euler, 1);
+
+  // Printed coordinates round-trip exactly to the library's values.
+  const FineMesh m = read_store(store);
+  r = run_cli({"query", store, "--nodes", "100:140", "--json"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto nodes = json_lines(r.out);
+  ASSERT_EQ(nodes.size(), 40u);
+  for (const auto& n : nodes) {
+    const Vec3 p = m.node(n["id"].get<Id>());
+    EXPECT_EQ(n["xyz"][0].get<double>(), p.x);
+    EXPECT_EQ(n["xyz"][1].get<double>(), p.y);
+    EXPECT_EQ(n["xyz"][2].get<double>(), p.z);
+  }
+  const Id last = m.num_elements() - 1;
+  r = run_cli({"query", store, "--element", std::to_string(last), "--json"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const Json el = Json::parse(r.out);
+  EXPECT_EQ(el["nodes"].size(), 8u);
+  EXPECT_EQ(el["coarse_element"], 255);
+  EXPECT_EQ(el["ijk"], Json::array({2, 2, 2}));
+  EXPECT_EQ(el["block"], m.coarse().blocks[0].id);
+  r = run_cli({"verify", store});
+  EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("all checks passed"), std::string::npos);
+}
+
+TEST(Cli, SheetsListEdgesInFileNumbering) {
+  auto r = run_cli({"sheets", test::data_path("cardinal_brick.e"), "--json", "--edges", "--interval", "2"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const Json j = Json::parse(r.out);
+  long long max_id = 0, edges = 0;
+  for (const auto& s : j["sheets"]) {
+    EXPECT_EQ(s["interval"], 2);
+    EXPECT_EQ(s["edges"].size(), s["edge_count"].get<size_t>());
+    for (const auto& e : s["edges"]) max_id = std::max({max_id, e[0].get<long long>(), e[1].get<long long>()}), ++edges;
+    EXPECT_EQ(s["blocks"], Json::array({3}));  // the brick is block 3 only
+  }
+  // The brick's node_num_map has gaps up to 5925 (PROVENANCE.md): ids are the file's, not 1..4665.
+  EXPECT_EQ(max_id, 5925);
+  // Sheet ids do not depend on the command that lists them.
+  auto again = run_cli({"sheets", test::data_path("cardinal_brick.e"), "--json", "--edges"});
+  EXPECT_EQ(Json::parse(again.out)["sheets"][5]["edges"], j["sheets"][5]["edges"]);
+}
+
+TEST(Cli, IntervalsFileAndFlagsCombine) {
+  test::TempDir tmp;
+  const std::string plan = tmp.path("plan.json"), store = tmp.path("m.dice.h5");
+  test::write_file(plan, R"({"global": 2, "blocks": {"76": 3}})");
+  auto r = run_cli({"dice", test::data_path("vtkdata_mug.e"), "--intervals-file", plan, "--sheet-interval", "0=4", "-o", store});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  r = run_cli({"info", store, "--json"});
+  const Json info = Json::parse(r.out);
+  ASSERT_EQ(info["blocks"].size(), 2u);
+  EXPECT_EQ(info["blocks"][1]["id"], 76);
+  EXPECT_EQ(info["blocks"][1]["coarse_elements"], 760);
+  EXPECT_GT(info["blocks"][1]["fine_elements"].get<long long>(), 760LL * 8);  // block 76 asks 3 > 2
+}
+
+TEST(Cli, RefusalsHaveDocumentedExitCodesAndLeaveNoOutput) {
+  test::TempDir tmp;
+  const std::string out = tmp.path("never.dice.h5");
+  const std::string mesh = test::data_path("cardinal_sphere.e");
+  struct Case {
+    std::vector<std::string> args;
+    int code;
+    const char* text;
+  };
+  const std::vector<Case> cases = {
+      {{"dice", mesh, "--bogus", "-o", out}, 2, "unknown option --bogus"},
+      {{"dice", mesh, "--interval", "0", "-o", out}, 2, "interval must be a whole number >= 1"},
+      {{"dice", mesh, "--interval", "-4", "-o", out}, 2, "interval must be a whole number >= 1"},
+      {{"dice", mesh, "--interval", "abc", "-o", out}, 2, "not a whole number"},
+      {{"dice", mesh, "--interval", "99999999999999999999", "-o", out}, 6, "does not fit in 64 bits"},
+      {{"dice", mesh, "--interval", "1000000000", "-o", out}, 6, "overflows 64-bit ids"},
+      {{"dice", mesh, "--block-interval", "9=2", "-o", out}, 2, "no block with id or name \"9\""},
+      {{"dice", mesh, "--sheet-interval", "500=2", "-o", out}, 2, "no sheet 500"},
+      {{"dice", mesh, "--interval", "2"}, 2, "missing -o"},
+      {{"dice", tmp.path("nope.exo"), "-o", out}, 5, "cannot open"},
+      {{"frobnicate"}, 2, "unknown command"},
+  };
+  for (const auto& c : cases) {
+    const auto r = run_cli(c.args);
+    EXPECT_EQ(r.exit_code, c.code) << c.args[0] << " " << c.args[2] << ": " << r.err;
+    EXPECT_NE(r.err.find(c.text), std::string::npos) << r.err;
+    // One line of message.
+    EXPECT_LE(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_FALSE(std::filesystem::exists(out));
+  }
+  size_t files = 0;
+  for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator(tmp.dir())) ++files;
+  EXPECT_EQ(files, 0u);
+}
+
+TEST(Cli, BadStoresAreRefusedClearly) {
+  test::TempDir tmp;
+  const std::string good = tmp.path("good.dice.h5");
+  ASSERT_EQ(run_cli({"dice", test::data_path("cardinal_sphere.e"), "--interval", "2", "-o", good}).exit_code, 0);
+  // Not HDF5 at all.
+  test::write_file(tmp.path("text.dice.h5"), "hello, I am not a store\n");
+  auto r = run_cli({"info", tmp.path("text.dice.h5")});
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_NE(r.err.find("not an HDF5 file"), std::string::npos) << r.err;
+  // Truncated.
+  const std::string bytes = test::read_file(good);
+  test::write_file(tmp.path("cut.dice.h5"), bytes.substr(0, bytes.size() / 2));
+  r = run_cli({"info", tmp.path("cut.dice.h5")});
+  EXPECT_TRUE(r.exit_code == 3 || r.exit_code == 8) << r.err;
+  EXPECT_NE(r.err.find("cut.dice.h5"), std::string::npos) << r.err;
+  // Unknown version and a missing dataset, edited with HDF5 itself.
+  const std::string ver = tmp.path("ver.dice.h5"), miss = tmp.path("miss.dice.h5");
+  std::filesystem::copy_file(good, ver);
+  std::filesystem::copy_file(good, miss);
+  {
+    hid_t f = H5Fopen(ver.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+    hid_t a = H5Aopen(f, "format_version", H5P_DEFAULT);
+    const long long v = 99;
+    H5Awrite(a, H5T_NATIVE_LLONG, &v);
+    H5Aclose(a);
+    H5Fclose(f);
+    f = H5Fopen(miss.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+    H5Ldelete(f, "topology/face_v", H5P_DEFAULT);
+    H5Fclose(f);
+  }
+  r = run_cli({"info", ver});
+  EXPECT_EQ(r.exit_code, 4);
+  EXPECT_NE(r.err.find("version 99"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("reads version 1"), std::string::npos) << r.err;
+  r = run_cli({"query", miss, "--node", "0"});
+  EXPECT_EQ(r.exit_code, 8);
+  EXPECT_NE(r.err.find("topology/face_v is missing"), std::string::npos) << r.err;
+  // Query out of range.
+  r = run_cli({"query", good, "--node", "999999999"});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("out of range"), std::string::npos) << r.err;
+}
+
+TEST(Cli, HelpTeaches) {
+  auto r = run_cli({"--help"});
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_NE(r.out.find("Exit codes"), std::string::npos);
+  for (const char* cmd : {"sheets", "dice", "info", "query", "verify"}) {
+    r = run_cli({cmd, "--help"});
+    EXPECT_EQ(r.exit_code, 0) << cmd;
+    EXPECT_NE(r.out.find("Usage: dicer"), std::string::npos) << cmd;
+  }
+  r = run_cli({"dice", "--help"});
+  EXPECT_NE(r.out.find("precedence"), std::string::npos);
+}

@@ -1,0 +1,510 @@
+// ReadExodus: the Exodus reader against the nine real Exodus files in
+// tests/data (facts from PROVENANCE.md, checked there with ncdump, netCDF4
+// and meshio, not with this reader) and against small fixtures written with
+// the Exodus library.
+#include <exodusII.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <map>
+#include <set>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "dicer/coarse_mesh.hpp"
+#include "dicer/error.hpp"
+#include "test_support.hpp"
+
+namespace {
+
+using dicer::CoarseMesh;
+using dicer::Id;
+using dicer::Mode;
+using dicer::test::data_path;
+using dicer::test::TempDir;
+
+CoarseMesh read(const std::string& name) { return dicer::read_exodus(data_path(name)); }
+
+// Structural invariants every mesh from the reader must satisfy.
+void expect_consistent(const CoarseMesh& m) {
+  const Id V = m.num_vertices();
+  const Id E = m.num_elements();
+  EXPECT_EQ(static_cast<Id>(m.y.size()), V);
+  EXPECT_EQ(static_cast<Id>(m.z.size()), V);
+  EXPECT_EQ(static_cast<Id>(m.vertex_file_id.size()), V);
+  EXPECT_EQ(static_cast<Id>(m.conn.size()), E * m.corners_per_element());
+  EXPECT_EQ(static_cast<Id>(m.element_file_id.size()), E);
+  EXPECT_EQ(static_cast<Id>(m.element_block.size()), E);
+  EXPECT_TRUE(m.vertex_geo_dim.empty());
+  EXPECT_TRUE(m.vertex_geo_tag.empty());
+  for (Id v : m.conn) ASSERT_TRUE(v >= 0 && v < V) << v;
+  for (auto b : m.element_block) ASSERT_TRUE(b >= 0 && b < static_cast<std::int32_t>(m.blocks.size())) << b;
+  for (Id v = 0; v < V; ++v)
+    ASSERT_TRUE(std::isfinite(m.x[v]) && std::isfinite(m.y[v]) && std::isfinite(m.z[v])) << v;
+  std::set<Id> ids(m.vertex_file_id.begin(), m.vertex_file_id.end());
+  EXPECT_EQ(static_cast<Id>(ids.size()), V) << "vertex file ids must be unique";
+  std::set<Id> eids(m.element_file_id.begin(), m.element_file_id.end());
+  EXPECT_EQ(static_cast<Id>(eids.size()), E) << "element file ids must be unique";
+  for (const auto& s : m.side_sets) {
+    ASSERT_EQ(s.element.size(), s.side.size());
+    for (std::size_t i = 0; i < s.element.size(); ++i) {
+      ASSERT_TRUE(s.element[i] >= 0 && s.element[i] < E);
+      ASSERT_TRUE(s.side[i] >= 0 && s.side[i] < 6);
+    }
+  }
+  for (const auto& s : m.node_sets)
+    for (Id v : s.vertex) ASSERT_TRUE(v >= 0 && v < V);
+}
+
+std::vector<std::int64_t> block_ids(const CoarseMesh& m) {
+  std::vector<std::int64_t> ids;
+  for (const auto& b : m.blocks) ids.push_back(b.id);
+  return ids;
+}
+
+std::vector<Id> elements_per_block(const CoarseMesh& m) {
+  std::vector<Id> n(m.blocks.size(), 0);
+  for (auto b : m.element_block) ++n[static_cast<std::size_t>(b)];
+  return n;
+}
+
+// Side set summary: id -> (name, size), plus the order of ids.
+std::vector<std::int64_t> side_set_ids(const CoarseMesh& m) {
+  std::vector<std::int64_t> ids;
+  for (const auto& s : m.side_sets) ids.push_back(s.id);
+  return ids;
+}
+const dicer::SideSet& side_set(const CoarseMesh& m, std::int64_t id) {
+  for (const auto& s : m.side_sets)
+    if (s.id == id) return s;
+  throw std::runtime_error("no side set " + std::to_string(id));
+}
+
+bool identity(const std::vector<Id>& ids) {
+  for (std::size_t i = 0; i < ids.size(); ++i)
+    if (ids[i] != static_cast<Id>(i) + 1) return false;
+  return true;
+}
+
+TEST(ReadExodus, DiskOutRefLegacyCubit1996) {
+  const CoarseMesh m = read("vtkdata_disk_out_ref.ex2");
+  expect_consistent(m);
+  EXPECT_EQ(m.mode, Mode::Volume);
+  EXPECT_EQ(m.source, data_path("vtkdata_disk_out_ref.ex2"));
+  EXPECT_EQ(m.num_vertices(), 8499);
+  EXPECT_EQ(m.num_elements(), 7472);
+  EXPECT_EQ(block_ids(m), (std::vector<std::int64_t>{1}));
+  EXPECT_EQ(m.blocks[0].name, "");
+  // Side sets in file order (not sorted), with their sizes.
+  EXPECT_EQ(side_set_ids(m), (std::vector<std::int64_t>{1, 5, 3, 6, 2, 7, 4}));
+  const std::map<std::int64_t, std::size_t> sizes = {{1, 418}, {2, 180}, {3, 828}, {4, 238},
+                                                     {5, 108}, {6, 216}, {7, 964}};
+  for (const auto& [id, size] : sizes) EXPECT_EQ(side_set(m, id).element.size(), size) << "side set " << id;
+  ASSERT_EQ(m.node_sets.size(), 3u);
+  for (const auto& s : m.node_sets) EXPECT_EQ(s.vertex.size(), 1u);
+  // The legacy all-zero `elem_map` must not become the element ids.
+  EXPECT_TRUE(identity(m.element_file_id));
+  EXPECT_TRUE(identity(m.vertex_file_id));
+  // float32 coordinates in the old combined `coord` variable, widened exactly.
+  double rmax = 0, zmin = 1e300, zmax = -1e300;
+  for (Id v = 0; v < m.num_vertices(); ++v) {
+    ASSERT_EQ(static_cast<double>(static_cast<float>(m.x[v])), m.x[v]);
+    ASSERT_EQ(static_cast<double>(static_cast<float>(m.z[v])), m.z[v]);
+    rmax = std::max(rmax, std::hypot(m.x[v], m.y[v]));
+    zmin = std::min(zmin, m.z[v]);
+    zmax = std::max(zmax, m.z[v]);
+  }
+  EXPECT_NEAR(rmax, 5.75, 1e-4);
+  EXPECT_NEAR(zmin, -10.0, 1e-4);
+  EXPECT_NEAR(zmax, 10.16, 1e-4);
+}
+
+TEST(ReadExodus, MugTwoBlocksWithGappedIds) {
+  const CoarseMesh m = read("vtkdata_mug.e");
+  expect_consistent(m);
+  EXPECT_EQ(m.num_vertices(), 3774);
+  EXPECT_EQ(m.num_elements(), 2476);
+  EXPECT_EQ(block_ids(m), (std::vector<std::int64_t>{1, 76}));
+  EXPECT_EQ(elements_per_block(m), (std::vector<Id>{1716, 760}));
+  // Elements are in file order, block after block.
+  EXPECT_TRUE(std::is_sorted(m.element_block.begin(), m.element_block.end()));
+  EXPECT_EQ(side_set_ids(m), (std::vector<std::int64_t>{2, 1}));
+  EXPECT_EQ(side_set(m, 2).name, "top");
+  EXPECT_EQ(side_set(m, 2).element.size(), 76u);
+  EXPECT_EQ(side_set(m, 1).name, "bottom");
+  EXPECT_EQ(side_set(m, 1).element.size(), 478u);
+  ASSERT_EQ(m.node_sets.size(), 2u);
+  EXPECT_EQ(m.node_sets[0].id, 2);
+  EXPECT_EQ(m.node_sets[0].vertex.size(), 114u);
+  EXPECT_EQ(m.node_sets[1].id, 1);
+  EXPECT_EQ(m.node_sets[1].vertex.size(), 498u);
+  // elem_num_map is a non-identity permutation of 1..n.
+  EXPECT_FALSE(identity(m.element_file_id));
+  std::vector<Id> sorted = m.element_file_id;
+  std::sort(sorted.begin(), sorted.end());
+  EXPECT_TRUE(identity(sorted));
+}
+
+TEST(ReadExodus, PincellThreeBlocks) {
+  const CoarseMesh m = read("cardinal_pincell.e");
+  expect_consistent(m);
+  EXPECT_EQ(m.num_vertices(), 6180);
+  EXPECT_EQ(m.num_elements(), 5310);
+  EXPECT_EQ(block_ids(m), (std::vector<std::int64_t>{1, 2, 3}));
+  EXPECT_EQ(elements_per_block(m), (std::vector<Id>{1652, 2124, 1534}));
+  ASSERT_EQ(m.side_sets.size(), 3u);
+  EXPECT_EQ(m.side_sets[0].name, "bottom");
+  EXPECT_EQ(m.side_sets[0].element.size(), 90u);
+  EXPECT_EQ(m.side_sets[1].name, "top");
+  EXPECT_EQ(m.side_sets[1].element.size(), 90u);
+  EXPECT_EQ(m.side_sets[2].name, "surface");
+  EXPECT_EQ(m.side_sets[2].element.size(), 1416u);
+  EXPECT_TRUE(m.node_sets.empty());
+  EXPECT_FALSE(identity(m.vertex_file_id));
+}
+
+TEST(ReadExodus, CylindersInteriorSideSet) {
+  const CoarseMesh m = read("cardinal_cylinders.exo");
+  expect_consistent(m);
+  EXPECT_EQ(m.num_vertices(), 10944);
+  EXPECT_EQ(m.num_elements(), 9128);
+  EXPECT_EQ(block_ids(m), (std::vector<std::int64_t>{1, 2}));
+  EXPECT_EQ(elements_per_block(m), (std::vector<Id>{2492, 6636}));
+  EXPECT_EQ(side_set(m, 1).name, "outer");
+  EXPECT_EQ(side_set(m, 1).element.size(), 882u);
+  EXPECT_EQ(side_set(m, 2).name, "interface");
+  EXPECT_EQ(side_set(m, 2).element.size(), 448u);
+  EXPECT_FALSE(identity(m.vertex_file_id));
+}
+
+TEST(ReadExodus, BrickNodeMapGapsAndElementMapOffset) {
+  const CoarseMesh m = read("cardinal_brick.e");
+  expect_consistent(m);
+  EXPECT_EQ(m.num_vertices(), 4665);
+  EXPECT_EQ(m.num_elements(), 3486);
+  EXPECT_EQ(block_ids(m), (std::vector<std::int64_t>{3}));
+  const std::vector<std::pair<std::string, std::size_t>> sets = {
+      {"left_pin", 308}, {"right_pin", 308}, {"left", 196}, {"right", 196}, {"bottom_brick", 249}};
+  ASSERT_EQ(m.side_sets.size(), sets.size());
+  for (std::size_t i = 0; i < sets.size(); ++i) {
+    EXPECT_EQ(m.side_sets[i].name, sets[i].first);
+    EXPECT_EQ(m.side_sets[i].element.size(), sets[i].second) << sets[i].first;
+  }
+  EXPECT_EQ(*std::max_element(m.vertex_file_id.begin(), m.vertex_file_id.end()), 5925);
+  EXPECT_EQ(*std::min_element(m.element_file_id.begin(), m.element_file_id.end()), 1457);
+  EXPECT_EQ(*std::max_element(m.element_file_id.begin(), m.element_file_id.end()), 4942);
+}
+
+TEST(ReadExodus, TrisoNamedBlocks) {
+  const CoarseMesh m = read("cardinal_triso_solid.e");
+  expect_consistent(m);
+  EXPECT_EQ(m.num_vertices(), 4998);
+  EXPECT_EQ(m.num_elements(), 3960);
+  ASSERT_EQ(m.blocks.size(), 2u);
+  EXPECT_EQ(m.blocks[0].id, 1);
+  EXPECT_EQ(m.blocks[0].name, "graphite");
+  EXPECT_EQ(m.blocks[1].id, 2);
+  EXPECT_EQ(m.blocks[1].name, "compacts");
+  EXPECT_EQ(elements_per_block(m), (std::vector<Id>{1980, 1980}));
+  ASSERT_EQ(m.side_sets.size(), 1u);
+  EXPECT_EQ(m.side_sets[0].name, "fluid_solid_interface");
+  EXPECT_EQ(m.side_sets[0].element.size(), 216u);
+}
+
+TEST(ReadExodus, SphereHexTypeString) {
+  const CoarseMesh m = read("cardinal_sphere.e");  // element type "HEX", not "HEX8"
+  expect_consistent(m);
+  EXPECT_EQ(m.mode, Mode::Volume);
+  EXPECT_EQ(m.num_vertices(), 321);
+  EXPECT_EQ(m.num_elements(), 256);
+  ASSERT_EQ(m.side_sets.size(), 1u);
+  EXPECT_EQ(m.side_sets[0].id, 1);
+  EXPECT_EQ(m.side_sets[0].element.size(), 96u);
+  double rmax = 0;
+  for (Id v = 0; v < m.num_vertices(); ++v) rmax = std::max(rmax, std::sqrt(m.x[v] * m.x[v] + m.y[v] * m.y[v] + m.z[v] * m.z[v]));
+  EXPECT_NEAR(rmax, 1.5, 1e-6);
+}
+
+TEST(ReadExodus, PrismElevenNamedSideSets) {
+  const CoarseMesh m = read("cardinal_prism.exo");
+  expect_consistent(m);
+  EXPECT_EQ(m.num_vertices(), 2400);
+  EXPECT_EQ(m.num_elements(), 1863);
+  EXPECT_EQ(elements_per_block(m), (std::vector<Id>{972, 891}));
+  EXPECT_EQ(side_set_ids(m), (std::vector<std::int64_t>{1, 2, 3, 4, 5, 6, 7, 9, 10, 11, 12}));
+  const std::map<std::string, std::size_t> sizes = {
+      {"vol1_top", 81},   {"interface", 81},  {"vol1_face1", 108}, {"vol1_face2", 108},
+      {"vol1_face3", 108}, {"vol1_face4", 108}, {"vol2_top", 81},   {"vol2_face1", 99},
+      {"vol2_face2", 99}, {"vol2_face3", 99}, {"vol2_face4", 99}};
+  for (const auto& s : m.side_sets) {
+    ASSERT_TRUE(sizes.count(s.name)) << s.name;
+    EXPECT_EQ(s.element.size(), sizes.at(s.name)) << s.name;
+  }
+}
+
+TEST(ReadExodus, CylinderShellIsSurfaceMode) {
+  const CoarseMesh m = read("libmesh_cylinder_shell.exo");
+  expect_consistent(m);
+  EXPECT_EQ(m.mode, Mode::Surface);
+  EXPECT_EQ(m.corners_per_element(), 4);
+  EXPECT_EQ(m.num_vertices(), 457);
+  EXPECT_EQ(m.num_elements(), 416);
+  EXPECT_EQ(block_ids(m), (std::vector<std::int64_t>{11}));
+  EXPECT_EQ(side_set_ids(m), (std::vector<std::int64_t>{7, 8, 9, 10, 11, 12}));
+  const std::size_t edge_sizes[4] = {16, 24, 16, 24};
+  for (int i = 0; i < 4; ++i) {
+    const auto& s = m.side_sets[static_cast<std::size_t>(i)];
+    EXPECT_EQ(s.element.size(), edge_sizes[i]);
+    for (auto side : s.side) EXPECT_TRUE(side >= 2 && side <= 5) << "edge sides are 2..5, got " << int(side);
+  }
+  EXPECT_EQ(side_set(m, 11).element.size(), 416u);
+  for (auto side : side_set(m, 11).side) EXPECT_EQ(side, 0);
+  EXPECT_EQ(side_set(m, 12).element.size(), 416u);
+  for (auto side : side_set(m, 12).side) EXPECT_EQ(side, 1);
+  const std::size_t node_sizes[4] = {17, 25, 17, 25};
+  ASSERT_EQ(m.node_sets.size(), 4u);
+  for (int i = 0; i < 4; ++i) {
+    EXPECT_EQ(m.node_sets[static_cast<std::size_t>(i)].id, 7 + i);
+    EXPECT_EQ(m.node_sets[static_cast<std::size_t>(i)].vertex.size(), node_sizes[i]);
+  }
+}
+
+// A small Exodus file written with the Exodus library itself (test fixture).
+struct FixtureBlock {
+  std::int64_t id = 1;
+  std::string type = "HEX8";
+  std::int64_t nodes_per_element = 8;
+  std::vector<std::int64_t> conn;  // 1-based node numbers
+  std::string name;
+};
+struct FixtureSideSet {
+  std::int64_t id = 1;
+  std::vector<std::int64_t> element, side;  // 1-based, as Exodus stores them
+};
+struct FixtureNodeSet {
+  std::int64_t id = 1;
+  std::vector<std::int64_t> node;  // 1-based
+};
+struct Fixture {
+  int create_mode = EX_CLOBBER;  // | EX_NETCDF4 for an HDF5-based file
+  int num_dim = 3;
+  std::vector<double> x, y, z;
+  bool write_coords = true;
+  std::vector<FixtureBlock> blocks;
+  std::vector<FixtureSideSet> side_sets;
+  std::vector<FixtureNodeSet> node_sets;
+  std::vector<std::int64_t> node_map, elem_map;  // empty: none stored
+};
+
+// Two unit hexes side by side along x: nodes (i, j, k), i in 0..2, j, k in 0..1,
+// node number 1 + i + 3 j + 6 k; elements 1 and 2 in block 1.
+Fixture two_hexes() {
+  Fixture f;
+  for (int k = 0; k < 2; ++k)
+    for (int j = 0; j < 2; ++j)
+      for (int i = 0; i < 3; ++i) {
+        f.x.push_back(i);
+        f.y.push_back(j);
+        f.z.push_back(k);
+      }
+  FixtureBlock b;
+  for (int i = 0; i < 2; ++i) {
+    const std::int64_t n = 1 + i;
+    for (std::int64_t v : {n, n + 1, n + 4, n + 3, n + 6, n + 7, n + 10, n + 9}) b.conn.push_back(v);
+  }
+  f.blocks.push_back(b);
+  return f;
+}
+
+void exo_check(int rc, const char* what) {
+  if (rc < 0) throw std::runtime_error(std::string("fixture: ") + what + " failed");
+}
+
+void write_exodus(const std::string& path, const Fixture& f) {
+  int cpu_ws = 8, io_ws = 8;
+  const int exoid = ex_create(path.c_str(), f.create_mode, &cpu_ws, &io_ws);
+  if (exoid < 0) throw std::runtime_error("fixture: ex_create failed for " + path);
+  ex_set_int64_status(exoid, EX_ALL_INT64_API);
+  std::int64_t num_elem = 0;
+  for (const auto& b : f.blocks) num_elem += static_cast<std::int64_t>(b.conn.size()) / b.nodes_per_element;
+  exo_check(ex_put_init(exoid, "dicer fixture", f.num_dim, static_cast<std::int64_t>(f.x.size()), num_elem,
+                        static_cast<std::int64_t>(f.blocks.size()), static_cast<std::int64_t>(f.node_sets.size()),
+                        static_cast<std::int64_t>(f.side_sets.size())),
+            "ex_put_init");
+  if (f.write_coords)
+    exo_check(ex_put_coord(exoid, f.x.data(), f.y.data(), f.num_dim >= 3 ? f.z.data() : nullptr), "ex_put_coord");
+  if (!f.node_map.empty()) exo_check(ex_put_id_map(exoid, EX_NODE_MAP, f.node_map.data()), "node map");
+  if (!f.elem_map.empty()) exo_check(ex_put_id_map(exoid, EX_ELEM_MAP, f.elem_map.data()), "elem map");
+  for (const auto& b : f.blocks) {
+    const std::int64_t n = static_cast<std::int64_t>(b.conn.size()) / b.nodes_per_element;
+    exo_check(ex_put_block(exoid, EX_ELEM_BLOCK, b.id, b.type.c_str(), n, b.nodes_per_element, 0, 0, 0),
+              "ex_put_block");
+    if (n > 0) exo_check(ex_put_conn(exoid, EX_ELEM_BLOCK, b.id, b.conn.data(), nullptr, nullptr), "ex_put_conn");
+    if (!b.name.empty()) exo_check(ex_put_name(exoid, EX_ELEM_BLOCK, b.id, b.name.c_str()), "ex_put_name");
+  }
+  for (const auto& s : f.side_sets) {
+    exo_check(ex_put_set_param(exoid, EX_SIDE_SET, s.id, static_cast<std::int64_t>(s.element.size()), 0),
+              "side set param");
+    exo_check(ex_put_set(exoid, EX_SIDE_SET, s.id, s.element.data(), s.side.data()), "side set");
+  }
+  for (const auto& s : f.node_sets) {
+    exo_check(ex_put_set_param(exoid, EX_NODE_SET, s.id, static_cast<std::int64_t>(s.node.size()), 0),
+              "node set param");
+    exo_check(ex_put_set(exoid, EX_NODE_SET, s.id, s.node.data(), nullptr), "node set");
+  }
+  exo_check(ex_close(exoid), "ex_close");
+}
+
+TEST(ReadExodus, FixtureWithoutMapsNumbersFromOne) {
+  TempDir tmp;
+  const std::string path = tmp.path("plain.e");
+  write_exodus(path, two_hexes());
+  const CoarseMesh m = dicer::read_exodus(path);
+  expect_consistent(m);
+  EXPECT_EQ(m.num_vertices(), 12);
+  EXPECT_EQ(m.num_elements(), 2);
+  EXPECT_EQ(m.vertex_file_id, (std::vector<Id>{1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12}));
+  EXPECT_EQ(m.element_file_id, (std::vector<Id>{1, 2}));
+  // 0-based connectivity in the file's (VTK) order.
+  EXPECT_EQ(std::vector<Id>(m.conn.begin(), m.conn.begin() + 8), (std::vector<Id>{0, 1, 4, 3, 6, 7, 10, 9}));
+  EXPECT_DOUBLE_EQ(m.x[2], 2.0);
+  EXPECT_DOUBLE_EQ(m.z[11], 1.0);
+  EXPECT_TRUE(m.warnings.empty());
+}
+
+TEST(ReadExodus, Netcdf4FixtureReads) {
+  TempDir tmp;
+  const std::string path = tmp.path("hdf5.e");
+  Fixture f = two_hexes();
+  f.create_mode = EX_CLOBBER | EX_NETCDF4;
+  f.side_sets.push_back({4, {2}, {2}});
+  write_exodus(path, f);
+  const CoarseMesh m = dicer::read_exodus(path);
+  expect_consistent(m);
+  EXPECT_EQ(m.num_elements(), 2);
+  ASSERT_EQ(m.side_sets.size(), 1u);
+  EXPECT_EQ(m.side_sets[0].element, (std::vector<Id>{1}));
+  EXPECT_EQ(m.side_sets[0].side, (std::vector<std::int8_t>{1}));
+}
+
+TEST(ReadExodus, ElementTypeIsCaseInsensitive) {
+  TempDir tmp;
+  for (const char* type : {"hex8", "Hexahedron", "hex"}) {
+    const std::string path = tmp.path(std::string(type) + ".e");
+    Fixture f = two_hexes();
+    f.blocks[0].type = type;
+    write_exodus(path, f);
+    const CoarseMesh m = dicer::read_exodus(path);
+    EXPECT_EQ(m.mode, Mode::Volume) << type;
+    EXPECT_EQ(m.num_elements(), 2) << type;
+  }
+}
+
+TEST(ReadExodus, ZeroElementMapFallsBackWithWarning) {
+  TempDir tmp;
+  const std::string path = tmp.path("zeros.e");
+  Fixture f = two_hexes();
+  f.elem_map = {0, 0};
+  write_exodus(path, f);
+  const CoarseMesh m = dicer::read_exodus(path);
+  EXPECT_EQ(m.element_file_id, (std::vector<Id>{1, 2}));
+  ASSERT_EQ(m.warnings.size(), 1u);
+  EXPECT_NE(m.warnings[0].find("all zeros"), std::string::npos) << m.warnings[0];
+}
+
+TEST(ReadExodus, DuplicateNodeMapFallsBackWithWarning) {
+  TempDir tmp;
+  const std::string path = tmp.path("dup.e");
+  Fixture f = two_hexes();
+  f.node_map = {5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 5};
+  write_exodus(path, f);
+  const CoarseMesh m = dicer::read_exodus(path);
+  EXPECT_TRUE(identity(m.vertex_file_id));
+  ASSERT_EQ(m.warnings.size(), 1u);
+  EXPECT_NE(m.warnings[0].find("duplicate"), std::string::npos) << m.warnings[0];
+}
+
+TEST(ReadExodus, EmptyBlockIsKept) {
+  TempDir tmp;
+  const std::string path = tmp.path("empty_block.e");
+  Fixture f = two_hexes();
+  FixtureBlock empty;
+  empty.id = 9;
+  empty.name = "nothing";
+  FixtureBlock second = f.blocks[0];
+  second.id = 4;
+  f.blocks[0].conn.resize(8);   // block 1: element 1
+  second.conn.erase(second.conn.begin(), second.conn.begin() + 8);  // block 4: element 2
+  f.blocks = {f.blocks[0], empty, second};
+  write_exodus(path, f);
+  const CoarseMesh m = dicer::read_exodus(path);
+  expect_consistent(m);
+  EXPECT_EQ(block_ids(m), (std::vector<std::int64_t>{1, 9, 4}));
+  EXPECT_EQ(m.blocks[1].name, "nothing");
+  EXPECT_EQ(m.element_block, (std::vector<std::int32_t>{0, 2}));
+}
+
+TEST(ReadExodus, ShellBlockInHexFileIsSkipped) {
+  TempDir tmp;
+  const std::string path = tmp.path("hex_and_shell.e");
+  Fixture f = two_hexes();
+  FixtureBlock shells;
+  shells.id = 100;
+  shells.type = "SHELL4";
+  shells.nodes_per_element = 4;
+  shells.conn = {1, 4, 5, 2};  // the bottom face of element 1
+  FixtureBlock hex2 = f.blocks[0];
+  hex2.id = 2;
+  f.blocks[0].conn.resize(8);
+  hex2.conn.erase(hex2.conn.begin(), hex2.conn.begin() + 8);
+  f.blocks = {f.blocks[0], shells, hex2};   // file elements: hex, shell, hex
+  f.elem_map = {10, 20, 30};
+  f.side_sets.push_back({1, {1, 2, 3}, {5, 1, 6}});  // element 2 is the shell
+  write_exodus(path, f);
+  const CoarseMesh m = dicer::read_exodus(path);
+  expect_consistent(m);
+  EXPECT_EQ(m.mode, Mode::Volume);
+  EXPECT_EQ(m.num_elements(), 2);
+  EXPECT_EQ(block_ids(m), (std::vector<std::int64_t>{1, 2}));
+  EXPECT_EQ(m.element_file_id, (std::vector<Id>{10, 30}));
+  ASSERT_EQ(m.side_sets.size(), 1u);
+  EXPECT_EQ(m.side_sets[0].element, (std::vector<Id>{0, 1}));
+  EXPECT_EQ(m.side_sets[0].side, (std::vector<std::int8_t>{4, 5}));
+  ASSERT_EQ(m.warnings.size(), 2u);  // skipped block, dropped side
+  EXPECT_NE(m.warnings[0].find("element block 100"), std::string::npos) << m.warnings[0];
+  EXPECT_NE(m.warnings[1].find("side set 1"), std::string::npos) << m.warnings[1];
+}
+
+TEST(ReadExodus, PlanarQuad4FileIsSurfaceWithZeroZ) {
+  TempDir tmp;
+  const std::string path = tmp.path("quads2d.e");
+  Fixture f;
+  f.num_dim = 2;
+  f.x = {0, 1, 2, 0, 1, 2};
+  f.y = {0, 0, 0, 1, 1, 1};
+  f.z = {7, 7, 7, 7, 7, 7};  // not written for num_dim 2
+  FixtureBlock quads;
+  quads.id = 3;
+  quads.type = "QUAD4";
+  quads.nodes_per_element = 4;
+  quads.conn = {1, 2, 5, 4, 2, 3, 6, 5};
+  f.blocks.push_back(quads);
+  f.side_sets.push_back({2, {1, 2}, {1, 4}});  // QUAD4 sides are edges 1..4
+  f.node_sets.push_back({6, {3, 6}});
+  write_exodus(path, f);
+  const CoarseMesh m = dicer::read_exodus(path);
+  expect_consistent(m);
+  EXPECT_EQ(m.mode, Mode::Surface);
+  EXPECT_EQ(m.num_elements(), 2);
+  for (double z : m.z) EXPECT_EQ(z, 0.0);
+  ASSERT_EQ(m.side_sets.size(), 1u);
+  // Stored in shell numbering: edges are sides 2..5.
+  EXPECT_EQ(m.side_sets[0].side, (std::vector<std::int8_t>{2, 5}));
+  ASSERT_EQ(m.node_sets.size(), 1u);
+  EXPECT_EQ(m.node_sets[0].vertex, (std::vector<Id>{2, 5}));
+}
+
+}  // namespace

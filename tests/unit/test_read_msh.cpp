@@ -1,0 +1,529 @@
+// read_msh on the bundled real Gmsh files, on Gmsh's own binary and 4.1
+// re-saves of them, and on small hand-written fixtures (sparse tags, names,
+// sets, byte-swapped binary).
+#include <gmock/gmock.h>
+#include <gmsh.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cstring>
+#include <map>
+#include <set>
+#include <string>
+#include <tuple>
+#include <utility>
+#include <vector>
+
+#include "dicer/coarse_mesh.hpp"
+#include "dicer/error.hpp"
+#include "test_support.hpp"
+
+using dicer::CoarseMesh;
+using dicer::Id;
+using dicer::Mode;
+using dicer::test::data_path;
+using dicer::test::TempDir;
+using dicer::test::write_file;
+using testing::HasSubstr;
+
+namespace {
+
+// A mesh described by file ids only, so that two files with the same content
+// but a different node/element order compare equal.
+struct ById {
+  std::map<Id, std::array<double, 3>> coords;  // node tag -> x, y, z
+  std::map<Id, std::vector<Id>> cells;         // element tag -> corner node tags
+};
+
+ById by_id(const CoarseMesh& m) {
+  ById r;
+  for (Id v = 0; v < m.num_vertices(); ++v) r.coords[m.vertex_file_id[v]] = {m.x[v], m.y[v], m.z[v]};
+  const int n = m.corners_per_element();
+  for (Id e = 0; e < m.num_elements(); ++e) {
+    std::vector<Id>& c = r.cells[m.element_file_id[e]];
+    for (int k = 0; k < n; ++k) c.push_back(m.vertex_file_id[m.conn[e * n + k]]);
+  }
+  return r;
+}
+
+// Checks the structural invariants the reader promises.
+void expect_consistent(const CoarseMesh& m) {
+  const Id nv = m.num_vertices();
+  EXPECT_EQ(m.y.size(), m.x.size());
+  EXPECT_EQ(m.z.size(), m.x.size());
+  EXPECT_EQ(static_cast<Id>(m.vertex_file_id.size()), nv);
+  EXPECT_EQ(static_cast<Id>(m.vertex_geo_dim.size()), nv);
+  EXPECT_EQ(static_cast<Id>(m.vertex_geo_tag.size()), nv);
+  EXPECT_EQ(m.conn.size() % m.corners_per_element(), 0u);
+  EXPECT_EQ(static_cast<Id>(m.element_file_id.size()), m.num_elements());
+  EXPECT_EQ(static_cast<Id>(m.element_block.size()), m.num_elements());
+  for (Id v : m.conn) ASSERT_TRUE(v >= 0 && v < nv);
+  for (auto b : m.element_block) ASSERT_TRUE(b >= 0 && b < static_cast<int>(m.blocks.size()));
+  for (std::size_t i = 1; i < m.blocks.size(); ++i) EXPECT_LT(m.blocks[i - 1].id, m.blocks[i].id);
+  for (const auto& s : m.side_sets) {
+    ASSERT_EQ(s.element.size(), s.side.size());
+    for (std::size_t i = 0; i < s.element.size(); ++i) {
+      ASSERT_TRUE(s.element[i] >= 0 && s.element[i] < m.num_elements());
+      if (m.mode == Mode::Volume) {
+        EXPECT_TRUE(s.side[i] >= 0 && s.side[i] <= 5);
+      } else {
+        EXPECT_TRUE(s.side[i] >= 2 && s.side[i] <= 5);
+      }
+    }
+  }
+}
+
+// Re-saves `src` with Gmsh (MSH `version`, binary or ASCII) as `dst`.
+void gmsh_resave(const std::string& src, const std::string& dst, double version, bool binary) {
+  gmsh::initialize();
+  gmsh::option::setNumber("General.Terminal", 0);
+  gmsh::open(src);
+  gmsh::option::setNumber("Mesh.Binary", binary ? 1 : 0);
+  gmsh::option::setNumber("Mesh.MshFileVersion", version);
+  gmsh::write(dst);
+  gmsh::finalize();
+}
+
+// The same mesh keyed by coordinates: Gmsh keeps coordinates and corner
+// order on a re-save but may renumber nodes and elements (it does for the
+// sparse tags of the deal.II file).
+using Point = std::array<double, 3>;
+struct ByCoords {
+  std::map<Point, int> geo_dim;                                   // every node
+  std::map<std::vector<Point>, std::pair<Id, std::string>> cells;  // corners -> block
+  std::set<std::tuple<Id, std::vector<Point>, int>> sides;         // set id, element, side
+};
+
+ByCoords by_coords(const CoarseMesh& m) {
+  ByCoords r;
+  for (Id v = 0; v < m.num_vertices(); ++v) r.geo_dim[{m.x[v], m.y[v], m.z[v]}] = m.vertex_geo_dim[v];
+  EXPECT_EQ(static_cast<Id>(r.geo_dim.size()), m.num_vertices()) << "nodes at the same position";
+  const int n = m.corners_per_element();
+  std::vector<std::vector<Point>> corners(m.num_elements());
+  for (Id e = 0; e < m.num_elements(); ++e) {
+    for (int k = 0; k < n; ++k) {
+      const Id v = m.conn[e * n + k];
+      corners[e].push_back({m.x[v], m.y[v], m.z[v]});
+    }
+    const auto& b = m.blocks[m.element_block[e]];
+    r.cells[corners[e]] = {b.id, b.name};
+  }
+  for (const auto& s : m.side_sets)
+    for (std::size_t i = 0; i < s.element.size(); ++i) r.sides.insert({s.id, corners[s.element[i]], s.side[i]});
+  return r;
+}
+
+// Compares two reads of the same mesh: counts, coordinates, connectivity
+// (as corner positions, and as file ids where Gmsh kept the node tags),
+// blocks and side sets. Node classification is compared only when asked
+// (MSH 2.2 derives it from elements, MSH 4.1 states it).
+// Returns whether the node tags were the same (and so compared too).
+bool expect_same_mesh(const CoarseMesh& a, const CoarseMesh& b, bool compare_geo) {
+  EXPECT_EQ(a.mode, b.mode);
+  EXPECT_EQ(a.num_vertices(), b.num_vertices());
+  EXPECT_EQ(a.num_elements(), b.num_elements());
+  const ByCoords ca = by_coords(a), cb = by_coords(b);
+  EXPECT_EQ(ca.cells, cb.cells);
+  EXPECT_EQ(ca.sides, cb.sides);
+  if (compare_geo) {
+    EXPECT_EQ(ca.geo_dim, cb.geo_dim);
+  } else {
+    std::vector<Point> pa, pb;
+    for (const auto& [p, d] : ca.geo_dim) pa.push_back(p);
+    for (const auto& [p, d] : cb.geo_dim) pb.push_back(p);
+    EXPECT_EQ(pa, pb);
+  }
+  const ById ia = by_id(a), ib = by_id(b);
+  std::vector<Id> tags_a = a.vertex_file_id, tags_b = b.vertex_file_id;
+  std::sort(tags_a.begin(), tags_a.end());
+  std::sort(tags_b.begin(), tags_b.end());
+  if (tags_a == tags_b) {  // Gmsh kept the node tags: compare by them too
+    EXPECT_EQ(ia.coords, ib.coords);  // Gmsh writes %.16g: round-trips exactly
+    std::multiset<std::vector<Id>> cells_a, cells_b;
+    for (const auto& [tag, c] : ia.cells) cells_a.insert(c);
+    for (const auto& [tag, c] : ib.cells) cells_b.insert(c);
+    EXPECT_EQ(cells_a, cells_b);
+  }
+  return tags_a == tags_b;
+}
+
+// geo_22_to_41: Gmsh's classification of MSH 2.2 nodes matches ours.
+// tags_kept: Gmsh keeps the node tags of this file on every re-save.
+void check_resaves(const std::string& name, bool geo_22_to_41, bool tags_kept) {
+  SCOPED_TRACE(name);
+  const CoarseMesh original = dicer::read_msh(data_path(name));
+  const bool original_is_41 = name.find("v41") != std::string::npos || name.find("step-49") != std::string::npos;
+  TempDir tmp;
+  struct Variant {
+    double version;
+    bool binary;
+  };
+  for (Variant v : {Variant{2.2, true}, Variant{4.1, true}, Variant{4.1, false}, Variant{2.2, false}}) {
+    SCOPED_TRACE("MSH " + std::to_string(v.version) + (v.binary ? " binary" : " ASCII"));
+    const std::string out = tmp.path("resaved.msh");
+    gmsh_resave(data_path(name), out, v.version, v.binary);
+    const CoarseMesh m = dicer::read_msh(out);
+    expect_consistent(m);
+    const bool resaved_is_41 = v.version > 3;
+    const bool same_tags = expect_same_mesh(original, m, original_is_41 == resaved_is_41 || geo_22_to_41);
+    if (tags_kept) {
+      EXPECT_TRUE(same_tags);
+    }
+  }
+}
+
+// Writes numbers in a chosen byte order (hand-made binary fixtures).
+class Bytes {
+ public:
+  explicit Bytes(bool big_endian) : swap_(big_endian != (std::endian::native == std::endian::big)) {}
+  Bytes& text(const std::string& s) {
+    out_ += s;
+    return *this;
+  }
+  Bytes& i32(std::int32_t v) { return put(v); }
+  Bytes& u64(std::uint64_t v) { return put(v); }
+  Bytes& f64(double v) { return put(v); }
+  const std::string& str() const { return out_; }
+
+ private:
+  template <class T>
+  Bytes& put(T v) {
+    char b[sizeof(T)];
+    std::memcpy(b, &v, sizeof(T));
+    if (swap_) std::reverse(b, b + sizeof(T));
+    out_.append(b, sizeof(T));
+    return *this;
+  }
+  bool swap_;
+  std::string out_;
+};
+
+// Unit cube hex, node tags 11..18 (bottom 11-14, top 15-18), listed out of
+// order; a quad on the bottom face in a physical surface.
+const double kCube[8][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
+const int kNodeOrder[8] = {13, 11, 14, 12, 15, 16, 17, 18};  // file order of node tags
+
+std::string binary41(bool big_endian) {
+  Bytes b(big_endian);
+  b.text("$MeshFormat\n4.1 1 8\n").i32(1).text("\n$EndMeshFormat\n");
+  b.text("$PhysicalNames\n2\n3 4 \"solid\"\n2 6 \"bottom\"\n$EndPhysicalNames\n");
+  b.text("$Entities\n").u64(0).u64(0).u64(1).u64(1);
+  b.i32(2);
+  for (int k = 0; k < 6; ++k) b.f64(0);
+  b.u64(1).i32(6).u64(0);
+  b.i32(1);
+  for (int k = 0; k < 6; ++k) b.f64(0);
+  b.u64(1).i32(4).u64(1).i32(2);
+  b.text("\n$EndEntities\n");
+  b.text("$Nodes\n").u64(2).u64(8).u64(11).u64(18);
+  for (int block = 0; block < 2; ++block) {
+    b.i32(block == 0 ? 2 : 3).i32(block == 0 ? 2 : 1).i32(0).u64(4);
+    for (int i = 0; i < 4; ++i) b.u64(kNodeOrder[4 * block + i]);
+    for (int i = 0; i < 4; ++i)
+      for (int c = 0; c < 3; ++c) b.f64(kCube[kNodeOrder[4 * block + i] - 11][c]);
+  }
+  b.text("\n$EndNodes\n");
+  b.text("$Elements\n").u64(2).u64(2).u64(1).u64(2);
+  b.i32(2).i32(2).i32(3).u64(1).u64(1).u64(11).u64(14).u64(13).u64(12);
+  b.i32(3).i32(1).i32(5).u64(1).u64(2);
+  for (int t = 11; t <= 18; ++t) b.u64(t);
+  b.text("\n$EndElements\n");
+  return b.str();
+}
+
+std::string binary22(bool big_endian) {
+  Bytes b(big_endian);
+  b.text("$MeshFormat\n2.2 1 8\n").i32(1).text("\n$EndMeshFormat\n");
+  b.text("$PhysicalNames\n2\n3 4 \"solid\"\n2 6 \"bottom\"\n$EndPhysicalNames\n");
+  b.text("$Nodes\n8\n");
+  for (int t : kNodeOrder) {
+    b.i32(t);
+    for (int c = 0; c < 3; ++c) b.f64(kCube[t - 11][c]);
+  }
+  b.text("\n$EndNodes\n");
+  b.text("$Elements\n2\n");
+  b.i32(3).i32(1).i32(2).i32(1).i32(6).i32(2).i32(11).i32(14).i32(13).i32(12);
+  b.i32(5).i32(1).i32(2).i32(2).i32(4).i32(1);
+  for (int t = 11; t <= 18; ++t) b.i32(t);
+  b.text("\n$EndElements\n");
+  return b.str();
+}
+
+void expect_tiny_cube(const CoarseMesh& m) {
+  expect_consistent(m);
+  EXPECT_EQ(m.mode, Mode::Volume);
+  ASSERT_EQ(m.num_vertices(), 8);
+  ASSERT_EQ(m.num_elements(), 1);
+  EXPECT_EQ(m.vertex_file_id, std::vector<Id>(kNodeOrder, kNodeOrder + 8));
+  for (int v = 0; v < 8; ++v) {
+    const double* c = kCube[kNodeOrder[v] - 11];
+    EXPECT_EQ(m.vertex(v), (dicer::Vec3{c[0], c[1], c[2]}));
+  }
+  EXPECT_EQ(m.conn, (std::vector<Id>{1, 3, 0, 2, 4, 5, 6, 7}));
+  EXPECT_EQ(m.element_file_id, std::vector<Id>{2});
+  ASSERT_EQ(m.blocks.size(), 1u);
+  EXPECT_EQ(m.blocks[0].id, 4);
+  EXPECT_EQ(m.blocks[0].name, "solid");
+  ASSERT_EQ(m.side_sets.size(), 1u);
+  EXPECT_EQ(m.side_sets[0].id, 6);
+  EXPECT_EQ(m.side_sets[0].name, "bottom");
+  EXPECT_EQ(m.side_sets[0].element, std::vector<Id>{0});
+  EXPECT_EQ(m.side_sets[0].side, std::vector<std::int8_t>{4});  // corners 0,3,2,1
+  EXPECT_TRUE(m.warnings.empty());
+}
+
+CoarseMesh read_text(const std::string& text) {
+  TempDir tmp;
+  const std::string path = tmp.path("fixture.msh");
+  write_file(path, text);
+  return dicer::read_msh(path);
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------
+// Real files (counts from tests/data/PROVENANCE.md)
+
+TEST(ReadMsh, FiredrakeCubeMsh22Ascii) {
+  const CoarseMesh m = dicer::read_msh(data_path("firedrake_cube_hex.msh"));
+  expect_consistent(m);
+  EXPECT_EQ(m.source, data_path("firedrake_cube_hex.msh"));
+  EXPECT_EQ(m.mode, Mode::Volume);
+  EXPECT_EQ(m.num_vertices(), 989);
+  EXPECT_EQ(m.num_elements(), 768);
+  // No physical groups: the block is the elementary volume.
+  ASSERT_EQ(m.blocks.size(), 1u);
+  EXPECT_EQ(m.blocks[0].id, 1);
+  EXPECT_EQ(m.blocks[0].name, "entity 1");
+  EXPECT_TRUE(m.side_sets.empty());
+  EXPECT_TRUE(m.node_sets.empty());
+  // First lines of $Nodes: "1 0 0 1", "2 0 0 0".
+  EXPECT_EQ(m.vertex_file_id[0], 1);
+  EXPECT_EQ(m.vertex(0), (dicer::Vec3{0, 0, 1}));
+  EXPECT_EQ(m.vertex(1), (dicer::Vec3{0, 0, 0}));
+  // Classification from the lowest element holding a node: 8 box corners on
+  // points, 12 edges x 3 nodes on lines, the rest on faces or inside.
+  int by_dim[4] = {0, 0, 0, 0};
+  for (auto d : m.vertex_geo_dim) {
+    ASSERT_TRUE(d >= 0 && d <= 3);
+    ++by_dim[d];
+  }
+  EXPECT_EQ(by_dim[0], 8);
+  EXPECT_EQ(by_dim[1], 36);
+  EXPECT_EQ(by_dim[0] + by_dim[1] + by_dim[2] + by_dim[3], 989);
+  EXPECT_EQ(m.vertex_geo_dim[0], 0);  // node 1 is the corner (0,0,1)
+}
+
+TEST(ReadMsh, DealiiGridMsh41WithPhysicalGroups) {
+  const CoarseMesh m = dicer::read_msh(data_path("dealii_grid_in_msh_01.3da.v41.msh"));
+  expect_consistent(m);
+  EXPECT_EQ(m.mode, Mode::Volume);
+  EXPECT_EQ(m.num_vertices(), 462);
+  EXPECT_EQ(m.num_elements(), 200);
+  ASSERT_EQ(m.blocks.size(), 1u);
+  EXPECT_EQ(m.blocks[0].id, 2);
+  ASSERT_EQ(m.side_sets.size(), 1u);
+  EXPECT_EQ(m.side_sets[0].id, 1);
+  EXPECT_EQ(m.side_sets[0].element.size(), 460u);
+  std::set<std::pair<Id, int>> distinct;
+  for (std::size_t i = 0; i < 460; ++i) distinct.insert({m.side_sets[0].element[i], m.side_sets[0].side[i]});
+  EXPECT_EQ(distinct.size(), 460u);
+  EXPECT_TRUE(m.warnings.empty());
+  // Classification from $Nodes entity blocks: this file lists every node on
+  // a surface entity.
+  for (std::size_t v = 0; v < m.vertex_geo_dim.size(); ++v) EXPECT_EQ(m.vertex_geo_dim[v], 2);
+  EXPECT_EQ(m.vertex_file_id[0], 1);
+  EXPECT_EQ(m.vertex_geo_tag[0], 18);  // first block: "2 18 0 12"
+}
+
+TEST(ReadMsh, DealiiStep49Msh41IsSurfaceMode) {
+  const CoarseMesh m = dicer::read_msh(data_path("dealii_step-49_example.msh"));
+  expect_consistent(m);
+  EXPECT_EQ(m.mode, Mode::Surface);
+  EXPECT_EQ(m.corners_per_element(), 4);
+  EXPECT_EQ(m.num_vertices(), 835);
+  EXPECT_EQ(m.num_elements(), 744);
+  ASSERT_EQ(m.blocks.size(), 1u);
+  EXPECT_EQ(m.blocks[0].id, 2);
+  // Curves carry physical tags 1, 2, 3 (and 0, which means none).
+  ASSERT_EQ(m.side_sets.size(), 3u);
+  std::size_t sides = 0;
+  for (const auto& s : m.side_sets) sides += s.element.size();
+  EXPECT_GT(sides, 0u);
+  EXPECT_LE(sides, 184u);
+  EXPECT_TRUE(m.warnings.empty());
+  for (auto z : m.z) EXPECT_EQ(z, 0.0);
+}
+
+// ---------------------------------------------------------------------------
+// Gmsh's own re-saves (binary 2.2, binary 4.1, ASCII 4.1/2.2) read the same.
+
+TEST(ReadMsh, GmshResavesOfFiredrakeCubeMatch) { check_resaves("firedrake_cube_hex.msh", true, true); }
+TEST(ReadMsh, GmshResavesOfDealiiGridMatch) { check_resaves("dealii_grid_in_msh_01.3da.v41.msh", false, false); }
+TEST(ReadMsh, GmshResavesOfStep49Match) { check_resaves("dealii_step-49_example.msh", false, true); }
+
+// ---------------------------------------------------------------------------
+// Hand-made binary files, in both byte orders.
+
+TEST(ReadMsh, Binary41BothByteOrders) {
+  SCOPED_TRACE("little endian");
+  expect_tiny_cube(read_text(binary41(false)));
+  SCOPED_TRACE("big endian");
+  const CoarseMesh m = read_text(binary41(true));
+  expect_tiny_cube(m);
+  EXPECT_EQ(m.vertex_geo_dim, (std::vector<std::int8_t>{2, 2, 2, 2, 3, 3, 3, 3}));
+  EXPECT_EQ(m.vertex_geo_tag, (std::vector<std::int32_t>{2, 2, 2, 2, 1, 1, 1, 1}));
+}
+
+TEST(ReadMsh, Binary22BothByteOrders) {
+  SCOPED_TRACE("little endian");
+  expect_tiny_cube(read_text(binary22(false)));
+  SCOPED_TRACE("big endian");
+  const CoarseMesh m = read_text(binary22(true));
+  expect_tiny_cube(m);
+  // Bottom nodes lie on the quad (entity 2), top nodes only on the hex (1).
+  EXPECT_EQ(m.vertex_geo_dim, (std::vector<std::int8_t>{2, 2, 2, 2, 3, 3, 3, 3}));
+  EXPECT_EQ(m.vertex_geo_tag, (std::vector<std::int32_t>{2, 2, 2, 2, 1, 1, 1, 1}));
+}
+
+// ---------------------------------------------------------------------------
+// ASCII fixtures
+
+// Two hexes stacked in z; nodes 1-12 (sparse tags x10, out of order).
+const char* const kTwoHexNodes22 =
+    "$Nodes\n12\n"
+    "120 0 1 2\n10 0 0 0\n20 1 0 0\n30 1 1 0\n40 0 1 0\n50 0 0 1\n60 1 0 1\n70 1 1 1\n80 0 1 1\n"
+    "90 0 0 2\n100 1 0 2\n110 1 1 2\n"
+    "$EndNodes\n";
+
+TEST(ReadMsh, Msh22NamesBlocksSetsAndSparseTags) {
+  const std::string text = std::string("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n") +
+                           "$PhysicalNames\n4\n3 7 \"water\"\n3 5 \"steel\"\n2 3 \"top face\"\n0 9 \"corner\"\n"
+                           "$EndPhysicalNames\n" +
+                           kTwoHexNodes22 +
+                           "$Elements\n5\n"
+                           "100 5 2 7 1 50 60 70 80 90 100 110 120\n"
+                           "7 5 2 5 2 10 20 30 40 50 60 70 80\n"
+                           "3 3 2 3 4 90 100 110 120\n"
+                           "4 15 2 9 5 10\n"
+                           "5 1 2 0 6 10 20\n"
+                           "$EndElements\n";
+  const CoarseMesh m = read_text(text);
+  expect_consistent(m);
+  EXPECT_EQ(m.mode, Mode::Volume);
+  EXPECT_EQ(m.vertex_file_id, (std::vector<Id>{120, 10, 20, 30, 40, 50, 60, 70, 80, 90, 100, 110}));
+  EXPECT_EQ(m.element_file_id, (std::vector<Id>{100, 7}));  // file order
+  EXPECT_EQ(m.conn, (std::vector<Id>{5, 6, 7, 8, 9, 10, 11, 0, 1, 2, 3, 4, 5, 6, 7, 8}));
+  ASSERT_EQ(m.blocks.size(), 2u);  // ordered by id
+  EXPECT_EQ(m.blocks[0].id, 5);
+  EXPECT_EQ(m.blocks[0].name, "steel");
+  EXPECT_EQ(m.blocks[1].id, 7);
+  EXPECT_EQ(m.blocks[1].name, "water");
+  EXPECT_EQ(m.element_block, (std::vector<std::int32_t>{1, 0}));
+  ASSERT_EQ(m.side_sets.size(), 1u);
+  EXPECT_EQ(m.side_sets[0].id, 3);
+  EXPECT_EQ(m.side_sets[0].name, "top face");
+  EXPECT_EQ(m.side_sets[0].element, std::vector<Id>{0});
+  EXPECT_EQ(m.side_sets[0].side, std::vector<std::int8_t>{5});  // top: corners 4,5,6,7
+  ASSERT_EQ(m.node_sets.size(), 1u);
+  EXPECT_EQ(m.node_sets[0].id, 9);
+  EXPECT_EQ(m.node_sets[0].name, "corner");
+  EXPECT_EQ(m.node_sets[0].vertex, std::vector<Id>{1});
+  // Lowest element holding each node: point (10), line (20), quad (90..120),
+  // hex (the rest).
+  EXPECT_EQ(m.vertex_geo_dim, (std::vector<std::int8_t>{2, 0, 1, 3, 3, 3, 3, 3, 3, 2, 2, 2}));
+  EXPECT_EQ(m.vertex_geo_tag, (std::vector<std::int32_t>{4, 5, 6, 2, 2, 1, 1, 1, 1, 4, 4, 4}));
+  EXPECT_TRUE(m.warnings.empty());
+}
+
+TEST(ReadMsh, ElementsWithoutPhysicalGroupGetEntityBlocksAboveThePhysicalIds) {
+  const std::string text = std::string("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n") + kTwoHexNodes22 +
+                           "$Elements\n2\n"
+                           "1 5 2 8 1 10 20 30 40 50 60 70 80\n"
+                           "2 5 2 0 8 50 60 70 80 90 100 110 120\n"
+                           "$EndElements\n";
+  const CoarseMesh m = read_text(text);
+  expect_consistent(m);
+  ASSERT_EQ(m.blocks.size(), 2u);
+  EXPECT_EQ(m.blocks[0].id, 8);
+  EXPECT_EQ(m.blocks[1].id, 9);
+  EXPECT_EQ(m.blocks[1].name, "entity 8");
+  EXPECT_EQ(m.element_block, (std::vector<std::int32_t>{0, 1}));
+  ASSERT_EQ(m.warnings.size(), 1u);
+  EXPECT_THAT(m.warnings[0], HasSubstr("no physical group"));
+}
+
+TEST(ReadMsh, BoundaryQuadMatchingNoFaceIsSkippedWithOneWarning) {
+  const std::string text = std::string("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n") + kTwoHexNodes22 +
+                           "$Elements\n4\n"
+                           "1 5 2 1 1 10 20 30 40 50 60 70 80\n"
+                           "2 3 2 2 3 10 20 70 80\n"   // a diagonal plane: no face
+                           "3 3 2 2 3 10 60 110 40\n"  // no face either
+                           "4 3 2 2 3 10 40 30 20\n"   // bottom, side 4
+                           "$EndElements\n";
+  const CoarseMesh m = read_text(text);
+  ASSERT_EQ(m.side_sets.size(), 1u);
+  EXPECT_EQ(m.side_sets[0].element, std::vector<Id>{0});
+  EXPECT_EQ(m.side_sets[0].side, std::vector<std::int8_t>{4});
+  ASSERT_EQ(m.warnings.size(), 1u);
+  EXPECT_THAT(m.warnings[0], HasSubstr("2 quadrangles"));
+  EXPECT_THAT(m.warnings[0], HasSubstr("element 2"));
+}
+
+TEST(ReadMsh, Msh41AsciiSurfaceWithParametricNodesAndSkippedSections) {
+  // Two quads side by side on z = 0, edges in physical curve 11 "left" and
+  // 12; nodes of the curve entity carry a parametric coordinate.
+  const std::string text =
+      "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n"
+      "$Comments\nanything $Nodes here\n$EndCommentsNot\n$EndComments\n"
+      "$PhysicalNames\n2\n1 11 \"left\"\n2 20 \"plate\"\n$EndPhysicalNames\n"
+      "$Entities\n0 2 1 0\n"
+      "1 0 0 0 0 1 0 1 11 0\n"
+      "2 2 0 0 2 1 0 2 12 13 0\n"
+      "5 0 0 0 2 1 0 1 20 2 1 2\n"
+      "$EndEntities\n"
+      "$Nodes\n2 6 1 6\n"
+      "1 1 1 2\n1\n4\n0 0 0 0\n0 1 0 1\n"
+      "2 5 0 4\n2\n3\n5\n6\n1 0 0\n2 0 0\n2 1 0\n1 1 0\n"
+      "$EndNodes\n"
+      "$Elements\n3 4 1 4\n"
+      "1 1 1 1\n3 1 4\n"
+      "1 2 1 1\n4 3 5\n"
+      "2 5 3 2\n1 1 2 6 4\n2 2 3 5 6\n"
+      "$EndElements\n"
+      "$NodeData\n1\n\"x\"\n1\n0.0\n3\n0\n1\n1\n1 0.5\n$EndNodeData\n";
+  const CoarseMesh m = read_text(text);
+  expect_consistent(m);
+  EXPECT_EQ(m.mode, Mode::Surface);
+  EXPECT_EQ(m.vertex_file_id, (std::vector<Id>{1, 4, 2, 3, 5, 6}));
+  EXPECT_EQ(m.vertex(1), (dicer::Vec3{0, 1, 0}));
+  EXPECT_EQ(m.conn, (std::vector<Id>{0, 2, 5, 1, 2, 3, 4, 5}));
+  ASSERT_EQ(m.blocks.size(), 1u);
+  EXPECT_EQ(m.blocks[0].id, 20);
+  EXPECT_EQ(m.blocks[0].name, "plate");
+  ASSERT_EQ(m.side_sets.size(), 3u);
+  EXPECT_EQ(m.side_sets[0].id, 11);
+  EXPECT_EQ(m.side_sets[0].name, "left");
+  EXPECT_EQ(m.side_sets[0].element, std::vector<Id>{0});
+  EXPECT_EQ(m.side_sets[0].side, std::vector<std::int8_t>{5});  // edge (3,0)
+  // Curve 2 is in physical groups 12 and 13: its line goes to both.
+  EXPECT_EQ(m.side_sets[1].id, 12);
+  EXPECT_EQ(m.side_sets[2].id, 13);
+  EXPECT_EQ(m.side_sets[1].element, std::vector<Id>{1});
+  EXPECT_EQ(m.side_sets[1].side, std::vector<std::int8_t>{3});  // edge (1,2)
+  EXPECT_EQ(m.vertex_geo_dim, (std::vector<std::int8_t>{1, 1, 2, 2, 2, 2}));
+  EXPECT_EQ(m.vertex_geo_tag, (std::vector<std::int32_t>{1, 1, 5, 5, 5, 5}));
+}
+
+TEST(ReadMsh, WindowsLineEndings) {
+  std::string text = std::string("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n") + kTwoHexNodes22 +
+                     "$Elements\n1\n1 5 2 0 1 10 20 30 40 50 60 70 80\n$EndElements\n";
+  std::string crlf;
+  for (char c : text) crlf += c == '\n' ? std::string("\r\n") : std::string(1, c);
+  const CoarseMesh m = read_text(crlf);
+  EXPECT_EQ(m.num_vertices(), 12);
+  EXPECT_EQ(m.num_elements(), 1);
+  EXPECT_EQ(m.vertex(11), (dicer::Vec3{1, 1, 2}));
+}
