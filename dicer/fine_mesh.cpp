@@ -149,8 +149,12 @@ Vec3 FineMesh::cell_point(Id h, Id i, Id j, Id k) const {
     c[0][q] = x.x, c[1][q] = x.y, c[2][q] = x.z;
   }
   const double u = tfi::weight(i, n[0]), v = tfi::weight(j, n[1]), w = tfi::weight(k, n[2]);
-  return {tfi::hex(u, v, w, f[0], e[0], c[0]), tfi::hex(u, v, w, f[1], e[1], c[1]),
-          tfi::hex(u, v, w, f[2], e[2], c[2])};
+  double out[3];
+  for (int d = 0; d < 3; ++d) {
+    const tfi::HexRow row = tfi::hex_row(v, w, f[d][0], f[d][1], e[d], c[d]);
+    out[d] = tfi::hex_point(row, u, 1.0 - u, f[d][2], f[d][3], f[d][4], f[d][5], e[d][0], e[d][1], e[d][2], e[d][3]);
+  }
+  return {out[0], out[1], out[2]};
 }
 
 Vec3 FineMesh::node(const NodeRef& r) const {
@@ -192,9 +196,42 @@ FineElement FineMesh::element(Id id) const {
   return el;
 }
 
+void FineMesh::fill_face(Id f, FineBlock::Scratch& s) const {
+  const auto [nu, nv] = num_.face_n(f);
+  const Id* fe = &topo_.face_edge[4 * f];
+  const std::uint8_t* rev = &topo_.face_edge_rev[4 * f];
+  // Boundary values exactly as face_point() gathers them.
+  auto gather = [&](int k, Id len, std::vector<double>* out) {
+    const Id n = num_.edge_n(fe[k]);
+    for (int d = 0; d < 3; ++d) out[d].resize(static_cast<size_t>(len + 1));
+    for (Id q = 1; q < len; ++q) {
+      const Vec3 x = edge_point(fe[k], rev[k] ? n - q : q);
+      out[0][q] = x.x, out[1][q] = x.y, out[2][q] = x.z;
+    }
+  };
+  gather(0, nu, s.bottom), gather(1, nu, s.top), gather(2, nv, s.left), gather(3, nv, s.right);
+  s.s.resize(static_cast<size_t>(nu)), s.t.resize(static_cast<size_t>(nv));
+  for (Id u = 1; u < nu; ++u) s.s[u] = tfi::weight(u, nu);
+  for (Id v = 1; v < nv; ++v) s.t[v] = tfi::weight(v, nv);
+  const size_t count = static_cast<size_t>((nu - 1) * (nv - 1));
+  for (int d = 0; d < 3; ++d) {
+    const double* X = d == 0 ? coarse_.x.data() : d == 1 ? coarse_.y.data() : coarse_.z.data();
+    const double p0 = X[topo_.face_v[4 * f]], p1 = X[topo_.face_v[4 * f + 1]], p2 = X[topo_.face_v[4 * f + 2]],
+                 p3 = X[topo_.face_v[4 * f + 3]];
+    s.face[d].resize(count);
+    double* out = s.face[d].data();
+    const double *B = s.bottom[d].data(), *T = s.top[d].data(), *L = s.left[d].data(), *R = s.right[d].data();
+    for (Id v = 1; v < nv; ++v) {
+      const double t = s.t[v];
+      for (Id u = 1; u < nu; ++u) *out++ = tfi::coons(s.s[u], t, B[u], T[u], L[v], R[v], p0, p1, p2, p3);
+    }
+  }
+}
+
 void FineMesh::fill_block(Id h, FineBlock& b) const {
   const auto n = num_.elem_n(h);
   const bool vol = mode() == Mode::Volume;
+  const int nc = corners();
   b.coarse_element = h;
   b.n = n;
   b.first_element = num_.elem_first_element(h);
@@ -202,61 +239,113 @@ void FineMesh::fill_block(Id h, FineBlock& b) const {
   const size_t np = static_cast<size_t>(ni * nj * nk);
   b.node_id.resize(np);
   b.x.resize(np), b.y.resize(np), b.z.resize(np);
-  // Boundary points from their owners; interior ids directly.
-  for (Id k = 0; k < nk; ++k)
-    for (Id j = 0; j < nj; ++j)
-      for (Id i = 0; i < ni; ++i) {
-        const Id g = b.point_index(i, j, k);
-        const NodeRef r = grid_node(h, i, j, k);
-        b.node_id[g] = num_.node_id(r);
-        if (r.kind == EntityKind::Cell) continue;
-        const Vec3 x = node(r);
-        b.x[g] = x.x, b.y[g] = x.y, b.z[g] = x.z;
-      }
-  if (vol && n[0] > 1 && n[1] > 1 && n[2] > 1) {
-    // Hex interior: the same tfi::hex as cell_point, fed from the boundary
-    // values just computed (bit-identical to the owners' evaluations).
-    double c[3][8];
-    for (int q = 0; q < 8; ++q) {
-      const Id g = b.point_index(kHexCorner[q][0] * n[0], kHexCorner[q][1] * n[1], kHexCorner[q][2] * n[2]);
-      c[0][q] = b.x[g], c[1][q] = b.y[g], c[2][q] = b.z[g];
+  Id* ids = b.node_id.data();
+  double* X[3] = {b.x.data(), b.y.data(), b.z.data()};
+  auto put = [&](Id g, Id id, const Vec3& p) { ids[g] = id, X[0][g] = p.x, X[1][g] = p.y, X[2][g] = p.z; };
+  auto grid = [&](const int* c, int axis, Id t) {  // grid point of corner c, moved to t along axis
+    Id p[3] = {c[0] * n[0], c[1] * n[1], vol ? c[2] * n[2] : 0};
+    if (axis >= 0) p[axis] = t;
+    return b.point_index(p[0], p[1], p[2]);
+  };
+  const Id* cv = &coarse_.conn[static_cast<size_t>(h) * nc];
+  for (int q = 0; q < nc; ++q) put(grid(kHexCorner[q], -1, 0), cv[q], coarse_.vertex(cv[q]));
+
+  // Edges: every interior point from edge_point in the canonical direction.
+  const int epe = topo_.edges_per_element();
+  for (int le = 0; le < epe; ++le) {
+    const Id e = topo_.elem_edge[static_cast<size_t>(h) * epe + le];
+    const bool rev = topo_.elem_edge_rev[static_cast<size_t>(h) * epe + le];
+    const Id ne = num_.edge_n(e), base = num_.edge_node_offset(e) - 1;
+    const int a = vol ? kHexEdge[le][0] : kQuadEdge[le][0];
+    const int axis = vol ? le / 4 : le / 2;
+    for (Id t = 1; t < ne; ++t) {
+      const Id tc = rev ? ne - t : t;
+      put(grid(kHexCorner[a], axis, t), base + tc, edge_point(e, tc));
     }
-    const double* arr[3] = {b.x.data(), b.y.data(), b.z.data()};
-    double* out[3] = {b.x.data(), b.y.data(), b.z.data()};
-    for (Id k = 1; k < n[2]; ++k) {
-      const double w = tfi::weight(k, n[2]);
-      for (Id j = 1; j < n[1]; ++j) {
-        const double v = tfi::weight(j, n[1]);
-        const Id P[6] = {0, 0, b.point_index(0, 0, k), b.point_index(0, n[1], k), b.point_index(0, j, 0),
-                         b.point_index(0, j, n[2])};
-        const Id E[12] = {0, 0, 0, 0, b.point_index(0, j, 0), b.point_index(n[0], j, 0), b.point_index(0, j, n[2]),
-                          b.point_index(n[0], j, n[2]), b.point_index(0, 0, k), b.point_index(n[0], 0, k),
-                          b.point_index(n[0], n[1], k), b.point_index(0, n[1], k)};
-        const Id f0 = b.point_index(0, j, k), f1 = b.point_index(n[0], j, k);
-        for (Id i = 1; i < n[0]; ++i) {
-          const double u = tfi::weight(i, n[0]);
-          const Id g = b.point_index(i, j, k);
-          for (int d = 0; d < 3; ++d) {
-            const double* a = arr[d];
-            const double f[6] = {a[f0], a[f1], a[P[2] + i], a[P[3] + i], a[P[4] + i], a[P[5] + i]};
-            const double e[12] = {a[b.point_index(i, 0, 0)], a[b.point_index(i, n[1], 0)],
-                                  a[b.point_index(i, 0, n[2])], a[b.point_index(i, n[1], n[2])],
-                                  a[E[4]], a[E[5]], a[E[6]], a[E[7]], a[E[8]], a[E[9]], a[E[10]], a[E[11]]};
-            out[d][g] = tfi::hex(u, v, w, f, e, c[d]);
-          }
+  }
+
+  // Faces: canonical fill, then scattered through the face map.
+  const int fpe = topo_.faces_per_element();
+  for (int lf = 0; lf < fpe; ++lf) {
+    const Id f = topo_.elem_face[static_cast<size_t>(h) * fpe + lf];
+    const auto [nu, nv] = num_.face_n(f);
+    if (nu < 2 || nv < 2) continue;
+    fill_face(f, b.scratch);
+    const FaceMap fm = face_map(topo_.elem_face_code[static_cast<size_t>(h) * fpe + lf], nu, nv);
+    const int ax = vol ? kHexFaceAxes[lf][0] : 0, bx = vol ? kHexFaceAxes[lf][1] : 1;
+    const Id na = n[ax], nb = n[bx], base = num_.face_node_offset(f);
+    Id p[3] = {0, 0, 0};
+    if (vol) p[lf / 2] = (lf % 2) ? n[lf / 2] : 0;
+    for (Id q = 1; q < nb; ++q)
+      for (Id pp = 1; pp < na; ++pp) {
+        p[ax] = pp, p[bx] = q;
+        const Id c = (fm.u(pp, q) - 1) + (fm.v(pp, q) - 1) * (nu - 1);
+        const Id g = b.point_index(p[0], p[1], p[2]);
+        ids[g] = base + c;
+        for (int d = 0; d < 3; ++d) X[d][g] = b.scratch.face[d][c];
+      }
+  }
+
+  if (vol && n[0] > 1 && n[1] > 1 && n[2] > 1) {
+    // Hex interior: tfi::hex_row once per (j, k), tfi::hex_point along i,
+    // the same two calls cell_point() makes, fed the same boundary values.
+    auto& s = b.scratch;
+    s.u.resize(static_cast<size_t>(n[0])), s.U.resize(static_cast<size_t>(n[0]));
+    for (Id i = 1; i < n[0]; ++i) s.u[i] = tfi::weight(i, n[0]), s.U[i] = 1.0 - s.u[i];
+    Id id = num_.cell_node_offset(h);
+    for (Id k = 1; k < n[2]; ++k)
+      for (Id j = 1; j < n[1]; ++j)
+        for (Id i = 1; i < n[0]; ++i) ids[b.point_index(i, j, k)] = id++;
+    const Id sj = ni, sk = ni * nj;  // strides
+    for (int d = 0; d < 3; ++d) {
+      double* a = X[d];
+      double c[8];
+      for (int q = 0; q < 8; ++q) c[q] = a[grid(kHexCorner[q], -1, 0)];
+      const double* e0 = a;                        // (i, 0, 0)
+      const double* e1 = a + n[1] * sj;            // (i, n1, 0)
+      const double* e2 = a + n[2] * sk;            // (i, 0, n2)
+      const double* e3 = a + n[1] * sj + n[2] * sk;
+      for (Id k = 1; k < n[2]; ++k) {
+        const double w = tfi::weight(k, n[2]);
+        const double* f2 = a + k * sk;             // (i, 0, k)
+        const double* f3 = a + n[1] * sj + k * sk; // (i, n1, k)
+        for (Id j = 1; j < n[1]; ++j) {
+          const double v = tfi::weight(j, n[1]);
+          const double* f4 = a + j * sj;           // (i, j, 0)
+          const double* f5 = a + j * sj + n[2] * sk;
+          const double e[12] = {0, 0, 0, 0, a[j * sj], a[n[0] + j * sj], a[j * sj + n[2] * sk],
+                                a[n[0] + j * sj + n[2] * sk], a[k * sk], a[n[0] + k * sk],
+                                a[n[0] + n[1] * sj + k * sk], a[n[1] * sj + k * sk]};
+          const tfi::HexRow row = tfi::hex_row(v, w, a[j * sj + k * sk], a[n[0] + j * sj + k * sk], e, c);
+          double* out = a + j * sj + k * sk;
+          const double *u = s.u.data(), *U = s.U.data();
+          for (Id i = 1; i < n[0]; ++i)
+            out[i] = tfi::hex_point(row, u[i], U[i], f2[i], f3[i], f4[i], f5[i], e0[i], e1[i], e2[i], e3[i]);
         }
       }
     }
   }
+
   // Connectivity.
-  const int nc = corners();
   b.conn.resize(static_cast<size_t>(b.num_elements()) * nc);
   Id* out = b.conn.data();
-  for (Id k = 0; k < n[2]; ++k)
+  if (vol) {
+    const Id sj = ni, sk = ni * nj;
+    const Id off[8] = {0, 1, 1 + sj, sj, sk, 1 + sk, 1 + sj + sk, sj + sk};
+    for (Id k = 0; k < n[2]; ++k)
+      for (Id j = 0; j < n[1]; ++j)
+        for (Id i = 0; i < n[0]; ++i) {
+          const Id g = b.point_index(i, j, k);
+          for (int q = 0; q < 8; ++q) *out++ = ids[g + off[q]];
+        }
+  } else {
+    const Id off[4] = {0, 1, 1 + ni, ni};
     for (Id j = 0; j < n[1]; ++j)
-      for (Id i = 0; i < n[0]; ++i)
-        for (int q = 0; q < nc; ++q)
-          *out++ = b.node_id[b.point_index(i + kHexCorner[q][0], j + kHexCorner[q][1], vol ? k + kHexCorner[q][2] : 0)];
+      for (Id i = 0; i < n[0]; ++i) {
+        const Id g = b.point_index(i, j, 0);
+        for (int q = 0; q < 4; ++q) *out++ = ids[g + off[q]];
+      }
+  }
 }
 
 std::vector<Id> FineMesh::block_fine_elements() const {

@@ -235,7 +235,7 @@ class MshParser {
     tok_ = pos_;
     return std::string(trim(rest_of_line()));
   }
-  Id integer(const std::string& what, Id lo = kInt32Min, Id hi = kMaxId) {
+  Id integer(const std::string& what, Id lo, Id hi = kMaxId) {
     std::string_view t = token();
     if (t.size() > 1 && t[0] == '+') t.remove_prefix(1);
     Id v = 0;
@@ -257,9 +257,14 @@ class MshParser {
     if (t.size() > 1 && t[0] == '+') t.remove_prefix(1);
     double v = 0;
     auto [end, ec] = std::from_chars(t.data(), t.data() + t.size(), v);
-    if (ec == std::errc::result_out_of_range) return std::numeric_limits<double>::infinity();
-    if (ec != std::errc() || end != t.data() + t.size())
+    const bool out_of_range = ec == std::errc::result_out_of_range;
+    if ((ec != std::errc() && !out_of_range) || end != t.data() + t.size())
       fail("expected " + what + " (a number), found '" + shown(t) + "'");
+    if (out_of_range) {  // underflow (negative exponent) reads as 0, overflow as inf (refused later)
+      const std::size_t e = t.find_first_of("eE");
+      const bool underflow = e != std::string_view::npos && e + 1 < t.size() && t[e + 1] == '-';
+      v = underflow ? 0.0 : std::numeric_limits<double>::infinity();
+    }
     return v;
   }
   void expect_end(const std::string& name) {
@@ -368,7 +373,7 @@ void MshParser::read_format() {
   section_ = "$MeshFormat";
   const std::string version(token());
   binary_ = integer("file-type", 0, 1) == 1;
-  const Id data_size = integer("data-size");
+  const Id data_size = integer("data-size", 0);
   double v = 0;
   auto [end, ec] = std::from_chars(version.data(), version.data() + version.size(), v);
   if (ec != std::errc() || end != version.data() + version.size())

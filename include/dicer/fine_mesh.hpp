@@ -47,6 +47,11 @@ struct FineBlock {
   Id num_points() const { return static_cast<Id>(node_id.size()); }
   Id num_elements() const { return n[0] * n[1] * n[2]; }
   Id point_index(Id i, Id j, Id k) const { return i + (n[0] + 1) * (j + (n[1] + 1) * k); }
+
+  // Work space of fill_block, kept here so a reused block allocates nothing.
+  struct Scratch {
+    std::vector<double> face[3], bottom[3], top[3], left[3], right[3], s, t, u, U;
+  } scratch;
 };
 
 class FineMesh {
@@ -84,6 +89,8 @@ class FineMesh {
  private:
   Vec3 edge_point(Id e, Id t) const;  // canonical t in [0, n]
   Vec3 face_point(Id f, Id u, Id v) const;
+  // Interior of face f, canonical frame, (u-1) + (v-1)(nu-1) order.
+  void fill_face(Id f, FineBlock::Scratch& s) const;
   Vec3 cell_point(Id h, Id i, Id j, Id k) const;
 
   CoarseMesh coarse_;

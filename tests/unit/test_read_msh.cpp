@@ -517,6 +517,21 @@ TEST(ReadMsh, Msh41AsciiSurfaceWithParametricNodesAndSkippedSections) {
   EXPECT_EQ(m.vertex_geo_tag, (std::vector<std::int32_t>{1, 1, 5, 5, 5, 5}));
 }
 
+TEST(ReadMsh, TinyCoordinatesUnderflowToZero) {
+  const std::string text = std::string("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n") +
+                           "$Nodes\n4\n1 0 0 1e-400\n2 +1.0e+00 0 -1e-320\n3 1 1 0\n4 0 1 0\n$EndNodes\n"
+                           "$Elements\n1\n1 3 0 1 2 3 4\n$EndElements\n";
+  const CoarseMesh m = read_text(text);
+  EXPECT_EQ(m.mode, Mode::Surface);
+  EXPECT_EQ(m.z[0], 0.0);
+  EXPECT_EQ(m.x[1], 1.0);
+  EXPECT_LT(m.z[1], 0.0);
+  // No tags: block is entity 0, nodes classified to it.
+  ASSERT_EQ(m.blocks.size(), 1u);
+  EXPECT_EQ(m.blocks[0].id, 0);
+  EXPECT_EQ(m.vertex_geo_dim, (std::vector<std::int8_t>{2, 2, 2, 2}));
+}
+
 TEST(ReadMsh, WindowsLineEndings) {
   std::string text = std::string("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n") + kTwoHexNodes22 +
                      "$Elements\n1\n1 5 2 0 1 10 20 30 40 50 60 70 80\n$EndElements\n";
