@@ -10,6 +10,43 @@
 
 namespace dicer {
 
+namespace {
+
+// Hex interior of one coordinate array of a block whose boundary is filled:
+// tfi::hex_row once per (j, k), tfi::hex_point along i, the same two calls
+// FineMesh::cell_point() makes, fed the same boundary values. Built twice
+// (AVX2 and baseline x86-64): both are plain IEEE mul/add/sub in the same
+// order with contraction off, so both give the same bits.
+__attribute__((target_clones("avx2", "default"))) void hex_interior(double* a, std::array<Id, 3> n,
+                                                                     const double* u, const double* U) {
+  const Id sj = n[0] + 1, sk = (n[0] + 1) * (n[1] + 1);
+  double c[8];
+  for (int q = 0; q < 8; ++q) c[q] = a[kHexCorner[q][0] * n[0] + kHexCorner[q][1] * n[1] * sj + kHexCorner[q][2] * n[2] * sk];
+  const double* e0 = a;                          // (i, 0, 0)
+  const double* e1 = a + n[1] * sj;              // (i, n1, 0)
+  const double* e2 = a + n[2] * sk;              // (i, 0, n2)
+  const double* e3 = a + n[1] * sj + n[2] * sk;  // (i, n1, n2)
+  for (Id k = 1; k < n[2]; ++k) {
+    const double w = tfi::weight(k, n[2]);
+    const double* f2 = a + k * sk;               // (i, 0, k)
+    const double* f3 = a + n[1] * sj + k * sk;   // (i, n1, k)
+    for (Id j = 1; j < n[1]; ++j) {
+      const double v = tfi::weight(j, n[1]);
+      const double* f4 = a + j * sj;             // (i, j, 0)
+      const double* f5 = a + j * sj + n[2] * sk; // (i, j, n2)
+      const double e[12] = {0, 0, 0, 0, a[j * sj], a[n[0] + j * sj], a[j * sj + n[2] * sk],
+                            a[n[0] + j * sj + n[2] * sk], a[k * sk], a[n[0] + k * sk],
+                            a[n[0] + n[1] * sj + k * sk], a[n[1] * sj + k * sk]};
+      const tfi::HexRow row = tfi::hex_row(v, w, a[j * sj + k * sk], a[n[0] + j * sj + k * sk], e, c);
+      double* out = a + j * sj + k * sk;
+      for (Id i = 1; i < n[0]; ++i)
+        out[i] = tfi::hex_point(row, u[i], U[i], f2[i], f3[i], f4[i], f5[i], e0[i], e1[i], e2[i], e3[i]);
+    }
+  }
+}
+
+}  // namespace
+
 FineMesh::FineMesh(CoarseMesh coarse, Topology topo, Numbering numbering, std::vector<Id> sheet_interval)
     : coarse_(std::move(coarse)),
       topo_(std::move(topo)),
@@ -228,7 +265,7 @@ void FineMesh::fill_face(Id f, FineBlock::Scratch& s) const {
   }
 }
 
-void FineMesh::fill_block(Id h, FineBlock& b) const {
+void FineMesh::fill_block(Id h, FineBlock& b, bool nodes_only) const {
   const auto n = num_.elem_n(h);
   const bool vol = mode() == Mode::Volume;
   const int nc = corners();
@@ -296,37 +333,14 @@ void FineMesh::fill_block(Id h, FineBlock& b) const {
     for (Id k = 1; k < n[2]; ++k)
       for (Id j = 1; j < n[1]; ++j)
         for (Id i = 1; i < n[0]; ++i) ids[b.point_index(i, j, k)] = id++;
-    const Id sj = ni, sk = ni * nj;  // strides
-    for (int d = 0; d < 3; ++d) {
-      double* a = X[d];
-      double c[8];
-      for (int q = 0; q < 8; ++q) c[q] = a[grid(kHexCorner[q], -1, 0)];
-      const double* e0 = a;                        // (i, 0, 0)
-      const double* e1 = a + n[1] * sj;            // (i, n1, 0)
-      const double* e2 = a + n[2] * sk;            // (i, 0, n2)
-      const double* e3 = a + n[1] * sj + n[2] * sk;
-      for (Id k = 1; k < n[2]; ++k) {
-        const double w = tfi::weight(k, n[2]);
-        const double* f2 = a + k * sk;             // (i, 0, k)
-        const double* f3 = a + n[1] * sj + k * sk; // (i, n1, k)
-        for (Id j = 1; j < n[1]; ++j) {
-          const double v = tfi::weight(j, n[1]);
-          const double* f4 = a + j * sj;           // (i, j, 0)
-          const double* f5 = a + j * sj + n[2] * sk;
-          const double e[12] = {0, 0, 0, 0, a[j * sj], a[n[0] + j * sj], a[j * sj + n[2] * sk],
-                                a[n[0] + j * sj + n[2] * sk], a[k * sk], a[n[0] + k * sk],
-                                a[n[0] + n[1] * sj + k * sk], a[n[1] * sj + k * sk]};
-          const tfi::HexRow row = tfi::hex_row(v, w, a[j * sj + k * sk], a[n[0] + j * sj + k * sk], e, c);
-          double* out = a + j * sj + k * sk;
-          const double *u = s.u.data(), *U = s.U.data();
-          for (Id i = 1; i < n[0]; ++i)
-            out[i] = tfi::hex_point(row, u[i], U[i], f2[i], f3[i], f4[i], f5[i], e0[i], e1[i], e2[i], e3[i]);
-        }
-      }
-    }
+    for (int d = 0; d < 3; ++d) hex_interior(X[d], n, s.u.data(), s.U.data());
   }
 
   // Connectivity.
+  if (nodes_only) {
+    b.conn.clear();
+    return;
+  }
   b.conn.resize(static_cast<size_t>(b.num_elements()) * nc);
   Id* out = b.conn.data();
   if (vol) {

@@ -43,7 +43,7 @@ struct FineBlock {
   Id first_element = 0;          // fine id of element (0,0,0); elements are consecutive
   std::vector<Id> node_id;       // per grid point
   std::vector<double> x, y, z;   // per grid point
-  std::vector<Id> conn;          // corners per element, fine node ids
+  std::vector<Id> conn;          // corners per element, fine node ids (empty if nodes_only)
   Id num_points() const { return static_cast<Id>(node_id.size()); }
   Id num_elements() const { return n[0] * n[1] * n[2]; }
   Id point_index(Id i, Id j, Id k) const { return i + (n[0] + 1) * (j + (n[1] + 1) * k); }
@@ -81,7 +81,9 @@ class FineMesh {
   // The node at grid point (i, j, k) of coarse element h, as its owner sees it.
   NodeRef grid_node(Id h, Id i, Id j, Id k) const;
 
-  void fill_block(Id h, FineBlock& out) const;
+  // Fills out with every node of coarse element h (ids, x, y, z) and, unless
+  // nodes_only, its elements' connectivity (conn).
+  void fill_block(Id h, FineBlock& out, bool nodes_only = false) const;
 
   // Fine elements in each block (index into coarse().blocks).
   std::vector<Id> block_fine_elements() const;
