@@ -85,13 +85,18 @@ Vec3 FineMesh::face_point(Id f, Id u, Id v) const {
   if (v == nv) return along(1, u);
   if (u == 0) return along(2, v);
   if (u == nu) return along(3, v);
-  const Vec3 b = along(0, u), t = along(1, u), l = along(2, v), r = along(3, v);
-  const Vec3 p0 = coarse_.vertex(topo_.face_v[4 * f]), p1 = coarse_.vertex(topo_.face_v[4 * f + 1]),
-             p2 = coarse_.vertex(topo_.face_v[4 * f + 2]), p3 = coarse_.vertex(topo_.face_v[4 * f + 3]);
-  const double s = tfi::weight(u, nu), w = tfi::weight(v, nv);
-  return {tfi::coons(s, w, b.x, t.x, l.x, r.x, p0.x, p1.x, p2.x, p3.x),
-          tfi::coons(s, w, b.y, t.y, l.y, r.y, p0.y, p1.y, p2.y, p3.y),
-          tfi::coons(s, w, b.z, t.z, l.z, r.z, p0.z, p1.z, p2.z, p3.z)};
+  const Vec3 sides[4] = {along(0, u), along(1, u), along(2, v), along(3, v)};
+  return face_interior(f, u, v, sides);
+}
+
+Vec3 FineMesh::face_interior(Id f, Id u, Id v, const Vec3* s) const {
+  const auto [nu, nv] = num_.face_n(f);
+  const Id* fv = &topo_.face_v[4 * f];
+  const double a = tfi::weight(u, nu), b = tfi::weight(v, nv);
+  auto one = [&](const double* X, double Vec3::*m) {
+    return tfi::coons(a, b, s[0].*m, s[1].*m, s[2].*m, s[3].*m, X[fv[0]], X[fv[1]], X[fv[2]], X[fv[3]]);
+  };
+  return {one(coarse_.x.data(), &Vec3::x), one(coarse_.y.data(), &Vec3::y), one(coarse_.z.data(), &Vec3::z)};
 }
 
 NodeRef FineMesh::grid_node(Id h, Id i, Id j, Id k) const {
@@ -167,23 +172,35 @@ NodeRef FineMesh::grid_node(Id h, Id i, Id j, Id k) const {
 }
 
 Vec3 FineMesh::cell_point(Id h, Id i, Id j, Id k) const {
+  // The 26 boundary values the block fill would have at (i, j, k)'s
+  // projections, each from its owner in its canonical frame.
   const auto n = num_.elem_n(h);
-  const Id P[6][3] = {{0, j, k}, {n[0], j, k}, {i, 0, k}, {i, n[1], k}, {i, j, 0}, {i, j, n[2]}};
-  const Id E[12][3] = {{i, 0, 0},    {i, n[1], 0},    {i, 0, n[2]},    {i, n[1], n[2]},
-                       {0, j, 0},    {n[0], j, 0},    {0, j, n[2]},    {n[0], j, n[2]},
-                       {0, 0, k},    {n[0], 0, k},    {n[0], n[1], k}, {0, n[1], k}};
+  const Id t[3] = {i, j, k};
   double f[3][6], e[3][12], c[3][8];
-  for (int q = 0; q < 6; ++q) {
-    const Vec3 x = node(grid_node(h, P[q][0], P[q][1], P[q][2]));
-    f[0][q] = x.x, f[1][q] = x.y, f[2][q] = x.z;
-  }
   for (int q = 0; q < 12; ++q) {
-    const Vec3 x = node(grid_node(h, E[q][0], E[q][1], E[q][2]));
+    const Id ed = topo_.elem_edge[12 * h + q], ne = num_.edge_n(ed), tq = t[q / 4];
+    const Vec3 x = edge_point(ed, topo_.elem_edge_rev[12 * h + q] ? ne - tq : tq);
     e[0][q] = x.x, e[1][q] = x.y, e[2][q] = x.z;
   }
+  for (int q = 0; q < 6; ++q) {
+    const Id fa = topo_.elem_face[6 * h + q];
+    const auto fn = num_.face_n(fa);
+    const FaceCode code = topo_.elem_face_code[6 * h + q];
+    const FaceMap fm = face_map(code, fn[0], fn[1]);
+    const Id a = t[kHexFaceAxes[q][0]], b = t[kHexFaceAxes[q][1]];
+    // The face's canonical sides at this point are hex edges already
+    // evaluated above (the same fine nodes, so the same bits).
+    Vec3 sides[4];
+    for (int side = 0; side < 4; ++side) {
+      const int le = hex_face_side_edge(q, code, side);
+      sides[side] = {e[0][le], e[1][le], e[2][le]};
+    }
+    const Vec3 x = face_interior(fa, fm.u(a, b), fm.v(a, b), sides);
+    f[0][q] = x.x, f[1][q] = x.y, f[2][q] = x.z;
+  }
   for (int q = 0; q < 8; ++q) {
-    const Vec3 x = coarse_.vertex(coarse_.conn[static_cast<size_t>(h) * 8 + q]);
-    c[0][q] = x.x, c[1][q] = x.y, c[2][q] = x.z;
+    const Id v = coarse_.conn[static_cast<size_t>(h) * 8 + q];
+    c[0][q] = coarse_.x[v], c[1][q] = coarse_.y[v], c[2][q] = coarse_.z[v];
   }
   const double u = tfi::weight(i, n[0]), v = tfi::weight(j, n[1]), w = tfi::weight(k, n[2]);
   double out[3];

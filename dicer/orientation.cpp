@@ -46,4 +46,29 @@ FaceMap face_map(FaceCode code, std::int64_t nu, std::int64_t nv) {
   return FaceMap{u0, v0, sgn(u1 - u0), sgn(u3 - u0), sgn(v1 - v0), sgn(v3 - v0)};
 }
 
+namespace {
+struct SideEdgeTable {
+  int edge[6][8][4];
+  SideEdgeTable() {
+    static constexpr int kSideCorners[4][2] = {{0, 1}, {3, 2}, {0, 3}, {1, 2}};
+    for (int f = 0; f < 6; ++f)
+      for (int c = 0; c < 8; ++c)
+        for (int side = 0; side < 4; ++side) {
+          // Local face corners holding canonical corners of this side.
+          int lc[2] = {-1, -1};
+          for (int end = 0; end < 2; ++end)
+            for (int m = 0; m < 4; ++m)
+              if (code_corner(static_cast<FaceCode>(c), m) == kSideCorners[side][end]) lc[end] = kHexFace[f][m];
+          edge[f][c][side] = -1;
+          for (int e = 0; e < 12; ++e)
+            if ((kHexEdge[e][0] == lc[0] && kHexEdge[e][1] == lc[1]) || (kHexEdge[e][0] == lc[1] && kHexEdge[e][1] == lc[0]))
+              edge[f][c][side] = e;
+        }
+  }
+};
+const SideEdgeTable kSideEdges;
+}  // namespace
+
+int hex_face_side_edge(int face, FaceCode code, int side) { return kSideEdges.edge[face][code][side]; }
+
 }  // namespace dicer

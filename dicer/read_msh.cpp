@@ -352,7 +352,8 @@ class MshParser {
   std::vector<std::int8_t> geo_dim_;
   std::vector<std::int32_t> geo_tag_;
   std::unordered_map<Id, Id> node_index_;  // file tag -> 0-based vertex
-  std::unordered_set<Id> element_tags_;
+  std::unordered_map<Id, std::pair<int, std::size_t>> element_tags_;  // tag -> (dim, index in group)
+  std::size_t repeated_ = 0;  // MSH2 elements written once per physical group
   Group groups_[4];                         // by dimension: points, lines, quads, hexes
   std::map<Id, std::size_t> unsupported_;   // element type -> count
   std::map<std::pair<int, int>, std::vector<int>> entity_physicals_;  // MSH4 (dim, tag)
@@ -548,8 +549,21 @@ void MshParser::read_nodes() {
 }
 
 void MshParser::add_element(int dim, Id tag, int entity_dim, Id entity, Id physical, const Id* nodes) {
-  if (!element_tags_.insert(tag).second) fail("element tag " + std::to_string(tag) + " appears twice");
   Group& g = groups_[dim];
+  const auto [it0, fresh] = element_tags_.emplace(tag, std::make_pair(dim, g.tag.size()));
+  if (!fresh) {
+    // Gmsh's MSH 2 writer repeats an element, same tag and nodes, once per
+    // physical group it belongs to: keep the first (its first group).
+    bool same = !msh4_ && it0->second.first == dim;
+    for (int k = 0; same && k < kNodesOfDim[dim]; ++k) {
+      auto it = node_index_.find(nodes[k]);
+      same = it != node_index_.end() &&
+             g.conn[it0->second.second * static_cast<std::size_t>(kNodesOfDim[dim]) + static_cast<std::size_t>(k)] == it->second;
+    }
+    if (!same) fail("element tag " + std::to_string(tag) + " appears twice");
+    ++repeated_;
+    return;
+  }
   for (int k = 0; k < kNodesOfDim[dim]; ++k) {
     auto it = node_index_.find(nodes[k]);
     if (it == node_index_.end())
@@ -900,6 +914,10 @@ CoarseMesh MshParser::build() {
       mesh.side_sets.push_back(std::move(ss));
     }
   }
+  if (repeated_ > 0)
+    mesh.warnings.push_back(path_ + ": " + std::to_string(repeated_) +
+                            " element(s) are listed again, same tag and nodes, for a further physical group (Gmsh's MSH 2 "
+                            "writer does this); each was kept once, in its first group");
   if (unmatched > 0)
     mesh.warnings.push_back(path_ + ": " + std::to_string(unmatched) + " " + (dim == 3 ? "quadrangles" : "lines") +
                             " in physical groups match no " + (dim == 3 ? "hexahedron face" : "quadrangle edge") +

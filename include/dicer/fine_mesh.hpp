@@ -91,6 +91,9 @@ class FineMesh {
  private:
   Vec3 edge_point(Id e, Id t) const;  // canonical t in [0, n]
   Vec3 face_point(Id f, Id u, Id v) const;
+  // Coons interior point of face f from its four sides' values at (u, v)
+  // (bottom, top, left, right in the canonical frame).
+  Vec3 face_interior(Id f, Id u, Id v, const Vec3* sides) const;
   // Interior of face f, canonical frame, (u-1) + (v-1)(nu-1) order.
   void fill_face(Id f, FineBlock::Scratch& s) const;
   Vec3 cell_point(Id h, Id i, Id j, Id k) const;

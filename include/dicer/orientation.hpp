@@ -85,4 +85,9 @@ struct FaceMap {
 };
 FaceMap face_map(FaceCode code, std::int64_t nu, std::int64_t nv);
 
+// Local hex edge (kHexEdge index) that carries canonical side `side` of hex
+// face `face` under `code`; sides as in Topology::face_edge: 0 v0v1, 1 v3v2,
+// 2 v0v3, 3 v1v2. Table lookup.
+int hex_face_side_edge(int face, FaceCode code, int side);
+
 }  // namespace dicer

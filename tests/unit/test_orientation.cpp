@@ -112,3 +112,18 @@ TEST(Orientation, HexFacesAndEdgesAreConsistentWithCorners) {
     for (int d = 0; d < 3; ++d)
       EXPECT_EQ(kHexCorner[kHexEdge[e][1]][d] - kHexCorner[kHexEdge[e][0]][d], d == e / 4 ? 1 : 0);
 }
+
+TEST(Orientation, HexFaceSideEdgesJoinTheRightCorners) {
+  for (int f = 0; f < 6; ++f)
+    for (int c = 0; c < 8; ++c) {
+      std::set<int> edges;
+      for (int side = 0; side < 4; ++side) {
+        const int e = hex_face_side_edge(f, static_cast<FaceCode>(c), side);
+        ASSERT_GE(e, 0);
+        edges.insert(e);
+        // The edge's two corners both lie on face f.
+        for (int end = 0; end < 2; ++end) EXPECT_EQ(kHexCorner[kHexEdge[e][end]][f / 2], f % 2);
+      }
+      EXPECT_EQ(edges.size(), 4u);  // the four edges of the face, each once
+    }
+}

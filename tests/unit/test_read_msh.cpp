@@ -542,3 +542,27 @@ TEST(ReadMsh, WindowsLineEndings) {
   EXPECT_EQ(m.num_elements(), 1);
   EXPECT_EQ(m.vertex(11), (dicer::Vec3{1, 1, 2}));
 }
+
+// Gmsh's MSH 2 writer lists an element once per physical group it is in,
+// with the same tag and nodes: kept once, in its first group, with a warning.
+TEST(ReadMsh, Msh22ElementRepeatedForASecondPhysicalGroupIsKeptOnce) {
+  const std::string text = std::string("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n") + kTwoHexNodes22 +
+                           "$Elements\n3\n"
+                           "1 5 2 4 1 10 20 30 40 50 60 70 80\n"
+                           "1 5 2 6 1 10 20 30 40 50 60 70 80\n"
+                           "2 5 2 4 1 50 60 70 80 90 100 110 120\n"
+                           "$EndElements\n";
+  const CoarseMesh m = read_text(text);
+  EXPECT_EQ(m.num_elements(), 2);
+  ASSERT_EQ(m.blocks.size(), 1u);
+  EXPECT_EQ(m.blocks[0].id, 4);
+  ASSERT_EQ(m.warnings.size(), 1u);
+  EXPECT_THAT(m.warnings[0], HasSubstr("listed again"));
+  // A repeated tag with different nodes is still an error.
+  const std::string bad = std::string("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n") + kTwoHexNodes22 +
+                          "$Elements\n2\n"
+                          "1 5 2 4 1 10 20 30 40 50 60 70 80\n"
+                          "1 5 2 6 1 50 60 70 80 90 100 110 120\n"
+                          "$EndElements\n";
+  EXPECT_THROW(read_text(bad), dicer::Error);
+}
