@@ -60,7 +60,7 @@ int cmd_dice(const std::vector<std::string>& argv) {
     std::printf("diced %s: %lld coarse %s -> %s fine nodes, %s fine elements (%lld sheets); wrote %s\n", in.c_str(),
                 static_cast<long long>(fine.num_coarse_elements()), fine.mode() == Mode::Volume ? "hexes" : "quads",
                 human_count(fine.num_nodes()).c_str(), human_count(fine.num_elements()).c_str(),
-                static_cast<long long>(fine.sheet_intervals().size()), out->c_str());
+                static_cast<long long>(fine.info().sheets), out->c_str());
   return 0;
 }
 

@@ -21,17 +21,21 @@ edge, face and hex. Element ids: coarse element order, then i, j, k.
            element: {"id":…, "nodes":[8 ids], "block":…, "coarse_element":…,
                      "ijk":[i,j,k]}   (VTK/Exodus HEX8 node order; surface
                      meshes: 4 node ids and [i,j]); block is the block id
+  --cache-mb N   page cache budget in MiB (default 64)
+  --stats        print the page cache counters to stderr
 )";
 
 int cmd_query(const std::vector<std::string>& argv) {
   for (const auto& a : argv)
     if (a == "--help" || a == "-h") return std::fputs(kHelp, stdout), 0;
-  Args args("query", argv, {"--node", "--nodes", "--element", "--elements"}, {"--json"}, 1);
+  std::vector<std::string> vflags = {"--node", "--nodes", "--element", "--elements"};
+  vflags.insert(vflags.end(), kStoreFlags.begin(), kStoreFlags.end());
+  Args args("query", argv, vflags, {"--json", "--stats"}, 1);
   const std::string path = args.need_positional(0, "STORE");
   int chosen = args.has("--node") + args.has("--nodes") + args.has("--element") + args.has("--elements");
   if (chosen != 1)
     throw Error(ErrorKind::Usage, "dicer query: give exactly one of --node, --nodes, --element, --elements");
-  const FineMesh m = read_store(path);
+  const FineMesh m = read_store(path, store_options(args));
   const bool json = args.has("--json");
   auto ll = [](Id v) { return static_cast<long long>(v); };
   if (args.has("--node") || args.has("--nodes")) {
@@ -51,6 +55,7 @@ int cmd_query(const std::vector<std::string>& argv) {
       else
         std::printf("node %lld  %.17g %.17g %.17g\n", ll(id), p.x, p.y, p.z);
     }
+    if (args.has("--stats")) print_cache_stats(m, "query");
     return 0;
   }
   const auto [a, b] = args.has("--element") ? parse_range("--element", *args.value("--element"))
@@ -67,7 +72,7 @@ int cmd_query(const std::vector<std::string>& argv) {
     for (int q = 0; q < el.num_nodes; ++q) nodes += (q ? "," : "") + std::to_string(el.nodes[q]);
     const std::string ijk = std::to_string(el.ijk[0]) + "," + std::to_string(el.ijk[1]) +
                             (vol ? "," + std::to_string(el.ijk[2]) : "");
-    const long long block = m.coarse().blocks[el.block].id;
+    const long long block = m.info().blocks.at(static_cast<size_t>(el.block)).id;
     if (json)
       std::printf("{\"id\":%lld,\"nodes\":[%s],\"block\":%lld,\"coarse_element\":%lld,\"ijk\":[%s]}\n", ll(el.id),
                   nodes.c_str(), block, ll(el.coarse_element), ijk.c_str());
@@ -75,6 +80,7 @@ int cmd_query(const std::vector<std::string>& argv) {
       std::printf("element %lld  nodes %s  block %lld  coarse element %lld  ijk %s\n", ll(el.id), nodes.c_str(), block,
                   ll(el.coarse_element), ijk.c_str());
   }
+  if (args.has("--stats")) print_cache_stats(m, "query");
   return 0;
 }
 

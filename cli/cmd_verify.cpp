@@ -23,14 +23,16 @@ Exit status 0 only if everything holds, 1 if a check fails.
 
   --json    the report as one JSON object
   --quiet   no progress bar
+  --cache-mb N   page cache budget in MiB (default 64)
+  --stats        print the page cache counters to stderr
 )";
 
 int cmd_verify(const std::vector<std::string>& argv) {
   for (const auto& a : argv)
     if (a == "--help" || a == "-h") return std::fputs(kHelp, stdout), 0;
-  Args args("verify", argv, {}, {"--json", "--quiet"}, 1);
+  Args args("verify", argv, kStoreFlags, {"--json", "--quiet", "--stats"}, 1);
   const std::string path = args.need_positional(0, "STORE");
-  const FineMesh m = read_store(path);
+  const FineMesh m = read_store(path, store_options(args));
   VerifyReport r;
   {
     Progress bar("verify", m.num_coarse_elements(), args.has("--quiet"));
@@ -62,6 +64,7 @@ int cmd_verify(const std::vector<std::string>& argv) {
     for (const auto& p : r.problems) std::printf("    %s\n", p.c_str());
     std::printf("%s\n", r.ok() ? "all checks passed" : "VERIFY FAILED");
   }
+  if (args.has("--stats")) print_cache_stats(m, "verify");
   return r.ok() ? 0 : kExitDefect;
 }
 

@@ -7,6 +7,7 @@
 #include <cstdlib>
 
 #include "dicer/error.hpp"
+#include "dicer/fine_mesh.hpp"
 
 namespace dicer::cli {
 
@@ -112,6 +113,34 @@ IntervalRequest interval_request(const Args& args) {
                               parse_int("--sheet-interval " + kv, kv.substr(eq + 1)));
   }
   return merge(file, flags);
+}
+
+StoreOptions store_options(const Args& args) {
+  StoreOptions o;
+  if (auto v = args.value("--cache-mb")) {
+    const auto mb = parse_int("--cache-mb", *v);
+    if (mb < 1 || mb > (1ll << 30)) throw Error(ErrorKind::Usage, "--cache-mb: must be between 1 and 2^30 (MiB)");
+    o.cache_bytes = static_cast<std::uint64_t>(mb) << 20;
+  }
+  if (auto v = args.value("--read-ahead")) {
+    const auto n = parse_int("--read-ahead", *v);
+    if (n < 0 || n > 1024) throw Error(ErrorKind::Usage, "--read-ahead: must be between 0 and 1024 pages");
+    o.read_ahead_pages = static_cast<unsigned>(n);
+  }
+  return o;
+}
+
+void print_cache_stats(const FineMesh& mesh, const std::string& command) {
+  const auto cache = store_cache(mesh);
+  if (!cache) return;
+  const CacheStats st = cache->stats();
+  std::fprintf(stderr,
+               "dicer %s: cache: %llu pages read, %s read from file, %s decompressed, %llu hits, %llu misses, %llu "
+               "evictions, peak resident %s of %s budget\n",
+               command.c_str(), static_cast<unsigned long long>(st.pages_read), human_bytes(st.bytes_read).c_str(),
+               human_bytes(st.bytes_decompressed).c_str(), static_cast<unsigned long long>(st.hits),
+               static_cast<unsigned long long>(st.misses), static_cast<unsigned long long>(st.evictions),
+               human_bytes(st.peak_resident_bytes).c_str(), human_bytes(cache->budget()).c_str());
 }
 
 std::string json_string(const std::string& s) {

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "dicer/intervals.hpp"
+#include "dicer/store.hpp"
 #include "dicer/types.hpp"
 
 namespace dicer::cli {
@@ -48,6 +49,12 @@ std::pair<std::int64_t, std::int64_t> parse_range(const std::string& what, const
 IntervalRequest interval_request(const Args& args);
 inline const std::vector<std::string> kIntervalFlags = {"--interval", "--block-interval", "--sheet-interval", "--size",
                                                         "--intervals-file"};
+
+// --cache-mb N (default 64) and --read-ahead N for commands that open a store.
+inline const std::vector<std::string> kStoreFlags = {"--cache-mb", "--read-ahead"};
+StoreOptions store_options(const Args& args);
+// --stats: the page cache counters on stderr, one line, human readable.
+void print_cache_stats(const FineMesh& mesh, const std::string& command);
 
 std::string json_string(const std::string& s);
 std::string json_double(double d);  // 17 significant digits: round-trips exactly

@@ -1,20 +1,223 @@
 // The implicit fine mesh: classification of grid points to their owning
-// entity, and evaluation of the TFI recipe in that entity's canonical frame.
+// entity, and evaluation of the TFI recipe in that entity's canonical frame,
+// all read from the mesh tables (in memory or paged; the same code).
 #include "dicer/fine_mesh.hpp"
 
 #include <algorithm>
 
 #include "dicer/error.hpp"
 #include "dicer/orientation.hpp"
+#include "dicer/sheets.hpp"
 #include "dicer/tfi.hpp"
+#include "dicer/topology.hpp"
 
 namespace dicer {
-
 namespace {
+
+// ---------------------------------------------------------------- records
+// Rows copied out of the tables (a row pointer dies when its cursor moves).
+
+struct EdgeRec {
+  Id lo, hi, n, off;
+};
+struct FaceRec {
+  Id v[4], e[4], off, nu, nv;
+};
+struct ElemRec {
+  Id conn[8], edge[12], face[6];
+  Id elem_off, cell_off, file_id;
+  std::int32_t block;
+  std::uint64_t flags;
+  std::array<Id, 3> n;
+  bool rev(int k) const { return (flags >> k) & 1; }
+  FaceCode code(int k) const { return static_cast<FaceCode>((flags >> (12 + 3 * k)) & 7); }
+};
+
+struct View {
+  const MeshTables& t;
+  MeshCursor& c;
+  ElementLayout L;
+
+  Vec3 vertex(Id v) const {
+    const double* r = t.vertices.row(v, c.vertices);
+    return {r[0], r[1], r[2]};
+  }
+  EdgeRec edge(Id e) const {
+    const std::int64_t* r = t.edges.row(e, c.edges);
+    return {r[kEdgeLo], r[kEdgeHi], r[kEdgeN], r[kEdgeNodeOffset]};
+  }
+  FaceRec face(Id f) const {
+    const std::int64_t* r = t.faces.row(f, c.faces);
+    FaceRec rec;
+    for (int k = 0; k < 4; ++k) rec.v[k] = r[kFaceV + k], rec.e[k] = r[kFaceE + k];
+    rec.off = r[kFaceNodeOffset];
+    rec.nu = edge(rec.e[0]).n;
+    rec.nv = edge(rec.e[2]).n;
+    return rec;
+  }
+  ElemRec element(Id h) const {
+    const std::int64_t* r = t.elements.row(h, c.elements);
+    ElemRec rec{};
+    for (int k = 0; k < L.corners; ++k) rec.conn[k] = r[L.conn() + k];
+    for (int k = 0; k < L.edges; ++k) rec.edge[k] = r[L.edge() + k];
+    for (int k = 0; k < L.faces; ++k) rec.face[k] = r[L.face() + k];
+    rec.elem_off = r[L.elem_offset()], rec.cell_off = r[L.cell_offset()];
+    rec.block = static_cast<std::int32_t>(r[L.block()]);
+    rec.file_id = r[L.file_id()];
+    rec.flags = static_cast<std::uint64_t>(r[L.flags()]);
+    rec.n = {r[L.n()], r[L.n() + 1], r[L.n() + 2]};
+    return rec;
+  }
+
+  // Equal spacing, canonical t in [0, n].
+  Vec3 edge_point(const EdgeRec& e, Id t) const {
+    if (t == 0) return vertex(e.lo);
+    if (t == e.n) return vertex(e.hi);
+    const Vec3 a = vertex(e.lo), b = vertex(e.hi);
+    const double s = tfi::weight(t, e.n);
+    return {tfi::edge(a.x, b.x, s), tfi::edge(a.y, b.y, s), tfi::edge(a.z, b.z, s)};
+  }
+  // Side k of a face (0 v0v1, 1 v3v2, 2 v0v3, 3 v1v2) at face parameter s.
+  Vec3 face_side(const FaceRec& f, int k, Id s) const {
+    const EdgeRec e = edge(f.e[k]);
+    const bool rev = f.v[kQuadEdge[k][0]] > f.v[kQuadEdge[k][1]];
+    return edge_point(e, rev ? e.n - s : s);
+  }
+  // Coons interior point from the four sides' values at (u, v).
+  Vec3 face_interior(const FaceRec& f, Id u, Id v, const Vec3* s) const {
+    const Vec3 p0 = vertex(f.v[0]), p1 = vertex(f.v[1]), p2 = vertex(f.v[2]), p3 = vertex(f.v[3]);
+    const double a = tfi::weight(u, f.nu), b = tfi::weight(v, f.nv);
+    return {tfi::coons(a, b, s[0].x, s[1].x, s[2].x, s[3].x, p0.x, p1.x, p2.x, p3.x),
+            tfi::coons(a, b, s[0].y, s[1].y, s[2].y, s[3].y, p0.y, p1.y, p2.y, p3.y),
+            tfi::coons(a, b, s[0].z, s[1].z, s[2].z, s[3].z, p0.z, p1.z, p2.z, p3.z)};
+  }
+  Vec3 face_point(const FaceRec& f, Id u, Id v) const {
+    if (v == 0) return face_side(f, 0, u);
+    if (v == f.nv) return face_side(f, 1, u);
+    if (u == 0) return face_side(f, 2, v);
+    if (u == f.nu) return face_side(f, 3, v);
+    const Vec3 sides[4] = {face_side(f, 0, u), face_side(f, 1, u), face_side(f, 2, v), face_side(f, 3, v)};
+    return face_interior(f, u, v, sides);
+  }
+  // Hex interior point: its 12 edge points and 6 face points from their
+  // owners, then tfi::hex_row + tfi::hex_point as the block fill does.
+  Vec3 cell_point(const ElemRec& h, Id i, Id j, Id k) const {
+    const Id t[3] = {i, j, k};
+    double f[3][6], e[3][12], c[3][8];
+    for (int q = 0; q < 12; ++q) {
+      const EdgeRec ed = edge(h.edge[q]);
+      const Vec3 x = edge_point(ed, h.rev(q) ? ed.n - t[q / 4] : t[q / 4]);
+      e[0][q] = x.x, e[1][q] = x.y, e[2][q] = x.z;
+    }
+    for (int q = 0; q < 6; ++q) {
+      const FaceRec fa = face(h.face[q]);
+      const FaceCode code = h.code(q);
+      const FaceMap fm = face_map(code, fa.nu, fa.nv);
+      const Id a = t[kHexFaceAxes[q][0]], b = t[kHexFaceAxes[q][1]];
+      // The face's canonical sides at this point are hex edges evaluated
+      // above (the same fine nodes, so the same bits).
+      Vec3 sides[4];
+      for (int side = 0; side < 4; ++side) {
+        const int le = hex_face_side_edge(q, code, side);
+        sides[side] = {e[0][le], e[1][le], e[2][le]};
+      }
+      const Vec3 x = face_interior(fa, fm.u(a, b), fm.v(a, b), sides);
+      f[0][q] = x.x, f[1][q] = x.y, f[2][q] = x.z;
+    }
+    for (int q = 0; q < 8; ++q) {
+      const Vec3 x = vertex(h.conn[q]);
+      c[0][q] = x.x, c[1][q] = x.y, c[2][q] = x.z;
+    }
+    const double u = tfi::weight(i, h.n[0]), v = tfi::weight(j, h.n[1]), w = tfi::weight(k, h.n[2]);
+    double out[3];
+    for (int d = 0; d < 3; ++d) {
+      const tfi::HexRow row = tfi::hex_row(v, w, f[d][0], f[d][1], e[d], c[d]);
+      out[d] = tfi::hex_point(row, u, 1.0 - u, f[d][2], f[d][3], f[d][4], f[d][5], e[d][0], e[d][1], e[d][2], e[d][3]);
+    }
+    return {out[0], out[1], out[2]};
+  }
+
+  NodeRef grid_node(const ElemRec& h, Id hid, Id i, Id j, Id k) const {
+    const auto& n = h.n;
+    NodeRef r;
+    if (t.mode == Mode::Surface) {
+      const int ex = (i == 0 || i == n[0]) + (j == 0 || j == n[1]);
+      if (ex == 2) {
+        static constexpr int kCorner[2][2] = {{0, 3}, {1, 2}};  // [i>0][j>0]
+        r.kind = EntityKind::Vertex;
+        r.entity = h.conn[kCorner[i > 0][j > 0]];
+        return r;
+      }
+      if (ex == 1) {
+        const int le = j == 0 ? 0 : j == n[1] ? 1 : i == 0 ? 2 : 3;
+        const Id tt = le < 2 ? i : j;
+        r.kind = EntityKind::Edge;
+        r.entity = h.edge[le];
+        r.local[0] = h.rev(le) ? edge(h.edge[le]).n - tt : tt;
+        return r;
+      }
+      const FaceRec f = face(h.face[0]);
+      const FaceMap fm = face_map(h.code(0), f.nu, f.nv);
+      r.kind = EntityKind::Face;
+      r.entity = h.face[0];
+      r.local = {fm.u(i, j), fm.v(i, j), 0};
+      return r;
+    }
+    const Id p[3] = {i, j, k};
+    int ext[3];  // -1 interior, 0 low side, 1 high side
+    int count = 0;
+    for (int a = 0; a < 3; ++a) {
+      ext[a] = p[a] == 0 ? 0 : p[a] == n[a] ? 1 : -1;
+      count += ext[a] >= 0;
+    }
+    if (count == 3) {
+      static constexpr int kCorner[2][2][2] = {{{0, 4}, {3, 7}}, {{1, 5}, {2, 6}}};  // [i][j][k]
+      r.kind = EntityKind::Vertex;
+      r.entity = h.conn[kCorner[ext[0]][ext[1]][ext[2]]];
+      return r;
+    }
+    if (count == 2) {
+      const int axis = ext[0] < 0 ? 0 : ext[1] < 0 ? 1 : 2;
+      int le;
+      if (axis == 0) le = ext[1] + 2 * ext[2];
+      else if (axis == 1) le = 4 + ext[0] + 2 * ext[2];
+      else le = 8 + (ext[1] ? 3 - ext[0] : ext[0]);  // (0,0)->8 (1,0)->9 (1,1)->10 (0,1)->11
+      r.kind = EntityKind::Edge;
+      r.entity = h.edge[le];
+      r.local[0] = h.rev(le) ? n[axis] - p[axis] : p[axis];
+      return r;
+    }
+    if (count == 1) {
+      const int axis = ext[0] >= 0 ? 0 : ext[1] >= 0 ? 1 : 2;
+      const int lf = 2 * axis + ext[axis];
+      const FaceRec f = face(h.face[lf]);
+      const FaceMap fm = face_map(h.code(lf), f.nu, f.nv);
+      const Id a = p[kHexFaceAxes[lf][0]], b = p[kHexFaceAxes[lf][1]];
+      r.kind = EntityKind::Face;
+      r.entity = h.face[lf];
+      r.local = {fm.u(a, b), fm.v(a, b), 0};
+      return r;
+    }
+    r.kind = EntityKind::Cell;
+    r.entity = hid;
+    r.local = {i, j, k};
+    return r;
+  }
+
+  Vec3 node(const NodeRef& r) const {
+    switch (r.kind) {
+      case EntityKind::Vertex: return vertex(r.entity);
+      case EntityKind::Edge: return edge_point(edge(r.entity), r.local[0]);
+      case EntityKind::Face: return face_point(face(r.entity), r.local[0], r.local[1]);
+      case EntityKind::Cell: return cell_point(element(r.entity), r.local[0], r.local[1], r.local[2]);
+    }
+    return {};
+  }
+};
 
 // Hex interior of one coordinate array of a block whose boundary is filled:
 // tfi::hex_row once per (j, k), tfi::hex_point along i, the same two calls
-// FineMesh::cell_point() makes, fed the same boundary values. Built twice
+// View::cell_point() makes, fed the same boundary values. Built twice
 // (AVX2 and baseline x86-64): both are plain IEEE mul/add/sub in the same
 // order with contraction off, so both give the same bits.
 __attribute__((target_clones("avx2", "default"))) void hex_interior(double* a, std::array<Id, 3> n,
@@ -45,250 +248,173 @@ __attribute__((target_clones("avx2", "default"))) void hex_interior(double* a, s
   }
 }
 
+// ---------------------------------------------------------------- dice
+
+// Coarse mesh + topology + intervals -> the four tables and the metadata.
+FineMesh compile(std::shared_ptr<const CoarseMesh> cm, const Topology& t, const Numbering& num,
+                 const std::vector<Id>& edge_sheet, Id num_sheets) {
+  const CoarseMesh& m = *cm;
+  MeshTables tab;
+  tab.mode = m.mode;
+  const ElementLayout L = tab.layout();
+  std::vector<double> verts(static_cast<size_t>(m.num_vertices()) * 3);
+  for (Id v = 0; v < m.num_vertices(); ++v) verts[3 * v] = m.x[v], verts[3 * v + 1] = m.y[v], verts[3 * v + 2] = m.z[v];
+  std::vector<std::int64_t> edges(static_cast<size_t>(t.num_edges()) * kEdgeWidth);
+  for (Id e = 0; e < t.num_edges(); ++e) {
+    std::int64_t* r = &edges[static_cast<size_t>(e) * kEdgeWidth];
+    r[kEdgeLo] = t.edge_v[2 * e], r[kEdgeHi] = t.edge_v[2 * e + 1], r[kEdgeN] = num.edge_n(e);
+    r[kEdgeNodeOffset] = num.edge_node_offset(e), r[kEdgeSheet] = edge_sheet[e];
+  }
+  std::vector<std::int64_t> faces(static_cast<size_t>(t.num_faces()) * kFaceWidth);
+  for (Id f = 0; f < t.num_faces(); ++f) {
+    std::int64_t* r = &faces[static_cast<size_t>(f) * kFaceWidth];
+    for (int k = 0; k < 4; ++k) r[kFaceV + k] = t.face_v[4 * f + k], r[kFaceE + k] = t.face_edge[4 * f + k];
+    r[kFaceNodeOffset] = num.face_node_offset(f);
+  }
+  const Id ne = m.num_elements();
+  const int W = L.width();
+  std::vector<std::int64_t> elems(static_cast<size_t>(ne) * W);
+  MeshInfo info;
+  info.mode = m.mode;
+  info.source = m.source;
+  info.blocks = m.blocks;
+  info.block_coarse_elements.assign(m.blocks.size(), 0);
+  info.block_fine_elements.assign(m.blocks.size(), 0);
+  for (Id h = 0; h < ne; ++h) {
+    std::int64_t* r = &elems[static_cast<size_t>(h) * W];
+    for (int k = 0; k < L.corners; ++k) r[L.conn() + k] = m.conn[static_cast<size_t>(h) * L.corners + k];
+    std::uint64_t flags = 0;
+    for (int k = 0; k < L.edges; ++k) {
+      r[L.edge() + k] = t.elem_edge[static_cast<size_t>(h) * L.edges + k];
+      flags |= static_cast<std::uint64_t>(t.elem_edge_rev[static_cast<size_t>(h) * L.edges + k]) << k;
+    }
+    for (int k = 0; k < L.faces; ++k) {
+      r[L.face() + k] = t.elem_face[static_cast<size_t>(h) * L.faces + k];
+      flags |= static_cast<std::uint64_t>(t.elem_face_code[static_cast<size_t>(h) * L.faces + k]) << (12 + 3 * k);
+    }
+    r[L.elem_offset()] = num.elem_first_element(h);
+    r[L.cell_offset()] = m.mode == Mode::Volume ? num.cell_node_offset(h) : num.num_nodes();
+    r[L.block()] = m.element_block[h];
+    r[L.file_id()] = m.element_file_id[h];
+    r[L.flags()] = static_cast<std::int64_t>(flags);
+    const auto n = num.elem_n(h);
+    r[L.n()] = n[0], r[L.n() + 1] = n[1], r[L.n() + 2] = n[2];
+    ++info.block_coarse_elements[m.element_block[h]];
+    info.block_fine_elements[m.element_block[h]] += n[0] * n[1] * n[2];
+  }
+  tab.vertices = Table<double>(3, std::move(verts));
+  tab.edges = Table<std::int64_t>(kEdgeWidth, std::move(edges));
+  tab.faces = Table<std::int64_t>(kFaceWidth, std::move(faces));
+  tab.elements = Table<std::int64_t>(W, std::move(elems));
+  info.coarse_vertices = m.num_vertices();
+  info.coarse_edges = t.num_edges();
+  info.coarse_faces = t.num_faces();
+  info.coarse_elements = ne;
+  info.sheets = num_sheets;
+  info.nodes = num.num_nodes();
+  info.elements = num.num_elements();
+  info.kind_base = num.kind_base();
+  return FineMesh(std::move(info), std::move(tab), std::move(cm));
+}
+
 }  // namespace
 
-FineMesh::FineMesh(CoarseMesh coarse, Topology topo, Numbering numbering, std::vector<Id> sheet_interval)
-    : coarse_(std::move(coarse)),
-      topo_(std::move(topo)),
-      num_(std::move(numbering)),
-      sheet_interval_(std::move(sheet_interval)) {}
+FineMesh::FineMesh(MeshInfo info, MeshTables tables, std::shared_ptr<const CoarseMesh> coarse)
+    : info_(std::move(info)), tables_(std::move(tables)), coarse_(std::move(coarse)) {}
 
 FineMesh FineMesh::dice(CoarseMesh coarse, const IntervalRequest& request, std::vector<std::string>* notes) {
-  Topology topo = build_topology(coarse);
-  Sheets sheets = find_sheets(coarse, topo);
-  IntervalPlan plan = resolve_intervals(coarse, topo, sheets, request);
+  // Sheets and intervals on the input numbering, so sheet ids are the input file's.
+  const Topology t0 = build_topology(coarse);
+  const Sheets s0 = find_sheets(coarse, t0);
+  IntervalPlan plan = resolve_intervals(coarse, t0, s0, request);
   if (notes) *notes = plan.notes;
-  Numbering num(topo, edge_intervals(sheets, plan));
-  return FineMesh(std::move(coarse), std::move(topo), std::move(num), std::move(plan.sheet_interval));
+  // Locality order, then the topology the fine mesh is numbered by.
+  std::vector<Id> old_vertex;
+  auto ordered = std::make_shared<CoarseMesh>(sfc_order(coarse, &old_vertex));
+  const Topology t = build_topology(*ordered);
+  std::vector<Id> edge_sheet(static_cast<size_t>(t.num_edges())), edge_n(static_cast<size_t>(t.num_edges()));
+  for (Id e = 0; e < t.num_edges(); ++e) {
+    const Id old = find_edge(t0, old_vertex[t.edge_v[2 * e]], old_vertex[t.edge_v[2 * e + 1]]);
+    edge_sheet[e] = s0.edge_sheet[old];
+    edge_n[e] = plan.sheet_interval[edge_sheet[e]];
+  }
+  const Numbering num(t, std::move(edge_n));
+  FineMesh f = compile(ordered, t, num, edge_sheet, s0.num_sheets());
+  f.sheet_intervals_ = std::move(plan.sheet_interval);
+  return f;
 }
 
-Vec3 FineMesh::edge_point(Id e, Id t) const {
-  const Id a = topo_.edge_v[2 * e], b = topo_.edge_v[2 * e + 1];
-  const Id n = num_.edge_n(e);
-  if (t == 0) return coarse_.vertex(a);
-  if (t == n) return coarse_.vertex(b);
-  const double s = tfi::weight(t, n);
-  return {tfi::edge(coarse_.x[a], coarse_.x[b], s), tfi::edge(coarse_.y[a], coarse_.y[b], s),
-          tfi::edge(coarse_.z[a], coarse_.z[b], s)};
-}
-
-Vec3 FineMesh::face_point(Id f, Id u, Id v) const {
-  const auto [nu, nv] = num_.face_n(f);
-  const Id* fe = &topo_.face_edge[4 * f];
-  const std::uint8_t* rev = &topo_.face_edge_rev[4 * f];
-  auto along = [&](int k, Id s) {
-    const Id n = num_.edge_n(fe[k]);
-    return edge_point(fe[k], rev[k] ? n - s : s);
-  };
-  // Points on the face boundary belong to its edges and vertices.
-  if (v == 0) return along(0, u);
-  if (v == nv) return along(1, u);
-  if (u == 0) return along(2, v);
-  if (u == nu) return along(3, v);
-  const Vec3 sides[4] = {along(0, u), along(1, u), along(2, v), along(3, v)};
-  return face_interior(f, u, v, sides);
-}
-
-Vec3 FineMesh::face_interior(Id f, Id u, Id v, const Vec3* s) const {
-  const auto [nu, nv] = num_.face_n(f);
-  const Id* fv = &topo_.face_v[4 * f];
-  const double a = tfi::weight(u, nu), b = tfi::weight(v, nv);
-  auto one = [&](const double* X, double Vec3::*m) {
-    return tfi::coons(a, b, s[0].*m, s[1].*m, s[2].*m, s[3].*m, X[fv[0]], X[fv[1]], X[fv[2]], X[fv[3]]);
-  };
-  return {one(coarse_.x.data(), &Vec3::x), one(coarse_.y.data(), &Vec3::y), one(coarse_.z.data(), &Vec3::z)};
-}
-
-NodeRef FineMesh::grid_node(Id h, Id i, Id j, Id k) const {
-  const auto n = num_.elem_n(h);
-  NodeRef r;
-  if (coarse_.mode == Mode::Surface) {
-    const int ex = (i == 0 || i == n[0]) + (j == 0 || j == n[1]);
-    const Id* c = &coarse_.conn[static_cast<size_t>(h) * 4];
-    if (ex == 2) {
-      static constexpr int kCorner[2][2] = {{0, 3}, {1, 2}};  // [i>0][j>0]
-      r.kind = EntityKind::Vertex;
-      r.entity = c[kCorner[i > 0][j > 0]];
-      return r;
-    }
-    if (ex == 1) {
-      const int le = j == 0 ? 0 : j == n[1] ? 1 : i == 0 ? 2 : 3;
-      const Id t = le < 2 ? i : j;
-      const Id e = topo_.elem_edge[4 * h + le];
-      r.kind = EntityKind::Edge;
-      r.entity = e;
-      r.local[0] = topo_.elem_edge_rev[4 * h + le] ? num_.edge_n(e) - t : t;
-      return r;
-    }
-    const Id f = topo_.elem_face[h];
-    const auto fn = num_.face_n(f);
-    const FaceMap fm = face_map(topo_.elem_face_code[h], fn[0], fn[1]);
-    r.kind = EntityKind::Face;
-    r.entity = f;
-    r.local = {fm.u(i, j), fm.v(i, j), 0};
-    return r;
-  }
-  const Id p[3] = {i, j, k};
-  int ext[3];  // -1 interior, 0 low side, 1 high side
-  int count = 0;
-  for (int a = 0; a < 3; ++a) {
-    ext[a] = p[a] == 0 ? 0 : p[a] == n[a] ? 1 : -1;
-    count += ext[a] >= 0;
-  }
-  if (count == 3) {
-    static constexpr int kCorner[2][2][2] = {{{0, 4}, {3, 7}}, {{1, 5}, {2, 6}}};  // [i][j][k]
-    r.kind = EntityKind::Vertex;
-    r.entity = coarse_.conn[static_cast<size_t>(h) * 8 + kCorner[ext[0]][ext[1]][ext[2]]];
-    return r;
-  }
-  if (count == 2) {
-    const int axis = ext[0] < 0 ? 0 : ext[1] < 0 ? 1 : 2;
-    int le;
-    if (axis == 0) le = ext[1] + 2 * ext[2];
-    else if (axis == 1) le = 4 + ext[0] + 2 * ext[2];
-    else le = 8 + (ext[1] ? 3 - ext[0] : ext[0]);  // (0,0)->8 (1,0)->9 (1,1)->10 (0,1)->11
-    const Id e = topo_.elem_edge[12 * h + le];
-    r.kind = EntityKind::Edge;
-    r.entity = e;
-    r.local[0] = topo_.elem_edge_rev[12 * h + le] ? num_.edge_n(e) - p[axis] : p[axis];
-    return r;
-  }
-  if (count == 1) {
-    const int axis = ext[0] >= 0 ? 0 : ext[1] >= 0 ? 1 : 2;
-    const int lf = 2 * axis + ext[axis];
-    const Id f = topo_.elem_face[6 * h + lf];
-    const auto fn = num_.face_n(f);
-    const FaceMap fm = face_map(topo_.elem_face_code[6 * h + lf], fn[0], fn[1]);
-    const Id a = p[kHexFaceAxes[lf][0]], b = p[kHexFaceAxes[lf][1]];
-    r.kind = EntityKind::Face;
-    r.entity = f;
-    r.local = {fm.u(a, b), fm.v(a, b), 0};
-    return r;
-  }
-  r.kind = EntityKind::Cell;
-  r.entity = h;
-  r.local = {i, j, k};
-  return r;
-}
-
-Vec3 FineMesh::cell_point(Id h, Id i, Id j, Id k) const {
-  // The 26 boundary values the block fill would have at (i, j, k)'s
-  // projections, each from its owner in its canonical frame.
-  const auto n = num_.elem_n(h);
-  const Id t[3] = {i, j, k};
-  double f[3][6], e[3][12], c[3][8];
-  for (int q = 0; q < 12; ++q) {
-    const Id ed = topo_.elem_edge[12 * h + q], ne = num_.edge_n(ed), tq = t[q / 4];
-    const Vec3 x = edge_point(ed, topo_.elem_edge_rev[12 * h + q] ? ne - tq : tq);
-    e[0][q] = x.x, e[1][q] = x.y, e[2][q] = x.z;
-  }
-  for (int q = 0; q < 6; ++q) {
-    const Id fa = topo_.elem_face[6 * h + q];
-    const auto fn = num_.face_n(fa);
-    const FaceCode code = topo_.elem_face_code[6 * h + q];
-    const FaceMap fm = face_map(code, fn[0], fn[1]);
-    const Id a = t[kHexFaceAxes[q][0]], b = t[kHexFaceAxes[q][1]];
-    // The face's canonical sides at this point are hex edges already
-    // evaluated above (the same fine nodes, so the same bits).
-    Vec3 sides[4];
-    for (int side = 0; side < 4; ++side) {
-      const int le = hex_face_side_edge(q, code, side);
-      sides[side] = {e[0][le], e[1][le], e[2][le]};
-    }
-    const Vec3 x = face_interior(fa, fm.u(a, b), fm.v(a, b), sides);
-    f[0][q] = x.x, f[1][q] = x.y, f[2][q] = x.z;
-  }
-  for (int q = 0; q < 8; ++q) {
-    const Id v = coarse_.conn[static_cast<size_t>(h) * 8 + q];
-    c[0][q] = coarse_.x[v], c[1][q] = coarse_.y[v], c[2][q] = coarse_.z[v];
-  }
-  const double u = tfi::weight(i, n[0]), v = tfi::weight(j, n[1]), w = tfi::weight(k, n[2]);
-  double out[3];
-  for (int d = 0; d < 3; ++d) {
-    const tfi::HexRow row = tfi::hex_row(v, w, f[d][0], f[d][1], e[d], c[d]);
-    out[d] = tfi::hex_point(row, u, 1.0 - u, f[d][2], f[d][3], f[d][4], f[d][5], e[d][0], e[d][1], e[d][2], e[d][3]);
-  }
-  return {out[0], out[1], out[2]};
-}
-
-Vec3 FineMesh::node(const NodeRef& r) const {
-  switch (r.kind) {
-    case EntityKind::Vertex: return coarse_.vertex(r.entity);
-    case EntityKind::Edge: return edge_point(r.entity, r.local[0]);
-    case EntityKind::Face: return face_point(r.entity, r.local[0], r.local[1]);
-    case EntityKind::Cell: return cell_point(r.entity, r.local[0], r.local[1], r.local[2]);
-  }
-  return {};
-}
+// ---------------------------------------------------------------- queries
 
 Vec3 FineMesh::node(Id id) const {
+  MeshCursor cur;
+  return node(id, cur);
+}
+
+Vec3 FineMesh::node(Id id, MeshCursor& cur) const {
   if (id < 0 || id >= num_nodes())
     throw Error(ErrorKind::Usage, "node id " + std::to_string(id) + " is out of range (the mesh has " +
                                       std::to_string(num_nodes()) + " nodes)");
-  return node(num_.locate_node(id));
+  return node(locate_node(id, cur), cur);
+}
+
+Vec3 FineMesh::node(const NodeRef& ref, MeshCursor& cur) const {
+  return View{tables_, cur, tables_.layout()}.node(ref);
+}
+
+NodeRef FineMesh::locate_node(Id id, MeshCursor& cur) const {
+  return dicer::locate_node(tables_, info_.kind_base, info_.nodes, id, cur);
+}
+Id FineMesh::node_id(const NodeRef& ref, MeshCursor& cur) const {
+  return dicer::node_id(tables_, info_.kind_base, ref, cur);
+}
+Id FineMesh::locate_element(Id id, std::array<Id, 3>& ijk, MeshCursor& cur) const {
+  return dicer::locate_element(tables_, id, ijk, cur);
+}
+
+NodeRef FineMesh::grid_node(Id h, Id i, Id j, Id k, MeshCursor& cur) const {
+  const View v{tables_, cur, tables_.layout()};
+  return v.grid_node(v.element(h), h, i, j, k);
 }
 
 FineElement FineMesh::element(Id id) const {
+  MeshCursor cur;
+  return element(id, cur);
+}
+
+FineElement FineMesh::element(Id id, MeshCursor& cur) const {
   if (id < 0 || id >= num_elements())
     throw Error(ErrorKind::Usage, "element id " + std::to_string(id) + " is out of range (the mesh has " +
                                       std::to_string(num_elements()) + " elements)");
+  const View v{tables_, cur, tables_.layout()};
   FineElement el;
   el.id = id;
-  el.coarse_element = num_.locate_element(id, el.ijk);
-  el.block = coarse_.element_block[el.coarse_element];
+  el.coarse_element = dicer::locate_element(tables_, id, el.ijk, cur);
+  const ElemRec h = v.element(el.coarse_element);
+  el.block = h.block;
   const auto [i, j, k] = el.ijk;
-  const Id h = el.coarse_element;
-  if (mode() == Mode::Volume) {
-    el.num_nodes = 8;
-    for (int q = 0; q < 8; ++q)
-      el.nodes[q] = num_.node_id(grid_node(h, i + kHexCorner[q][0], j + kHexCorner[q][1], k + kHexCorner[q][2]));
-  } else {
-    el.num_nodes = 4;
-    for (int q = 0; q < 4; ++q)
-      el.nodes[q] = num_.node_id(grid_node(h, i + kHexCorner[q][0], j + kHexCorner[q][1], 0));
-  }
+  const bool vol = mode() == Mode::Volume;
+  el.num_nodes = vol ? 8 : 4;
+  for (int q = 0; q < el.num_nodes; ++q)
+    el.nodes[q] = dicer::node_id(
+        tables_, info_.kind_base,
+        v.grid_node(h, el.coarse_element, i + kHexCorner[q][0], j + kHexCorner[q][1], vol ? k + kHexCorner[q][2] : 0),
+        cur);
   return el;
 }
 
-void FineMesh::fill_face(Id f, FineBlock::Scratch& s) const {
-  const auto [nu, nv] = num_.face_n(f);
-  const Id* fe = &topo_.face_edge[4 * f];
-  const std::uint8_t* rev = &topo_.face_edge_rev[4 * f];
-  // Boundary values exactly as face_point() gathers them.
-  auto gather = [&](int k, Id len, std::vector<double>* out) {
-    const Id n = num_.edge_n(fe[k]);
-    for (int d = 0; d < 3; ++d) out[d].resize(static_cast<size_t>(len + 1));
-    for (Id q = 1; q < len; ++q) {
-      const Vec3 x = edge_point(fe[k], rev[k] ? n - q : q);
-      out[0][q] = x.x, out[1][q] = x.y, out[2][q] = x.z;
-    }
-  };
-  gather(0, nu, s.bottom), gather(1, nu, s.top), gather(2, nv, s.left), gather(3, nv, s.right);
-  s.s.resize(static_cast<size_t>(nu)), s.t.resize(static_cast<size_t>(nv));
-  for (Id u = 1; u < nu; ++u) s.s[u] = tfi::weight(u, nu);
-  for (Id v = 1; v < nv; ++v) s.t[v] = tfi::weight(v, nv);
-  const size_t count = static_cast<size_t>((nu - 1) * (nv - 1));
-  for (int d = 0; d < 3; ++d) {
-    const double* X = d == 0 ? coarse_.x.data() : d == 1 ? coarse_.y.data() : coarse_.z.data();
-    const double p0 = X[topo_.face_v[4 * f]], p1 = X[topo_.face_v[4 * f + 1]], p2 = X[topo_.face_v[4 * f + 2]],
-                 p3 = X[topo_.face_v[4 * f + 3]];
-    s.face[d].resize(count);
-    double* out = s.face[d].data();
-    const double *B = s.bottom[d].data(), *T = s.top[d].data(), *L = s.left[d].data(), *R = s.right[d].data();
-    for (Id v = 1; v < nv; ++v) {
-      const double t = s.t[v];
-      for (Id u = 1; u < nu; ++u) *out++ = tfi::coons(s.s[u], t, B[u], T[u], L[v], R[v], p0, p1, p2, p3);
-    }
-  }
-}
+// ---------------------------------------------------------------- blocks
 
-void FineMesh::fill_block(Id h, FineBlock& b, bool nodes_only) const {
-  const auto n = num_.elem_n(h);
+void FineMesh::fill_block(Id hid, FineBlock& b, bool nodes_only) const {
+  const View V{tables_, b.cursor, tables_.layout()};
+  const ElemRec h = V.element(hid);
+  const auto n = h.n;
   const bool vol = mode() == Mode::Volume;
   const int nc = corners();
-  b.coarse_element = h;
+  b.coarse_element = hid;
   b.n = n;
-  b.first_element = num_.elem_first_element(h);
+  b.first_element = h.elem_off;
+  b.block = h.block;
   const Id ni = n[0] + 1, nj = n[1] + 1, nk = vol ? n[2] + 1 : 1;
   const size_t np = static_cast<size_t>(ni * nj * nk);
   b.node_id.resize(np);
@@ -301,33 +427,53 @@ void FineMesh::fill_block(Id h, FineBlock& b, bool nodes_only) const {
     if (axis >= 0) p[axis] = t;
     return b.point_index(p[0], p[1], p[2]);
   };
-  const Id* cv = &coarse_.conn[static_cast<size_t>(h) * nc];
-  for (int q = 0; q < nc; ++q) put(grid(kHexCorner[q], -1, 0), cv[q], coarse_.vertex(cv[q]));
+  for (int q = 0; q < nc; ++q) put(grid(kHexCorner[q], -1, 0), h.conn[q], V.vertex(h.conn[q]));
 
   // Edges: every interior point from edge_point in the canonical direction.
-  const int epe = topo_.edges_per_element();
+  const int epe = V.L.edges;
   for (int le = 0; le < epe; ++le) {
-    const Id e = topo_.elem_edge[static_cast<size_t>(h) * epe + le];
-    const bool rev = topo_.elem_edge_rev[static_cast<size_t>(h) * epe + le];
-    const Id ne = num_.edge_n(e), base = num_.edge_node_offset(e) - 1;
+    const EdgeRec e = V.edge(h.edge[le]);
     const int a = vol ? kHexEdge[le][0] : kQuadEdge[le][0];
     const int axis = vol ? le / 4 : le / 2;
-    for (Id t = 1; t < ne; ++t) {
-      const Id tc = rev ? ne - t : t;
-      put(grid(kHexCorner[a], axis, t), base + tc, edge_point(e, tc));
+    for (Id t = 1; t < e.n; ++t) {
+      const Id tc = h.rev(le) ? e.n - t : t;
+      put(grid(kHexCorner[a], axis, t), e.off + tc - 1, V.edge_point(e, tc));
     }
   }
 
-  // Faces: canonical fill, then scattered through the face map.
-  const int fpe = topo_.faces_per_element();
-  for (int lf = 0; lf < fpe; ++lf) {
-    const Id f = topo_.elem_face[static_cast<size_t>(h) * fpe + lf];
-    const auto [nu, nv] = num_.face_n(f);
+  // Faces: canonical fill (the sides gathered as face_point gathers them),
+  // then scattered through the face map.
+  auto& s = b.scratch;
+  for (int lf = 0; lf < V.L.faces; ++lf) {
+    const FaceRec f = V.face(h.face[lf]);
+    const Id nu = f.nu, nv = f.nv;
     if (nu < 2 || nv < 2) continue;
-    fill_face(f, b.scratch);
-    const FaceMap fm = face_map(topo_.elem_face_code[static_cast<size_t>(h) * fpe + lf], nu, nv);
+    auto gather = [&](int k, Id len, std::vector<double>* out) {
+      for (int d = 0; d < 3; ++d) out[d].resize(static_cast<size_t>(len + 1));
+      for (Id q = 1; q < len; ++q) {
+        const Vec3 x = V.face_side(f, k, q);
+        out[0][q] = x.x, out[1][q] = x.y, out[2][q] = x.z;
+      }
+    };
+    gather(0, nu, s.bottom), gather(1, nu, s.top), gather(2, nv, s.left), gather(3, nv, s.right);
+    s.s.resize(static_cast<size_t>(nu)), s.t.resize(static_cast<size_t>(nv));
+    for (Id u = 1; u < nu; ++u) s.s[u] = tfi::weight(u, nu);
+    for (Id v = 1; v < nv; ++v) s.t[v] = tfi::weight(v, nv);
+    const Vec3 pc[4] = {V.vertex(f.v[0]), V.vertex(f.v[1]), V.vertex(f.v[2]), V.vertex(f.v[3])};
+    for (int d = 0; d < 3; ++d) {
+      auto comp = [&](const Vec3& p) { return d == 0 ? p.x : d == 1 ? p.y : p.z; };
+      const double p0 = comp(pc[0]), p1 = comp(pc[1]), p2 = comp(pc[2]), p3 = comp(pc[3]);
+      s.face[d].resize(static_cast<size_t>((nu - 1) * (nv - 1)));
+      double* out = s.face[d].data();
+      const double *B = s.bottom[d].data(), *T = s.top[d].data(), *Lf = s.left[d].data(), *R = s.right[d].data();
+      for (Id v = 1; v < nv; ++v) {
+        const double tv = s.t[v];
+        for (Id u = 1; u < nu; ++u) *out++ = tfi::coons(s.s[u], tv, B[u], T[u], Lf[v], R[v], p0, p1, p2, p3);
+      }
+    }
+    const FaceMap fm = face_map(h.code(lf), nu, nv);
     const int ax = vol ? kHexFaceAxes[lf][0] : 0, bx = vol ? kHexFaceAxes[lf][1] : 1;
-    const Id na = n[ax], nb = n[bx], base = num_.face_node_offset(f);
+    const Id na = n[ax], nb = n[bx];
     Id p[3] = {0, 0, 0};
     if (vol) p[lf / 2] = (lf % 2) ? n[lf / 2] : 0;
     for (Id q = 1; q < nb; ++q)
@@ -335,25 +481,21 @@ void FineMesh::fill_block(Id h, FineBlock& b, bool nodes_only) const {
         p[ax] = pp, p[bx] = q;
         const Id c = (fm.u(pp, q) - 1) + (fm.v(pp, q) - 1) * (nu - 1);
         const Id g = b.point_index(p[0], p[1], p[2]);
-        ids[g] = base + c;
-        for (int d = 0; d < 3; ++d) X[d][g] = b.scratch.face[d][c];
+        ids[g] = f.off + c;
+        for (int d = 0; d < 3; ++d) X[d][g] = s.face[d][c];
       }
   }
 
   if (vol && n[0] > 1 && n[1] > 1 && n[2] > 1) {
-    // Hex interior: tfi::hex_row once per (j, k), tfi::hex_point along i,
-    // the same two calls cell_point() makes, fed the same boundary values.
-    auto& s = b.scratch;
     s.u.resize(static_cast<size_t>(n[0])), s.U.resize(static_cast<size_t>(n[0]));
     for (Id i = 1; i < n[0]; ++i) s.u[i] = tfi::weight(i, n[0]), s.U[i] = 1.0 - s.u[i];
-    Id id = num_.cell_node_offset(h);
+    Id id = h.cell_off;
     for (Id k = 1; k < n[2]; ++k)
       for (Id j = 1; j < n[1]; ++j)
         for (Id i = 1; i < n[0]; ++i) ids[b.point_index(i, j, k)] = id++;
     for (int d = 0; d < 3; ++d) hex_interior(X[d], n, s.u.data(), s.U.data());
   }
 
-  // Connectivity.
   if (nodes_only) {
     b.conn.clear();
     return;
@@ -379,11 +521,7 @@ void FineMesh::fill_block(Id h, FineBlock& b, bool nodes_only) const {
   }
 }
 
-std::vector<Id> FineMesh::block_fine_elements() const {
-  std::vector<Id> count(coarse_.blocks.size(), 0);
-  for (Id h = 0; h < num_coarse_elements(); ++h) count[coarse_.element_block[h]] += num_.elem_num_elements(h);
-  return count;
-}
+// ---------------------------------------------------------------- cursors
 
 NodeCursor::NodeCursor(const FineMesh& mesh, Id begin, Id end)
     : mesh_(mesh), next_(std::max<Id>(begin, 0)), end_(std::min(end, mesh.num_nodes())) {}
@@ -391,13 +529,13 @@ NodeCursor::NodeCursor(const FineMesh& mesh, Id begin, Id end)
 bool NodeCursor::next(Id& id, Vec3& xyz) {
   if (next_ >= end_) return false;
   id = next_++;
-  const NodeRef r = mesh_.numbering().locate_node(id);
+  const NodeRef r = mesh_.locate_node(id, cur_);
   if (r.kind != EntityKind::Cell) {
-    xyz = mesh_.node(r);
+    xyz = mesh_.node(r, cur_);
     return true;
   }
   if (block_cell_ != r.entity) {
-    mesh_.fill_block(r.entity, block_);
+    mesh_.fill_block(r.entity, block_, true);
     block_cell_ = r.entity;
   }
   const Id g = block_.point_index(r.local[0], r.local[1], r.local[2]);
@@ -411,11 +549,9 @@ ElementCursor::ElementCursor(const FineMesh& mesh, Id begin, Id end)
 bool ElementCursor::next(FineElement& el) {
   if (next_ >= end_) return false;
   el.id = next_++;
-  const Numbering& num = mesh_.numbering();
-  el.coarse_element = num.locate_element(el.id, el.ijk);
-  if (block_.coarse_element != el.coarse_element || block_.node_id.empty())
-    mesh_.fill_block(el.coarse_element, block_);
-  el.block = mesh_.coarse().element_block[el.coarse_element];
+  el.coarse_element = mesh_.locate_element(el.id, el.ijk, cur_);
+  if (block_.coarse_element != el.coarse_element || block_.conn.empty()) mesh_.fill_block(el.coarse_element, block_);
+  el.block = block_.block;
   el.num_nodes = mesh_.corners();
   const Id local = el.id - block_.first_element;
   std::copy_n(&block_.conn[static_cast<size_t>(local) * el.num_nodes], el.num_nodes, el.nodes.begin());

@@ -1,5 +1,7 @@
 #include "dicer/numbering.hpp"
 
+#include "dicer/tables.hpp"
+
 #include <algorithm>
 
 #include "dicer/error.hpp"
@@ -22,15 +24,9 @@ Id add(Id a, Id b, const char* what) {
   return r;
 }
 
-// Index of the last prefix entry <= x (entity owning offset x).
-Id owner(const std::vector<Id>& prefix, Id x) {
-  auto it = std::upper_bound(prefix.begin(), prefix.end(), x);
-  return static_cast<Id>(it - prefix.begin()) - 1;
-}
-
 }  // namespace
 
-Numbering::Numbering(const Topology& t, std::vector<Id> edge_n) : mode_(t.mode), edge_n_(std::move(edge_n)) {
+Numbering::Numbering(const Topology& t, std::vector<Id> edge_n) : edge_n_(std::move(edge_n)) {
   const Id ne = t.num_edges(), nf = t.num_faces(), nh = t.num_elements();
   if (static_cast<Id>(edge_n_.size()) != ne)
     throw Error(ErrorKind::BadInput, "interval list has " + std::to_string(edge_n_.size()) + " entries for " +
@@ -73,59 +69,79 @@ Numbering::Numbering(const Topology& t, std::vector<Id> edge_n) : mode_(t.mode),
   num_nodes_ = add(base_[3], cell_off_.back(), "node");
 }
 
-Id Numbering::node_id(const NodeRef& r) const {
-  switch (r.kind) {
-    case EntityKind::Vertex: return r.entity;
-    case EntityKind::Edge: return base_[1] + edge_off_[r.entity] + (r.local[0] - 1);
-    case EntityKind::Face:
-      return base_[2] + face_off_[r.entity] + (r.local[0] - 1) + (r.local[1] - 1) * (face_n_[r.entity][0] - 1);
-    case EntityKind::Cell: {
-      const auto& n = elem_n_[r.entity];
-      return base_[3] + cell_off_[r.entity] + (r.local[0] - 1) +
-             (n[0] - 1) * ((r.local[1] - 1) + (n[1] - 1) * (r.local[2] - 1));
-    }
+namespace {
+
+// Last row whose column `col` is <= x (the entity owning offset x); rows
+// with no nodes share their successor's offset and are skipped by taking
+// the last such row.
+Id owner_row(const Table<std::int64_t>& t, int col, Id x, TableCursor& cur) {
+  Id lo = 0, hi = t.rows();  // first row with value > x, in [lo, hi]
+  while (lo < hi) {
+    const Id mid = lo + (hi - lo) / 2;
+    if (t.row(mid, cur)[col] <= x) lo = mid + 1;
+    else hi = mid;
   }
-  return -1;
+  return lo - 1;
 }
 
-NodeRef Numbering::locate_node(Id id) const {
+}  // namespace
+
+NodeRef locate_node(const MeshTables& t, const std::array<Id, 4>& base, Id nodes, Id id, MeshCursor& cur) {
+  (void)nodes;
   NodeRef r;
-  if (id < base_[1]) {
+  const ElementLayout L = t.layout();
+  if (id < base[1]) {
     r.kind = EntityKind::Vertex;
     r.entity = id;
-  } else if (id < base_[2]) {
-    const Id x = id - base_[1];
+  } else if (id < base[2]) {
     r.kind = EntityKind::Edge;
-    r.entity = owner(edge_off_, x);
-    r.local[0] = x - edge_off_[r.entity] + 1;
-  } else if (id < base_[3]) {
-    const Id x = id - base_[2];
+    r.entity = owner_row(t.edges, kEdgeNodeOffset, id, cur.edges);
+    r.local[0] = id - t.edges.row(r.entity, cur.edges)[kEdgeNodeOffset] + 1;
+  } else if (id < base[3]) {
     r.kind = EntityKind::Face;
-    r.entity = owner(face_off_, x);
-    const Id l = x - face_off_[r.entity], w = face_n_[r.entity][0] - 1;
+    r.entity = owner_row(t.faces, kFaceNodeOffset, id, cur.faces);
+    const std::int64_t* f = t.faces.row(r.entity, cur.faces);
+    const Id l = id - f[kFaceNodeOffset], e0 = f[kFaceE];
+    const Id w = t.edges.row(e0, cur.edges)[kEdgeN] - 1;
     r.local = {l % w + 1, l / w + 1, 0};
   } else {
-    const Id x = id - base_[3];
     r.kind = EntityKind::Cell;
-    r.entity = owner(cell_off_, x);
-    const Id l = x - cell_off_[r.entity];
-    const auto& n = elem_n_[r.entity];
-    const Id a = n[0] - 1, b = n[1] - 1;
+    r.entity = owner_row(t.elements, L.cell_offset(), id, cur.elements);
+    const std::int64_t* h = t.elements.row(r.entity, cur.elements);
+    const Id l = id - h[L.cell_offset()];
+    const Id a = h[L.n()] - 1, b = h[L.n() + 1] - 1;
     r.local = {l % a + 1, (l / a) % b + 1, l / (a * b) + 1};
   }
   return r;
 }
 
-Id Numbering::element_id(Id h, Id i, Id j, Id k) const {
-  const auto& n = elem_n_[h];
-  return elem_offset_[h] + i + n[0] * (j + n[1] * k);
+Id node_id(const MeshTables& t, const std::array<Id, 4>& base, const NodeRef& r, MeshCursor& cur) {
+  (void)base;
+  const ElementLayout L = t.layout();
+  switch (r.kind) {
+    case EntityKind::Vertex: return r.entity;
+    case EntityKind::Edge: return t.edges.row(r.entity, cur.edges)[kEdgeNodeOffset] + (r.local[0] - 1);
+    case EntityKind::Face: {
+      const std::int64_t* f = t.faces.row(r.entity, cur.faces);
+      const Id off = f[kFaceNodeOffset], e0 = f[kFaceE];
+      const Id w = t.edges.row(e0, cur.edges)[kEdgeN] - 1;
+      return off + (r.local[0] - 1) + (r.local[1] - 1) * w;
+    }
+    case EntityKind::Cell: {
+      const std::int64_t* h = t.elements.row(r.entity, cur.elements);
+      const Id a = h[L.n()] - 1, b = h[L.n() + 1] - 1;
+      return h[L.cell_offset()] + (r.local[0] - 1) + a * ((r.local[1] - 1) + b * (r.local[2] - 1));
+    }
+  }
+  return -1;
 }
 
-Id Numbering::locate_element(Id id, std::array<Id, 3>& ijk) const {
-  const Id h = owner(elem_offset_, id);
-  const Id l = id - elem_offset_[h];
-  const auto& n = elem_n_[h];
-  ijk = {l % n[0], (l / n[0]) % n[1], l / (n[0] * n[1])};
+Id locate_element(const MeshTables& t, Id id, std::array<Id, 3>& ijk, MeshCursor& cur) {
+  const ElementLayout L = t.layout();
+  const Id h = owner_row(t.elements, L.elem_offset(), id, cur.elements);
+  const std::int64_t* row = t.elements.row(h, cur.elements);
+  const Id l = id - row[L.elem_offset()], n0 = row[L.n()], n1 = row[L.n() + 1];
+  ijk = {l % n0, (l / n0) % n1, l / (n0 * n1)};
   return h;
 }
 

@@ -7,6 +7,7 @@
 #include <cstring>
 
 #include "dicer/orientation.hpp"
+#include "dicer/tables.hpp"
 
 namespace dicer {
 namespace {
@@ -78,34 +79,35 @@ double quad_min_scaled_jacobian(const FineBlock& b, Id i, Id j, const double nrm
 
 VerifyReport verify(const FineMesh& mesh, const std::function<void(Id, Id)>& progress) {
   VerifyReport r;
-  const Topology& t = mesh.topology();
-  const Numbering& num = mesh.numbering();
-  const CoarseMesh& cm = mesh.coarse();
+  const MeshTables& t = mesh.tables();
+  const MeshInfo& info = mesh.info();
+  const ElementLayout L = t.layout();
   const bool vol = mesh.mode() == Mode::Volume;
   const int nc = mesh.corners();
+  MeshCursor cur;
 
-  // Closed formula from the edge intervals alone (not from Numbering's prefixes).
+  // Closed formula from the edge intervals alone (not from the stored offsets).
   {
-    const auto& en = num.edge_intervals();
-    Id nodes = t.num_vertices, elems = 0;
-    for (Id e = 0; e < t.num_edges(); ++e) nodes += en[e] - 1;
-    for (Id f = 0; f < t.num_faces(); ++f) nodes += (en[t.face_edge[4 * f]] - 1) * (en[t.face_edge[4 * f + 2]] - 1);
-    const int epe = t.edges_per_element();
-    for (Id h = 0; h < t.num_elements(); ++h) {
-      const Id* ee = &t.elem_edge[h * epe];
-      if (vol) {
-        nodes += (en[ee[0]] - 1) * (en[ee[4]] - 1) * (en[ee[8]] - 1);
-        elems += en[ee[0]] * en[ee[4]] * en[ee[8]];
-      } else {
-        elems += en[ee[0]] * en[ee[2]];
-      }
+    Id nodes = info.coarse_vertices, elems = 0;
+    for (Id e = 0; e < t.edges.rows(); ++e) nodes += t.edges.row(e, cur.edges)[kEdgeN] - 1;
+    auto edge_n = [&](Id e) { return t.edges.row(e, cur.edges)[kEdgeN]; };
+    for (Id f = 0; f < t.faces.rows(); ++f) {
+      const Id e0 = t.faces.row(f, cur.faces)[kFaceE], e2 = t.faces.row(f, cur.faces)[kFaceE + 2];
+      nodes += (edge_n(e0) - 1) * (edge_n(e2) - 1);
+    }
+    for (Id h = 0; h < t.elements.rows(); ++h) {
+      const std::int64_t* row = t.elements.row(h, cur.elements);
+      const Id ei = row[L.edge()], ej = row[L.edge() + (vol ? 4 : 2)], ek = vol ? row[L.edge() + 8] : -1;
+      const Id n0 = edge_n(ei), n1 = edge_n(ej), n2 = vol ? edge_n(ek) : 1;
+      if (vol) nodes += (n0 - 1) * (n1 - 1) * (n2 - 1);
+      elems += n0 * n1 * n2;
     }
     r.nodes_formula = nodes;
     r.elements_formula = elems;
     r.nodes = mesh.num_nodes();
     r.elements = mesh.num_elements();
     Id by_block = 0;
-    for (Id c : mesh.block_fine_elements()) by_block += c;
+    for (Id c : info.block_fine_elements) by_block += c;
     if (!r.counts_ok() || by_block != elems) {
       r.id_errors += 1;
       note(r, "counts differ from the closed formula: nodes " + std::to_string(r.nodes) + " vs " +
@@ -115,8 +117,11 @@ VerifyReport verify(const FineMesh& mesh, const std::function<void(Id, Id)>& pro
 
   // Coincident coarse vertices (the only nodes two blocks can share by position alone).
   {
-    std::vector<std::array<double, 3>> pts(static_cast<size_t>(cm.num_vertices()));
-    for (Id v = 0; v < cm.num_vertices(); ++v) pts[v] = {cm.x[v], cm.y[v], cm.z[v]};
+    std::vector<std::array<double, 3>> pts(static_cast<size_t>(t.vertices.rows()));
+    for (Id v = 0; v < t.vertices.rows(); ++v) {
+      const double* p = t.vertices.row(v, cur.vertices);
+      pts[v] = {p[0], p[1], p[2]};
+    }
     std::sort(pts.begin(), pts.end());
     for (size_t i = 1; i < pts.size(); ++i)
       if (pts[i] == pts[i - 1]) {
@@ -125,15 +130,15 @@ VerifyReport verify(const FineMesh& mesh, const std::function<void(Id, Id)>& pro
       }
   }
 
-  std::vector<FaceSide> side(static_cast<size_t>(t.num_faces()) * 2);
-  std::vector<std::uint64_t> edge_hash(static_cast<size_t>(t.num_edges()), 0);
-  std::vector<std::uint8_t> edge_seen(static_cast<size_t>(t.num_edges()), 0);
+  std::vector<FaceSide> side(static_cast<size_t>(t.faces.rows()) * 2);
+  std::vector<std::uint64_t> edge_hash(static_cast<size_t>(t.edges.rows()), 0);
+  std::vector<std::uint8_t> edge_seen(static_cast<size_t>(t.edges.rows()), 0);
 
   FineBlock b;
   std::vector<std::pair<Id, Id>> ids;          // (id, point)
   std::vector<std::array<double, 4>> coords;   // (x, y, z, id)
   std::vector<std::pair<std::array<Id, 4>, int>> faces;  // sorted ids, boundary side (-1 interior)
-  const Id nh = t.num_elements();
+  const Id nh = mesh.num_coarse_elements();
   for (Id h = 0; h < nh; ++h) {
     mesh.fill_block(h, b);
     const auto n = b.n;
@@ -153,14 +158,14 @@ VerifyReport verify(const FineMesh& mesh, const std::function<void(Id, Id)>& pro
             note(r, "coarse element " + std::to_string(h) + ": node id " + std::to_string(id) + " out of range");
             continue;
           }
-          const NodeRef ref = num.locate_node(id);
-          if (num.node_id(ref) != id || !(ref == mesh.grid_node(h, i, j, k))) {
+          const NodeRef ref = mesh.locate_node(id, cur);
+          if (mesh.node_id(ref, cur) != id || !(ref == mesh.grid_node(h, i, j, k, cur))) {
             ++r.id_errors;
             note(r, "node " + std::to_string(id) + " does not round-trip through its owner");
           }
           const bool interior = ref.kind == EntityKind::Cell;
           if (!interior || (i == j && (!vol || j == k))) {
-            const Vec3 p = mesh.node(ref);
+            const Vec3 p = mesh.node(ref, cur);
             if (bits(p.x) != bits(b.x[g]) || bits(p.y) != bits(b.y[g]) || bits(p.z) != bits(b.z[g])) {
               ++r.bit_identity_errors;
               note(r, "node " + std::to_string(id) + ": node(id) differs from the block fill");
@@ -188,8 +193,11 @@ VerifyReport verify(const FineMesh& mesh, const std::function<void(Id, Id)>& pro
     const Id ne = b.num_elements();
     double normal[3] = {0, 0, 0};
     if (!vol) {  // coarse quad normal (cross product of its diagonals) orients the fine quads
-      const Id* cc = &cm.conn[static_cast<size_t>(h) * 4];
-      const Vec3 a = cm.vertex(cc[0]), q1 = cm.vertex(cc[1]), q2 = cm.vertex(cc[2]), q3 = cm.vertex(cc[3]);
+      auto corner = [&](Id i, Id j) {
+        const Id g = b.point_index(i, j, 0);
+        return Vec3{b.x[g], b.y[g], b.z[g]};
+      };
+      const Vec3 a = corner(0, 0), q1 = corner(n[0], 0), q2 = corner(n[0], n[1]), q3 = corner(0, n[1]);
       const double d1[3] = {q2.x - a.x, q2.y - a.y, q2.z - a.z}, d2[3] = {q3.x - q1.x, q3.y - q1.y, q3.z - q1.z};
       normal[0] = d1[1] * d2[2] - d1[2] * d2[1];
       normal[1] = d1[2] * d2[0] - d1[0] * d2[2];
@@ -243,11 +251,22 @@ VerifyReport verify(const FineMesh& mesh, const std::function<void(Id, Id)>& pro
     }
 
     // Coarse faces (volume) / coarse edges (both modes): hash what this block sees.
+    std::int64_t row[64];
+    {
+      const std::int64_t* rp = t.elements.row(h, cur.elements);
+      std::copy_n(rp, L.width(), row);
+    }
     if (vol) {
       for (int lf = 0; lf < 6; ++lf) {
-        const Id f = t.elem_face[6 * h + lf];
-        FaceSide& fs = side[2 * f + (t.face_elem[2 * f] == h ? 0 : 1)];
-        fs.seen = true;
+        const Id f = row[L.face() + lf];
+        FaceSide* fs = &side[2 * f];
+        if (fs->seen) fs = &side[2 * f + 1];
+        if (fs->seen) {
+          ++r.conformity_errors;
+          note(r, "coarse face " + std::to_string(f) + " is shared by more than two coarse hexes");
+          continue;
+        }
+        fs->seen = true;
         for (const auto& [key, s] : faces) {
           if (s != lf) continue;
           std::uint64_t hv = 0;
@@ -256,20 +275,21 @@ VerifyReport verify(const FineMesh& mesh, const std::function<void(Id, Id)>& pro
             const Id g = it->second;
             hv = mix(mix(mix(mix(hv, static_cast<std::uint64_t>(id)), bits(b.x[g])), bits(b.y[g])), bits(b.z[g]));
           }
-          fs.hash += hv;
-          ++fs.count;
+          fs->hash += hv;
+          ++fs->count;
         }
       }
     }
-    const int epe = t.edges_per_element();
+    const int epe = L.edges;
+    const std::uint64_t flags = static_cast<std::uint64_t>(row[L.flags()]);
     for (int le = 0; le < epe; ++le) {
-      const Id e = t.elem_edge[epe * h + le];
+      const Id e = row[L.edge() + le];
       const int axis = vol ? le / 4 : le / 2;
       const int a = vol ? kHexEdge[le][0] : kQuadEdge[le][0];
       std::uint64_t hv = 0;
       const Id ne_ = n[axis];
       for (Id s = 0; s <= ne_; ++s) {
-        const Id tt = t.elem_edge_rev[epe * h + le] ? ne_ - s : s;  // canonical order
+        const Id tt = ((flags >> le) & 1) ? ne_ - s : s;  // canonical order
         Id p[3] = {kHexCorner[a][0] * n[0], kHexCorner[a][1] * n[1], vol ? kHexCorner[a][2] * n[2] : 0};
         p[axis] = tt;
         const Id g = b.point_index(p[0], p[1], p[2]);
@@ -288,11 +308,12 @@ VerifyReport verify(const FineMesh& mesh, const std::function<void(Id, Id)>& pro
   }
 
   if (vol) {
-    for (Id f = 0; f < t.num_faces(); ++f) {
-      const auto fn = num.face_n(f);
-      const Id want = fn[0] * fn[1];
+    for (Id f = 0; f < t.faces.rows(); ++f) {
+      const std::int64_t* fr = t.faces.row(f, cur.faces);
+      const Id e0 = fr[kFaceE], e2 = fr[kFaceE + 2];
+      const Id want = t.edges.row(e0, cur.edges)[kEdgeN] * t.edges.row(e2, cur.edges)[kEdgeN];
       const FaceSide &a = side[2 * f], &c = side[2 * f + 1];
-      const bool interior = t.face_elem[2 * f + 1] >= 0;
+      const bool interior = c.seen;
       if (a.count != want || (interior && (c.count != want || c.hash != a.hash))) {
         ++r.conformity_errors;
         note(r, "coarse face " + std::to_string(f) + ": its fine faces do not match up (" + std::to_string(a.count) +

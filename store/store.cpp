@@ -1,118 +1,239 @@
-// The store file: write (temp + rename) and read back (see FORMAT.md).
+// The store file: write (page by page, temp + rename) and lazy, paged read
+// (see FORMAT.md).
 #include "dicer/store.hpp"
 
 #include <unistd.h>
 
+#include <cstring>
 #include <filesystem>
+#include <mutex>
 
 #include "dicer/error.hpp"
 #include "hdf5_file.hpp"
+#include "lz4_filter.hpp"
 
 namespace dicer {
 namespace {
 
-// Strings of a list as one char array plus offsets (fixed types, chunkable).
+// Serial HDF5 is not thread-safe: every HDF5 call of a store goes through this.
+std::mutex& hdf5_mutex() {
+  static std::mutex m;
+  return m;
+}
+
+std::int64_t rows_per_page(std::int64_t width, std::size_t elem) {
+  return std::max<std::int64_t>(1, static_cast<std::int64_t>(kStorePageBytes / (static_cast<std::uint64_t>(width) * elem)));
+}
+
+template <class T>
+hid_t h5_type() {
+  if constexpr (std::is_same_v<T, double>) return H5T_IEEE_F64LE;
+  else if constexpr (std::is_same_v<T, std::int64_t>) return H5T_STD_I64LE;
+  else if constexpr (std::is_same_v<T, std::int32_t>) return H5T_STD_I32LE;
+  else if constexpr (std::is_same_v<T, std::int8_t>) return H5T_STD_I8LE;
+  else return H5T_STD_U8LE;
+}
+
+// Writes rows x width values as a chunked, LZ4 + Fletcher32 dataset, one
+// H5Dwrite_chunk per page: every page is written once, never re-read.
+template <class T>
+void write_paged(const h5::File& f, const std::string& name, const T* data, std::int64_t rows, std::int64_t width) {
+  const int rank = 2;
+  const std::int64_t rpp = rows_per_page(width, sizeof(T));
+  hsize_t dims[2] = {static_cast<hsize_t>(rows), static_cast<hsize_t>(width)};
+  hsize_t maxdims[2] = {H5S_UNLIMITED, static_cast<hsize_t>(width)};
+  hsize_t chunk[2] = {static_cast<hsize_t>(rpp), static_cast<hsize_t>(width)};
+  h5::Handle space(H5Screate_simple(rank, dims, maxdims), H5Sclose);
+  h5::Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
+  if (!space || !dcpl || H5Pset_chunk(dcpl.get(), rank, chunk) < 0)
+    throw Error(ErrorKind::Io, f.path() + ": " + name + ": cannot set up dataset");
+  store::add_page_filters(dcpl.get());
+  h5::Handle ds(H5Dcreate2(f.id(), name.c_str(), h5_type<T>(), space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT),
+                H5Dclose);
+  if (!ds) throw Error(ErrorKind::Io, f.path() + ": " + name + ": cannot create dataset");
+  std::vector<std::uint8_t> page(static_cast<size_t>(rpp * width) * sizeof(T));
+  for (std::int64_t first = 0; first < rows; first += rpp) {
+    const std::int64_t n = std::min(rpp, rows - first);
+    std::fill(page.begin(), page.end(), 0);  // a partial last page is padded
+    std::memcpy(page.data(), data + first * width, static_cast<size_t>(n * width) * sizeof(T));
+    const std::vector<std::uint8_t> stored = store::encode_page(page);
+    hsize_t offset[2] = {static_cast<hsize_t>(first), 0};
+    if (H5Dwrite_chunk(ds.get(), H5P_DEFAULT, 0, offset, stored.size(), stored.data()) < 0)
+      throw Error(ErrorKind::Io, f.path() + ": " + name + ": writing page " + std::to_string(first / rpp) + " failed");
+  }
+}
+
+template <class T>
+void write_paged(const h5::File& f, const std::string& name, const std::vector<T>& v, std::int64_t width = 1) {
+  write_paged(f, name, v.data(), static_cast<std::int64_t>(v.size()) / width, width);
+}
+
 void write_strings(h5::File& f, const std::string& base, const std::vector<std::string>& names) {
-  std::vector<char> chars;
+  std::vector<std::int8_t> chars;
   std::vector<std::int64_t> off{0};
   for (const auto& s : names) {
     chars.insert(chars.end(), s.begin(), s.end());
     off.push_back(static_cast<std::int64_t>(chars.size()));
   }
-  f.write(base + "_chars", chars);
-  f.write(base + "_offset", off);
+  write_paged(f, base + "_chars", chars);
+  write_paged(f, base + "_offset", off);
 }
 
-std::vector<std::string> read_strings(const h5::File& f, const std::string& base, size_t count) {
-  const auto chars = f.read<char>(base + "_chars");
-  const auto off = f.read<std::int64_t>(base + "_offset");
-  if (off.size() != count + 1 || off.front() != 0 || off.back() != static_cast<std::int64_t>(chars.size()))
-    throw Error(ErrorKind::Corrupt, f.path() + ": " + base + "_offset is inconsistent");
-  std::vector<std::string> out;
-  for (size_t i = 0; i < count; ++i) {
-    if (off[i + 1] < off[i]) throw Error(ErrorKind::Corrupt, f.path() + ": " + base + "_offset is not increasing");
-    out.emplace_back(chars.begin() + off[i], chars.begin() + off[i + 1]);
+// ------------------------------------------------------------------ reading
+
+// A paged dataset of the open store: what the cache's loader reads from.
+struct PagedDataset {
+  std::string name;
+  h5::Handle ds;
+  std::int64_t rows = 0, width = 0, rows_per_page = 0;
+  std::size_t elem = 0;
+};
+
+struct OpenStore {
+  h5::File file;
+  std::vector<PagedDataset> arrays;
+
+  // Reads and decodes one page: H5Dread_chunk (no HDF5 filters, no HDF5
+  // chunk cache) then our LZ4 + checksum decode.
+  std::uint64_t load(PageKey key, std::vector<std::uint8_t>& out) {
+    if (key.array >= arrays.size()) throw Error(ErrorKind::Usage, file.path() + ": no paged array " + std::to_string(key.array));
+    const PagedDataset& a = arrays[key.array];
+    const std::string what = file.path() + ": dataset " + a.name + " page " + std::to_string(key.page);
+    std::vector<std::uint8_t> raw;
+    {
+      std::lock_guard lock(hdf5_mutex());
+      hsize_t offset[2] = {key.page * static_cast<hsize_t>(a.rows_per_page), 0};
+      hsize_t stored = 0;
+      if (H5Dget_chunk_storage_size(a.ds.get(), offset, &stored) < 0 || stored == 0)
+        throw Error(ErrorKind::Corrupt, what + ": page is missing");
+      if (stored > 4 * kStorePageBytes + (1u << 20)) throw Error(ErrorKind::Corrupt, what + ": page size field is implausible");
+      raw.resize(static_cast<size_t>(stored));
+      std::uint32_t mask = 0;
+      if (H5Dread_chunk(a.ds.get(), H5P_DEFAULT, offset, &mask, raw.data()) < 0)
+        throw Error(ErrorKind::Corrupt, what + ": HDF5 cannot read the page (truncated or damaged file)");
+      if (mask != 0) throw Error(ErrorKind::Corrupt, what + ": page was stored with filters skipped");
+    }
+    store::decode_page(raw, out, static_cast<size_t>(a.rows_per_page * a.width) * a.elem, what);
+    return raw.size();
   }
-  return out;
-}
+};
 
 template <class T>
-void expect_equal(const h5::File& f, const std::string& name, const std::vector<T>& rebuilt, std::uint64_t cols = 1) {
-  if (f.read<T>(name, cols) != rebuilt)
-    throw Error(ErrorKind::Corrupt, f.path() + ": dataset " + name +
-                                        " does not match the topology rebuilt from the stored coarse mesh");
+std::uint32_t open_paged(OpenStore& s, const std::string& name, std::int64_t width, std::int64_t want_rows) {
+  const std::string& path = s.file.path();
+  if (!s.file.exists(name)) throw Error(ErrorKind::Corrupt, path + ": dataset " + name + " is missing");
+  PagedDataset a;
+  a.name = name;
+  a.ds = h5::Handle(H5Dopen2(s.file.id(), name.c_str(), H5P_DEFAULT), H5Dclose);
+  if (!a.ds) throw Error(ErrorKind::Corrupt, path + ": dataset " + name + " cannot be opened");
+  h5::Handle space(H5Dget_space(a.ds.get()), H5Sclose);
+  h5::Handle dcpl(H5Dget_create_plist(a.ds.get()), H5Pclose);
+  h5::Handle type(H5Dget_type(a.ds.get()), H5Tclose);
+  hsize_t dims[2] = {0, 0}, chunk[2] = {0, 0};
+  if (H5Sget_simple_extent_ndims(space.get()) != 2 || H5Sget_simple_extent_dims(space.get(), dims, nullptr) < 0 ||
+      H5Pget_layout(dcpl.get()) != H5D_CHUNKED || H5Pget_chunk(dcpl.get(), 2, chunk) != 2)
+    throw Error(ErrorKind::Corrupt, path + ": dataset " + name + " is not a 2-D chunked dataset");
+  if (static_cast<std::int64_t>(dims[1]) != width || (want_rows >= 0 && static_cast<std::int64_t>(dims[0]) != want_rows))
+    throw Error(ErrorKind::Corrupt, path + ": dataset " + name + " has shape " + std::to_string(dims[0]) + " x " +
+                                        std::to_string(dims[1]) + ", expected " + std::to_string(want_rows) + " x " +
+                                        std::to_string(width));
+  if (chunk[1] != dims[1] || chunk[0] == 0 || chunk[0] * dims[1] * sizeof(T) > 4 * kStorePageBytes)
+    throw Error(ErrorKind::Corrupt, path + ": dataset " + name + " has an unexpected page shape");
+  if (H5Tget_size(type.get()) != sizeof(T) || H5Tequal(type.get(), h5_type<T>()) <= 0)
+    throw Error(ErrorKind::Corrupt, path + ": dataset " + name + " has an unexpected element type");
+  if (H5Pget_nfilters(dcpl.get()) < 1 || H5Pget_filter2(dcpl.get(), 0, nullptr, nullptr, nullptr, 0, nullptr, nullptr) !=
+                                             store::kLz4FilterId)
+    throw Error(ErrorKind::Corrupt, path + ": dataset " + name + " is not LZ4-paged (filter 32004)");
+  a.rows = static_cast<std::int64_t>(dims[0]);
+  a.width = width;
+  a.rows_per_page = static_cast<std::int64_t>(chunk[0]);
+  a.elem = sizeof(T);
+  s.arrays.push_back(std::move(a));
+  return static_cast<std::uint32_t>(s.arrays.size() - 1);
+}
+
+// Small datasets read whole (O(blocks)).
+template <class T>
+std::vector<T> read_small(OpenStore& s, const std::shared_ptr<PageCache>& cache, const std::string& name,
+                          std::int64_t rows) {
+  const std::uint32_t id = open_paged<T>(s, name, 1, rows);
+  const PagedDataset& a = s.arrays[id];
+  cache->set_array_pages(id, static_cast<std::uint64_t>((a.rows + a.rows_per_page - 1) / a.rows_per_page));
+  Table<T> t(1, a.rows, cache, id, a.rows_per_page);
+  TableCursor cur;
+  std::vector<T> out(static_cast<size_t>(rows));
+  for (std::int64_t i = 0; i < rows; ++i) out[i] = t.row(i, cur)[0];
+  return out;
 }
 
 }  // namespace
 
 void write_store(const FineMesh& mesh, const std::string& path) {
   namespace fs = std::filesystem;
+  const CoarseMesh* c = mesh.coarse();
+  if (!c) throw Error(ErrorKind::Usage, path + ": write_store needs a mesh diced in this process");
+  const MeshInfo& info = mesh.info();
+  const MeshTables& t = mesh.tables();
   const fs::path final_path(path);
   const fs::path dir = final_path.has_parent_path() ? final_path.parent_path() : fs::path(".");
   const fs::path tmp = dir / ("." + final_path.filename().string() + ".tmp-" + std::to_string(::getpid()));
+  std::lock_guard lock(hdf5_mutex());
+  store::register_lz4_filter();
   try {
     {
       h5::File f = h5::File::create(tmp.string());
-      const CoarseMesh& c = mesh.coarse();
-      const Topology& t = mesh.topology();
       f.write_attr("format", std::string(kStoreFormatName));
       f.write_attr("format_version", kStoreFormatVersion);
-      f.write_attr("mode", std::string(mode_name(c.mode)));
-      f.write_attr("source", c.source);
-      f.group("coarse");
-      f.write("coarse/x", c.x), f.write("coarse/y", c.y), f.write("coarse/z", c.z);
-      f.write("coarse/vertex_file_id", c.vertex_file_id);
-      f.write("coarse/conn", c.conn, static_cast<std::uint64_t>(c.corners_per_element()));
-      f.write("coarse/element_file_id", c.element_file_id);
-      f.write("coarse/element_block", c.element_block);
-      f.write("coarse/vertex_geo_dim", c.vertex_geo_dim);
-      f.write("coarse/vertex_geo_tag", c.vertex_geo_tag);
+      f.write_attr("mode", std::string(mode_name(info.mode)));
+      f.write_attr("source", info.source);
+      f.write_attr("coarse_vertices", info.coarse_vertices);
+      f.write_attr("coarse_edges", info.coarse_edges);
+      f.write_attr("coarse_faces", info.coarse_faces);
+      f.write_attr("coarse_elements", info.coarse_elements);
+      f.write_attr("sheets", info.sheets);
+      f.write_attr("fine_nodes", info.nodes);
+      f.write_attr("fine_elements", info.elements);
+      f.write_attr("page_bytes", static_cast<std::int64_t>(kStorePageBytes));
+      for (const char* g : {"coarse", "topology", "sheets", "numbering", "geometry", "sets"}) f.group(g);
+      write_paged(f, "coarse/vertices", t.vertices.memory(), 3);
+      write_paged(f, "coarse/vertex_file_id", c->vertex_file_id);
+      std::vector<std::int32_t> owner(static_cast<size_t>(c->num_vertices()) * 2, -1);
+      for (size_t v = 0; v < c->vertex_geo_dim.size() && v < c->vertex_geo_tag.size(); ++v)
+        owner[2 * v] = c->vertex_geo_dim[v], owner[2 * v + 1] = c->vertex_geo_tag[v];
+      write_paged(f, "geometry/vertex_owner", owner, 2);
+      write_paged(f, "geometry/bounding_xyz", std::vector<double>{}, 3);  // filled by geometry-conforming dicing
+      write_paged(f, "topology/edges", t.edges.memory(), kEdgeWidth);
+      write_paged(f, "topology/faces", t.faces.memory(), kFaceWidth);
+      write_paged(f, "topology/elements", t.elements.memory(), t.layout().width());
+      write_paged(f, "numbering/kind_base", std::vector<std::int64_t>(info.kind_base.begin(), info.kind_base.end()));
+      write_paged(f, "sheets/sheet_interval", mesh.sheet_intervals());
       std::vector<std::int64_t> block_id;
       std::vector<std::string> block_name;
-      for (const auto& b : c.blocks) block_id.push_back(b.id), block_name.push_back(b.name);
-      f.write("coarse/block_id", block_id);
+      for (const auto& b : info.blocks) block_id.push_back(b.id), block_name.push_back(b.name);
+      write_paged(f, "coarse/block_id", block_id);
       write_strings(f, "coarse/block_name", block_name);
-      // Side and node sets: ids, names, CSR offsets, members.
-      std::vector<std::int64_t> ss_id, ss_off{0}, ss_elem;
-      std::vector<std::int8_t> ss_side;
-      std::vector<std::string> ss_name;
-      for (const auto& s : c.side_sets) {
+      write_paged(f, "coarse/block_coarse_elements", info.block_coarse_elements);
+      write_paged(f, "coarse/block_fine_elements", info.block_fine_elements);
+      // Side and node sets: ids, names, CSR offsets, members (element, side) / vertex.
+      std::vector<std::int64_t> ss_id, ss_off{0}, ss_member, ns_id, ns_off{0}, ns_vert;
+      std::vector<std::string> ss_name, ns_name;
+      for (const auto& s : c->side_sets) {
         ss_id.push_back(s.id), ss_name.push_back(s.name);
-        ss_elem.insert(ss_elem.end(), s.element.begin(), s.element.end());
-        ss_side.insert(ss_side.end(), s.side.begin(), s.side.end());
-        ss_off.push_back(static_cast<std::int64_t>(ss_elem.size()));
+        for (size_t i = 0; i < s.element.size(); ++i) ss_member.push_back(s.element[i]), ss_member.push_back(s.side[i]);
+        ss_off.push_back(static_cast<std::int64_t>(ss_member.size() / 2));
       }
-      f.write("coarse/side_set_id", ss_id), f.write("coarse/side_set_offset", ss_off);
-      f.write("coarse/side_set_element", ss_elem), f.write("coarse/side_set_side", ss_side);
-      write_strings(f, "coarse/side_set_name", ss_name);
-      std::vector<std::int64_t> ns_id, ns_off{0}, ns_vert;
-      std::vector<std::string> ns_name;
-      for (const auto& s : c.node_sets) {
+      for (const auto& s : c->node_sets) {
         ns_id.push_back(s.id), ns_name.push_back(s.name);
         ns_vert.insert(ns_vert.end(), s.vertex.begin(), s.vertex.end());
         ns_off.push_back(static_cast<std::int64_t>(ns_vert.size()));
       }
-      f.write("coarse/node_set_id", ns_id), f.write("coarse/node_set_offset", ns_off);
-      f.write("coarse/node_set_vertex", ns_vert);
-      write_strings(f, "coarse/node_set_name", ns_name);
-
-      f.group("topology");
-      f.write("topology/edge_v", t.edge_v, 2);
-      f.write("topology/face_v", t.face_v, 4);
-      f.write("topology/face_edge", t.face_edge, 4);
-      f.write("topology/face_edge_rev", t.face_edge_rev, 4);
-      f.write("topology/face_elem", t.face_elem, 2);
-      f.write("topology/elem_edge", t.elem_edge, static_cast<std::uint64_t>(t.edges_per_element()));
-      f.write("topology/elem_edge_rev", t.elem_edge_rev, static_cast<std::uint64_t>(t.edges_per_element()));
-      f.write("topology/elem_face", t.elem_face, static_cast<std::uint64_t>(t.faces_per_element()));
-      f.write("topology/elem_face_code", t.elem_face_code, static_cast<std::uint64_t>(t.faces_per_element()));
-
-      f.group("sheets");
-      const Sheets sheets = find_sheets(c, t);
-      f.write("sheets/edge_sheet", sheets.edge_sheet);
-      f.write("sheets/sheet_interval", mesh.sheet_intervals());
-      f.group("geometry");  // bounding fine arrays: empty until geometry-conforming dicing
-      f.write("geometry/bounding_xyz", std::vector<double>{}, 3);
+      write_paged(f, "sets/side_set_id", ss_id), write_paged(f, "sets/side_set_offset", ss_off);
+      write_paged(f, "sets/side_set_member", ss_member, 2);
+      write_strings(f, "sets/side_set_name", ss_name);
+      write_paged(f, "sets/node_set_id", ns_id), write_paged(f, "sets/node_set_offset", ns_off);
+      write_paged(f, "sets/node_set_vertex", ns_vert);
+      write_strings(f, "sets/node_set_name", ns_name);
+      if (H5Fflush(f.id(), H5F_SCOPE_GLOBAL) < 0) throw Error(ErrorKind::Io, tmp.string() + ": flush failed");
     }
     fs::rename(tmp, final_path);
   } catch (...) {
@@ -122,88 +243,167 @@ void write_store(const FineMesh& mesh, const std::string& path) {
   }
 }
 
-FineMesh read_store(const std::string& path) {
-  h5::File f = h5::File::open_read(path);
-  if (!f.exists("/") || f.read_attr_string("format") != kStoreFormatName)
+FineMesh read_store(const std::string& path, const StoreOptions& options) {
+  if (options.cache_bytes < (1u << 20))
+    throw Error(ErrorKind::Usage, "cache budget " + std::to_string(options.cache_bytes) + " bytes is too small (at least 1 MiB)");
+  std::unique_lock lock(hdf5_mutex());
+  store::register_lz4_filter();
+  auto s = std::make_shared<OpenStore>();
+  s->file = h5::File::open_read(path);
+  if (H5Aexists(s->file.id(), "format") <= 0 || s->file.read_attr_string("format") != kStoreFormatName)
     throw Error(ErrorKind::BadInput, path + ": not a dicer store (format attribute missing or wrong)");
-  const std::int64_t version = f.read_attr_int("format_version");
+  const std::int64_t version = s->file.read_attr_int("format_version");
   if (version != kStoreFormatVersion)
     throw Error(ErrorKind::Unsupported, path + ": store format version " + std::to_string(version) +
                                             " is not known to this dicer (it reads version " +
                                             std::to_string(kStoreFormatVersion) + ")");
-  CoarseMesh c;
-  c.source = f.read_attr_string("source");
-  const std::string mode = f.read_attr_string("mode");
+  MeshInfo info;
+  const std::string mode = s->file.read_attr_string("mode");
   if (mode != "volume" && mode != "surface") throw Error(ErrorKind::Corrupt, path + ": unknown mode \"" + mode + "\"");
-  c.mode = mode == "volume" ? Mode::Volume : Mode::Surface;
-  c.x = f.read<double>("coarse/x"), c.y = f.read<double>("coarse/y"), c.z = f.read<double>("coarse/z");
-  c.vertex_file_id = f.read<std::int64_t>("coarse/vertex_file_id");
-  c.conn = f.read<std::int64_t>("coarse/conn", static_cast<std::uint64_t>(c.corners_per_element()));
-  c.element_file_id = f.read<std::int64_t>("coarse/element_file_id");
-  c.element_block = f.read<std::int32_t>("coarse/element_block");
-  c.vertex_geo_dim = f.read<std::int8_t>("coarse/vertex_geo_dim");
-  c.vertex_geo_tag = f.read<std::int32_t>("coarse/vertex_geo_tag");
-  const auto block_id = f.read<std::int64_t>("coarse/block_id");
-  const auto block_name = read_strings(f, "coarse/block_name", block_id.size());
-  for (size_t b = 0; b < block_id.size(); ++b) c.blocks.push_back({block_id[b], block_name[b]});
+  info.mode = mode == "volume" ? Mode::Volume : Mode::Surface;
+  info.source = s->file.read_attr_string("source");
+  auto count = [&](const char* name) {
+    const std::int64_t v = s->file.read_attr_int(name);
+    if (v < 0) throw Error(ErrorKind::Corrupt, path + ": attribute " + name + " is negative");
+    return v;
+  };
+  info.coarse_vertices = count("coarse_vertices"), info.coarse_edges = count("coarse_edges");
+  info.coarse_faces = count("coarse_faces"), info.coarse_elements = count("coarse_elements");
+  info.sheets = count("sheets"), info.nodes = count("fine_nodes"), info.elements = count("fine_elements");
+
+  PageCache::Options co;
+  co.budget_bytes = options.cache_bytes;
+  co.read_ahead_pages = options.read_ahead_pages;
+  // The loader keeps the file open for as long as the cache lives.
+  auto cache = std::make_shared<PageCache>(
+      [s](PageKey key, std::vector<std::uint8_t>& out) { return s->load(key, out); }, co);
+  MeshTables tab;
+  tab.mode = info.mode;
+  tab.cache = cache;
+  auto paged = [&](auto tag, const std::string& name, std::int64_t width, std::int64_t rows) {
+    using T = decltype(tag);
+    const std::uint32_t id = open_paged<T>(*s, name, width, rows);
+    const PagedDataset& a = s->arrays[id];
+    cache->set_array_pages(id, static_cast<std::uint64_t>((a.rows + a.rows_per_page - 1) / a.rows_per_page));
+    return Table<T>(width, a.rows, cache, id, a.rows_per_page);
+  };
+  tab.vertices = paged(double{}, "coarse/vertices", 3, info.coarse_vertices);
+  tab.edges = paged(std::int64_t{}, "topology/edges", kEdgeWidth, info.coarse_edges);
+  tab.faces = paged(std::int64_t{}, "topology/faces", kFaceWidth, info.coarse_faces);
+  tab.elements = paged(std::int64_t{}, "topology/elements", tab.layout().width(), info.coarse_elements);
+  // Small metadata, read whole now (O(blocks)); pages come through the cache
+  // so they are checked like every other page.
+  lock.unlock();  // the loader takes the HDF5 lock itself
+  const auto base = read_small<std::int64_t>(*s, cache, "numbering/kind_base", 4);
+  for (int k = 0; k < 4; ++k) info.kind_base[k] = base[k];
+  if (info.kind_base[0] != 0 || info.kind_base[1] != info.coarse_vertices || info.kind_base[1] > info.kind_base[2] ||
+      info.kind_base[2] > info.kind_base[3] || info.kind_base[3] > info.nodes)
+    throw Error(ErrorKind::Corrupt, path + ": numbering/kind_base is inconsistent with the counts");
+  std::int64_t nblocks = 0;
   {
-    const auto id = f.read<std::int64_t>("coarse/side_set_id");
-    const auto off = f.read<std::int64_t>("coarse/side_set_offset");
-    const auto el = f.read<std::int64_t>("coarse/side_set_element");
-    const auto sd = f.read<std::int8_t>("coarse/side_set_side");
-    const auto names = read_strings(f, "coarse/side_set_name", id.size());
-    if (off.size() != id.size() + 1 || el.size() != sd.size() || off.back() != static_cast<std::int64_t>(el.size()))
-      throw Error(ErrorKind::Corrupt, path + ": side set arrays are inconsistent");
-    for (size_t s = 0; s < id.size(); ++s) {
-      if (off[s] > off[s + 1] || off[s] < 0) throw Error(ErrorKind::Corrupt, path + ": side set offsets");
-      c.side_sets.push_back({id[s], names[s], {el.begin() + off[s], el.begin() + off[s + 1]},
-                             {sd.begin() + off[s], sd.begin() + off[s + 1]}});
-    }
+    std::lock_guard relock(hdf5_mutex());
+    h5::Handle ds(H5Dopen2(s->file.id(), "coarse/block_id", H5P_DEFAULT), H5Dclose);
+    h5::Handle sp(H5Dget_space(ds.get()), H5Sclose);
+    hsize_t dims[2] = {0, 0};
+    if (!ds || H5Sget_simple_extent_dims(sp.get(), dims, nullptr) < 0 || dims[0] > (1u << 24))
+      throw Error(ErrorKind::Corrupt, path + ": dataset coarse/block_id is missing or implausible");
+    nblocks = static_cast<std::int64_t>(dims[0]);
   }
+  const auto block_id = read_small<std::int64_t>(*s, cache, "coarse/block_id", nblocks);
+  const auto name_off = read_small<std::int64_t>(*s, cache, "coarse/block_name_offset", nblocks + 1);
+  if (name_off.front() != 0 || name_off.back() < 0 || name_off.back() > (1 << 24))
+    throw Error(ErrorKind::Corrupt, path + ": coarse/block_name_offset is inconsistent");
+  const auto chars = read_small<std::int8_t>(*s, cache, "coarse/block_name_chars", name_off.back());
+  info.block_coarse_elements = read_small<std::int64_t>(*s, cache, "coarse/block_coarse_elements", nblocks);
+  info.block_fine_elements = read_small<std::int64_t>(*s, cache, "coarse/block_fine_elements", nblocks);
+  for (std::int64_t b = 0; b < nblocks; ++b) {
+    if (name_off[b] > name_off[b + 1]) throw Error(ErrorKind::Corrupt, path + ": coarse/block_name_offset is not increasing");
+    info.blocks.push_back({block_id[b], std::string(chars.begin() + name_off[b], chars.begin() + name_off[b + 1])});
+  }
+  FineMesh mesh(std::move(info), std::move(tab));
+  return mesh;
+}
+
+std::shared_ptr<PageCache> store_cache(const FineMesh& mesh) { return mesh.tables().cache; }
+
+StoreSets read_store_sets(const std::string& path) {
+  // Opened like a store (version checks included), then read through the
+  // same cache machinery so every page is checksummed.
+  const FineMesh probe = read_store(path, StoreOptions{4ull << 20, 0});
+  auto s = std::make_shared<OpenStore>();
   {
-    const auto id = f.read<std::int64_t>("coarse/node_set_id");
-    const auto off = f.read<std::int64_t>("coarse/node_set_offset");
-    const auto vs = f.read<std::int64_t>("coarse/node_set_vertex");
-    const auto names = read_strings(f, "coarse/node_set_name", id.size());
-    if (off.size() != id.size() + 1 || off.back() != static_cast<std::int64_t>(vs.size()))
-      throw Error(ErrorKind::Corrupt, path + ": node set arrays are inconsistent");
-    for (size_t s = 0; s < id.size(); ++s) {
-      if (off[s] > off[s + 1] || off[s] < 0) throw Error(ErrorKind::Corrupt, path + ": node set offsets");
-      c.node_sets.push_back({id[s], names[s], {vs.begin() + off[s], vs.begin() + off[s + 1]}});
+    std::lock_guard lock(hdf5_mutex());
+    s->file = h5::File::open_read(path);
+  }
+  auto cache = std::make_shared<PageCache>(
+      [s](PageKey key, std::vector<std::uint8_t>& out) { return s->load(key, out); }, PageCache::Options{4ull << 20, 0, false});
+  auto rows_of = [&](const std::string& name) {
+    std::lock_guard lock(hdf5_mutex());
+    h5::Handle ds(H5Dopen2(s->file.id(), name.c_str(), H5P_DEFAULT), H5Dclose);
+    if (!ds) throw Error(ErrorKind::Corrupt, path + ": dataset " + name + " is missing");
+    h5::Handle sp(H5Dget_space(ds.get()), H5Sclose);
+    hsize_t dims[2] = {0, 0};
+    H5Sget_simple_extent_dims(sp.get(), dims, nullptr);
+    return static_cast<std::int64_t>(dims[0]);
+  };
+  auto strings = [&](const std::string& base, std::int64_t n) {
+    const auto off = read_small<std::int64_t>(*s, cache, base + "_offset", n + 1);
+    const auto chars = read_small<std::int8_t>(*s, cache, base + "_chars", off.back());
+    std::vector<std::string> out;
+    for (std::int64_t i = 0; i < n; ++i) {
+      if (off[i] < 0 || off[i] > off[i + 1] || off[i + 1] > off.back())
+        throw Error(ErrorKind::Corrupt, path + ": " + base + "_offset is inconsistent");
+      out.emplace_back(chars.begin() + off[i], chars.begin() + off[i + 1]);
     }
+    return out;
+  };
+  auto csr = [&](const std::vector<std::int64_t>& off, std::int64_t members, const std::string& name) {
+    if (off.empty() || off.front() != 0 || off.back() != members)
+      throw Error(ErrorKind::Corrupt, path + ": " + name + " offsets are inconsistent");
+    for (size_t i = 1; i < off.size(); ++i)
+      if (off[i] < off[i - 1]) throw Error(ErrorKind::Corrupt, path + ": " + name + " offsets are not increasing");
+  };
+  StoreSets out;
+  const std::int64_t nss = rows_of("sets/side_set_id"), nns = rows_of("sets/node_set_id");
+  const auto ss_id = read_small<std::int64_t>(*s, cache, "sets/side_set_id", nss);
+  const auto ss_off = read_small<std::int64_t>(*s, cache, "sets/side_set_offset", nss + 1);
+  const auto ss_names = strings("sets/side_set_name", nss);
+  const std::int64_t nsm = rows_of("sets/side_set_member");
+  csr(ss_off, nsm, "sets/side_set");
+  const std::uint32_t sm = open_paged<std::int64_t>(*s, "sets/side_set_member", 2, nsm);
+  cache->set_array_pages(sm, static_cast<std::uint64_t>((nsm + s->arrays[sm].rows_per_page - 1) / s->arrays[sm].rows_per_page));
+  Table<std::int64_t> members(2, nsm, cache, sm, s->arrays[sm].rows_per_page);
+  TableCursor cur;
+  const std::int64_t nh = probe.num_coarse_elements();
+  for (std::int64_t k = 0; k < nss; ++k) {
+    SideSet set{ss_id[k], ss_names[k], {}, {}};
+    for (std::int64_t i = ss_off[k]; i < ss_off[k + 1]; ++i) {
+      const std::int64_t* r = members.row(i, cur);
+      if (r[0] < 0 || r[0] >= nh || r[1] < 0 || r[1] > 5)
+        throw Error(ErrorKind::Corrupt, path + ": side set " + std::to_string(ss_id[k]) + ": entry out of range");
+      set.element.push_back(r[0]);
+      set.side.push_back(static_cast<std::int8_t>(r[1]));
+    }
+    out.side_sets.push_back(std::move(set));
   }
-  for (const auto& ns : c.node_sets)
-    for (Id v : ns.vertex)
-      if (v < 0 || v >= c.num_vertices()) throw Error(ErrorKind::Corrupt, path + ": node set entry out of range");
-  // The stored mesh passed validation when it was written; checking again
-  // costs O(n log n) and turns a tampered file into an error, not a crash.
-  try {
-    const size_t nv = c.x.size();
-    validate_coarse_mesh(c);
-    if (c.x.size() != nv || !c.warnings.empty())
-      throw Error(ErrorKind::Corrupt, "stored coarse mesh was modified by validation");
-  } catch (const Error& e) {
-    throw Error(ErrorKind::Corrupt, path + ": stored coarse mesh is invalid: " + e.what());
+  const auto ns_id = read_small<std::int64_t>(*s, cache, "sets/node_set_id", nns);
+  const auto ns_off = read_small<std::int64_t>(*s, cache, "sets/node_set_offset", nns + 1);
+  const auto ns_names = strings("sets/node_set_name", nns);
+  const std::int64_t nnv = rows_of("sets/node_set_vertex");
+  csr(ns_off, nnv, "sets/node_set");
+  const auto verts = read_small<std::int64_t>(*s, cache, "sets/node_set_vertex", nnv);
+  for (std::int64_t k = 0; k < nns; ++k) {
+    NodeSet set{ns_id[k], ns_names[k], {verts.begin() + ns_off[k], verts.begin() + ns_off[k + 1]}};
+    for (Id v : set.vertex)
+      if (v < 0 || v >= probe.info().coarse_vertices)
+        throw Error(ErrorKind::Corrupt, path + ": node set " + std::to_string(ns_id[k]) + ": vertex out of range");
+    out.node_sets.push_back(std::move(set));
   }
-  Topology t = build_topology(c);
-  expect_equal(f, "topology/edge_v", t.edge_v, 2);
-  expect_equal(f, "topology/face_v", t.face_v, 4);
-  expect_equal(f, "topology/elem_edge", t.elem_edge, static_cast<std::uint64_t>(t.edges_per_element()));
-  expect_equal(f, "topology/elem_face_code", t.elem_face_code, static_cast<std::uint64_t>(t.faces_per_element()));
-  const Sheets sheets = find_sheets(c, t);
-  expect_equal(f, "sheets/edge_sheet", sheets.edge_sheet);
-  auto sheet_interval = f.read<std::int64_t>("sheets/sheet_interval");
-  if (static_cast<Id>(sheet_interval.size()) != sheets.num_sheets())
-    throw Error(ErrorKind::Corrupt, path + ": sheets/sheet_interval has " + std::to_string(sheet_interval.size()) +
-                                        " entries for " + std::to_string(sheets.num_sheets()) + " sheets");
-  for (Id n : sheet_interval)
-    if (n < 1) throw Error(ErrorKind::Corrupt, path + ": sheets/sheet_interval holds an interval < 1");
-  IntervalPlan plan{sheet_interval, {}};
-  Numbering num(t, edge_intervals(sheets, plan));
-  return FineMesh(std::move(c), std::move(t), std::move(num), std::move(sheet_interval));
+  return out;
 }
 
 StoreSummary store_summary(const std::string& path) {
+  std::lock_guard lock(hdf5_mutex());
   h5::File f = h5::File::open_read(path);
   StoreSummary s;
   s.format_version = static_cast<int>(f.read_attr_int("format_version"));

@@ -1,17 +1,24 @@
 #pragma once
 // FineMesh: the implicit fine mesh. Nothing fine-sized is ever stored; every
-// node and element is regenerated on demand from the coarse mesh, its
-// topology and the intervals (the recipe in tfi.hpp).
+// node and element is regenerated on demand from the coarse mesh tables
+// (tables.hpp) by the recipe in tfi.hpp.
+//
+// The tables are either in memory (right after FineMesh::dice) or pages of
+// a store read through a bounded PageCache (read_store); the code path is
+// the same, so both give the same bits.
 //
 // Access paths, all bit-identical for the same node id (invariant 2):
 //  1. node(id) / element(id): random access, O(log n) lookup + O(1) TFI.
 //  2. fill_block(h, block): every node and element of coarse element h, as
-//     contiguous arrays (ids, x, y, z, connectivity). Cost O(block size);
-//     the Block's buffers are reused between calls (no allocation once warm).
+//     contiguous arrays (ids, x, y, z, connectivity). O(block size); a
+//     reused FineBlock allocates nothing once warm.
 //  3. NodeCursor / ElementCursor: whole-mesh iteration in id order.
-// Memory: O(coarse mesh) plus one block buffer per cursor.
-// Thread safety: all const member functions may be called concurrently.
+// Memory: O(blocks) metadata + the tables (in memory) or the cache budget
+// (paged), plus one block buffer per cursor.
+// Thread safety: const member functions may be called concurrently; the
+// overloads taking a MeshCursor need one cursor per thread.
 #include <array>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -19,8 +26,7 @@
 #include "dicer/coarse_mesh.hpp"
 #include "dicer/intervals.hpp"
 #include "dicer/numbering.hpp"
-#include "dicer/sheets.hpp"
-#include "dicer/topology.hpp"
+#include "dicer/tables.hpp"
 
 namespace dicer {
 
@@ -30,7 +36,7 @@ struct FineElement {
   std::array<Id, 8> nodes{};
   int num_nodes = 8;
   Id coarse_element = -1;
-  std::int32_t block = -1;       // index into CoarseMesh::blocks
+  std::int32_t block = -1;       // index into MeshInfo::blocks
   std::array<Id, 3> ijk{};       // position in the coarse element's local grid
 };
 
@@ -41,6 +47,7 @@ struct FineBlock {
   Id coarse_element = -1;
   std::array<Id, 3> n{};         // intervals along local i, j, k (k = 1 in surface mode)
   Id first_element = 0;          // fine id of element (0,0,0); elements are consecutive
+  std::int32_t block = -1;
   std::vector<Id> node_id;       // per grid point
   std::vector<double> x, y, z;   // per grid point
   std::vector<Id> conn;          // corners per element, fine node ids (empty if nodes_only)
@@ -52,56 +59,69 @@ struct FineBlock {
   struct Scratch {
     std::vector<double> face[3], bottom[3], top[3], left[3], right[3], s, t, u, U;
   } scratch;
+  MeshCursor cursor;
+};
+
+// Small per-mesh facts, always in memory: O(blocks).
+struct MeshInfo {
+  Mode mode = Mode::Volume;
+  std::string source;                    // the coarse mesh file it was diced from
+  Id coarse_vertices = 0, coarse_edges = 0, coarse_faces = 0, coarse_elements = 0, sheets = 0;
+  Id nodes = 0, elements = 0;            // fine counts
+  std::array<Id, 4> kind_base{};         // first fine node id of vertices, edges, faces, cells
+  std::vector<Block> blocks;
+  std::vector<Id> block_coarse_elements, block_fine_elements;
 };
 
 class FineMesh {
  public:
   FineMesh() = default;
-  FineMesh(CoarseMesh coarse, Topology topo, Numbering numbering, std::vector<Id> sheet_interval);
+  FineMesh(MeshInfo info, MeshTables tables, std::shared_ptr<const CoarseMesh> coarse = nullptr);
 
-  // Builds topology, sheets and intervals for `coarse` and dices it.
-  // `notes` receives how interval conflicts were resolved.
+  // Builds topology, sheets and intervals for `coarse` and dices it, in
+  // memory. Coarse elements are first put in space-filling-curve order of
+  // their centroids (locality of pages); sheet ids stay those of the input
+  // file. `notes` receives how interval conflicts were resolved.
   static FineMesh dice(CoarseMesh coarse, const IntervalRequest& request, std::vector<std::string>* notes = nullptr);
 
-  Mode mode() const { return coarse_.mode; }
-  const CoarseMesh& coarse() const { return coarse_; }
-  const Topology& topology() const { return topo_; }
-  const Numbering& numbering() const { return num_; }
-  const std::vector<Id>& sheet_intervals() const { return sheet_interval_; }
-  Id num_nodes() const { return num_.num_nodes(); }
-  Id num_elements() const { return num_.num_elements(); }
-  Id num_coarse_elements() const { return topo_.num_elements(); }
-  int corners() const { return coarse_.corners_per_element(); }
+  Mode mode() const { return info_.mode; }
+  const MeshInfo& info() const { return info_; }
+  const MeshTables& tables() const { return tables_; }
+  // Interval of every sheet (ids of the input file), when diced in this
+  // process or read from a store.
+  const std::vector<Id>& sheet_intervals() const { return sheet_intervals_; }
+  void set_sheet_intervals(std::vector<Id> s) { sheet_intervals_ = std::move(s); }
+  // The reordered coarse mesh with its sets, when diced in this process
+  // (nullptr when opened from a store: sets stay on disk).
+  const CoarseMesh* coarse() const { return coarse_.get(); }
+  Id num_nodes() const { return info_.nodes; }
+  Id num_elements() const { return info_.elements; }
+  Id num_coarse_elements() const { return info_.coarse_elements; }
+  int corners() const { return tables_.layout().corners; }
 
-  // Throws Error{Usage} for an id out of range.
+  // Throw Error{Usage} for an id out of range.
   Vec3 node(Id id) const;
-  Vec3 node(const NodeRef& ref) const;
   FineElement element(Id id) const;
+  Vec3 node(Id id, MeshCursor& cur) const;
+  FineElement element(Id id, MeshCursor& cur) const;
+  Vec3 node(const NodeRef& ref, MeshCursor& cur) const;
 
+  // Numbering (DESIGN.md invariant 3), see numbering.hpp for the layout.
+  NodeRef locate_node(Id id, MeshCursor& cur) const;
+  Id node_id(const NodeRef& ref, MeshCursor& cur) const;
+  Id locate_element(Id id, std::array<Id, 3>& ijk, MeshCursor& cur) const;
   // The node at grid point (i, j, k) of coarse element h, as its owner sees it.
-  NodeRef grid_node(Id h, Id i, Id j, Id k) const;
+  NodeRef grid_node(Id h, Id i, Id j, Id k, MeshCursor& cur) const;
 
   // Fills out with every node of coarse element h (ids, x, y, z) and, unless
   // nodes_only, its elements' connectivity (conn).
   void fill_block(Id h, FineBlock& out, bool nodes_only = false) const;
 
-  // Fine elements in each block (index into coarse().blocks).
-  std::vector<Id> block_fine_elements() const;
-
  private:
-  Vec3 edge_point(Id e, Id t) const;  // canonical t in [0, n]
-  Vec3 face_point(Id f, Id u, Id v) const;
-  // Coons interior point of face f from its four sides' values at (u, v)
-  // (bottom, top, left, right in the canonical frame).
-  Vec3 face_interior(Id f, Id u, Id v, const Vec3* sides) const;
-  // Interior of face f, canonical frame, (u-1) + (v-1)(nu-1) order.
-  void fill_face(Id f, FineBlock::Scratch& s) const;
-  Vec3 cell_point(Id h, Id i, Id j, Id k) const;
-
-  CoarseMesh coarse_;
-  Topology topo_;
-  Numbering num_;
-  std::vector<Id> sheet_interval_;
+  MeshInfo info_;
+  MeshTables tables_;
+  std::shared_ptr<const CoarseMesh> coarse_;
+  std::vector<Id> sheet_intervals_;
 };
 
 // Whole-mesh node iteration in id order [begin, end).
@@ -115,6 +135,7 @@ class NodeCursor {
  private:
   const FineMesh& mesh_;
   Id next_, end_;
+  MeshCursor cur_;
   FineBlock block_;  // cell interiors come from a block fill, not per-node TFI
   Id block_cell_ = -1;
 };
@@ -131,6 +152,7 @@ class ElementCursor {
  private:
   const FineMesh& mesh_;
   Id next_, end_;
+  MeshCursor cur_;
   FineBlock block_;
 };
 

@@ -1,5 +1,6 @@
 #pragma once
-// Numbering: fine node and element ids (DESIGN.md invariant 3).
+// Numbering: fine node and element ids (DESIGN.md invariant 3). The only
+// place that knows how ids are laid out.
 //
 // Fine node ids: coarse vertices first (id = vertex index), then the interior
 // nodes of each coarse edge (edge order, t = 1..n-1), then of each face (face
@@ -7,12 +8,16 @@
 // order, (i-1) + (j-1)(n1-1) + (k-1)(n1-1)(n2-1)). Surface mode: vertices,
 // edges, quads. Fine element ids: coarse element order, then i fastest, then
 // j, then k, in the element's own local frame.
-// Cost: O(coarse) memory (one prefix array per entity kind); id -> entity is
-// a binary search, O(log n); entity -> id is O(1).
+//
+// Numbering (the builder) computes every entity's first id once, at dice
+// time, with overflow checks; the results are columns of the mesh tables.
+// The lookups below work on those tables: id -> entity is a binary search,
+// O(log n) rows touched; entity -> id is O(1).
 #include <array>
 #include <cstdint>
 #include <vector>
 
+#include "dicer/tables.hpp"
 #include "dicer/topology.hpp"
 
 namespace dicer {
@@ -39,27 +44,16 @@ class Numbering {
   Id num_nodes() const { return num_nodes_; }
   Id num_elements() const { return elem_offset_.back(); }
   Id edge_n(Id e) const { return edge_n_[e]; }
-  const std::vector<Id>& edge_intervals() const { return edge_n_; }
   std::array<Id, 2> face_n(Id f) const { return face_n_[f]; }
-  // Intervals of a coarse element along its local i, j (, k); 1 for k in surface mode.
   std::array<Id, 3> elem_n(Id h) const { return elem_n_[h]; }
-  Id elem_first_element(Id h) const { return elem_offset_[h]; }
-  Id elem_num_elements(Id h) const { return elem_offset_[h + 1] - elem_offset_[h]; }
-
-  Id node_id(const NodeRef& r) const;
-  NodeRef locate_node(Id id) const;  // precondition 0 <= id < num_nodes()
-  // Fine element id <-> (coarse element, i, j, k).
-  Id element_id(Id h, Id i, Id j, Id k) const;
-  Id locate_element(Id id, std::array<Id, 3>& ijk) const;
-
-  // First node id of each kind: [vertices, edges, faces, cells, end).
-  std::array<Id, 5> kind_offsets() const { return {0, base_[1], base_[2], base_[3], num_nodes_}; }
+  // First node id of each kind: vertices, edges, faces, cells.
+  std::array<Id, 4> kind_base() const { return base_; }
   Id edge_node_offset(Id e) const { return base_[1] + edge_off_[e]; }
   Id face_node_offset(Id f) const { return base_[2] + face_off_[f]; }
   Id cell_node_offset(Id h) const { return base_[3] + cell_off_[h]; }
+  Id elem_first_element(Id h) const { return elem_offset_[h]; }
 
  private:
-  Mode mode_ = Mode::Volume;
   std::vector<Id> edge_n_;
   std::vector<std::array<Id, 2>> face_n_;
   std::vector<std::array<Id, 3>> elem_n_;
@@ -67,5 +61,12 @@ class Numbering {
   std::array<Id, 4> base_{};
   Id num_nodes_ = 0;
 };
+
+// Lookups over the tables. `base` is MeshInfo::kind_base, `nodes` the fine
+// node count; ids must be in range (callers check).
+NodeRef locate_node(const MeshTables& t, const std::array<Id, 4>& base, Id nodes, Id id, MeshCursor& cur);
+Id node_id(const MeshTables& t, const std::array<Id, 4>& base, const NodeRef& r, MeshCursor& cur);
+// Fine element id -> coarse element h and (i, j, k).
+Id locate_element(const MeshTables& t, Id id, std::array<Id, 3>& ijk, MeshCursor& cur);
 
 }  // namespace dicer

@@ -1,27 +1,55 @@
 #pragma once
-// Store: one HDF5 file holding everything needed to regenerate a fine mesh
-// (coarse mesh, blocks and sets, topology with orientation codes, sheets,
-// intervals). Layout: store/FORMAT.md; version: kStoreFormatVersion.
+// Store: one HDF5 file holding everything needed to regenerate a fine mesh:
+// the coarse mesh tables (tables.hpp: vertices, edges, faces, elements,
+// which carry topology, orientation codes, intervals and numbering offsets),
+// blocks, side and node sets, sheets, geometric owners and the (future)
+// bounding fine arrays. Layout: store/FORMAT.md; version kStoreFormatVersion.
 //
-// Writes go to a temporary name in the same directory and are renamed into
-// place only when complete, so an interrupted write never damages an
-// existing store of the same name. Readers refuse unknown versions and
-// inconsistent content with Error{Corrupt|BadInput}, naming file and dataset.
+// Every dataset is chunked; a chunk is a page of whole rows, compressed with
+// HDF5 filter 32004 (LZ4) and checksummed with Fletcher32. read_store opens
+// lazily: only O(blocks) metadata is read; every row comes through a
+// PageCache with a fixed byte budget, so memory stays under the budget plus
+// a small constant whatever the mesh size.
+//
+// write_store writes every page once (H5Dwrite_chunk), to a temporary name
+// in the same directory, renamed into place only when complete: an
+// interrupted write never damages an existing store of the same name.
+// Readers refuse unknown versions, damaged pages (checksum) and
+// inconsistent content with Error{Unsupported|Corrupt|BadInput}, naming the
+// file, the dataset and the page.
 #include <cstdint>
+#include <memory>
 #include <string>
 
+#include "dicer/cache.hpp"
 #include "dicer/fine_mesh.hpp"
 
 namespace dicer {
 
-inline constexpr int kStoreFormatVersion = 1;
+inline constexpr int kStoreFormatVersion = 2;
 inline constexpr const char* kStoreFormatName = "dicer-store";
+inline constexpr std::uint64_t kStorePageBytes = 64 * 1024;  // target page size (whole rows)
 
+// Precondition: mesh was diced in this process (mesh.coarse() != nullptr).
 void write_store(const FineMesh& mesh, const std::string& path);
 
-// Reads the whole coarse description into memory (O(coarse mesh)) and
-// rebuilds the topology from it, checking it against the stored arrays.
-FineMesh read_store(const std::string& path);
+struct StoreOptions {
+  std::uint64_t cache_bytes = 64ull << 20;  // decoded pages resident, at most (>= 1 MiB)
+  unsigned read_ahead_pages = 4;
+};
+
+FineMesh read_store(const std::string& path, const StoreOptions& options = {});
+
+// The cache behind a FineMesh opened from a store (nullptr for in-memory meshes).
+std::shared_ptr<PageCache> store_cache(const FineMesh& mesh);
+
+// Side sets and node sets of a store, read on demand (O(sets) memory),
+// in the store's element and vertex numbering.
+struct StoreSets {
+  std::vector<SideSet> side_sets;
+  std::vector<NodeSet> node_sets;
+};
+StoreSets read_store_sets(const std::string& path);
 
 struct StoreSummary {
   int format_version = 0;

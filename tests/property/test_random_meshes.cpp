@@ -221,25 +221,34 @@ TEST(RandomMeshes, NumberingRoundTripsAndFollowsTheLayout) {
   req.global = 4;
   req.sheets = {{1, 2}, {3, 1}};
   const FineMesh f = FineMesh::dice(m, req);
-  const Numbering& num = f.numbering();
-  const auto off = num.kind_offsets();
+  const auto off = f.info().kind_base;
   EXPECT_EQ(off[1], m.num_vertices());  // vertices first
-  EXPECT_TRUE(off[1] <= off[2] && off[2] <= off[3] && off[3] <= off[4]);
+  EXPECT_TRUE(off[1] <= off[2] && off[2] <= off[3] && off[3] <= f.num_nodes());
+  MeshCursor cur;
   Id prev_entity = -1;
   int prev_kind = -1;
   for (Id id = 0; id < f.num_nodes(); ++id) {
-    const NodeRef r = num.locate_node(id);
-    ASSERT_EQ(num.node_id(r), id);
+    const NodeRef r = f.locate_node(id, cur);
+    ASSERT_EQ(f.node_id(r, cur), id);
     // Entities appear in order: kind, then entity id, never going back.
     const int kind = static_cast<int>(r.kind);
     ASSERT_TRUE(kind > prev_kind || (kind == prev_kind && r.entity >= prev_entity));
     prev_kind = kind, prev_entity = r.entity;
   }
-  for (Id e = 0; e < f.num_elements(); ++e) {
-    std::array<Id, 3> ijk;
-    const Id h = num.locate_element(e, ijk);
-    ASSERT_EQ(num.element_id(h, ijk[0], ijk[1], ijk[2]), e);
+  // Element ids: coarse element order, then i fastest, then j, then k.
+  FineBlock b;
+  Id expected = 0;
+  for (Id h = 0; h < f.num_coarse_elements(); ++h) {
+    f.fill_block(h, b, true);
+    ASSERT_EQ(b.first_element, expected);
+    for (Id e = 0; e < b.num_elements(); ++e) {
+      std::array<Id, 3> ijk;
+      ASSERT_EQ(f.locate_element(expected + e, ijk, cur), h);
+      ASSERT_EQ(ijk[0] + b.n[0] * (ijk[1] + b.n[1] * ijk[2]), e);
+    }
+    expected += b.num_elements();
   }
+  EXPECT_EQ(expected, f.num_elements());
 }
 
 TEST(RandomMeshes, SurfaceSheetCountsAndConformity) {

@@ -65,7 +65,7 @@ TEST(Cli, DiceInfoQueryVerifyOnARealMesh) {
   EXPECT_EQ(el["nodes"].size(), 8u);
   EXPECT_EQ(el["coarse_element"], 255);
   EXPECT_EQ(el["ijk"], Json::array({2, 2, 2}));
-  EXPECT_EQ(el["block"], m.coarse().blocks[0].id);
+  EXPECT_EQ(el["block"], m.info().blocks[0].id);
   r = run_cli({"verify", store});
   EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
   EXPECT_NE(r.out.find("all checks passed"), std::string::npos);
@@ -165,16 +165,16 @@ TEST(Cli, BadStoresAreRefusedClearly) {
     H5Aclose(a);
     H5Fclose(f);
     f = H5Fopen(miss.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
-    H5Ldelete(f, "topology/face_v", H5P_DEFAULT);
+    H5Ldelete(f, "topology/faces", H5P_DEFAULT);
     H5Fclose(f);
   }
   r = run_cli({"info", ver});
   EXPECT_EQ(r.exit_code, 4);
   EXPECT_NE(r.err.find("version 99"), std::string::npos) << r.err;
-  EXPECT_NE(r.err.find("reads version 1"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("reads version " + std::to_string(kStoreFormatVersion)), std::string::npos) << r.err;
   r = run_cli({"query", miss, "--node", "0"});
   EXPECT_EQ(r.exit_code, 8);
-  EXPECT_NE(r.err.find("topology/face_v is missing"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("topology/faces is missing"), std::string::npos) << r.err;
   // Query out of range.
   r = run_cli({"query", good, "--node", "999999999"});
   EXPECT_EQ(r.exit_code, 2);

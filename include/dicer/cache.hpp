@@ -1,0 +1,183 @@
+#pragma once
+// PageCache: a bounded, thread-safe cache of decoded pages in front of the
+// store. It knows nothing about HDF5: pages come from a Loader function
+// (the store's reader supplies one that reads and decodes a chunk).
+//
+// What it holds. A page is identified by PageKey{array, page}. The cache
+// keeps decoded pages up to a byte budget and hands them out as pinned,
+// move-only Handles (STYLE.md #5): a pinned page is never evicted, and its
+// bytes stay at the same address until the last handle on it is released.
+//
+// Invariants.
+//  1. Byte budget. resident_bytes = the sum of the decoded sizes (size(), not
+//     capacity()) of the pages resident in the cache. It never exceeds
+//     budget(): a page is admitted only after enough unpinned pages were
+//     evicted, and if that is impossible (every resident page is pinned, or
+//     the page alone is larger than the budget) pin() throws
+//     Error{Usage, "cache budget ... too small: ..."} instead. Bytes of a
+//     page being loaded (at most one buffer per loading thread plus one for
+//     the read-ahead worker) are not counted until the page is admitted.
+//  2. One load per page. While a page is resident or being loaded it is never
+//     loaded again: concurrent pins of the same missing page wait for the
+//     one load in flight (also when that load is the read-ahead worker's).
+//  3. Failed loads store nothing. If the loader throws, the exception is
+//     rethrown to the pinning thread and to every thread waiting on that
+//     load; nothing is cached for the key, so a later pin() retries.
+//
+// Eviction: CLOCK (second chance) over a slot table, lazy and checked
+// against pins. Releasing a handle only decrements the pin count; pages are
+// evicted when room is needed, and the clock hand skips pinned pages and
+// pages still loading. See page_cache.cpp for why CLOCK (cost per hit,
+// behaviour under sweeps) and the exact victim order.
+//
+// Read-ahead: when pin() sees page p of an array right after page p-1 of
+// the same array (a sequential stream) and p was a miss or a page that
+// read-ahead brought in, the next Options::read_ahead_pages pages of that
+// array are scheduled. With background_read_ahead one worker thread loads
+// them (bounded queue; the destructor stops and joins it); otherwise the
+// pinning thread loads them before pin() returns. Read-ahead only runs for
+// arrays whose page count was given by set_array_pages() and never past
+// it. Read-ahead never evicts pinned pages, pages with their reference bit
+// set, or other read-ahead pages not yet pinned; if that leaves no room it
+// is skipped (a hot working set is not flushed by a speculative read).
+// Pages that a sequential stream pins do not get their reference bit set
+// (scan resistance), so a sweep evicts its own past pages first. In a
+// single sweep whose budget holds at least read_ahead_pages + 3 pages, every
+// page is read exactly once (tests/unit/test_page_cache.cpp).
+//
+// Cost. Hit: one mutex lock, one hash lookup, O(1), no allocation (when a
+// hit extends a read-ahead window it also does read_ahead_pages lookups and,
+// without a background worker, the loads). Miss: one loader call made
+// without the lock, plus amortised O(1) clock steps (O(resident pages) in
+// the worst case, e.g. when almost everything is pinned). Handle release:
+// one mutex lock.
+//
+// Thread safety. All member functions may be called concurrently. The
+// loader is called without the cache's lock, from the pinning thread and
+// from the read-ahead worker, possibly concurrently for different keys: it
+// must be thread-safe (serialise inside it if the file library is not). The
+// loader must not call back into the same cache. Every Handle must be
+// released before the PageCache is destroyed.
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <span>
+#include <vector>
+
+namespace dicer {
+
+struct PageKey {
+  std::uint32_t array = 0;  // which paged array (the store assigns ids)
+  std::uint64_t page = 0;   // page index within that array, 0-based
+  friend bool operator==(const PageKey&, const PageKey&) = default;
+};
+
+struct PageKeyHash {
+  std::size_t operator()(const PageKey& k) const noexcept {
+    std::uint64_t x = k.page * 0x9E3779B97F4A7C15ull ^ (std::uint64_t{k.array} + 0x632BE59BD9B4E019ull);
+    x ^= x >> 29;
+    x *= 0xBF58476D1CE4E5B9ull;
+    x ^= x >> 32;
+    return static_cast<std::size_t>(x);
+  }
+};
+
+struct CacheStats {
+  std::uint64_t pages_read = 0;          // loader calls that succeeded (pins and read-ahead)
+  std::uint64_t bytes_read = 0;          // bytes read from the file, as the loader reports (compressed size)
+  std::uint64_t bytes_decompressed = 0;  // decoded bytes the loader produced
+  std::uint64_t hits = 0;                // pin() calls that found the page resident or already being loaded
+  std::uint64_t misses = 0;              // pin() calls that had to call the loader themselves
+  std::uint64_t evictions = 0;           // pages dropped to make room
+  std::uint64_t resident_bytes = 0;      // decoded bytes resident now (<= budget)
+  std::uint64_t peak_resident_bytes = 0; // maximum of resident_bytes since construction or reset_stats()
+};
+
+class PageCache {
+  struct Entry;  // one slot of the cache (page_cache.cpp)
+  struct Impl;
+
+ public:
+  // Reads and decodes one page into out (resized to the decoded size);
+  // returns the number of bytes read from the file. May throw dicer::Error
+  // (e.g. Corrupt); the cache then stores nothing for that key and rethrows
+  // to every waiter. Give out exactly its size (out arrives empty): the
+  // budget counts size(), so capacity slack would be uncounted memory.
+  using Loader = std::function<std::uint64_t(PageKey key, std::vector<std::uint8_t>& out)>;
+
+  struct Options {
+    std::uint64_t budget_bytes = 64ull << 20;  // decoded bytes resident, at most
+    unsigned read_ahead_pages = 4;             // 0 disables read-ahead
+    bool background_read_ahead = true;         // one worker thread; false: the pinning thread reads ahead
+  };
+
+  // Throws Error{Usage} if loader is empty or budget_bytes is 0.
+  PageCache(Loader loader, Options options);
+  ~PageCache();  // stops and joins the read-ahead worker (a load in progress finishes first)
+  PageCache(const PageCache&) = delete;
+  PageCache& operator=(const PageCache&) = delete;
+
+  // A pinned page. Move-only; a moved-from or default-constructed handle is
+  // empty (data() == nullptr, size() == 0) and releases nothing, so a pin is
+  // released exactly once: by reset() or by the destructor of the handle
+  // that holds it. data() stays valid and unchanged while the handle holds
+  // the pin. Must not outlive its PageCache.
+  class Handle {
+   public:
+    Handle() = default;
+    Handle(Handle&& other) noexcept;
+    Handle& operator=(Handle&& other) noexcept;  // releases the pin this handle held, if any
+    Handle(const Handle&) = delete;
+    Handle& operator=(const Handle&) = delete;
+    ~Handle() { reset(); }
+
+    const std::uint8_t* data() const noexcept { return data_; }
+    std::size_t size() const noexcept { return size_; }
+    std::span<const std::uint8_t> bytes() const noexcept { return {data_, size_}; }
+    PageKey key() const noexcept { return key_; }
+    bool empty() const noexcept { return entry_ == nullptr; }
+    explicit operator bool() const noexcept { return entry_ != nullptr; }
+    void reset() noexcept;  // releases the pin now; no-op on an empty handle
+
+   private:
+    friend class PageCache;
+    Handle(PageCache* cache, Entry* entry, const std::uint8_t* data, std::size_t size, PageKey key) noexcept
+        : cache_(cache), entry_(entry), data_(data), size_(size), key_(key) {}
+    PageCache* cache_ = nullptr;
+    Entry* entry_ = nullptr;  // the pinned slot; nullptr: empty
+    const std::uint8_t* data_ = nullptr;
+    std::size_t size_ = 0;
+    PageKey key_{};
+  };
+
+  // Returns the page pinned. Hit: O(1), no allocation. Miss: calls the
+  // loader (without the lock) or waits for the load already in flight.
+  // Throws Error{Usage} for a page at or beyond the count given to
+  // set_array_pages(), and when the budget cannot admit the page (see
+  // invariant 1); rethrows what the loader threw (invariant 3).
+  Handle pin(PageKey key);
+
+  // Declares how many pages `array` has: pin() beyond is Error{Usage} and
+  // read-ahead never goes there. Arrays never declared can be pinned
+  // without a bound check but are never read ahead.
+  void set_array_pages(std::uint32_t array, std::uint64_t pages);
+
+  CacheStats stats() const;
+  // All counters to 0, except resident_bytes (kept) and peak_resident_bytes
+  // (set to the current resident_bytes).
+  void reset_stats();
+  std::uint64_t budget() const noexcept { return budget_; }
+  // Resident pages with at least one handle on them now (O(resident pages); diagnostics and tests).
+  std::uint64_t pinned_pages() const;
+
+ private:
+  void unpin(Entry* entry) noexcept;
+  std::uint64_t budget_;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace dicer
+
+template <>
+struct std::hash<dicer::PageKey> : dicer::PageKeyHash {};

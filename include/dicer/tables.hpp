@@ -1,0 +1,125 @@
+#pragma once
+// MeshTables: the coarse mesh compiled into the four row tables the fine
+// mesh is regenerated from. The same tables live in memory right after
+// `dice` and in the store's pages afterwards; FineMesh reads them through a
+// TableCursor either way, so there is one code path (DESIGN.md invariant 2).
+//
+// Rows never straddle a page: a table of width W is paged in chunks of
+// rows_per_page whole rows, so one pinned page serves a whole row.
+//
+// Layouts (int64 unless noted; ids 0-based; "offset" = first fine id):
+//   vertices  [V x 3] float64  x, y, z
+//   edges     [E x 5]  lo, hi, n (interval), node offset, sheet
+//   faces     [F x 9]  v0..v3 (canonical corners), e0..e3 (sides: v0v1,
+//                      v3v2, v0v3, v1v2), node offset
+//   elements  [H x W]  corners (8|4), edges (12|4), faces (6|1), element
+//                      offset, cell node offset, block index, file id,
+//                      flags = edge reversal bits | face codes << 12 (3 bits
+//                      each), n1, n2, n3
+// Cost: a row lookup is a pointer computation in memory, and a page-index
+// compare plus (on a page change) one cache pin when paged.
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "dicer/cache.hpp"
+#include "dicer/types.hpp"
+
+namespace dicer {
+
+// Column positions.
+enum EdgeCol : int { kEdgeLo = 0, kEdgeHi, kEdgeN, kEdgeNodeOffset, kEdgeSheet, kEdgeWidth };
+enum FaceCol : int { kFaceV = 0, kFaceE = 4, kFaceNodeOffset = 8, kFaceWidth = 9 };
+
+// Element row layout, which depends on the mode.
+struct ElementLayout {
+  int corners, edges, faces;
+  int conn() const { return 0; }
+  int edge() const { return corners; }
+  int face() const { return corners + edges; }
+  int elem_offset() const { return corners + edges + faces; }
+  int cell_offset() const { return elem_offset() + 1; }
+  int block() const { return elem_offset() + 2; }
+  int file_id() const { return elem_offset() + 3; }
+  int flags() const { return elem_offset() + 4; }
+  int n() const { return elem_offset() + 5; }  // intervals along local i, j, k (k = 1 in surface mode)
+  int width() const { return elem_offset() + 8; }
+  static ElementLayout of(Mode m) { return m == Mode::Volume ? ElementLayout{8, 12, 6} : ElementLayout{4, 4, 1}; }
+};
+
+class TableCursor;
+
+// One table: rows x width values of T, in memory or in pages of a cache.
+template <class T>
+class Table {
+ public:
+  Table() = default;
+  Table(std::int64_t width, std::vector<T> data)  // in memory
+      : width_(width), rows_(width ? static_cast<std::int64_t>(data.size()) / width : 0), mem_(std::move(data)) {}
+  Table(std::int64_t width, std::int64_t rows, std::shared_ptr<PageCache> cache, std::uint32_t array,
+        std::int64_t rows_per_page)  // paged
+      : width_(width), rows_(rows), cache_(std::move(cache)), array_(array), rows_per_page_(rows_per_page) {}
+
+  std::int64_t rows() const { return rows_; }
+  std::int64_t width() const { return width_; }
+  bool in_memory() const { return !cache_; }
+  const std::vector<T>& memory() const { return mem_; }
+  std::int64_t rows_per_page() const { return rows_per_page_; }
+  std::uint32_t array() const { return array_; }
+
+  // Pointer to row i (width() values), valid until cur moves to another page.
+  inline const T* row(std::int64_t i, TableCursor& cur) const;
+
+ private:
+  std::int64_t width_ = 0, rows_ = 0;
+  std::vector<T> mem_;
+  std::shared_ptr<PageCache> cache_;
+  std::uint32_t array_ = 0;
+  std::int64_t rows_per_page_ = 0;
+};
+
+// Caches the last page touched in one table (STYLE.md #4): neighbouring rows
+// cost no lookup. Move-only; holds a pin on that page.
+class TableCursor {
+ public:
+  TableCursor() = default;
+  TableCursor(TableCursor&&) noexcept = default;
+  TableCursor& operator=(TableCursor&&) noexcept = default;
+  void release() { handle_ = PageCache::Handle(), page_ = -1; }
+
+ private:
+  template <class T>
+  friend class Table;
+  PageCache::Handle handle_;
+  std::int64_t page_ = -1;
+  const std::uint8_t* data_ = nullptr;
+};
+
+template <class T>
+inline const T* Table<T>::row(std::int64_t i, TableCursor& cur) const {
+  if (!cache_) return mem_.data() + i * width_;
+  const std::int64_t page = i / rows_per_page_;
+  if (page != cur.page_) {
+    cur.handle_ = PageCache::Handle();  // unpin before pinning the next page
+    cur.handle_ = cache_->pin(PageKey{array_, static_cast<std::uint64_t>(page)});
+    cur.page_ = page;
+    cur.data_ = cur.handle_.data();
+  }
+  return reinterpret_cast<const T*>(cur.data_) + (i - page * rows_per_page_) * width_;
+}
+
+struct MeshTables {
+  Mode mode = Mode::Volume;
+  std::shared_ptr<PageCache> cache;  // the pages behind paged tables (nullptr in memory)
+  Table<double> vertices;
+  Table<std::int64_t> edges, faces, elements;
+  ElementLayout layout() const { return ElementLayout::of(mode); }
+};
+
+// One cursor per table: what a reader (a block, a query, a thread) carries.
+struct MeshCursor {
+  TableCursor vertices, edges, faces, elements;
+  void release() { vertices.release(), edges.release(), faces.release(), elements.release(); }
+};
+
+}  // namespace dicer

@@ -1,0 +1,288 @@
+#include "lz4_filter.hpp"
+
+#include <lz4.h>
+
+#include <algorithm>
+#include <climits>
+#include <cstring>
+#include <mutex>
+
+#include "dicer/error.hpp"
+
+namespace dicer::store {
+namespace {
+
+constexpr std::size_t kHeaderBytes = 12;   // 8-byte original size + 4-byte block size
+constexpr std::size_t kBlockHeader = 4;    // 4-byte stored size before each block
+constexpr std::size_t kChecksumBytes = 4;  // Fletcher32 appended by the next filter
+constexpr std::uint64_t kMaxPage = std::uint64_t{1} << 62;
+
+std::uint64_t get_be64(const std::uint8_t* p) {
+  std::uint64_t v = 0;
+  for (int i = 0; i < 8; ++i) v = (v << 8) | p[i];
+  return v;
+}
+std::uint32_t get_be32(const std::uint8_t* p) {
+  return (std::uint32_t{p[0]} << 24) | (std::uint32_t{p[1]} << 16) | (std::uint32_t{p[2]} << 8) | p[3];
+}
+void put_be64(std::uint8_t* p, std::uint64_t v) {
+  for (int i = 7; i >= 0; --i, v >>= 8) p[i] = static_cast<std::uint8_t>(v);
+}
+void put_be32(std::uint8_t* p, std::uint32_t v) {
+  for (int i = 3; i >= 0; --i, v >>= 8) p[i] = static_cast<std::uint8_t>(v);
+}
+// HDF5's fletcher32 filter appends the checksum with UINT32ENCODE: least
+// significant byte first (checked by the Hdf5Interop tests against H5Dwrite).
+void put_checksum(std::uint8_t* p, std::uint32_t v) {
+  for (int i = 0; i < 4; ++i, v >>= 8) p[i] = static_cast<std::uint8_t>(v);
+}
+std::uint32_t get_checksum(const std::uint8_t* p) {
+  return std::uint32_t{p[0]} | (std::uint32_t{p[1]} << 8) | (std::uint32_t{p[2]} << 16) |
+         (std::uint32_t{p[3]} << 24);
+}
+
+std::string hex32(std::uint32_t v) {
+  static const char* digits = "0123456789abcdef";
+  std::string s = "0x";
+  for (int i = 28; i >= 0; i -= 4) s += digits[(v >> i) & 15];
+  return s;
+}
+
+// ---- encoder ---------------------------------------------------------------
+
+std::uint64_t effective_block(std::uint64_t n, std::uint32_t block_size) {
+  return std::min<std::uint64_t>(block_size == 0 ? kLz4DefaultBlockSize : block_size, n);
+}
+
+// Capacity the encoder needs for n input bytes (LZ4 layout only, no checksum).
+std::uint64_t encoded_bound(std::uint64_t n, std::uint32_t block_size) {
+  const std::uint64_t blk = effective_block(n, block_size);
+  if (n == 0) return kHeaderBytes;
+  const std::uint64_t blocks = (n - 1) / blk + 1;
+  // blk <= 2^32 - 1 and LZ4_MAX_INPUT_SIZE ~ 2^31: a block over it is stored raw.
+  const std::uint64_t bound =
+      blk <= LZ4_MAX_INPUT_SIZE ? static_cast<std::uint64_t>(LZ4_compressBound(static_cast<int>(blk))) : blk;
+  return kHeaderBytes + blocks * (kBlockHeader + std::max(bound, blk));
+}
+
+// Writes the LZ4 layout of src[0, n) into dst (capacity encoded_bound(n, block_size));
+// returns the bytes written. Cannot fail: a block LZ4 does not shrink is stored raw.
+std::size_t lz4_encode(const std::uint8_t* src, std::size_t n, std::uint32_t block_size, std::uint8_t* dst) {
+  const std::uint64_t blk = effective_block(n, block_size);
+  put_be64(dst, n);
+  put_be32(dst + 8, static_cast<std::uint32_t>(blk));
+  std::size_t out = kHeaderBytes;
+  for (std::size_t done = 0; done < n;) {
+    const std::size_t len = static_cast<std::size_t>(std::min<std::uint64_t>(blk, n - done));
+    std::uint8_t* body = dst + out + kBlockHeader;
+    int c = 0;
+    if (len <= LZ4_MAX_INPUT_SIZE) {
+      const int cap = LZ4_compressBound(static_cast<int>(len));
+      c = LZ4_compress_default(reinterpret_cast<const char*>(src + done), reinterpret_cast<char*>(body),
+                               static_cast<int>(len), cap);
+    }
+    std::size_t stored = static_cast<std::size_t>(c);
+    if (c <= 0 || stored >= len) {  // no gain: store raw, as the plugin does
+      std::memcpy(body, src + done, len);
+      stored = len;
+    }
+    put_be32(dst + out, static_cast<std::uint32_t>(stored));
+    out += kBlockHeader + stored;
+    done += len;
+  }
+  return out;
+}
+
+// ---- decoder ---------------------------------------------------------------
+
+struct Layout {
+  std::uint64_t orig = 0;   // original (decoded) size from the header
+  std::uint64_t block = 0;  // block length, clamped to orig as the plugin does
+};
+
+// Reads the header and walks every block header without touching any output,
+// so nothing is allocated before the layout is known to be self-consistent.
+// Returns an empty string when p[0, n) is a well-formed layout, else what is wrong.
+// Every loop iteration consumes >= 4 input bytes, so the walk is O(n).
+std::string check_layout(const std::uint8_t* p, std::size_t n, Layout& l) {
+  if (n < kHeaderBytes)
+    return "LZ4 page truncated: " + std::to_string(n) + " bytes, the header alone needs " +
+           std::to_string(kHeaderBytes);
+  l.orig = get_be64(p);
+  const std::uint32_t bs = get_be32(p + 8);
+  if (l.orig > 0 && bs == 0) return "LZ4 header gives block size 0 for " + std::to_string(l.orig) + " bytes";
+  l.block = std::min<std::uint64_t>(bs, l.orig);
+  std::size_t pos = kHeaderBytes;
+  std::uint64_t done = 0;
+  for (std::uint64_t k = 0; done < l.orig; ++k) {
+    const std::uint64_t len = std::min(l.block, l.orig - done);
+    if (n - pos < kBlockHeader)
+      return "LZ4 page truncated: block " + std::to_string(k) + " header at byte " + std::to_string(pos) +
+             " is past the end (" + std::to_string(n) + " bytes); the header claims " + std::to_string(l.orig) +
+             " bytes";
+    const std::uint32_t c = get_be32(p + pos);
+    pos += kBlockHeader;
+    if (c > n - pos)
+      return "LZ4 block " + std::to_string(k) + " claims " + std::to_string(c) + " stored bytes, only " +
+             std::to_string(n - pos) + " remain";
+    if (c != len) {
+      // LZ4 cannot expand a byte into more than 255 bytes.
+      if (c == 0 || len > 256 * std::uint64_t{c} + 64 || len > INT_MAX || c > INT_MAX)
+        return "LZ4 block " + std::to_string(k) + " claims " + std::to_string(len) + " bytes from " +
+               std::to_string(c) + " stored bytes";
+    }
+    pos += c;
+    done += len;
+  }
+  if (pos != n) return std::to_string(n - pos) + " trailing bytes after the last LZ4 block";
+  return {};
+}
+
+// Decodes a layout check_layout accepted into dst (exactly l.orig bytes).
+std::string lz4_decode(const std::uint8_t* p, const Layout& l, std::uint8_t* dst) {
+  std::size_t pos = kHeaderBytes;
+  std::uint64_t done = 0;
+  for (std::uint64_t k = 0; done < l.orig; ++k) {
+    const std::uint64_t len = std::min(l.block, l.orig - done);
+    const std::uint32_t c = get_be32(p + pos);
+    pos += kBlockHeader;
+    if (c == len) {
+      std::memcpy(dst + done, p + pos, static_cast<std::size_t>(len));
+    } else {
+      const int r = LZ4_decompress_safe(reinterpret_cast<const char*>(p + pos), reinterpret_cast<char*>(dst + done),
+                                        static_cast<int>(c), static_cast<int>(len));
+      if (r < 0) return "LZ4 block " + std::to_string(k) + " is not valid LZ4 data";
+      if (static_cast<std::uint64_t>(r) != len)
+        return "LZ4 block " + std::to_string(k) + " decompresses to " + std::to_string(r) + " bytes, expected " +
+               std::to_string(len);
+    }
+    pos += c;
+    done += len;
+  }
+  return {};
+}
+
+// ---- the HDF5 filter callback ------------------------------------------------
+
+// Returns the new data size, or 0 on failure (HDF5 then fails the I/O).
+// Never throws: an exception must not cross the C library.
+size_t lz4_filter(unsigned int flags, size_t cd_nelmts, const unsigned int cd_values[], size_t nbytes,
+                  size_t* buf_size, void** buf) noexcept {
+  try {
+    const auto* in = static_cast<const std::uint8_t*>(*buf);
+    void* out = nullptr;
+    std::size_t out_size = 0;
+    if (flags & H5Z_FLAG_REVERSE) {
+      Layout l;
+      if (!check_layout(in, nbytes, l).empty() || l.orig == 0 || l.orig > SIZE_MAX) return 0;
+      out = H5allocate_memory(static_cast<std::size_t>(l.orig), false);
+      if (!out) return 0;
+      if (!lz4_decode(in, l, static_cast<std::uint8_t*>(out)).empty()) {
+        H5free_memory(out);
+        return 0;
+      }
+      out_size = static_cast<std::size_t>(l.orig);
+      *buf_size = out_size;
+    } else {
+      if (nbytes == 0 || nbytes > kMaxPage) return 0;
+      const std::uint32_t block = cd_nelmts > 0 && cd_values[0] > 0 ? cd_values[0] : kLz4DefaultBlockSize;
+      const std::uint64_t cap = encoded_bound(nbytes, block);
+      out = H5allocate_memory(static_cast<std::size_t>(cap), false);
+      if (!out) return 0;
+      out_size = lz4_encode(in, nbytes, block, static_cast<std::uint8_t*>(out));
+      *buf_size = static_cast<std::size_t>(cap);
+    }
+    H5free_memory(*buf);
+    *buf = out;
+    return out_size;
+  } catch (...) {
+    return 0;
+  }
+}
+
+const H5Z_class2_t kLz4Class = {
+    H5Z_CLASS_T_VERS,
+    static_cast<H5Z_filter_t>(kLz4FilterId),
+    1,  // encoder present
+    1,  // decoder present
+    "HDF5 lz4 filter (dicer in-process, H5Zlz4 layout)",
+    nullptr,  // can_apply
+    nullptr,  // set_local
+    lz4_filter,
+};
+
+}  // namespace
+
+void register_lz4_filter() {
+  static std::mutex mutex;
+  std::lock_guard<std::mutex> lock(mutex);
+  if (H5Zregister(&kLz4Class) < 0) throw Error(ErrorKind::Io, "HDF5: cannot register the LZ4 filter 32004");
+}
+
+void add_page_filters(hid_t dcpl) {
+  register_lz4_filter();
+  if (H5Pset_filter(dcpl, static_cast<H5Z_filter_t>(kLz4FilterId), H5Z_FLAG_MANDATORY, 0, nullptr) < 0)
+    throw Error(ErrorKind::Io, "HDF5: cannot add the LZ4 filter 32004 to a dataset creation property list");
+  if (H5Pset_fletcher32(dcpl) < 0)
+    throw Error(ErrorKind::Io, "HDF5: cannot add the Fletcher32 filter to a dataset creation property list");
+}
+
+std::uint32_t fletcher32(const std::uint8_t* data, std::size_t n) {
+  std::uint32_t sum1 = 0, sum2 = 0;
+  std::size_t words = n / 2;
+  while (words > 0) {
+    // 360 words keep both sums below 2^32 before the end-around-carry fold.
+    std::size_t run = std::min<std::size_t>(words, 360);
+    words -= run;
+    for (; run > 0; --run, data += 2) {
+      sum1 += (std::uint32_t{data[0]} << 8) | data[1];
+      sum2 += sum1;
+    }
+    sum1 = (sum1 & 0xffff) + (sum1 >> 16);
+    sum2 = (sum2 & 0xffff) + (sum2 >> 16);
+  }
+  if (n % 2) {
+    sum1 += std::uint32_t{data[0]} << 8;
+    sum2 += sum1;
+    sum1 = (sum1 & 0xffff) + (sum1 >> 16);
+    sum2 = (sum2 & 0xffff) + (sum2 >> 16);
+  }
+  sum1 = (sum1 & 0xffff) + (sum1 >> 16);
+  sum2 = (sum2 & 0xffff) + (sum2 >> 16);
+  return (sum2 << 16) | sum1;
+}
+
+std::vector<std::uint8_t> encode_page(std::span<const std::uint8_t> raw) {
+  if (raw.size() > kMaxPage)
+    throw Error(ErrorKind::Usage, "encode_page: a page of " + std::to_string(raw.size()) + " bytes is too large");
+  const std::uint64_t cap = encoded_bound(raw.size(), kLz4DefaultBlockSize);
+  std::vector<std::uint8_t> out(static_cast<std::size_t>(cap) + kChecksumBytes);
+  const std::size_t n = lz4_encode(raw.data(), raw.size(), kLz4DefaultBlockSize, out.data());
+  put_checksum(out.data() + n, fletcher32(out.data(), n));
+  out.resize(n + kChecksumBytes);
+  return out;
+}
+
+void decode_page(std::span<const std::uint8_t> stored, std::vector<std::uint8_t>& out, std::size_t expected_size,
+                 const std::string& what) {
+  out.clear();
+  const auto fail = [&](const std::string& msg) { throw Error(ErrorKind::Corrupt, what + ": " + msg); };
+  if (stored.size() < kChecksumBytes + kHeaderBytes)
+    fail("page truncated: " + std::to_string(stored.size()) + " stored bytes, at least " +
+         std::to_string(kChecksumBytes + kHeaderBytes) + " needed");
+  const std::size_t n = stored.size() - kChecksumBytes;
+  const std::uint32_t want = get_checksum(stored.data() + n), got = fletcher32(stored.data(), n);
+  if (want != got) fail("page checksum mismatch (stored " + hex32(want) + ", computed " + hex32(got) + ")");
+  if (get_be64(stored.data()) != expected_size)
+    fail("LZ4 header claims " + std::to_string(get_be64(stored.data())) + " bytes, the page holds " +
+         std::to_string(expected_size));
+  Layout l;
+  if (std::string err = check_layout(stored.data(), n, l); !err.empty()) fail(err);
+  out.resize(expected_size);
+  if (std::string err = lz4_decode(stored.data(), l, out.data()); !err.empty()) {
+    out.clear();
+    fail(err);
+  }
+}
+
+}  // namespace dicer::store

@@ -1,0 +1,475 @@
+// PageCache (include/dicer/cache.hpp): slots, CLOCK eviction, one-load-per-
+// page waiting, sequential read-ahead.
+//
+// Why CLOCK. A hit must be cheap under the one mutex every reader shares.
+// LRU would splice the page to the front of a list on every hit (pointer
+// writes on shared cache lines, and a sharded LRU to make it scale); CLOCK
+// sets one bit. Eviction walks a hand over a slot table: amortised O(1),
+// O(slots) only when almost everything is pinned or referenced. LRU and
+// CLOCK both flush a working set under a sweep larger than the budget, so
+// scan resistance is done separately: a pin that continues a sequential
+// stream (page p right after p-1) does not set the reference bit, so sweep
+// pages are evicted on the first pass of the hand while the random-access
+// working set keeps its second chance. (2Q/ARC would also resist scans but
+// need ghost lists and allocation per miss; the sequential detector is
+// needed for read-ahead anyway.)
+//
+// Victim order for a pin() (demand) admission:
+//   1. CLOCK over slots that are resident, unpinned and not "prefetched"
+//      (brought in by read-ahead and not pinned yet): referenced -> clear
+//      the bit and move on; unreferenced -> evict. At most two turns.
+//   2. Last resort: an unpinned prefetched page (it would have to be read
+//      again, but that beats failing).
+//   3. Nothing evictable: Error{Usage, "cache budget ... too small"}.
+// Read-ahead admission evicts only unpinned, unreferenced, non-prefetched
+// pages, and checks that enough of them exist before evicting any; otherwise
+// the read-ahead is skipped (before the load when the array's largest page
+// so far does not fit, or after it, discarding the page, if this page turned
+// out larger). A read-ahead load that a pin() is waiting on is admitted as a
+// demand load.
+//
+// Lazy eviction (STYLE.md #5): releasing a handle only decrements the pin
+// count under the lock; a page leaves only when the hand reaches it with no
+// pins. Slots live in a deque (stable addresses) so a Handle can point at
+// its slot; a slot is reused only after it was evicted or its failed load
+// was abandoned by every waiter.
+#include "dicer/cache.hpp"
+
+#include <algorithm>
+#include <cassert>
+#include <condition_variable>
+#include <deque>
+#include <exception>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <unordered_map>
+#include <utility>
+
+#include "dicer/error.hpp"
+
+namespace dicer {
+
+namespace {
+
+enum class State : std::uint8_t { Free, Loading, Ready, Failed };
+enum class Policy : std::uint8_t { Demand, ReadAhead };
+
+struct ArrayInfo {
+  std::uint64_t pages = 0;           // pages of the array (set_array_pages)
+  std::uint64_t last_pin = 0;        // page of the last pin() on this array
+  bool has_last = false;             // last_pin is meaningful
+  std::uint64_t ra_next = 0;         // first page the current read-ahead window has not scheduled yet
+  std::uint64_t max_page_bytes = 0;  // largest decoded page admitted so far (read-ahead's size estimate)
+};
+
+// Fixed-capacity FIFO of keys to read ahead: scheduling never allocates
+// (it can happen on the hit path); when full, new requests are dropped.
+class KeyRing {
+ public:
+  explicit KeyRing(std::size_t capacity) : keys_(capacity) {}
+  bool empty() const { return count_ == 0; }
+  bool full() const { return count_ == keys_.size(); }
+  void push(PageKey k) {
+    keys_[(head_ + count_) % keys_.size()] = k;
+    ++count_;
+  }
+  PageKey pop() {
+    PageKey k = keys_[head_];
+    head_ = (head_ + 1) % keys_.size();
+    --count_;
+    return k;
+  }
+  void clear() { head_ = count_ = 0; }
+
+ private:
+  std::vector<PageKey> keys_;
+  std::size_t head_ = 0, count_ = 0;
+};
+
+std::string key_text(PageKey k) {
+  return "(array " + std::to_string(k.array) + ", page " + std::to_string(k.page) + ")";
+}
+
+}  // namespace
+
+struct PageCache::Entry {
+  PageKey key{};
+  std::vector<std::uint8_t> data;  // decoded bytes; fixed while pins > 0
+  std::exception_ptr error;        // State::Failed: what waiters rethrow
+  std::uint32_t pins = 0;          // handles + threads waiting for the load + the loading pin() itself
+  State state = State::Free;
+  bool referenced = false;  // CLOCK second-chance bit
+  bool prefetched = false;  // loaded by read-ahead and not pinned since
+};
+
+struct PageCache::Impl {
+  Impl(Loader l, Options o) : loader(std::move(l)), opt(o), queue(std::max<std::size_t>(64, 4 * std::size_t{o.read_ahead_pages})) {}
+
+  Loader loader;
+  Options opt;
+
+  mutable std::mutex mu;
+  std::condition_variable load_done;  // some Loading entry left that state
+  std::condition_variable work;       // worker: queue not empty or stop
+
+  std::unordered_map<PageKey, Entry*, PageKeyHash> map;  // Loading and Ready entries
+  std::deque<Entry> slots;                               // stable addresses; index order = clock order
+  std::vector<Entry*> free_slots;
+  std::size_t hand = 0;
+  std::unordered_map<std::uint32_t, ArrayInfo> arrays;
+  KeyRing queue;
+  CacheStats st;
+  bool stop = false;
+  std::thread worker;
+
+  ArrayInfo* array_info(std::uint32_t a) {
+    auto it = arrays.find(a);
+    return it == arrays.end() ? nullptr : &it->second;
+  }
+
+  Entry* new_entry(PageKey key) {
+    Entry* e;
+    if (!free_slots.empty()) {
+      e = free_slots.back();
+      free_slots.pop_back();
+    } else {
+      e = &slots.emplace_back();
+    }
+    e->key = key;
+    e->state = State::Loading;
+    e->pins = 0;
+    e->referenced = false;
+    e->prefetched = false;
+    e->error = nullptr;
+    map.emplace(key, e);
+    return e;
+  }
+
+  void free_entry(Entry* e) {
+    assert(e->pins == 0);
+    std::vector<std::uint8_t>().swap(e->data);
+    e->error = nullptr;
+    e->state = State::Free;
+    free_slots.push_back(e);
+  }
+
+  void evict(Entry* e) {
+    assert(e->state == State::Ready && e->pins == 0);
+    st.resident_bytes -= e->data.size();
+    ++st.evictions;
+    map.erase(e->key);
+    free_entry(e);
+  }
+
+  // The load of e failed (or could not be admitted): waiters get err.
+  void fail(Entry* e, std::exception_ptr err) {
+    e->state = State::Failed;
+    e->error = std::move(err);
+    map.erase(e->key);
+    load_done.notify_all();
+    if (e->pins == 0) free_entry(e);
+  }
+
+  void release_pin(Entry* e) {
+    assert(e->pins > 0);
+    if (--e->pins == 0 && e->state == State::Failed) free_entry(e);
+  }
+
+  bool demand_evictable(const Entry& e) const { return e.state == State::Ready && e.pins == 0; }
+  bool readahead_evictable(const Entry& e) const {
+    return e.state == State::Ready && e.pins == 0 && !e.prefetched && !e.referenced;
+  }
+
+  Entry* advance() {
+    Entry* e = &slots[hand];
+    if (++hand == slots.size()) hand = 0;
+    return e;
+  }
+
+  Entry* demand_victim() {
+    const std::size_t n = slots.size();
+    for (std::size_t step = 0; step < 2 * n; ++step) {
+      Entry* e = advance();
+      if (!demand_evictable(*e) || e->prefetched) continue;
+      if (e->referenced) {
+        e->referenced = false;
+        continue;
+      }
+      return e;
+    }
+    for (std::size_t step = 0; step < n; ++step) {
+      Entry* e = advance();
+      if (demand_evictable(*e)) return e;
+    }
+    return nullptr;
+  }
+
+  Entry* readahead_victim() {
+    for (std::size_t step = 0, n = slots.size(); step < n; ++step) {
+      Entry* e = advance();
+      if (readahead_evictable(*e)) return e;
+    }
+    return nullptr;
+  }
+
+  // Can `bytes` be admitted by read-ahead's rules? O(slots) in the worst case.
+  bool readahead_room(std::uint64_t bytes) const {
+    if (bytes > opt.budget_bytes) return false;
+    std::uint64_t room = opt.budget_bytes - st.resident_bytes;
+    for (auto it = slots.begin(); room < bytes && it != slots.end(); ++it)
+      if (readahead_evictable(*it)) room += it->data.size();
+    return room >= bytes;
+  }
+
+  // Makes room for buf under `policy` and publishes it in e. False: nothing
+  // was admitted (for read-ahead, nothing was evicted either).
+  bool admit(Entry* e, std::vector<std::uint8_t>&& buf, Policy policy) {
+    const std::uint64_t size = buf.size();
+    if (size > opt.budget_bytes) return false;
+    if (policy == Policy::ReadAhead && !readahead_room(size)) return false;
+    while (st.resident_bytes + size > opt.budget_bytes) {
+      Entry* victim = policy == Policy::Demand ? demand_victim() : readahead_victim();
+      if (victim == nullptr) return false;
+      evict(victim);
+    }
+    e->data = std::move(buf);
+    e->state = State::Ready;
+    st.resident_bytes += size;
+    if (st.resident_bytes > st.peak_resident_bytes) st.peak_resident_bytes = st.resident_bytes;
+    if (ArrayInfo* ai = array_info(e->key.array); ai && size > ai->max_page_bytes) ai->max_page_bytes = size;
+    load_done.notify_all();
+    return true;
+  }
+
+  std::exception_ptr budget_error(PageKey key, std::uint64_t size) const {
+    std::string msg = "page cache: cache budget " + std::to_string(opt.budget_bytes) + " bytes too small: ";
+    if (size > opt.budget_bytes) {
+      msg += "page " + key_text(key) + " alone decodes to " + std::to_string(size) + " bytes";
+    } else {
+      std::uint64_t pinned = 0, pinned_bytes = 0;
+      for (const Entry& s : slots)
+        if (s.state == State::Ready && s.pins > 0) ++pinned, pinned_bytes += s.data.size();
+      msg += std::to_string(pinned) + " pages pinned (" + std::to_string(pinned_bytes) + " of " +
+             std::to_string(st.resident_bytes) + " resident bytes) and page " + key_text(key) + " needs " +
+             std::to_string(size) + " more; release handles or raise the budget";
+    }
+    return std::make_exception_ptr(Error(ErrorKind::Usage, msg));
+  }
+
+  // pin() of page p continues a sequential stream: queue the pages after p
+  // that the current window has not scheduled yet.
+  void schedule(ArrayInfo& ai, PageKey key) {
+    const std::uint64_t r = opt.read_ahead_pages;
+    if (r == 0 || key.page + 1 >= ai.pages) return;
+    const std::uint64_t last = (ai.pages - 1 - key.page > r) ? key.page + r : ai.pages - 1;
+    std::uint64_t first = key.page + 1;
+    if (ai.ra_next > first && ai.ra_next <= last + 1) first = ai.ra_next;
+    bool pushed = false;
+    for (std::uint64_t q = first; q <= last && !queue.full(); ++q) {
+      const PageKey k{key.array, q};
+      if (map.find(k) == map.end()) queue.push(k), pushed = true;
+    }
+    ai.ra_next = last + 1;
+    if (pushed && worker.joinable()) work.notify_one();
+  }
+
+  // Reads one queued page ahead. Called with `lock` held; drops it around
+  // the loader call. Never throws (a failed read-ahead only informs waiters).
+  void prefetch_one(std::unique_lock<std::mutex>& lock, PageKey key) noexcept {
+    try {
+      ArrayInfo* ai = array_info(key.array);
+      if (ai == nullptr || key.page >= ai->pages) return;
+      if (ai->has_last && key.page <= ai->last_pin) return;  // the stream is already past it
+      if (map.find(key) != map.end()) return;
+      if (!readahead_room(ai->max_page_bytes)) return;  // cache full of pages not to evict: skip
+      Entry* e = new_entry(key);
+      e->prefetched = true;
+      lock.unlock();
+      std::vector<std::uint8_t> buf;
+      std::uint64_t nread = 0;
+      std::exception_ptr err;
+      try {
+        nread = loader(key, buf);
+      } catch (...) {
+        err = std::current_exception();
+      }
+      lock.lock();
+      if (err) return fail(e, err);
+      ++st.pages_read;
+      st.bytes_read += nread;
+      st.bytes_decompressed += buf.size();
+      const std::uint64_t size = buf.size();
+      // A pin() waiting on this load turns it into a demand load.
+      if (!admit(e, std::move(buf), e->pins > 0 ? Policy::Demand : Policy::ReadAhead))
+        fail(e, e->pins > 0 ? budget_error(key, size) : nullptr);
+    } catch (...) {
+      // Only bad_alloc can get here (bookkeeping); read-ahead is optional.
+      if (!lock.owns_lock()) lock.lock();
+    }
+  }
+
+  // Synchronous read-ahead (no worker): the pinning thread does the queue.
+  void drain(std::unique_lock<std::mutex>& lock) noexcept {
+    while (!queue.empty()) prefetch_one(lock, queue.pop());
+  }
+
+  void worker_loop() {
+    std::unique_lock lock(mu);
+    for (;;) {
+      work.wait(lock, [&] { return stop || !queue.empty(); });
+      if (stop) return;
+      prefetch_one(lock, queue.pop());
+    }
+  }
+};
+
+PageCache::PageCache(Loader loader, Options options) : budget_(options.budget_bytes) {
+  if (!loader) throw Error(ErrorKind::Usage, "page cache: no loader given");
+  if (options.budget_bytes == 0) throw Error(ErrorKind::Usage, "page cache: cache budget 0 bytes too small");
+  impl_ = std::make_unique<Impl>(std::move(loader), options);
+  impl_->map.reserve(1024);
+  if (options.background_read_ahead && options.read_ahead_pages > 0)
+    impl_->worker = std::thread([m = impl_.get()] { m->worker_loop(); });
+}
+
+PageCache::~PageCache() {
+  {
+    std::lock_guard lock(impl_->mu);
+    impl_->stop = true;
+    impl_->queue.clear();
+  }
+  impl_->work.notify_all();
+  if (impl_->worker.joinable()) impl_->worker.join();
+#ifndef NDEBUG
+  for (const Entry& e : impl_->slots) assert(e.pins == 0 && "a PageCache::Handle outlived its cache");
+#endif
+}
+
+PageCache::Handle PageCache::pin(PageKey key) {
+  Impl& m = *impl_;
+  std::unique_lock lock(m.mu);
+  ArrayInfo* ai = m.array_info(key.array);
+  if (ai != nullptr && key.page >= ai->pages)
+    throw Error(ErrorKind::Usage, "page cache: page " + key_text(key) + " is beyond the end of the array (" +
+                                      std::to_string(ai->pages) + " pages)");
+  bool sequential = false;
+  if (ai != nullptr) {
+    sequential = ai->has_last && ai->last_pin + 1 == key.page;
+    ai->has_last = true;
+    ai->last_pin = key.page;
+  }
+  const bool sync_read_ahead = !m.worker.joinable();
+
+  if (auto it = m.map.find(key); it != m.map.end()) {  // hit, or the load is in flight
+    Entry* e = it->second;
+    ++m.st.hits;
+    ++e->pins;
+    if (!sequential) e->referenced = true;
+    const bool extends_window = sequential && e->prefetched;
+    e->prefetched = false;
+    if (extends_window) m.schedule(*ai, key);
+    if (e->state == State::Loading) {
+      m.load_done.wait(lock, [e] { return e->state != State::Loading; });
+      if (e->state == State::Failed) {
+        std::exception_ptr err = e->error;
+        m.release_pin(e);
+        std::rethrow_exception(err);
+      }
+    }
+    if (sync_read_ahead) m.drain(lock);
+    return Handle(this, e, e->data.data(), e->data.size(), key);
+  }
+
+  // Miss: this thread loads the page; others pinning it meanwhile wait.
+  ++m.st.misses;
+  Entry* e = m.new_entry(key);
+  e->pins = 1;
+  e->referenced = !sequential;
+  if (sequential) m.schedule(*ai, key);
+  lock.unlock();
+  std::vector<std::uint8_t> buf;
+  std::uint64_t nread = 0;
+  try {
+    nread = m.loader(key, buf);
+  } catch (...) {
+    lock.lock();
+    m.fail(e, std::current_exception());
+    m.release_pin(e);
+    throw;
+  }
+  lock.lock();
+  ++m.st.pages_read;
+  m.st.bytes_read += nread;
+  m.st.bytes_decompressed += buf.size();
+  const std::uint64_t size = buf.size();
+  if (!m.admit(e, std::move(buf), Policy::Demand)) {
+    std::exception_ptr err = m.budget_error(key, size);
+    m.fail(e, err);
+    m.release_pin(e);
+    std::rethrow_exception(err);
+  }
+  if (sync_read_ahead) m.drain(lock);
+  return Handle(this, e, e->data.data(), e->data.size(), key);
+}
+
+void PageCache::set_array_pages(std::uint32_t array, std::uint64_t pages) {
+  std::lock_guard lock(impl_->mu);
+  ArrayInfo& ai = impl_->arrays[array];
+  ai.pages = pages;
+  ai.ra_next = 0;
+}
+
+CacheStats PageCache::stats() const {
+  std::lock_guard lock(impl_->mu);
+  return impl_->st;
+}
+
+void PageCache::reset_stats() {
+  std::lock_guard lock(impl_->mu);
+  const std::uint64_t resident = impl_->st.resident_bytes;
+  impl_->st = CacheStats{};
+  impl_->st.resident_bytes = resident;
+  impl_->st.peak_resident_bytes = resident;
+}
+
+std::uint64_t PageCache::pinned_pages() const {
+  std::lock_guard lock(impl_->mu);
+  std::uint64_t n = 0;
+  for (const Entry& e : impl_->slots) n += (e.state == State::Ready && e.pins > 0) ? 1 : 0;
+  return n;
+}
+
+void PageCache::unpin(Entry* e) noexcept {
+  std::lock_guard lock(impl_->mu);
+  impl_->release_pin(e);  // lazy: the page stays until the clock hand needs its room
+}
+
+PageCache::Handle::Handle(Handle&& other) noexcept
+    : cache_(std::exchange(other.cache_, nullptr)),
+      entry_(std::exchange(other.entry_, nullptr)),
+      data_(std::exchange(other.data_, nullptr)),
+      size_(std::exchange(other.size_, 0)),
+      key_(other.key_) {}
+
+PageCache::Handle& PageCache::Handle::operator=(Handle&& other) noexcept {
+  if (this != &other) {
+    reset();
+    cache_ = std::exchange(other.cache_, nullptr);
+    entry_ = std::exchange(other.entry_, nullptr);
+    data_ = std::exchange(other.data_, nullptr);
+    size_ = std::exchange(other.size_, 0);
+    key_ = other.key_;
+  }
+  return *this;
+}
+
+void PageCache::Handle::reset() noexcept {
+  if (entry_ == nullptr) return;
+  cache_->unpin(std::exchange(entry_, nullptr));
+  cache_ = nullptr;
+  data_ = nullptr;
+  size_ = 0;
+}
+
+}  // namespace dicer
