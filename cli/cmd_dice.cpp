@@ -48,7 +48,7 @@ int cmd_dice(const std::vector<std::string>& argv) {
   const std::string in = args.need_positional(0, "MESH");
   auto out = args.value("-o");
   if (!out) out = args.value("--output");
-  if (!out) throw Error(ErrorKind::Usage, "dicer dice: missing -o STORE (the output file)");
+  if (!out) throw Error(ErrorKind::Usage, "missing -o STORE (the output file)");
   const IntervalRequest req = interval_request(args);
   CoarseMesh mesh = read_coarse_mesh(in);
   for (const auto& w : mesh.warnings) std::fprintf(stderr, "dicer dice: warning: %s: %s\n", in.c_str(), w.c_str());

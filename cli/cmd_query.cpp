@@ -34,7 +34,7 @@ int cmd_query(const std::vector<std::string>& argv) {
   const std::string path = args.need_positional(0, "STORE");
   int chosen = args.has("--node") + args.has("--nodes") + args.has("--element") + args.has("--elements");
   if (chosen != 1)
-    throw Error(ErrorKind::Usage, "dicer query: give exactly one of --node, --nodes, --element, --elements");
+    throw Error(ErrorKind::Usage, "give exactly one of --node, --nodes, --element, --elements");
   const FineMesh m = read_store(path, store_options(args));
   const bool json = args.has("--json");
   auto ll = [](Id v) { return static_cast<long long>(v); };
@@ -42,7 +42,7 @@ int cmd_query(const std::vector<std::string>& argv) {
     const auto [a, b] = args.has("--node") ? parse_range("--node", *args.value("--node"))
                                            : parse_range("--nodes", *args.value("--nodes"));
     if (a < 0 || b > m.num_nodes())
-      throw Error(ErrorKind::Usage, "dicer query: node ids " + std::to_string(a) + ".." + std::to_string(b - 1) +
+      throw Error(ErrorKind::Usage, "node ids " + std::to_string(a) + ".." + std::to_string(b - 1) +
                                         " out of range (the mesh has " + std::to_string(m.num_nodes()) + " nodes, ids 0.." +
                                         std::to_string(m.num_nodes() - 1) + ")");
     NodeCursor cur(m, a, b);
@@ -61,7 +61,7 @@ int cmd_query(const std::vector<std::string>& argv) {
   const auto [a, b] = args.has("--element") ? parse_range("--element", *args.value("--element"))
                                             : parse_range("--elements", *args.value("--elements"));
   if (a < 0 || b > m.num_elements())
-    throw Error(ErrorKind::Usage, "dicer query: element ids " + std::to_string(a) + ".." + std::to_string(b - 1) +
+    throw Error(ErrorKind::Usage, "element ids " + std::to_string(a) + ".." + std::to_string(b - 1) +
                                       " out of range (the mesh has " + std::to_string(m.num_elements()) +
                                       " elements, ids 0.." + std::to_string(m.num_elements() - 1) + ")");
   ElementCursor cur(m, a, b);

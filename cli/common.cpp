@@ -28,14 +28,14 @@ Args::Args(std::string command, std::vector<std::string> argv, std::vector<std::
       if (known(value_flags, name)) {
         if (!has_val) {
           if (i + 1 >= argv.size())
-            throw Error(ErrorKind::Usage, "dicer " + command_ + ": " + name + " needs a value");
+            throw Error(ErrorKind::Usage, name + " needs a value");
           val = argv[++i];
         }
         values_[name].push_back(val);
       } else if (known(bool_flags, name) && !has_val) {
         values_[name].push_back("");
       } else {
-        throw Error(ErrorKind::Usage, "dicer " + command_ + ": unknown option " + name + " (see dicer " + command_ +
+        throw Error(ErrorKind::Usage, "unknown option " + name + " (see dicer " + command_ +
                                           " --help)");
       }
     } else {
@@ -43,7 +43,7 @@ Args::Args(std::string command, std::vector<std::string> argv, std::vector<std::
     }
   }
   if (static_cast<int>(positional_.size()) > max_positional)
-    throw Error(ErrorKind::Usage, "dicer " + command_ + ": unexpected argument \"" + positional_[max_positional] +
+    throw Error(ErrorKind::Usage, "unexpected argument \"" + positional_[max_positional] +
                                       "\" (see dicer " + command_ + " --help)");
 }
 
@@ -58,7 +58,7 @@ std::vector<std::string> Args::values(const std::string& flag) const {
 }
 std::string Args::need_positional(size_t i, const std::string& what) const {
   if (i >= positional_.size())
-    throw Error(ErrorKind::Usage, "dicer " + command_ + ": missing " + what + " (see dicer " + command_ + " --help)");
+    throw Error(ErrorKind::Usage, "missing " + what + " (see dicer " + command_ + " --help)");
   return positional_[i];
 }
 std::int64_t Args::int_value(const std::string& flag, std::int64_t fallback) const {

@@ -82,5 +82,6 @@ int cmd_dice(const std::vector<std::string>& argv);
 int cmd_info(const std::vector<std::string>& argv);
 int cmd_query(const std::vector<std::string>& argv);
 int cmd_verify(const std::vector<std::string>& argv);
+int cmd_footprint(const std::vector<std::string>& argv);
 
 }  // namespace dicer::cli

@@ -24,6 +24,7 @@ Commands (in the order you use them):
   query   STORE    fine nodes and elements by id (--node, --nodes, --element, --elements)
   verify  STORE    stream through every fine element and check conformity,
                    counts, coincident nodes and element quality
+  footprint STORE  bytes on disk and in memory vs an explicit mesh
 
 MESH is an Exodus II file (.e .exo .ex2 .g) or a Gmsh MSH 2.2/4.1 file
 (ASCII or binary) holding hexahedra (volume dicing) or quadrilaterals
@@ -57,10 +58,11 @@ int main(int argc, char** argv) {
     return 0;
   }
   const std::map<std::string, Command> commands = {
-      {"sheets", cmd_sheets}, {"dice", cmd_dice}, {"info", cmd_info}, {"query", cmd_query}, {"verify", cmd_verify}};
+      {"sheets", cmd_sheets}, {"dice", cmd_dice}, {"info", cmd_info}, {"query", cmd_query}, {"verify", cmd_verify},
+      {"footprint", cmd_footprint}};
   auto it = commands.find(args[0]);
   if (it == commands.end()) {
-    std::fprintf(stderr, "dicer: unknown command \"%s\" (commands: sheets, dice, info, query, verify; see dicer --help)\n",
+    std::fprintf(stderr, "dicer: unknown command \"%s\" (commands: sheets, dice, info, query, verify, footprint; see dicer --help)\n",
                  args[0].c_str());
     return 2;
   }

@@ -39,7 +39,8 @@ hid_t h5_type() {
 template <class T>
 void write_paged(const h5::File& f, const std::string& name, const T* data, std::int64_t rows, std::int64_t width) {
   const int rank = 2;
-  const std::int64_t rpp = rows_per_page(width, sizeof(T));
+  // Small datasets get one page of their own size, not a padded 64 KiB one.
+  const std::int64_t rpp = std::min(rows_per_page(width, sizeof(T)), std::max<std::int64_t>(rows, 1));
   hsize_t dims[2] = {static_cast<hsize_t>(rows), static_cast<hsize_t>(width)};
   hsize_t maxdims[2] = {H5S_UNLIMITED, static_cast<hsize_t>(width)};
   hsize_t chunk[2] = {static_cast<hsize_t>(rpp), static_cast<hsize_t>(width)};

@@ -1,0 +1,228 @@
+// The store out of core: counter-driven checks of the page cache behind a
+// real store, concurrent readers, damaged pages and interrupted writers.
+#include <gtest/gtest.h>
+#include <hdf5.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <bit>
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <thread>
+
+#include <nlohmann/json.hpp>
+
+#include "dicer/error.hpp"
+#include "dicer/store.hpp"
+#include "test_support.hpp"
+
+using namespace dicer;
+
+namespace {
+
+struct Diced {
+  FineMesh mem;
+  std::string path;
+};
+
+// A real mesh diced in memory and written to a store in tmp.
+Diced dice_to_store(const test::TempDir& tmp, const char* file, Id interval) {
+  IntervalRequest r;
+  r.global = interval;
+  Diced d{FineMesh::dice(read_coarse_mesh(test::data_path(file)), r), tmp.path("m.dice.h5")};
+  write_store(d.mem, d.path);
+  return d;
+}
+
+std::uint64_t total_pages(const FineMesh& m) {
+  auto pages = [](const auto& t) { return static_cast<std::uint64_t>((t.rows() + t.rows_per_page() - 1) / t.rows_per_page()); };
+  const MeshTables& t = m.tables();
+  return pages(t.vertices) + pages(t.edges) + pages(t.faces) + pages(t.elements);
+}
+
+void sweep(const FineMesh& m, std::uint64_t& checksum) {
+  FineBlock b;
+  for (Id h = 0; h < m.num_coarse_elements(); ++h) {
+    m.fill_block(h, b);
+    for (Id g = 0; g < b.num_points(); ++g)
+      checksum += std::bit_cast<std::uint64_t>(b.x[g]) ^ (std::bit_cast<std::uint64_t>(b.y[g]) * 3) ^
+                  (std::bit_cast<std::uint64_t>(b.z[g]) * 7) ^ static_cast<std::uint64_t>(b.node_id[g]);
+    for (Id c : b.conn) checksum += static_cast<std::uint64_t>(c) * 11;
+  }
+}
+
+}  // namespace
+
+TEST(StorePaged, FullSweepReadsEveryPageOnceAndASecondSweepReadsNothing) {
+  test::TempDir tmp;
+  const Diced d = dice_to_store(tmp, "vtkdata_disk_out_ref.ex2", 2);
+  const FineMesh s = read_store(d.path, StoreOptions{64ull << 20, 4});
+  auto cache = store_cache(s);
+  ASSERT_TRUE(cache);
+  cache->reset_stats();
+  std::uint64_t a = 0, b = 0, c = 0;
+  sweep(s, a);
+  const CacheStats first = cache->stats();
+  EXPECT_EQ(first.pages_read, total_pages(s)) << "every page of the four tables exactly once";
+  EXPECT_EQ(first.evictions, 0u);
+  sweep(s, b);
+  const CacheStats second = cache->stats();
+  EXPECT_EQ(second.pages_read, first.pages_read) << "a second sweep with a large budget reads nothing";
+  EXPECT_EQ(second.misses, first.misses);
+  EXPECT_GT(second.hits, first.hits);
+  sweep(d.mem, c);
+  EXPECT_EQ(a, c) << "the store sweep equals the in-memory sweep bit for bit";
+  EXPECT_EQ(b, c);
+  EXPECT_LE(second.peak_resident_bytes, cache->budget());
+}
+
+TEST(StorePaged, ASmallBudgetIsNeverExceededAndGivesTheSameBits) {
+  test::TempDir tmp;
+  const Diced d = dice_to_store(tmp, "cardinal_cylinders.exo", 2);
+  const FineMesh s = read_store(d.path, StoreOptions{1ull << 20, 2});
+  auto cache = store_cache(s);
+  const std::uint64_t data_bytes = total_pages(s) * 65536;
+  ASSERT_GT(data_bytes, 2 * cache->budget()) << "the test needs a store larger than the budget";
+  std::uint64_t a = 0, c = 0;
+  sweep(s, a);
+  sweep(d.mem, c);
+  EXPECT_EQ(a, c);
+  // Random queries too.
+  std::mt19937_64 rng(3);
+  MeshCursor cur;
+  for (int q = 0; q < 300; ++q) {
+    const Id id = std::uniform_int_distribution<Id>(0, s.num_nodes() - 1)(rng);
+    ASSERT_EQ(s.node(id, cur), d.mem.node(id));
+    const Id e = std::uniform_int_distribution<Id>(0, s.num_elements() - 1)(rng);
+    ASSERT_EQ(s.element(e, cur).nodes, d.mem.element(e).nodes);
+  }
+  const CacheStats st = cache->stats();
+  EXPECT_LE(st.peak_resident_bytes, cache->budget());
+  EXPECT_GT(st.evictions, 0u) << "the budget forced evictions";
+}
+
+TEST(StorePaged, ConcurrentReadersShareOneCacheAndAgreeBitForBit) {
+  test::TempDir tmp;
+  const Diced d = dice_to_store(tmp, "vtkdata_mug.e", 3);
+  const FineMesh s = read_store(d.path, StoreOptions{2ull << 20, 4});
+  std::vector<std::thread> threads;
+  std::atomic<int> mismatches{0};
+  for (int t = 0; t < 4; ++t)
+    threads.emplace_back([&, t] {
+      std::mt19937_64 rng(100 + t);
+      MeshCursor cur;
+      FineBlock b;
+      for (int q = 0; q < 300; ++q) {
+        const Id id = std::uniform_int_distribution<Id>(0, s.num_nodes() - 1)(rng);
+        if (!(s.node(id, cur) == d.mem.node(id))) ++mismatches;
+        const Id h = std::uniform_int_distribution<Id>(0, s.num_coarse_elements() - 1)(rng);
+        s.fill_block(h, b);
+        for (Id g = 0; g < b.num_points(); g += 7)
+          if (!(Vec3{b.x[g], b.y[g], b.z[g]} == d.mem.node(b.node_id[g]))) ++mismatches;
+      }
+    });
+  for (auto& th : threads) th.join();
+  EXPECT_EQ(mismatches.load(), 0);
+  EXPECT_LE(store_cache(s)->stats().peak_resident_bytes, store_cache(s)->budget());
+}
+
+TEST(StorePaged, AFlippedByteInAPageIsACorruptErrorNamingDatasetAndPage) {
+  test::TempDir tmp;
+  const Diced d = dice_to_store(tmp, "cardinal_sphere.e", 2);
+  // Where is page 0 of topology/elements in the file?
+  haddr_t addr = 0;
+  hsize_t size = 0;
+  {
+    hid_t f = H5Fopen(d.path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    hid_t ds = H5Dopen2(f, "topology/elements", H5P_DEFAULT);
+    hsize_t offset[2] = {0, 0};
+    unsigned mask = 0;
+    ASSERT_GE(H5Dget_chunk_info_by_coord(ds, offset, &mask, &addr, &size), 0);
+    H5Dclose(ds);
+    H5Fclose(f);
+  }
+  ASSERT_GT(size, 16u);
+  std::string bytes = test::read_file(d.path);
+  bytes[addr + size / 2] ^= 0x20;
+  const std::string bad = tmp.path("bad.dice.h5");
+  test::write_file(bad, bytes);
+  const FineMesh s = read_store(bad);  // opening reads no element page
+  try {
+    s.element(0);
+    FAIL() << "a damaged page was read without error";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.kind(), ErrorKind::Corrupt);
+    EXPECT_NE(std::string(e.what()).find("dataset topology/elements page 0"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("checksum"), std::string::npos) << e.what();
+  }
+  // The CLI says the same in one line, exit code 8.
+  const auto r = test::run_cli({"query", bad, "--element", "0"});
+  EXPECT_EQ(r.exit_code, 8);
+  EXPECT_NE(r.err.find("topology/elements page 0"), std::string::npos) << r.err;
+}
+
+TEST(StorePaged, AKilledWriterNeverDamagesTheExistingStore) {
+  test::TempDir tmp;
+  const std::string out = tmp.path("part.dice.h5");
+  const std::string mesh = test::data_path("cardinal_cylinders.exo");
+  ASSERT_EQ(test::run_cli({"dice", mesh, "--interval", "2", "-o", out}).exit_code, 0);
+  const std::string before = test::read_file(out);
+  int killed_while_writing = 0;
+  for (int trial = 0; trial < 8; ++trial) {
+    const pid_t pid = ::fork();
+    ASSERT_GE(pid, 0);
+    if (pid == 0) {
+      ::freopen("/dev/null", "w", stdout);
+      ::freopen("/dev/null", "w", stderr);
+      const std::string exe = DICER_CLI;
+      ::execl(exe.c_str(), exe.c_str(), "dice", mesh.c_str(), "--interval", "7", "-o", out.c_str(), nullptr);
+      ::_exit(127);
+    }
+    // Even trials: kill as soon as the temporary file appears (mid-write).
+    // Odd trials: kill at a random moment, whatever the writer is doing.
+    const auto start = std::chrono::steady_clock::now();
+    const auto limit = trial % 2 == 0 ? std::chrono::milliseconds(10000) : std::chrono::milliseconds(20 * trial);
+    bool saw_tmp = false;
+    while (std::chrono::steady_clock::now() - start < limit && !(trial % 2 == 0 && saw_tmp)) {
+      for (const auto& e : std::filesystem::directory_iterator(tmp.dir()))
+        if (e.path().filename().string().find(".tmp-") != std::string::npos) saw_tmp = true;
+    }
+    ::kill(pid, SIGKILL);
+    int status = 0;
+    ::waitpid(pid, &status, 0);
+    if (WIFSIGNALED(status) && saw_tmp) ++killed_while_writing;
+    // Whatever moment it died at, the store under the final name is the old one or a complete new one.
+    const std::string now = test::read_file(out);
+    if (WIFSIGNALED(status)) {
+      EXPECT_EQ(now, before) << "trial " << trial;
+    }
+    EXPECT_EQ(test::run_cli({"verify", out, "--quiet"}).exit_code, 0) << "trial " << trial;
+  }
+  EXPECT_GT(killed_while_writing, 0) << "no trial caught the writer mid-write";
+}
+
+TEST(StorePaged, FootprintAndStatsOnTheCommandLine) {
+  test::TempDir tmp;
+  const std::string store = tmp.path("s.dice.h5");
+  ASSERT_EQ(test::run_cli({"dice", test::data_path("cardinal_sphere.e"), "--interval", "6", "-o", store}).exit_code, 0);
+  const auto r = test::run_cli({"footprint", store, "--json", "--exact"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  const long long nodes = j["fine_nodes"], elems = j["fine_elements"];
+  EXPECT_EQ(elems, 256LL * 216);
+  // Explicit raw size: float64 xyz per node + 8 int64 per hex, by definition.
+  EXPECT_EQ(j["explicit_raw_bytes"].get<long long>(), 24 * nodes + 64 * elems);
+  EXPECT_EQ(j["store_bytes"].get<long long>(), static_cast<long long>(std::filesystem::file_size(store)));
+  EXPECT_LT(j["explicit_lz4_bytes"].get<long long>(), j["explicit_raw_bytes"].get<long long>());
+  EXPECT_GT(j["ratio_raw"].get<double>(), 10.0);  // the point of the product, even at interval 6
+  EXPECT_EQ(j["lz4_sampled_fraction"].get<double>(), 1.0);
+  // --stats reports the cache counters; a tiny budget is refused clearly.
+  const auto q = test::run_cli({"query", store, "--nodes", "0:100", "--stats", "--cache-mb", "1"});
+  EXPECT_EQ(q.exit_code, 0) << q.err;
+  EXPECT_NE(q.err.find("pages read"), std::string::npos) << q.err;
+  EXPECT_NE(q.err.find("peak resident"), std::string::npos) << q.err;
+  EXPECT_EQ(test::run_cli({"info", store, "--cache-mb", "0"}).exit_code, 2);
+}
