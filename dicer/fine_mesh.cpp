@@ -322,7 +322,8 @@ FineMesh compile(std::shared_ptr<const CoarseMesh> cm, const Topology& t, const 
 FineMesh::FineMesh(MeshInfo info, MeshTables tables, std::shared_ptr<const CoarseMesh> coarse)
     : info_(std::move(info)), tables_(std::move(tables)), coarse_(std::move(coarse)) {}
 
-FineMesh FineMesh::dice(CoarseMesh coarse, const IntervalRequest& request, std::vector<std::string>* notes) {
+FineMesh FineMesh::dice(CoarseMesh coarse, const IntervalRequest& request, std::vector<std::string>* notes,
+                        bool locality_order) {
   // Sheets and intervals on the input numbering, so sheet ids are the input file's.
   const Topology t0 = build_topology(coarse);
   const Sheets s0 = find_sheets(coarse, t0);
@@ -330,7 +331,14 @@ FineMesh FineMesh::dice(CoarseMesh coarse, const IntervalRequest& request, std::
   if (notes) *notes = plan.notes;
   // Locality order, then the topology the fine mesh is numbered by.
   std::vector<Id> old_vertex;
-  auto ordered = std::make_shared<CoarseMesh>(sfc_order(coarse, &old_vertex));
+  std::shared_ptr<CoarseMesh> ordered;
+  if (locality_order) {
+    ordered = std::make_shared<CoarseMesh>(sfc_order(coarse, &old_vertex));
+  } else {
+    old_vertex.resize(static_cast<size_t>(coarse.num_vertices()));
+    for (Id v = 0; v < coarse.num_vertices(); ++v) old_vertex[v] = v;
+    ordered = std::make_shared<CoarseMesh>(std::move(coarse));
+  }
   const Topology t = build_topology(*ordered);
   std::vector<Id> edge_sheet(static_cast<size_t>(t.num_edges())), edge_n(static_cast<size_t>(t.num_edges()));
   for (Id e = 0; e < t.num_edges(); ++e) {

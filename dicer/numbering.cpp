@@ -74,8 +74,15 @@ namespace {
 // Last row whose column `col` is <= x (the entity owning offset x); rows
 // with no nodes share their successor's offset and are skipped by taking
 // the last such row.
-Id owner_row(const Table<std::int64_t>& t, int col, Id x, TableCursor& cur) {
+Id owner_row(const Table<std::int64_t>& t, int col, Id x, TableCursor& cur, const std::vector<std::int64_t>& index) {
   Id lo = 0, hi = t.rows();  // first row with value > x, in [lo, hi]
+  if (!index.empty()) {
+    // The last page whose first row is <= x holds the answer.
+    const Id p = static_cast<Id>(std::upper_bound(index.begin(), index.end(), x) - index.begin()) - 1;
+    if (p < 0) return -1;
+    lo = p * t.rows_per_page();
+    hi = std::min(t.rows(), lo + t.rows_per_page());
+  }
   while (lo < hi) {
     const Id mid = lo + (hi - lo) / 2;
     if (t.row(mid, cur)[col] <= x) lo = mid + 1;
@@ -95,18 +102,18 @@ NodeRef locate_node(const MeshTables& t, const std::array<Id, 4>& base, Id nodes
     r.entity = id;
   } else if (id < base[2]) {
     r.kind = EntityKind::Edge;
-    r.entity = owner_row(t.edges, kEdgeNodeOffset, id, cur.edges);
+    r.entity = owner_row(t.edges, kEdgeNodeOffset, id, cur.edges, t.edge_index);
     r.local[0] = id - t.edges.row(r.entity, cur.edges)[kEdgeNodeOffset] + 1;
   } else if (id < base[3]) {
     r.kind = EntityKind::Face;
-    r.entity = owner_row(t.faces, kFaceNodeOffset, id, cur.faces);
+    r.entity = owner_row(t.faces, kFaceNodeOffset, id, cur.faces, t.face_index);
     const std::int64_t* f = t.faces.row(r.entity, cur.faces);
     const Id l = id - f[kFaceNodeOffset], e0 = f[kFaceE];
     const Id w = t.edges.row(e0, cur.edges)[kEdgeN] - 1;
     r.local = {l % w + 1, l / w + 1, 0};
   } else {
     r.kind = EntityKind::Cell;
-    r.entity = owner_row(t.elements, L.cell_offset(), id, cur.elements);
+    r.entity = owner_row(t.elements, L.cell_offset(), id, cur.elements, t.cell_index);
     const std::int64_t* h = t.elements.row(r.entity, cur.elements);
     const Id l = id - h[L.cell_offset()];
     const Id a = h[L.n()] - 1, b = h[L.n() + 1] - 1;
@@ -138,7 +145,7 @@ Id node_id(const MeshTables& t, const std::array<Id, 4>& base, const NodeRef& r,
 
 Id locate_element(const MeshTables& t, Id id, std::array<Id, 3>& ijk, MeshCursor& cur) {
   const ElementLayout L = t.layout();
-  const Id h = owner_row(t.elements, L.elem_offset(), id, cur.elements);
+  const Id h = owner_row(t.elements, L.elem_offset(), id, cur.elements, t.elem_index);
   const std::int64_t* row = t.elements.row(h, cur.elements);
   const Id l = id - row[L.elem_offset()], n0 = row[L.n()], n1 = row[L.n() + 1];
   ijk = {l % n0, (l / n0) % n1, l / (n0 * n1)};

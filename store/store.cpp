@@ -207,6 +207,19 @@ void write_store(const FineMesh& mesh, const std::string& path) {
       write_paged(f, "topology/faces", t.faces.memory(), kFaceWidth);
       write_paged(f, "topology/elements", t.elements.memory(), t.layout().width());
       write_paged(f, "numbering/kind_base", std::vector<std::int64_t>(info.kind_base.begin(), info.kind_base.end()));
+      // Page indexes: the searched offset of the first row of every page.
+      auto index = [&](const Table<std::int64_t>& tab, int col, const char* name) {
+        const std::int64_t rpp = std::min(rows_per_page(tab.width(), 8), std::max<std::int64_t>(tab.rows(), 1));
+        std::vector<std::int64_t> first;
+        TableCursor cur;
+        for (std::int64_t r = 0; r < tab.rows(); r += rpp) first.push_back(tab.row(r, cur)[col]);
+        write_paged(f, name, first);
+      };
+      const ElementLayout L = t.layout();
+      index(t.edges, kEdgeNodeOffset, "numbering/edge_page_first");
+      index(t.faces, kFaceNodeOffset, "numbering/face_page_first");
+      index(t.elements, L.elem_offset(), "numbering/element_page_first");
+      index(t.elements, L.cell_offset(), "numbering/cell_page_first");
       write_paged(f, "sheets/sheet_interval", mesh.sheet_intervals());
       std::vector<std::int64_t> block_id;
       std::vector<std::string> block_name;
@@ -296,6 +309,17 @@ FineMesh read_store(const std::string& path, const StoreOptions& options) {
   // so they are checked like every other page.
   lock.unlock();  // the loader takes the HDF5 lock itself
   const auto base = read_small<std::int64_t>(*s, cache, "numbering/kind_base", 4);
+  auto index = [&](const Table<std::int64_t>& tab, const char* name) {
+    const std::int64_t pages = (tab.rows() + tab.rows_per_page() - 1) / tab.rows_per_page();
+    auto v = read_small<std::int64_t>(*s, cache, name, pages);
+    for (size_t i = 1; i < v.size(); ++i)
+      if (v[i] < v[i - 1]) throw Error(ErrorKind::Corrupt, path + ": " + name + " is not increasing");
+    return v;
+  };
+  tab.edge_index = index(tab.edges, "numbering/edge_page_first");
+  tab.face_index = index(tab.faces, "numbering/face_page_first");
+  tab.elem_index = index(tab.elements, "numbering/element_page_first");
+  tab.cell_index = index(tab.elements, "numbering/cell_page_first");
   for (int k = 0; k < 4; ++k) info.kind_base[k] = base[k];
   if (info.kind_base[0] != 0 || info.kind_base[1] != info.coarse_vertices || info.kind_base[1] > info.kind_base[2] ||
       info.kind_base[2] > info.kind_base[3] || info.kind_base[3] > info.nodes)

@@ -82,7 +82,9 @@ class FineMesh {
   // memory. Coarse elements are first put in space-filling-curve order of
   // their centroids (locality of pages); sheet ids stay those of the input
   // file. `notes` receives how interval conflicts were resolved.
-  static FineMesh dice(CoarseMesh coarse, const IntervalRequest& request, std::vector<std::string>* notes = nullptr);
+  // `locality_order` = false keeps the input order (benchmarks compare).
+  static FineMesh dice(CoarseMesh coarse, const IntervalRequest& request, std::vector<std::string>* notes = nullptr,
+                       bool locality_order = true);
 
   Mode mode() const { return info_.mode; }
   const MeshInfo& info() const { return info_; }

@@ -78,39 +78,57 @@ class Table {
   std::int64_t rows_per_page_ = 0;
 };
 
-// Caches the last page touched in one table (STYLE.md #4): neighbouring rows
-// cost no lookup. Move-only; holds a pin on that page.
+// Caches the last two pages touched in one table (STYLE.md #4): rows on
+// either cost no lookup, and a query that alternates between two pages (a
+// hex's edges often straddle a page boundary) does not thrash. Move-only;
+// holds a pin on each cached page, so a cursor pins at most 2 pages per
+// table (8 for a MeshCursor).
 class TableCursor {
  public:
   TableCursor() = default;
   TableCursor(TableCursor&&) noexcept = default;
   TableCursor& operator=(TableCursor&&) noexcept = default;
-  void release() { handle_ = PageCache::Handle(), page_ = -1; }
+  void release() {
+    for (auto& w : way_) w = Way{};
+  }
 
  private:
   template <class T>
   friend class Table;
-  PageCache::Handle handle_;
-  std::int64_t page_ = -1;
-  const std::uint8_t* data_ = nullptr;
+  struct Way {
+    PageCache::Handle handle;
+    std::int64_t page = -1;
+    const std::uint8_t* data = nullptr;
+  };
+  Way way_[2];  // way_[0] most recently used
 };
 
 template <class T>
 inline const T* Table<T>::row(std::int64_t i, TableCursor& cur) const {
   if (!cache_) return mem_.data() + i * width_;
   const std::int64_t page = i / rows_per_page_;
-  if (page != cur.page_) {
-    cur.handle_ = PageCache::Handle();  // unpin before pinning the next page
-    cur.handle_ = cache_->pin(PageKey{array_, static_cast<std::uint64_t>(page)});
-    cur.page_ = page;
-    cur.data_ = cur.handle_.data();
+  auto* w = cur.way_;
+  if (page != w[0].page) {
+    if (page == w[1].page) {
+      std::swap(w[0], w[1]);
+    } else {
+      w[1] = TableCursor::Way{};  // unpin the least recently used page before pinning the next
+      w[1].handle = cache_->pin(PageKey{array_, static_cast<std::uint64_t>(page)});
+      w[1].page = page;
+      w[1].data = w[1].handle.data();
+      std::swap(w[0], w[1]);
+    }
   }
-  return reinterpret_cast<const T*>(cur.data_) + (i - page * rows_per_page_) * width_;
+  return reinterpret_cast<const T*>(w[0].data) + (i - page * rows_per_page_) * width_;
 }
 
 struct MeshTables {
   Mode mode = Mode::Volume;
   std::shared_ptr<PageCache> cache;  // the pages behind paged tables (nullptr in memory)
+  // Page indexes of paged tables (empty in memory): the searched column's
+  // value in the first row of every page, so an id -> entity lookup reads
+  // one page of the table. O(rows / rows_per_page) each.
+  std::vector<std::int64_t> edge_index, face_index, elem_index, cell_index;
   Table<double> vertices;
   Table<std::int64_t> edges, faces, elements;
   ElementLayout layout() const { return ElementLayout::of(mode); }

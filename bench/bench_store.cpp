@@ -1,0 +1,154 @@
+// Store benchmarks: the fine mesh out of core, through the page cache, each
+// next to its in-memory twin measured in the same run.
+//   BM_Sweep/<budget MiB>/<store 1|memory 0>  every fine node and element of
+//       disk_out_ref (7472 CUBIT hexes) at interval 52 = 1.05e9 elements,
+//       block by block; counters: nodes/s, elements/s, peak RSS of the sweep,
+//       pages read, peak cache residency
+//   BM_RandomNode/<store|memory>, BM_RandomElement/<store|memory>
+//       node(id) / element(id) at random ids, warm 64 MiB cache: Time = ns/query
+//   BM_SweepPages/<ordered 1|input order 0>  pages read per 1e6 fine elements
+//       swept under a 1 MiB budget, Morton-ordered store vs input order
+#include <benchmark/benchmark.h>
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <random>
+#include <string>
+
+#include "dicer/store.hpp"
+
+using namespace dicer;
+
+namespace {
+
+std::string data(const char* f) { return std::string(DICER_BENCH_DATA) + "/" + f; }
+
+// Stores written once per process into a temporary folder.
+const std::string& store_path(Id interval, bool ordered) {
+  static std::map<std::pair<Id, bool>, std::string> paths;
+  auto it = paths.find({interval, ordered});
+  if (it != paths.end()) return it->second;
+  const std::string dir = std::filesystem::temp_directory_path() / ("dicer-bench-" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const std::string p = dir + "/disk_" + std::to_string(interval) + (ordered ? "" : "_input") + ".dice.h5";
+  IntervalRequest r;
+  r.global = interval;
+  write_store(FineMesh::dice(read_coarse_mesh(data("vtkdata_disk_out_ref.ex2")), r, nullptr, ordered), p);
+  return paths.emplace(std::make_pair(interval, ordered), p).first->second;
+}
+
+const FineMesh& memory_mesh(Id interval) {
+  static std::map<Id, FineMesh> meshes;
+  auto it = meshes.find(interval);
+  if (it != meshes.end()) return it->second;
+  IntervalRequest r;
+  r.global = interval;
+  return meshes.emplace(interval, FineMesh::dice(read_coarse_mesh(data("vtkdata_disk_out_ref.ex2")), r)).first->second;
+}
+
+// Peak RSS since the last reset (Linux: clear_refs 5 resets VmHWM).
+void reset_peak_rss() { std::ofstream("/proc/self/clear_refs") << "5"; }
+double peak_rss_bytes() {
+  std::ifstream in("/proc/self/status");
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind("VmHWM:", 0) == 0) return std::stod(line.substr(6)) * 1024.0;
+  return 0;
+}
+
+void BM_Sweep(benchmark::State& st) {
+  const Id interval = 52;
+  const std::uint64_t budget = static_cast<std::uint64_t>(st.range(0)) << 20;
+  const bool from_store = st.range(1) != 0;
+  const std::string& path = store_path(interval, true);
+  Id nodes = 0, elements = 0;
+  double rss = 0;
+  CacheStats cs;
+  for (auto _ : st) {
+    st.PauseTiming();
+    FineMesh opened = from_store ? read_store(path, StoreOptions{budget, 4}) : FineMesh();
+    const FineMesh& m = from_store ? opened : memory_mesh(interval);
+    reset_peak_rss();
+    st.ResumeTiming();
+    FineBlock b;
+    double sum = 0;
+    for (Id h = 0; h < m.num_coarse_elements(); ++h) {
+      m.fill_block(h, b);
+      sum += b.x[b.num_points() / 2] + static_cast<double>(b.conn[b.conn.size() / 2]);
+      nodes += b.num_points();
+      elements += b.num_elements();
+    }
+    benchmark::DoNotOptimize(sum);
+    st.PauseTiming();
+    rss = peak_rss_bytes();
+    if (from_store) cs = store_cache(m)->stats();
+    st.ResumeTiming();
+  }
+  st.counters["block_nodes_per_s"] = benchmark::Counter(static_cast<double>(nodes), benchmark::Counter::kIsRate);
+  st.counters["elements_per_s"] = benchmark::Counter(static_cast<double>(elements), benchmark::Counter::kIsRate);
+  st.counters["fine_elements"] = static_cast<double>(elements) / static_cast<double>(st.iterations());
+  st.counters["peak_rss_MiB"] = rss / (1 << 20);
+  st.counters["pages_read"] = static_cast<double>(cs.pages_read);
+  st.counters["cache_peak_MiB"] = static_cast<double>(cs.peak_resident_bytes) / (1 << 20);
+}
+
+template <bool Element>
+void BM_Random(benchmark::State& st) {
+  const Id interval = 8;
+  const bool from_store = st.range(0) != 0;
+  FineMesh opened = from_store ? read_store(store_path(interval, true), StoreOptions{64ull << 20, 4}) : FineMesh();
+  const FineMesh& m = from_store ? opened : memory_mesh(interval);
+  std::mt19937_64 rng(7);
+  const Id n = Element ? m.num_elements() : m.num_nodes();
+  std::vector<Id> ids(1 << 16);
+  for (auto& i : ids) i = std::uniform_int_distribution<Id>(0, n - 1)(rng);
+  MeshCursor cur;
+  for (Id i : ids) {  // warm the cache
+    if constexpr (Element) benchmark::DoNotOptimize(m.element(i, cur));
+    else benchmark::DoNotOptimize(m.node(i, cur));
+  }
+  size_t k = 0;
+  for (auto _ : st) {
+    if constexpr (Element) benchmark::DoNotOptimize(m.element(ids[k++ & 0xffff], cur));
+    else benchmark::DoNotOptimize(m.node(ids[k++ & 0xffff], cur));
+  }
+}
+
+void BM_SweepPages(benchmark::State& st) {
+  const Id interval = 4;
+  const bool ordered = st.range(0) != 0;
+  const std::string& path = store_path(interval, ordered);
+  double per_million = 0;
+  for (auto _ : st) {
+    const FineMesh m = read_store(path, StoreOptions{1ull << 20, 0});
+    store_cache(m)->reset_stats();
+    FineBlock b;
+    Id elements = 0;
+    for (Id h = 0; h < m.num_coarse_elements(); ++h) {
+      m.fill_block(h, b);
+      elements += b.num_elements();
+    }
+    per_million = static_cast<double>(store_cache(m)->stats().pages_read) / (static_cast<double>(elements) / 1e6);
+  }
+  st.counters["pages_per_1e6_elements"] = per_million;
+}
+
+}  // namespace
+
+BENCHMARK(BM_Sweep)->Args({64, 1})->Args({64, 0})->Iterations(1)->Unit(benchmark::kSecond);
+BENCHMARK_TEMPLATE(BM_Random, false)->Arg(1)->Arg(0)->Name("BM_RandomNode");
+BENCHMARK_TEMPLATE(BM_Random, true)->Arg(1)->Arg(0)->Name("BM_RandomElement");
+BENCHMARK(BM_SweepPages)->Arg(1)->Arg(0)->Iterations(1);
+
+int main(int argc, char** argv) {
+  benchmark::Initialize(&argc, argv);
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  std::error_code ec;
+  std::filesystem::remove_all(std::filesystem::temp_directory_path() / ("dicer-bench-" + std::to_string(::getpid())), ec);
+  return 0;
+}
