@@ -13,6 +13,7 @@ build/dicer dice examples/cardinal_sphere.e --interval 16 --sheet-interval 0=24 
 build/dicer info "$out/sphere.dice.h5"
 build/dicer query "$out/sphere.dice.h5" --element 123456 --json
 build/dicer query "$out/sphere.dice.h5" --nodes 1000:1003 --json
-build/dicer verify "$out/sphere.dice.h5"
+build/dicer verify "$out/sphere.dice.h5" --stats
+build/dicer footprint "$out/sphere.dice.h5"
 build/dicer dice examples/dealii_step-49_example.msh --interval 8 -o "$out/plate.dice.h5"
 build/dicer verify "$out/plate.dice.h5" --quiet
