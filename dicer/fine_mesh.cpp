@@ -220,8 +220,14 @@ struct View {
 // View::cell_point() makes, fed the same boundary values. Built twice
 // (AVX2 and baseline x86-64): both are plain IEEE mul/add/sub in the same
 // order with contraction off, so both give the same bits.
-__attribute__((target_clones("avx2", "default"))) void hex_interior(double* a, std::array<Id, 3> n,
-                                                                     const double* u, const double* U) {
+// (ThreadSanitizer builds: GCC 12's ifunc resolver for target_clones runs
+// before the TSan runtime is up and crashes the binary at start-up.)
+#if defined(__SANITIZE_THREAD__)
+#define DICER_CLONES
+#else
+#define DICER_CLONES __attribute__((target_clones("avx2", "default")))
+#endif
+DICER_CLONES void hex_interior(double* a, std::array<Id, 3> n, const double* u, const double* U) {
   const Id sj = n[0] + 1, sk = (n[0] + 1) * (n[1] + 1);
   double c[8];
   for (int q = 0; q < 8; ++q) c[q] = a[kHexCorner[q][0] * n[0] + kHexCorner[q][1] * n[1] * sj + kHexCorner[q][2] * n[2] * sk];
