@@ -3,12 +3,14 @@
 
 #include "common.hpp"
 #include "dicer/error.hpp"
+#include "dicer/export.hpp"
 #include "dicer/store.hpp"
 
 namespace dicer::cli {
 
 static const char* kHelp = R"(Usage: dicer query STORE (--node ID | --nodes FIRST:END |
-                           --element ID | --elements FIRST:END) [--json]
+                           --element ID | --elements FIRST:END |
+                           --box x0,y0,z0,x1,y1,z1 [--count]) [--json]
 
 Regenerates fine nodes or elements by id; ids start at 0. Ranges are
 half-open: --nodes 1000:2000 prints ids 1000..1999, one line each.
@@ -21,6 +23,10 @@ edge, face and hex. Element ids: coarse element order, then i, j, k.
            element: {"id":…, "nodes":[8 ids], "block":…, "coarse_element":…,
                      "ijk":[i,j,k]}   (VTK/Exodus HEX8 node order; surface
                      meshes: 4 node ids and [i,j]); block is the block id
+  --box B        the ids of the fine elements whose centroid lies in the
+                 axis-aligned box B (one per line, or {"id":…}); coarse
+                 elements whose bounding box misses B are skipped unread
+  --count        with --box: only the number of such elements
   --cache-mb N   page cache budget in MiB (default 64)
   --stats        print the page cache counters to stderr
 )";
@@ -28,14 +34,31 @@ edge, face and hex. Element ids: coarse element order, then i, j, k.
 int cmd_query(const std::vector<std::string>& argv) {
   for (const auto& a : argv)
     if (a == "--help" || a == "-h") return std::fputs(kHelp, stdout), 0;
-  std::vector<std::string> vflags = {"--node", "--nodes", "--element", "--elements"};
+  std::vector<std::string> vflags = {"--node", "--nodes", "--element", "--elements", "--box"};
   vflags.insert(vflags.end(), kStoreFlags.begin(), kStoreFlags.end());
-  Args args("query", argv, vflags, {"--json", "--stats"}, 1);
+  Args args("query", argv, vflags, {"--json", "--stats", "--count"}, 1);
   const std::string path = args.need_positional(0, "STORE");
-  int chosen = args.has("--node") + args.has("--nodes") + args.has("--element") + args.has("--elements");
+  int chosen = args.has("--node") + args.has("--nodes") + args.has("--element") + args.has("--elements") + args.has("--box");
   if (chosen != 1)
-    throw Error(ErrorKind::Usage, "give exactly one of --node, --nodes, --element, --elements");
+    throw Error(ErrorKind::Usage, "give exactly one of --node, --nodes, --element, --elements, --box");
+  if (args.has("--count") && !args.has("--box")) throw Error(ErrorKind::Usage, "--count goes with --box");
   const FineMesh m = read_store(path, store_options(args));
+  if (args.has("--box")) {
+    const Box box = parse_box(*args.value("--box"));
+    const bool count_only = args.has("--count"), json = args.has("--json");
+    const Id n = for_each_in_box(m, box, [&](const FineBlock& b, Id e) {
+      if (count_only) return;
+      const long long id = static_cast<long long>(b.first_element + e);
+      if (json) std::printf("{\"id\":%lld}\n", id);
+      else std::printf("%lld\n", id);
+    });
+    if (count_only) {
+      if (json) std::printf("{\"count\":%lld}\n", static_cast<long long>(n));
+      else std::printf("%lld\n", static_cast<long long>(n));
+    }
+    if (args.has("--stats")) print_cache_stats(m, "query");
+    return 0;
+  }
   const bool json = args.has("--json");
   auto ll = [](Id v) { return static_cast<long long>(v); };
   if (args.has("--node") || args.has("--nodes")) {

@@ -83,5 +83,6 @@ int cmd_info(const std::vector<std::string>& argv);
 int cmd_query(const std::vector<std::string>& argv);
 int cmd_verify(const std::vector<std::string>& argv);
 int cmd_footprint(const std::vector<std::string>& argv);
+int cmd_export(const std::vector<std::string>& argv);
 
 }  // namespace dicer::cli

@@ -25,6 +25,7 @@ Commands (in the order you use them):
   verify  STORE    stream through every fine element and check conformity,
                    counts, coincident nodes and element quality
   footprint STORE  bytes on disk and in memory vs an explicit mesh
+  export  STORE    a chunk, a box or the whole mesh to VTKHDF, MSH 4.1 or Exodus II
 
 MESH is an Exodus II file (.e .exo .ex2 .g) or a Gmsh MSH 2.2/4.1 file
 (ASCII or binary) holding hexahedra (volume dicing) or quadrilaterals
@@ -42,6 +43,7 @@ Exit codes:
   3 bad input file     4 unsupported content       5 I/O error
   6 counts overflow 64-bit ids                     7 geometry mismatch
   8 corrupt or unknown store                       70 internal error
+  130 interrupted (Ctrl-C): no output file was left behind
 )";
 
 }  // namespace
@@ -59,10 +61,10 @@ int main(int argc, char** argv) {
   }
   const std::map<std::string, Command> commands = {
       {"sheets", cmd_sheets}, {"dice", cmd_dice}, {"info", cmd_info}, {"query", cmd_query}, {"verify", cmd_verify},
-      {"footprint", cmd_footprint}};
+      {"footprint", cmd_footprint}, {"export", cmd_export}};
   auto it = commands.find(args[0]);
   if (it == commands.end()) {
-    std::fprintf(stderr, "dicer: unknown command \"%s\" (commands: sheets, dice, info, query, verify, footprint; see dicer --help)\n",
+    std::fprintf(stderr, "dicer: unknown command \"%s\" (commands: sheets, dice, info, query, verify, footprint, export; see dicer --help)\n",
                  args[0].c_str());
     return 2;
   }

@@ -265,17 +265,27 @@ FineMesh compile(std::shared_ptr<const CoarseMesh> cm, const Topology& t, const 
   const ElementLayout L = tab.layout();
   std::vector<double> verts(static_cast<size_t>(m.num_vertices()) * 3);
   for (Id v = 0; v < m.num_vertices(); ++v) verts[3 * v] = m.x[v], verts[3 * v + 1] = m.y[v], verts[3 * v + 2] = m.z[v];
+  // Lowest coarse element using each vertex, edge and face (chunk ownership).
+  const int epe = t.edges_per_element(), fpe = t.faces_per_element(), cpe = m.corners_per_element();
+  std::vector<std::int64_t> vmin(static_cast<size_t>(m.num_vertices()), -1), emin(static_cast<size_t>(t.num_edges()), -1),
+      fmin(static_cast<size_t>(t.num_faces()), -1);
+  for (Id h = m.num_elements() - 1; h >= 0; --h) {
+    for (int k = 0; k < cpe; ++k) vmin[m.conn[static_cast<size_t>(h) * cpe + k]] = h;
+    for (int k = 0; k < epe; ++k) emin[t.elem_edge[static_cast<size_t>(h) * epe + k]] = h;
+    for (int k = 0; k < fpe; ++k) fmin[t.elem_face[static_cast<size_t>(h) * fpe + k]] = h;
+  }
   std::vector<std::int64_t> edges(static_cast<size_t>(t.num_edges()) * kEdgeWidth);
   for (Id e = 0; e < t.num_edges(); ++e) {
     std::int64_t* r = &edges[static_cast<size_t>(e) * kEdgeWidth];
     r[kEdgeLo] = t.edge_v[2 * e], r[kEdgeHi] = t.edge_v[2 * e + 1], r[kEdgeN] = num.edge_n(e);
-    r[kEdgeNodeOffset] = num.edge_node_offset(e), r[kEdgeSheet] = edge_sheet[e];
+    r[kEdgeNodeOffset] = num.edge_node_offset(e), r[kEdgeSheet] = edge_sheet[e], r[kEdgeMinElement] = emin[e];
   }
   std::vector<std::int64_t> faces(static_cast<size_t>(t.num_faces()) * kFaceWidth);
   for (Id f = 0; f < t.num_faces(); ++f) {
     std::int64_t* r = &faces[static_cast<size_t>(f) * kFaceWidth];
     for (int k = 0; k < 4; ++k) r[kFaceV + k] = t.face_v[4 * f + k], r[kFaceE + k] = t.face_edge[4 * f + k];
     r[kFaceNodeOffset] = num.face_node_offset(f);
+    r[kFaceMinElement] = fmin[f];
   }
   const Id ne = m.num_elements();
   const int W = L.width();
@@ -309,6 +319,7 @@ FineMesh compile(std::shared_ptr<const CoarseMesh> cm, const Topology& t, const 
     info.block_fine_elements[m.element_block[h]] += n[0] * n[1] * n[2];
   }
   tab.vertices = Table<double>(3, std::move(verts));
+  tab.vertex_elements = Table<std::int64_t>(1, std::move(vmin));
   tab.edges = Table<std::int64_t>(kEdgeWidth, std::move(edges));
   tab.faces = Table<std::int64_t>(kFaceWidth, std::move(faces));
   tab.elements = Table<std::int64_t>(W, std::move(elems));

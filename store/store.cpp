@@ -198,6 +198,7 @@ void write_store(const FineMesh& mesh, const std::string& path) {
       for (const char* g : {"coarse", "topology", "sheets", "numbering", "geometry", "sets"}) f.group(g);
       write_paged(f, "coarse/vertices", t.vertices.memory(), 3);
       write_paged(f, "coarse/vertex_file_id", c->vertex_file_id);
+      write_paged(f, "topology/vertex_elements", t.vertex_elements.memory(), 1);
       std::vector<std::int32_t> owner(static_cast<size_t>(c->num_vertices()) * 2, -1);
       for (size_t v = 0; v < c->vertex_geo_dim.size() && v < c->vertex_geo_tag.size(); ++v)
         owner[2 * v] = c->vertex_geo_dim[v], owner[2 * v + 1] = c->vertex_geo_tag[v];
@@ -302,6 +303,7 @@ FineMesh read_store(const std::string& path, const StoreOptions& options) {
     return Table<T>(width, a.rows, cache, id, a.rows_per_page);
   };
   tab.vertices = paged(double{}, "coarse/vertices", 3, info.coarse_vertices);
+  tab.vertex_elements = paged(std::int64_t{}, "topology/vertex_elements", 1, info.coarse_vertices);
   tab.edges = paged(std::int64_t{}, "topology/edges", kEdgeWidth, info.coarse_edges);
   tab.faces = paged(std::int64_t{}, "topology/faces", kFaceWidth, info.coarse_faces);
   tab.elements = paged(std::int64_t{}, "topology/elements", tab.layout().width(), info.coarse_elements);

@@ -9,9 +9,11 @@
 //
 // Layouts (int64 unless noted; ids 0-based; "offset" = first fine id):
 //   vertices  [V x 3] float64  x, y, z
-//   edges     [E x 5]  lo, hi, n (interval), node offset, sheet
-//   faces     [F x 9]  v0..v3 (canonical corners), e0..e3 (sides: v0v1,
-//                      v3v2, v0v3, v1v2), node offset
+//   vertex_elements [V x 1]  lowest coarse element using the vertex
+//   edges     [E x 6]  lo, hi, n (interval), node offset, sheet, lowest
+//                      coarse element using the edge
+//   faces     [F x 10] v0..v3 (canonical corners), e0..e3 (sides: v0v1,
+//                      v3v2, v0v3, v1v2), node offset, lowest element
 //   elements  [H x W]  corners (8|4), edges (12|4), faces (6|1), element
 //                      offset, cell node offset, block index, file id,
 //                      flags = edge reversal bits | face codes << 12 (3 bits
@@ -28,8 +30,8 @@
 namespace dicer {
 
 // Column positions.
-enum EdgeCol : int { kEdgeLo = 0, kEdgeHi, kEdgeN, kEdgeNodeOffset, kEdgeSheet, kEdgeWidth };
-enum FaceCol : int { kFaceV = 0, kFaceE = 4, kFaceNodeOffset = 8, kFaceWidth = 9 };
+enum EdgeCol : int { kEdgeLo = 0, kEdgeHi, kEdgeN, kEdgeNodeOffset, kEdgeSheet, kEdgeMinElement, kEdgeWidth };
+enum FaceCol : int { kFaceV = 0, kFaceE = 4, kFaceNodeOffset = 8, kFaceMinElement = 9, kFaceWidth = 10 };
 
 // Element row layout, which depends on the mode.
 struct ElementLayout {
@@ -130,14 +132,16 @@ struct MeshTables {
   // one page of the table. O(rows / rows_per_page) each.
   std::vector<std::int64_t> edge_index, face_index, elem_index, cell_index;
   Table<double> vertices;
-  Table<std::int64_t> edges, faces, elements;
+  Table<std::int64_t> vertex_elements, edges, faces, elements;
   ElementLayout layout() const { return ElementLayout::of(mode); }
 };
 
 // One cursor per table: what a reader (a block, a query, a thread) carries.
 struct MeshCursor {
-  TableCursor vertices, edges, faces, elements;
-  void release() { vertices.release(), edges.release(), faces.release(), elements.release(); }
+  TableCursor vertices, vertex_elements, edges, faces, elements;
+  void release() {
+    vertices.release(), vertex_elements.release(), edges.release(), faces.release(), elements.release();
+  }
 };
 
 }  // namespace dicer

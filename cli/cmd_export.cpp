@@ -1,0 +1,140 @@
+// dicer export: a chunk, a box or the whole mesh to VTKHDF, MSH 4.1 or Exodus II.
+#include <csignal>
+#include <cstdio>
+
+#include "common.hpp"
+#include "dicer/error.hpp"
+#include "dicer/export.hpp"
+#include "dicer/store.hpp"
+
+namespace dicer::cli {
+
+static const char* kHelp = R"(Usage: dicer export STORE --format FMT -o OUT [--chunk K/N | --chunks N] [--box x0,y0,z0,x1,y1,z1]
+                    [--quiet] [--cache-mb N]
+
+Writes fine elements for a solver or viewer, generated on the fly from the
+store; memory is bounded by the chunk, not the mesh.
+
+  --format vtkhdf      VTKHDF UnstructuredGrid 1.0 (ParaView 5.10+, no plugin),
+                       one partition per chunk; point data GlobalNodeId, cell
+                       data GlobalElementId and BlockId
+  --format msh         Gmsh MSH 4.1 binary (msh-ascii: ASCII); an entity and a
+                       physical group per block, boundary elements per side set
+  --format exodus      Exodus II: element blocks with names, side and node sets
+                       carried to the fine mesh, global id maps (1-based)
+  --chunk K/N          chunk K (0-based) of N: a contiguous range of coarse
+                       elements holding ~1/N of the fine elements; nodes shared
+                       with other chunks keep their global ids
+  --chunks N           vtkhdf only: the whole mesh as N partitions (default:
+                       about 4M fine elements per partition)
+  --box x0,y0,z0,x1,y1,z1   only the elements whose centroid is in the box
+  -o OUT               output file (written to a temporary name in the same
+                       folder and renamed when complete; Ctrl-C leaves nothing)
+
+Examples:
+  dicer export fine.dice.h5 --format vtkhdf -o fine.vtkhdf
+  dicer export fine.dice.h5 --format exodus --chunk 3/16 -o part3.exo
+  dicer export fine.dice.h5 --format msh --box 0,0,0,1,1,0.5 -o cut.msh
+)";
+
+namespace {
+volatile std::sig_atomic_t g_interrupted = 0;
+extern "C" void on_sigint(int) { g_interrupted = 1; }
+}  // namespace
+
+int cmd_export(const std::vector<std::string>& argv) {
+  for (const auto& a : argv)
+    if (a == "--help" || a == "-h") return std::fputs(kHelp, stdout), 0;
+  std::vector<std::string> vflags = {"--format", "-o", "--output", "--chunk", "--chunks", "--box"};
+  vflags.insert(vflags.end(), kStoreFlags.begin(), kStoreFlags.end());
+  Args args("export", argv, vflags, {"--quiet"}, 1);
+  const std::string path = args.need_positional(0, "STORE");
+  const auto format = args.value("--format");
+  if (!format) throw Error(ErrorKind::Usage, "missing --format (vtkhdf, msh, msh-ascii or exodus)");
+  if (*format != "vtkhdf" && *format != "msh" && *format != "msh-ascii" && *format != "exodus")
+    throw Error(ErrorKind::Usage, "--format: \"" + *format + "\" is not one of vtkhdf, msh, msh-ascii, exodus");
+  auto out = args.value("-o");
+  if (!out) out = args.value("--output");
+  if (!out) throw Error(ErrorKind::Usage, "missing -o OUT (the output file)");
+  std::optional<Box> box;
+  if (auto b = args.value("--box")) box = parse_box(*b);
+  if (args.has("--chunk") && args.has("--chunks")) throw Error(ErrorKind::Usage, "give --chunk K/N or --chunks N, not both");
+  if (args.has("--chunks") && *format != "vtkhdf") throw Error(ErrorKind::Usage, "--chunks N is for --format vtkhdf");
+
+  const FineMesh m = read_store(path, store_options(args));
+  MeshSets sets;
+  {
+    StoreSets s = read_store_sets(path);
+    sets.side_sets = std::move(s.side_sets);
+    sets.node_sets = std::move(s.node_sets);
+  }
+  std::vector<ChunkRange> ranges;
+  if (auto c = args.value("--chunk")) {
+    const auto slash = c->find('/');
+    if (slash == std::string::npos) throw Error(ErrorKind::Usage, "--chunk: \"" + *c + "\" is not K/N");
+    const Id k = parse_int("--chunk", c->substr(0, slash)), n = parse_int("--chunk", c->substr(slash + 1));
+    if (n < 1 || k < 0 || k >= n)
+      throw Error(ErrorKind::Usage, "--chunk " + *c + ": need 0 <= K < N (chunks are numbered from 0)");
+    if (n > m.num_coarse_elements())
+      throw Error(ErrorKind::Usage, "--chunk " + *c + ": the mesh has only " + std::to_string(m.num_coarse_elements()) +
+                                        " coarse elements, so at most that many chunks");
+    ranges.push_back(plan_chunks(m, n)[static_cast<size_t>(k)]);
+  } else if (*format == "vtkhdf" && !box) {
+    Id n = args.has("--chunks") ? parse_int("--chunks", *args.value("--chunks"))
+                                : std::max<Id>(1, (m.num_elements() + (Id{1} << 22) - 1) >> 22);
+    if (n < 1) throw Error(ErrorKind::Usage, "--chunks must be at least 1");
+    n = std::min(n, std::max<Id>(1, m.num_coarse_elements()));
+    ranges = plan_chunks(m, n);
+  } else {
+    ranges.push_back(ChunkRange{0, 1, 0, m.num_coarse_elements(), m.num_elements()});
+  }
+
+  g_interrupted = 0;
+  auto previous = std::signal(SIGINT, on_sigint);
+  struct Restore {
+    decltype(previous) p;
+    ~Restore() { std::signal(SIGINT, p); }
+  } restore{previous};
+  const bool quiet = args.has("--quiet");
+  Id total_coarse = 0;
+  for (const auto& r : ranges) total_coarse += r.end_coarse - r.first_coarse;
+  Progress bar("export", 2 * total_coarse, quiet);
+  Id done_before = 0;
+  Id written_elements = 0, written_nodes = 0;
+  try {
+    auto prepare = [&](ExportChunk& c) {
+      c.prepare(sets, [&](Id done, Id) { bar.update(done_before + done); }, [] { return g_interrupted != 0; });
+      done_before += 2 * (c.range().end_coarse - c.range().first_coarse);
+      written_elements += c.num_elements(), written_nodes += c.num_nodes();
+    };
+    if (*format == "vtkhdf") {
+      VtkHdfWriter w(*out, static_cast<Id>(ranges.size()));
+      for (const auto& r : ranges) {
+        ExportChunk c(m, r, box);
+        prepare(c);
+        if (g_interrupted) throw Error(ErrorKind::Usage, "interrupted");
+        w.write_partition(c);
+      }
+      w.finish();
+    } else {
+      ExportChunk c(m, ranges[0], box);
+      prepare(c);
+      if (g_interrupted) throw Error(ErrorKind::Usage, "interrupted");
+      if (*format == "exodus") write_exodus(c, *out);
+      else write_msh(c, *out, *format == "msh");
+    }
+  } catch (const Error& e) {
+    if (g_interrupted) {
+      std::fprintf(stderr, "\ndicer export: interrupted; nothing written to %s\n", out->c_str());
+      return 130;
+    }
+    throw;
+  }
+  if (!quiet)
+    std::printf("exported %s: %lld fine elements, %lld nodes in %zu %s to %s\n", path.c_str(),
+                static_cast<long long>(written_elements), static_cast<long long>(written_nodes), ranges.size(),
+                ranges.size() == 1 ? "chunk" : "chunks", out->c_str());
+  return 0;
+}
+
+}  // namespace dicer::cli

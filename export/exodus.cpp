@@ -1,0 +1,321 @@
+// Exodus II writer: one ExportChunk -> one Exodus file, through the Exodus II
+// C library (the same library read_exodus.cpp reads with).
+//
+// File layout:
+//  - netCDF-4 (HDF5-based), 64-bit integers in the file and in the API
+//    (EX_ALL_INT64_DB | EX_ALL_INT64_API). There is no classic/64-bit-offset
+//    branch: the ids of a small chunk of a big mesh (global id + 1) already
+//    overflow 32 bits, and Exodus 6.02 stores 64-bit integers only in
+//    netCDF-4 (asking for EX_ALL_INT64_DB without EX_NETCDF4 silently gives
+//    netCDF-4 anyway), so every file is netCDF-4; EX_NETCDF4 says so
+//    explicitly. netCDF-4 also lifts the classic formats' 4 GiB-per-variable
+//    limit, so no count threshold is needed. meshio (through netCDF4-python),
+//    ParaView/VTK and the Exodus library itself all read it.
+//  - num_dim 3 always (a surface mesh is a 3-D shell), coordinate names x y z.
+//  - One element block per block that has elements in the chunk, in
+//    MeshInfo::blocks order, id = Block::id, type HEX8 (volume) or SHELL4
+//    (surface), named when the block has a name. Elements are written block
+//    by block (stable: within a block, in the chunk's global id order); the
+//    element id map follows the same order.
+//  - Id maps: EX_NODE_MAP = global node id + 1, EX_ELEM_MAP = global element
+//    id + 1.
+//  - Side sets: every set of the chunk (an empty one too, so a solver finds
+//    the boundary it names in every chunk), 1-based element positions in the
+//    block-ordered element list, 1-based Exodus sides (hex 1..6; shell 1,2
+//    faces, 3..6 edges). Node sets: 1-based local node ids.
+//
+// The file is written under ".<name>.tmp-<pid>" in the destination folder
+// and renamed when closed; on any failure the temporary is closed and
+// removed and Error{Io, "<path>: <call> failed (<reason>)"} is thrown.
+//
+// Memory beyond the chunk: coordinates are passed straight from the chunk's
+// arrays; id maps go out in slices of kSlice entries; connectivity is
+// copied one block at a time (Exodus 6.02 has no partial connectivity
+// writer), i.e. at most the chunk's own connectivity size once more, plus
+// 8 B per element for the block-order permutation and the set members.
+#include <exodusII.h>
+#include <netcdf.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <system_error>
+#include <vector>
+
+#include "dicer/error.hpp"
+#include "dicer/export.hpp"
+
+namespace dicer {
+namespace {
+
+constexpr std::int64_t kSlice = std::int64_t{1} << 16;  // id map entries per library call
+
+void clear_exodus_error() { ex_err("dicer", "", EX_MSG); }
+
+// The library's last message, on one line (same treatment as read_exodus).
+std::string exodus_reason(int rc) {
+  const char* msg = nullptr;
+  const char* func = nullptr;
+  int code = 0;
+  ex_get_err(&msg, &func, &code);
+  std::string text = (msg != nullptr) ? msg : "";
+  for (char& c : text)
+    if (c == '\n' || c == '\t') c = ' ';
+  while (!text.empty() && text.back() == ' ') text.pop_back();
+  if (text.rfind("Error: ", 0) == 0) text.erase(0, 7);
+  if (code != 0 && code != EX_MSG && code > -1000 && code < 1000) {
+    if (!text.empty()) text += ": ";
+    text += nc_strerror(code);
+  }
+  if (text.empty()) text = "exodus error code " + std::to_string(rc);
+  return text;
+}
+
+// The temporary file: closed and removed unless committed.
+class TempExodus {
+ public:
+  TempExodus(std::string final_path, std::filesystem::path temp_path)
+      : final_(std::move(final_path)), temp_(std::move(temp_path)) {}
+  ~TempExodus() {
+    if (exoid_ >= 0) ex_close(exoid_);
+    if (!committed_) {
+      std::error_code ec;
+      std::filesystem::remove(temp_, ec);
+    }
+  }
+  TempExodus(const TempExodus&) = delete;
+  TempExodus& operator=(const TempExodus&) = delete;
+
+  [[noreturn]] void fail(const std::string& call, const std::string& reason) const {
+    throw Error(ErrorKind::Io, final_ + ": " + call + " failed (" + reason + ")");
+  }
+  // Negative return codes are errors; positive ones are warnings (a name
+  // truncated to the database's limit), harmless here.
+  void check(int rc, const std::string& call) const {
+    if (rc < 0) fail(call, exodus_reason(rc));
+  }
+
+  void create() {
+    int cpu_word_size = 8, io_word_size = 8;
+    const int mode = EX_CLOBBER | EX_NETCDF4 | EX_ALL_INT64_DB | EX_ALL_INT64_API;
+    clear_exodus_error();
+    const int id = ex_create(temp_.c_str(), mode, &cpu_word_size, &io_word_size);
+    if (id < 0) fail("ex_create", exodus_reason(id));
+    exoid_ = id;
+  }
+  int id() const { return exoid_; }
+
+  void close_and_rename() {
+    const int id = exoid_;
+    exoid_ = -1;
+    clear_exodus_error();
+    check(ex_close(id), "ex_close");
+    std::error_code ec;
+    std::filesystem::rename(temp_, final_, ec);
+    if (ec) fail("rename", ec.message());
+    committed_ = true;
+  }
+
+ private:
+  std::string final_;
+  std::filesystem::path temp_;
+  int exoid_ = -1;
+  bool committed_ = false;
+};
+
+// char* array for the name functions (they take non-const char**).
+struct NameList {
+  std::vector<std::string> text;
+  std::vector<char*> ptr;
+  char** data() {
+    ptr.clear();
+    for (std::string& s : text) ptr.push_back(s.data());
+    return ptr.data();
+  }
+};
+
+}  // namespace
+
+void write_exodus(const ExportChunk& chunk, const std::string& path) {
+  namespace fs = std::filesystem;
+  const fs::path final_path(path);
+  if (final_path.filename().empty() || path.back() == '/')
+    throw Error(ErrorKind::Usage, path + ": not a file name");
+  const fs::path dir = final_path.has_parent_path() ? final_path.parent_path() : fs::path(".");
+  const fs::path temp_path =
+      dir / ("." + final_path.filename().string() + ".tmp-" + std::to_string(static_cast<long>(::getpid())));
+
+  const MeshInfo& info = chunk.mesh().info();
+  const int corners = chunk.corners();
+  const bool volume = chunk.mode() == Mode::Volume;
+  const Id num_nodes = chunk.num_nodes();
+  const Id num_elements = chunk.num_elements();
+  const auto elem_block = chunk.element_block();
+  const auto elem_global = chunk.element_global();
+  const auto conn = chunk.connectivity();
+
+  // ---- block order: counting sort of the chunk's elements by block ----
+  const std::size_t nblocks = info.blocks.size();
+  std::vector<Id> block_start(nblocks + 1, 0);
+  for (Id e = 0; e < num_elements; ++e) {
+    const std::int32_t b = elem_block[static_cast<std::size_t>(e)];
+    if (b < 0 || static_cast<std::size_t>(b) >= nblocks)
+      throw Error(ErrorKind::Usage, path + ": element " + std::to_string(elem_global[static_cast<std::size_t>(e)]) +
+                                        " has no block");
+    ++block_start[static_cast<std::size_t>(b) + 1];
+  }
+  for (std::size_t b = 0; b < nblocks; ++b) block_start[b + 1] += block_start[b];
+  // order[f]: the chunk element at 0-based file position f.
+  std::vector<Id> order(static_cast<std::size_t>(num_elements));
+  {
+    std::vector<Id> next(block_start.begin(), block_start.end() - 1);
+    for (Id e = 0; e < num_elements; ++e)
+      order[static_cast<std::size_t>(next[static_cast<std::size_t>(elem_block[static_cast<std::size_t>(e)])]++)] = e;
+  }
+  std::vector<std::size_t> present;  // block indices with elements here
+  for (std::size_t b = 0; b < nblocks; ++b)
+    if (block_start[b + 1] > block_start[b]) present.push_back(b);
+
+  ex_opts(0);  // no chatter on stderr, never abort; errors become dicer::Error
+  TempExodus file(path, temp_path);
+  file.create();
+  const int exoid = file.id();
+
+  // Longest name stored (default database limit is 32 characters).
+  std::size_t longest = 1;
+  for (std::size_t b : present) longest = std::max(longest, info.blocks[b].name.size());
+  for (const auto& s : chunk.side_sets()) longest = std::max(longest, s.name.size());
+  for (const auto& s : chunk.node_sets()) longest = std::max(longest, s.name.size());
+  if (longest > static_cast<std::size_t>(MAX_NAME_LENGTH)) {
+    const std::int64_t allowed = ex_inquire_int(exoid, EX_INQ_DB_MAX_ALLOWED_NAME_LENGTH);
+    const std::int64_t len = std::min<std::int64_t>(static_cast<std::int64_t>(longest), std::max<std::int64_t>(allowed, 32));
+    clear_exodus_error();
+    file.check(ex_set_max_name_length(exoid, static_cast<int>(len)), "ex_set_max_name_length");
+  }
+
+  // ---- header ----
+  ex_init_params init{};
+  {
+    std::string source = fs::path(info.source).filename().string();
+    std::string title = "dicer chunk " + std::to_string(chunk.range().index + 1) + " of " +
+                        std::to_string(chunk.range().count) + (source.empty() ? "" : " of " + source);
+    title.resize(std::min<std::size_t>(title.size(), MAX_LINE_LENGTH));
+    std::copy(title.begin(), title.end(), init.title);
+  }
+  init.num_dim = 3;
+  init.num_nodes = num_nodes;
+  init.num_elem = num_elements;
+  init.num_elem_blk = static_cast<std::int64_t>(present.size());
+  init.num_side_sets = static_cast<std::int64_t>(chunk.side_sets().size());
+  init.num_node_sets = static_cast<std::int64_t>(chunk.node_sets().size());
+  clear_exodus_error();
+  file.check(ex_put_init_ext(exoid, &init), "ex_put_init_ext");
+
+  // ---- nodes ----
+  {
+    NameList names{{"x", "y", "z"}, {}};
+    clear_exodus_error();
+    file.check(ex_put_coord_names(exoid, names.data()), "ex_put_coord_names");
+  }
+  if (num_nodes > 0) {
+    clear_exodus_error();
+    file.check(ex_put_coord(exoid, chunk.x().data(), chunk.y().data(), chunk.z().data()), "ex_put_coord");
+  }
+  std::vector<std::int64_t> buffer;
+  const auto node_global = chunk.node_global();
+  for (Id first = 0; first < num_nodes; first += kSlice) {
+    const Id n = std::min(kSlice, num_nodes - first);
+    buffer.resize(static_cast<std::size_t>(n));
+    for (Id i = 0; i < n; ++i) buffer[static_cast<std::size_t>(i)] = node_global[static_cast<std::size_t>(first + i)] + 1;
+    clear_exodus_error();
+    file.check(ex_put_partial_id_map(exoid, EX_NODE_MAP, first + 1, n, buffer.data()), "ex_put_partial_id_map(node)");
+  }
+
+  // ---- element blocks ----
+  for (std::size_t b : present) {
+    const std::int64_t id = info.blocks[b].id;
+    const Id count = block_start[b + 1] - block_start[b];
+    clear_exodus_error();
+    file.check(ex_put_block(exoid, EX_ELEM_BLOCK, id, volume ? "HEX8" : "SHELL4", count, corners, 0, 0, 0),
+               "ex_put_block(" + std::to_string(id) + ")");
+  }
+  if (!present.empty()) {
+    NameList names;
+    for (std::size_t b : present) names.text.push_back(info.blocks[b].name);
+    clear_exodus_error();
+    file.check(ex_put_names(exoid, EX_ELEM_BLOCK, names.data()), "ex_put_names(element blocks)");
+  }
+  for (std::size_t b : present) {
+    const std::int64_t id = info.blocks[b].id;
+    const Id first = block_start[b], count = block_start[b + 1] - first;
+    buffer.resize(static_cast<std::size_t>(count * corners));
+    std::size_t k = 0;
+    for (Id f = first; f < first + count; ++f) {
+      const std::size_t e = static_cast<std::size_t>(order[static_cast<std::size_t>(f)]);
+      for (int c = 0; c < corners; ++c) buffer[k++] = conn[e * static_cast<std::size_t>(corners) + static_cast<std::size_t>(c)] + 1;
+    }
+    clear_exodus_error();
+    file.check(ex_put_conn(exoid, EX_ELEM_BLOCK, id, buffer.data(), nullptr, nullptr),
+               "ex_put_conn(" + std::to_string(id) + ")");
+  }
+  for (Id first = 0; first < num_elements; first += kSlice) {
+    const Id n = std::min(kSlice, num_elements - first);
+    buffer.resize(static_cast<std::size_t>(n));
+    for (Id i = 0; i < n; ++i)
+      buffer[static_cast<std::size_t>(i)] =
+          elem_global[static_cast<std::size_t>(order[static_cast<std::size_t>(first + i)])] + 1;
+    clear_exodus_error();
+    file.check(ex_put_partial_id_map(exoid, EX_ELEM_MAP, first + 1, n, buffer.data()), "ex_put_partial_id_map(element)");
+  }
+  // Sets need the inverse: the 0-based file position of each chunk element.
+  std::vector<Id> file_pos(order.size());
+  for (std::size_t f = 0; f < order.size(); ++f) file_pos[static_cast<std::size_t>(order[f])] = static_cast<Id>(f);
+  std::vector<Id>().swap(order);
+
+  // ---- side sets ----
+  for (const auto& set : chunk.side_sets()) {
+    const std::int64_t count = static_cast<std::int64_t>(set.element.size());
+    const std::string what = "(side set " + std::to_string(set.id) + ")";
+    clear_exodus_error();
+    file.check(ex_put_set_param(exoid, EX_SIDE_SET, set.id, count, 0), "ex_put_set_param" + what);
+    if (count == 0) continue;
+    std::vector<std::int64_t> elems(static_cast<std::size_t>(count)), sides(static_cast<std::size_t>(count));
+    for (std::size_t i = 0; i < set.element.size(); ++i) {
+      elems[i] = file_pos[static_cast<std::size_t>(set.element[i])] + 1;
+      sides[i] = set.side[i] + 1;
+    }
+    clear_exodus_error();
+    file.check(ex_put_set(exoid, EX_SIDE_SET, set.id, elems.data(), sides.data()), "ex_put_set" + what);
+  }
+  if (!chunk.side_sets().empty()) {
+    NameList names;
+    for (const auto& set : chunk.side_sets()) names.text.push_back(set.name);
+    clear_exodus_error();
+    file.check(ex_put_names(exoid, EX_SIDE_SET, names.data()), "ex_put_names(side sets)");
+  }
+
+  // ---- node sets ----
+  for (const auto& set : chunk.node_sets()) {
+    const std::int64_t count = static_cast<std::int64_t>(set.node.size());
+    const std::string what = "(node set " + std::to_string(set.id) + ")";
+    clear_exodus_error();
+    file.check(ex_put_set_param(exoid, EX_NODE_SET, set.id, count, 0), "ex_put_set_param" + what);
+    if (count == 0) continue;
+    std::vector<std::int64_t> nodes(set.node.begin(), set.node.end());
+    for (std::int64_t& v : nodes) v += 1;
+    clear_exodus_error();
+    file.check(ex_put_set(exoid, EX_NODE_SET, set.id, nodes.data(), nullptr), "ex_put_set" + what);
+  }
+  if (!chunk.node_sets().empty()) {
+    NameList names;
+    for (const auto& set : chunk.node_sets()) names.text.push_back(set.name);
+    clear_exodus_error();
+    file.check(ex_put_names(exoid, EX_NODE_SET, names.data()), "ex_put_names(node sets)");
+  }
+
+  file.close_and_rename();
+}
+
+}  // namespace dicer
