@@ -55,7 +55,10 @@ int cmd_dice(const std::vector<std::string>& argv) {
   std::vector<std::string> notes;
   const FineMesh fine = FineMesh::dice(std::move(mesh), req, &notes);
   for (const auto& n : notes) std::fprintf(stderr, "dicer dice: note: %s\n", n.c_str());
-  write_store(fine, *out);
+  {
+    Progress bar("dice: writing", 1, args.has("--quiet"));
+    write_store(fine, *out, [&](std::int64_t done, std::int64_t total) { bar.update(done, total); });
+  }
   if (!args.has("--quiet"))
     std::printf("diced %s: %lld coarse %s -> %s fine nodes, %s fine elements (%lld sheets); wrote %s\n", in.c_str(),
                 static_cast<long long>(fine.num_coarse_elements()), fine.mode() == Mode::Volume ? "hexes" : "quads",

@@ -68,6 +68,10 @@ class Progress {
   Progress(std::string label, std::int64_t total, bool quiet);
   ~Progress();
   void update(std::int64_t done);
+  void update(std::int64_t done, std::int64_t total) {
+    total_ = total;
+    update(done);
+  }
 
  private:
   std::string label_;

@@ -14,7 +14,8 @@
 //  - num_dim 3 always (a surface mesh is a 3-D shell), coordinate names x y z.
 //  - One element block per block that has elements in the chunk, in
 //    MeshInfo::blocks order, id = Block::id, type HEX8 (volume) or SHELL4
-//    (surface), named when the block has a name. Elements are written block
+//    (surface), with its name (blocks and sets: names up to 255 characters,
+//    longer ones cut; the file's name length is the longest one, at least 32). Elements are written block
 //    by block (stable: within a block, in the chunk's global id order); the
 //    element id map follows the same order.
 //  - Id maps: EX_NODE_MAP = global node id + 1, EX_ELEM_MAP = global element
@@ -51,6 +52,7 @@ namespace dicer {
 namespace {
 
 constexpr std::int64_t kSlice = std::int64_t{1} << 16;  // id map entries per library call
+constexpr std::size_t kMaxName = 255;                   // longest name kept (netCDF-4: NC_MAX_NAME = 256)
 
 void clear_exodus_error() { ex_err("dicer", "", EX_MSG); }
 
@@ -183,17 +185,24 @@ void write_exodus(const ExportChunk& chunk, const std::string& path) {
   file.create();
   const int exoid = file.id();
 
-  // Longest name stored (default database limit is 32 characters).
-  std::size_t longest = 1;
+  // Name length: Exodus 6.02 sizes the file's name dimension (len_name) from
+  // the "maximum_name_length" attribute when ex_put_init_ext defines it, and
+  // ex_set_max_name_length changes only the API side, so the attribute is set
+  // here, still in define mode (newer Exodus versions do the same
+  // internally). Names are cut to kMaxName characters by us, so the library
+  // never truncates (it would print a warning on stderr).
+  std::size_t longest = MAX_NAME_LENGTH;
   for (std::size_t b : present) longest = std::max(longest, info.blocks[b].name.size());
   for (const auto& s : chunk.side_sets()) longest = std::max(longest, s.name.size());
   for (const auto& s : chunk.node_sets()) longest = std::max(longest, s.name.size());
-  if (longest > static_cast<std::size_t>(MAX_NAME_LENGTH)) {
-    const std::int64_t allowed = ex_inquire_int(exoid, EX_INQ_DB_MAX_ALLOWED_NAME_LENGTH);
-    const std::int64_t len = std::min<std::int64_t>(static_cast<std::int64_t>(longest), std::max<std::int64_t>(allowed, 32));
+  const int name_len = static_cast<int>(std::min(longest, kMaxName));
+  if (name_len > MAX_NAME_LENGTH) {
+    const int status = nc_put_att_int(exoid, NC_GLOBAL, "maximum_name_length", NC_INT, 1, &name_len);
+    if (status != NC_NOERR) file.fail("nc_put_att_int(maximum_name_length)", nc_strerror(status));
     clear_exodus_error();
-    file.check(ex_set_max_name_length(exoid, static_cast<int>(len)), "ex_set_max_name_length");
+    file.check(ex_set_max_name_length(exoid, name_len), "ex_set_max_name_length");
   }
+  const auto cut = [&](const std::string& name) { return name.substr(0, static_cast<std::size_t>(name_len)); };
 
   // ---- header ----
   ex_init_params init{};
@@ -243,7 +252,7 @@ void write_exodus(const ExportChunk& chunk, const std::string& path) {
   }
   if (!present.empty()) {
     NameList names;
-    for (std::size_t b : present) names.text.push_back(info.blocks[b].name);
+    for (std::size_t b : present) names.text.push_back(cut(info.blocks[b].name));
     clear_exodus_error();
     file.check(ex_put_names(exoid, EX_ELEM_BLOCK, names.data()), "ex_put_names(element blocks)");
   }
@@ -291,7 +300,7 @@ void write_exodus(const ExportChunk& chunk, const std::string& path) {
   }
   if (!chunk.side_sets().empty()) {
     NameList names;
-    for (const auto& set : chunk.side_sets()) names.text.push_back(set.name);
+    for (const auto& set : chunk.side_sets()) names.text.push_back(cut(set.name));
     clear_exodus_error();
     file.check(ex_put_names(exoid, EX_SIDE_SET, names.data()), "ex_put_names(side sets)");
   }
@@ -310,7 +319,7 @@ void write_exodus(const ExportChunk& chunk, const std::string& path) {
   }
   if (!chunk.node_sets().empty()) {
     NameList names;
-    for (const auto& set : chunk.node_sets()) names.text.push_back(set.name);
+    for (const auto& set : chunk.node_sets()) names.text.push_back(cut(set.name));
     clear_exodus_error();
     file.check(ex_put_names(exoid, EX_NODE_SET, names.data()), "ex_put_names(node sets)");
   }

@@ -29,6 +29,7 @@
 
 #include "dicer/error.hpp"
 #include "dicer/export.hpp"
+#include "dicer/hdf5_lock.hpp"
 
 namespace dicer {
 namespace {
@@ -251,6 +252,7 @@ struct VtkHdfWriter::Impl {
 
 VtkHdfWriter::VtkHdfWriter(const std::string& path, Id partitions) : impl_(new Impl) {
   namespace fs = std::filesystem;
+  std::lock_guard lock(hdf5_lock());
   impl_->path = path;
   impl_->partitions = partitions;
   try {
@@ -271,11 +273,13 @@ VtkHdfWriter::VtkHdfWriter(const std::string& path, Id partitions) : impl_(new I
 }
 
 VtkHdfWriter::~VtkHdfWriter() {
+  std::lock_guard lock(hdf5_lock());
   if (!impl_->finished) impl_->remove_tmp();
   delete impl_;
 }
 
 void VtkHdfWriter::write_partition(const ExportChunk& chunk) {
+  std::lock_guard lock(hdf5_lock());
   Impl& m = *impl_;
   if (m.finished) throw Error(ErrorKind::Usage, m.path + ": write_partition after finish");
   if (m.broken) throw Error(ErrorKind::Usage, m.path + ": write_partition after a failed write");
@@ -297,6 +301,7 @@ void VtkHdfWriter::write_partition(const ExportChunk& chunk) {
 }
 
 void VtkHdfWriter::finish() {
+  std::lock_guard lock(hdf5_lock());
   Impl& m = *impl_;
   if (m.finished) throw Error(ErrorKind::Usage, m.path + ": finish called twice");
   if (m.broken) throw Error(ErrorKind::Io, m.path + ": an earlier write failed; the file is incomplete");

@@ -9,17 +9,15 @@
 #include <mutex>
 
 #include "dicer/error.hpp"
+#include "dicer/hdf5_lock.hpp"
 #include "hdf5_file.hpp"
 #include "lz4_filter.hpp"
 
 namespace dicer {
 namespace {
 
-// Serial HDF5 is not thread-safe: every HDF5 call of a store goes through this.
-std::mutex& hdf5_mutex() {
-  static std::mutex m;
-  return m;
-}
+// Serial HDF5 is not thread-safe: every HDF5 call goes under the process lock.
+std::recursive_mutex& hdf5_mutex() { return hdf5_lock(); }
 
 std::int64_t rows_per_page(std::int64_t width, std::size_t elem) {
   return std::max<std::int64_t>(1, static_cast<std::int64_t>(kStorePageBytes / (static_cast<std::uint64_t>(width) * elem)));
@@ -36,6 +34,13 @@ hid_t h5_type() {
 
 // Writes rows x width values as a chunked, LZ4 + Fletcher32 dataset, one
 // H5Dwrite_chunk per page: every page is written once, never re-read.
+// Pages written so far and in all (for write_store's progress callback).
+struct WriteProgress {
+  std::int64_t done = 0, total = 0;
+  const std::function<void(std::int64_t, std::int64_t)>* fn = nullptr;
+};
+thread_local WriteProgress* g_write_progress = nullptr;
+
 template <class T>
 void write_paged(const h5::File& f, const std::string& name, const T* data, std::int64_t rows, std::int64_t width) {
   const int rank = 2;
@@ -61,6 +66,10 @@ void write_paged(const h5::File& f, const std::string& name, const T* data, std:
     hsize_t offset[2] = {static_cast<hsize_t>(first), 0};
     if (H5Dwrite_chunk(ds.get(), H5P_DEFAULT, 0, offset, stored.size(), stored.data()) < 0)
       throw Error(ErrorKind::Io, f.path() + ": " + name + ": writing page " + std::to_string(first / rpp) + " failed");
+    if (g_write_progress && g_write_progress->fn && *g_write_progress->fn) {
+      ++g_write_progress->done;
+      (*g_write_progress->fn)(g_write_progress->done, std::max(g_write_progress->total, g_write_progress->done));
+    }
   }
 }
 
@@ -169,7 +178,8 @@ std::vector<T> read_small(OpenStore& s, const std::shared_ptr<PageCache>& cache,
 
 }  // namespace
 
-void write_store(const FineMesh& mesh, const std::string& path) {
+void write_store(const FineMesh& mesh, const std::string& path,
+                 const std::function<void(std::int64_t, std::int64_t)>& progress) {
   namespace fs = std::filesystem;
   const CoarseMesh* c = mesh.coarse();
   if (!c) throw Error(ErrorKind::Usage, path + ": write_store needs a mesh diced in this process");
@@ -180,6 +190,17 @@ void write_store(const FineMesh& mesh, const std::string& path) {
   const fs::path tmp = dir / ("." + final_path.filename().string() + ".tmp-" + std::to_string(::getpid()));
   std::lock_guard lock(hdf5_mutex());
   store::register_lz4_filter();
+  WriteProgress wp;
+  wp.fn = &progress;
+  auto pages = [](const auto& tab) {
+    const std::int64_t rpp = rows_per_page(tab.width(), sizeof(tab.memory()[0]));
+    return (tab.rows() + rpp - 1) / rpp;
+  };
+  wp.total = pages(t.vertices) + pages(t.vertex_elements) + pages(t.edges) + pages(t.faces) + pages(t.elements) + 40;
+  g_write_progress = &wp;
+  struct Reset {
+    ~Reset() { g_write_progress = nullptr; }
+  } reset_progress;
   try {
     {
       h5::File f = h5::File::create(tmp.string());

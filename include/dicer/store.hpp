@@ -18,6 +18,7 @@
 // inconsistent content with Error{Unsupported|Corrupt|BadInput}, naming the
 // file, the dataset and the page.
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 
@@ -31,7 +32,9 @@ inline constexpr const char* kStoreFormatName = "dicer-store";
 inline constexpr std::uint64_t kStorePageBytes = 64 * 1024;  // target page size (whole rows)
 
 // Precondition: mesh was diced in this process (mesh.coarse() != nullptr).
-void write_store(const FineMesh& mesh, const std::string& path);
+// progress(done, total) is called after each page written, when given.
+void write_store(const FineMesh& mesh, const std::string& path,
+                 const std::function<void(std::int64_t, std::int64_t)>& progress = {});
 
 struct StoreOptions {
   std::uint64_t cache_bytes = 64ull << 20;  // decoded pages resident, at most (>= 1 MiB)

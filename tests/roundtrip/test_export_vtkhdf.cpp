@@ -313,7 +313,8 @@ TEST(ExportVtkHdf, SpherePartitionsReadByVtkHdfReader) {
 }
 
 TEST(ExportVtkHdf, LayoutMatchesChunksExactly) {
-  const auto e = dice_and_chunk("cardinal_sphere.e", 2, 3);
+  const auto e = dice_and_chunk("cardinal_pincell.e", 2, 3);  // three blocks
+  ASSERT_GE(e->mesh.info().blocks.size(), 2u);
   test::TempDir dir;
   const std::string path = dir.path("sphere.vtkhdf");
   write_all(*e, path);
@@ -348,6 +349,13 @@ TEST(ExportVtkHdf, LayoutMatchesChunksExactly) {
              nconn = read_i64(f.id, "VTKHDF/NumberOfConnectivityIds"), conn = read_i64(f.id, "VTKHDF/Connectivity"),
              off = read_i64(f.id, "VTKHDF/Offsets"), gid = read_i64(f.id, "VTKHDF/PointData/GlobalNodeId"),
              eid = read_i64(f.id, "VTKHDF/CellData/GlobalElementId"), bid = read_i64(f.id, "VTKHDF/CellData/BlockId");
+  std::vector<double> xyz(gid.size() * 3);
+  {
+    H5 ds{H5Dopen2(f.id, "VTKHDF/Points", H5P_DEFAULT), H5Dclose};
+    ASSERT_GE(H5Dread(ds.id, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, xyz.data()), 0);
+  }
+  std::set<std::int64_t> blocks_seen(bid.begin(), bid.end());
+  EXPECT_EQ(blocks_seen.size(), e->mesh.info().blocks.size());
   ASSERT_EQ(np.size(), e->chunks.size());
   size_t p0 = 0, c0 = 0, k0 = 0, o0 = 0;
   for (size_t k = 0; k < e->chunks.size(); ++k) {
@@ -356,7 +364,12 @@ TEST(ExportVtkHdf, LayoutMatchesChunksExactly) {
     ASSERT_EQ(np[k], c.num_nodes());
     ASSERT_EQ(nc[k], c.num_elements());
     ASSERT_EQ(nconn[k], c.num_elements() * 8);
-    for (Id i = 0; i < c.num_nodes(); ++i) ASSERT_EQ(gid.at(p0 + i), c.node_global()[i]);
+    for (Id i = 0; i < c.num_nodes(); ++i) {
+      ASSERT_EQ(gid.at(p0 + i), c.node_global()[i]);
+      ASSERT_EQ(std::bit_cast<std::uint64_t>(xyz[3 * (p0 + i)]), std::bit_cast<std::uint64_t>(c.x()[i]));
+      ASSERT_EQ(std::bit_cast<std::uint64_t>(xyz[3 * (p0 + i) + 1]), std::bit_cast<std::uint64_t>(c.y()[i]));
+      ASSERT_EQ(std::bit_cast<std::uint64_t>(xyz[3 * (p0 + i) + 2]), std::bit_cast<std::uint64_t>(c.z()[i]));
+    }
     for (Id i = 0; i < c.num_elements(); ++i) {
       ASSERT_EQ(eid.at(c0 + i), c.element_global()[i]);
       ASSERT_EQ(bid.at(c0 + i), e->mesh.info().blocks[static_cast<size_t>(c.element_block()[i])].id);

@@ -1,0 +1,8 @@
+#include "dicer/hdf5_lock.hpp"
+
+namespace dicer {
+std::recursive_mutex& hdf5_lock() {
+  static std::recursive_mutex m;
+  return m;
+}
+}  // namespace dicer

@@ -1,0 +1,11 @@
+#pragma once
+// Debian's HDF5 is the serial, non-thread-safe build. Every HDF5 call in
+// the process (the store's page loads, which the cache's read-ahead thread
+// makes in the background, and the VTKHDF writer) holds this one lock.
+// Recursive, so a writer holding it may call code that takes it again.
+// No HDF5 here: the lock lives in the core so all libraries share it.
+#include <mutex>
+
+namespace dicer {
+std::recursive_mutex& hdf5_lock();
+}  // namespace dicer

@@ -1,0 +1,63 @@
+// The export command end to end: every format from the command line, chunk
+// and box arguments, refusals, and Ctrl-C leaving nothing behind.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <thread>
+
+#include "test_support.hpp"
+
+using namespace dicer;
+
+TEST(ExportCli, EveryFormatChunkAndBoxFromTheCommandLine) {
+  test::TempDir tmp;
+  const std::string store = tmp.path("m.dice.h5");
+  ASSERT_EQ(test::run_cli({"dice", test::data_path("vtkdata_mug.e"), "--interval", "2", "-o", store}).exit_code, 0);
+  for (const auto& [fmt, file] : std::vector<std::pair<std::string, std::string>>{
+           {"vtkhdf", "a.vtkhdf"}, {"msh", "b.msh"}, {"msh-ascii", "c.msh"}, {"exodus", "d.exo"}}) {
+    auto r = test::run_cli({"export", store, "--format", fmt, "--chunk", "1/3", "-o", tmp.path(file), "--quiet"});
+    EXPECT_EQ(r.exit_code, 0) << fmt << ": " << r.err;
+    EXPECT_TRUE(std::filesystem::exists(tmp.path(file))) << fmt;
+  }
+  auto r = test::run_cli({"export", store, "--format", "msh", "--box", "-10,-10,-10,10,10,10", "-o", tmp.path("box.msh")});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("19808 fine elements"), std::string::npos) << r.out;  // a box around everything: 2476 x 8
+  r = test::run_cli({"query", store, "--box", "-10,-10,-10,10,10,10", "--count"});
+  EXPECT_EQ(r.out, "19808\n");
+  // Refusals: chunk out of range, malformed box, unknown format; nothing written.
+  const std::string never = tmp.path("never.msh");
+  EXPECT_EQ(test::run_cli({"export", store, "--format", "msh", "--chunk", "3/3", "-o", never}).exit_code, 2);
+  EXPECT_EQ(test::run_cli({"export", store, "--format", "msh", "--box", "0,0,1", "-o", never}).exit_code, 2);
+  EXPECT_EQ(test::run_cli({"export", store, "--format", "stl", "-o", never}).exit_code, 2);
+  EXPECT_FALSE(std::filesystem::exists(never));
+}
+
+TEST(ExportCli, CtrlCLeavesNoPartialOutput) {
+  test::TempDir tmp;
+  const std::string store = tmp.path("big.dice.h5");
+  // 7472 hexes at interval 12: 12.9M fine elements, several seconds of export.
+  ASSERT_EQ(test::run_cli({"dice", test::data_path("vtkdata_disk_out_ref.ex2"), "--interval", "12", "-o", store}).exit_code, 0);
+  const std::string out = tmp.path("whole.msh");
+  const pid_t pid = ::fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    ::freopen("/dev/null", "w", stdout);
+    ::freopen("/dev/null", "w", stderr);
+    const std::string exe = DICER_CLI;
+    ::execl(exe.c_str(), exe.c_str(), "export", store.c_str(), "--format", "msh", "-o", out.c_str(), nullptr);
+    ::_exit(127);
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(700));
+  ::kill(pid, SIGINT);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFEXITED(status)) << "the export should stop cleanly on SIGINT";
+  EXPECT_EQ(WEXITSTATUS(status), 130);
+  EXPECT_FALSE(std::filesystem::exists(out));
+  for (const auto& e : std::filesystem::directory_iterator(tmp.dir()))
+    EXPECT_EQ(e.path().filename().string().find(".tmp-"), std::string::npos) << "left behind: " << e.path();
+}
