@@ -147,8 +147,11 @@ void ExportChunk::prepare(const MeshSets& sets, const std::function<void(Id, Id)
   };
   std::vector<std::uint8_t> kept_coarse(static_cast<size_t>(span), 1);
 
-  // Pass 1: elements (global ids, blocks, connectivity in global node ids).
+  // Pass 1: which elements are kept and which nodes they use. Without a box
+  // every grid point of every block is used: collect one id per grid point
+  // (not 8 per element), then sort and deduplicate.
   node_global_.clear(), elem_global_.clear(), conn_.clear(), elem_block_.clear();
+  std::vector<std::uint8_t> keep;  // per element of the current block (box only)
   for (Id h = first; h < end; ++h) {
     check_cancel();
     if (box_ && coarse_box_misses(mesh_, h, *box_, cur)) {
@@ -156,42 +159,76 @@ void ExportChunk::prepare(const MeshSets& sets, const std::function<void(Id, Id)
       if (progress) progress(h - first + 1, 2 * span);
       continue;
     }
-    mesh_.fill_block(h, b);
-    for (Id e = 0; e < b.num_elements(); ++e) {
-      if (box_) {
+    if (!box_) {
+      mesh_.fill_block(h, b, true);
+      node_global_.insert(node_global_.end(), b.node_id.begin(), b.node_id.end());
+    } else {
+      mesh_.fill_block(h, b);
+      bool any = false;
+      for (Id e = 0; e < b.num_elements(); ++e) {
         double c[3];
         centroid(b, e, nc, c);
         if (!box_->contains(c[0], c[1], c[2])) continue;
+        any = true;
+        node_global_.insert(node_global_.end(), b.conn.begin() + e * nc, b.conn.begin() + (e + 1) * nc);
       }
-      elem_global_.push_back(b.first_element + e);
-      elem_block_.push_back(b.block);
-      conn_.insert(conn_.end(), b.conn.begin() + e * nc, b.conn.begin() + (e + 1) * nc);
+      if (!any) kept_coarse[h - first] = 0;
     }
     if (progress) progress(h - first + 1, 2 * span);
   }
-  node_global_ = conn_;
   std::sort(node_global_.begin(), node_global_.end());
   node_global_.erase(std::unique(node_global_.begin(), node_global_.end()), node_global_.end());
   node_global_.shrink_to_fit();
-  auto local_of = [&](Id g) {
-    return static_cast<Id>(std::lower_bound(node_global_.begin(), node_global_.end(), g) - node_global_.begin());
-  };
-  for (Id& c : conn_) c = local_of(c);
 
-  // Pass 2: coordinates, scattered to local order.
+  // Pass 2: each grid point mapped to its local id once (consecutive ids,
+  // the common case inside a block, cost one compare), then coordinates
+  // scattered and connectivity taken from grid offsets.
   const Id nn = num_nodes();
   x_.assign(static_cast<size_t>(nn), 0), y_.assign(static_cast<size_t>(nn), 0), z_.assign(static_cast<size_t>(nn), 0);
+  std::vector<Id> local;
   for (Id h = first; h < end; ++h) {
     check_cancel();
     if (kept_coarse[h - first]) {
       mesh_.fill_block(h, b, true);
+      local.resize(static_cast<size_t>(b.num_points()));
+      size_t pos = 0;
       for (Id g = 0; g < b.num_points(); ++g) {
         const Id id = b.node_id[g];
-        const auto it = std::lower_bound(node_global_.begin(), node_global_.end(), id);
-        if (it == node_global_.end() || *it != id) continue;
-        const size_t l = static_cast<size_t>(it - node_global_.begin());
-        x_[l] = b.x[g], y_[l] = b.y[g], z_[l] = b.z[g];
+        if (pos + 1 < node_global_.size() && node_global_[pos + 1] == id) {
+          ++pos;
+        } else if (pos >= node_global_.size() || node_global_[pos] != id) {
+          const auto it = std::lower_bound(node_global_.begin(), node_global_.end(), id);
+          if (it == node_global_.end() || *it != id) {  // a point no kept element uses (box)
+            local[g] = -1;
+            continue;
+          }
+          pos = static_cast<size_t>(it - node_global_.begin());
+        }
+        local[g] = static_cast<Id>(pos);
+        x_[pos] = b.x[g], y_[pos] = b.y[g], z_[pos] = b.z[g];
       }
+      const auto n = b.n;
+      const Id sj = n[0] + 1, sk = (n[0] + 1) * (n[1] + 1);
+      const Id off[8] = {0, 1, 1 + sj, sj, sk, 1 + sk, 1 + sj + sk, sj + sk};
+      for (Id k = 0; k < n[2]; ++k)
+        for (Id j = 0; j < n[1]; ++j)
+          for (Id i = 0; i < n[0]; ++i) {
+            const Id g0 = b.point_index(i, j, k);
+            bool take = true;
+            if (box_) {
+              double c[3] = {0, 0, 0};
+              for (int q = 0; q < nc; ++q) {
+                const Id g = g0 + off[q];
+                c[0] += b.x[g], c[1] += b.y[g], c[2] += b.z[g];
+              }
+              for (double& v : c) v /= nc;
+              take = box_->contains(c[0], c[1], c[2]);
+            }
+            if (!take) continue;
+            elem_global_.push_back(b.first_element + i + n[0] * (j + n[1] * k));
+            elem_block_.push_back(b.block);
+            for (int q = 0; q < nc; ++q) conn_.push_back(local[g0 + off[q]]);
+          }
     }
     if (progress) progress(span + h - first + 1, 2 * span);
   }

@@ -2,22 +2,27 @@
 // C library (the same library read_exodus.cpp reads with).
 //
 // File layout:
-//  - netCDF-4 (HDF5-based), 64-bit integers in the file and in the API
-//    (EX_ALL_INT64_DB | EX_ALL_INT64_API). There is no classic/64-bit-offset
-//    branch: the ids of a small chunk of a big mesh (global id + 1) already
-//    overflow 32 bits, and Exodus 6.02 stores 64-bit integers only in
-//    netCDF-4 (asking for EX_ALL_INT64_DB without EX_NETCDF4 silently gives
-//    netCDF-4 anyway), so every file is netCDF-4; EX_NETCDF4 says so
-//    explicitly. netCDF-4 also lifts the classic formats' 4 GiB-per-variable
-//    limit, so no count threshold is needed. meshio (through netCDF4-python),
-//    ParaView/VTK and the Exodus library itself all read it.
+//  - netCDF-4 (HDF5-based). Integers: the API is 64-bit throughout
+//    (EX_ALL_INT64_API); in the file, ids and maps are 64-bit
+//    (EX_IDS_INT64_DB | EX_MAPS_INT64_DB: global id + 1 of a small chunk of
+//    a big mesh overflows 32 bits) and bulk data (connectivity, set entries:
+//    local, 1-based positions in this file) is 32-bit. Not EX_BULK_INT64_DB:
+//    Exodus 6.02's ex_put_set_param passes sizeof(int64_t) = 8 as the netCDF
+//    type and so stores every set entry as NC_USHORT, failing ("Numeric
+//    conversion not representable") past 65535. A chunk therefore holds at
+//    most 2^31 - 1 nodes and elements (Error{Usage}: use more chunks).
+//    Any 64-bit integer in the file needs netCDF-4 (Exodus 6.02 silently
+//    switches to it even without EX_NETCDF4), so every file is netCDF-4 and
+//    there is no count threshold; that format also has no 4 GiB-per-variable
+//    limit. meshio (netCDF4-python), ParaView/VTK, the Exodus library and
+//    read_coarse_mesh read it.
 //  - num_dim 3 always (a surface mesh is a 3-D shell), coordinate names x y z.
 //  - One element block per block that has elements in the chunk, in
 //    MeshInfo::blocks order, id = Block::id, type HEX8 (volume) or SHELL4
 //    (surface), with its name (blocks and sets: names up to 255 characters,
-//    longer ones cut; the file's name length is the longest one, at least 32). Elements are written block
-//    by block (stable: within a block, in the chunk's global id order); the
-//    element id map follows the same order.
+//    longer ones cut; the file's name length is the longest name, at least
+//    32). Elements are written block by block (stable: within a block, in
+//    the chunk's global id order); the element id map follows that order.
 //  - Id maps: EX_NODE_MAP = global node id + 1, EX_ELEM_MAP = global element
 //    id + 1.
 //  - Side sets: every set of the chunk (an empty one too, so a solver finds
@@ -47,6 +52,7 @@
 
 #include "dicer/error.hpp"
 #include "dicer/export.hpp"
+#include "dicer/hdf5_lock.hpp"
 
 namespace dicer {
 namespace {
@@ -93,15 +99,15 @@ class TempExodus {
   [[noreturn]] void fail(const std::string& call, const std::string& reason) const {
     throw Error(ErrorKind::Io, final_ + ": " + call + " failed (" + reason + ")");
   }
-  // Negative return codes are errors; positive ones are warnings (a name
-  // truncated to the database's limit), harmless here.
+  // Negative return codes are errors; positive ones are warnings, harmless
+  // here (names are cut to the file's limit before they are written).
   void check(int rc, const std::string& call) const {
     if (rc < 0) fail(call, exodus_reason(rc));
   }
 
   void create() {
     int cpu_word_size = 8, io_word_size = 8;
-    const int mode = EX_CLOBBER | EX_NETCDF4 | EX_ALL_INT64_DB | EX_ALL_INT64_API;
+    const int mode = EX_CLOBBER | EX_NETCDF4 | EX_IDS_INT64_DB | EX_MAPS_INT64_DB | EX_ALL_INT64_API;
     clear_exodus_error();
     const int id = ex_create(temp_.c_str(), mode, &cpu_word_size, &io_word_size);
     if (id < 0) fail("ex_create", exodus_reason(id));
@@ -141,6 +147,9 @@ struct NameList {
 }  // namespace
 
 void write_exodus(const ExportChunk& chunk, const std::string& path) {
+  // netCDF-4 is HDF5 underneath: take the process-wide HDF5 lock (the
+  // store's read-ahead thread may be loading pages meanwhile).
+  std::lock_guard hdf5_guard(hdf5_lock());
   namespace fs = std::filesystem;
   const fs::path final_path(path);
   if (final_path.filename().empty() || path.back() == '/')
@@ -157,6 +166,13 @@ void write_exodus(const ExportChunk& chunk, const std::string& path) {
   const auto elem_block = chunk.element_block();
   const auto elem_global = chunk.element_global();
   const auto conn = chunk.connectivity();
+
+  constexpr Id kMaxLocal = 2147483647;  // 32-bit bulk data, see above
+  if (num_nodes > kMaxLocal || num_elements > kMaxLocal)
+    throw Error(ErrorKind::Usage, path + ": a chunk of " + std::to_string(num_nodes) + " nodes and " +
+                                      std::to_string(num_elements) +
+                                      " elements is too big for one Exodus file (at most 2147483647 of each); "
+                                      "export in more chunks");
 
   // ---- block order: counting sort of the chunk's elements by block ----
   const std::size_t nblocks = info.blocks.size();
@@ -208,8 +224,8 @@ void write_exodus(const ExportChunk& chunk, const std::string& path) {
   ex_init_params init{};
   {
     std::string source = fs::path(info.source).filename().string();
-    std::string title = "dicer chunk " + std::to_string(chunk.range().index + 1) + " of " +
-                        std::to_string(chunk.range().count) + (source.empty() ? "" : " of " + source);
+    std::string title = "dicer: chunk " + std::to_string(chunk.range().index + 1) + " of " +
+                        std::to_string(chunk.range().count) + (source.empty() ? "" : " from " + source);
     title.resize(std::min<std::size_t>(title.size(), MAX_LINE_LENGTH));
     std::copy(title.begin(), title.end(), init.title);
   }
@@ -237,9 +253,11 @@ void write_exodus(const ExportChunk& chunk, const std::string& path) {
   for (Id first = 0; first < num_nodes; first += kSlice) {
     const Id n = std::min(kSlice, num_nodes - first);
     buffer.resize(static_cast<std::size_t>(n));
-    for (Id i = 0; i < n; ++i) buffer[static_cast<std::size_t>(i)] = node_global[static_cast<std::size_t>(first + i)] + 1;
+    for (Id i = 0; i < n; ++i)
+      buffer[static_cast<std::size_t>(i)] = node_global[static_cast<std::size_t>(first + i)] + 1;
     clear_exodus_error();
-    file.check(ex_put_partial_id_map(exoid, EX_NODE_MAP, first + 1, n, buffer.data()), "ex_put_partial_id_map(node)");
+    file.check(ex_put_partial_id_map(exoid, EX_NODE_MAP, first + 1, n, buffer.data()),
+               "ex_put_partial_id_map(node)");
   }
 
   // ---- element blocks ----
@@ -260,10 +278,11 @@ void write_exodus(const ExportChunk& chunk, const std::string& path) {
     const std::int64_t id = info.blocks[b].id;
     const Id first = block_start[b], count = block_start[b + 1] - first;
     buffer.resize(static_cast<std::size_t>(count * corners));
+    const std::size_t width = static_cast<std::size_t>(corners);
     std::size_t k = 0;
     for (Id f = first; f < first + count; ++f) {
       const std::size_t e = static_cast<std::size_t>(order[static_cast<std::size_t>(f)]);
-      for (int c = 0; c < corners; ++c) buffer[k++] = conn[e * static_cast<std::size_t>(corners) + static_cast<std::size_t>(c)] + 1;
+      for (std::size_t c = 0; c < width; ++c) buffer[k++] = conn[e * width + c] + 1;
     }
     clear_exodus_error();
     file.check(ex_put_conn(exoid, EX_ELEM_BLOCK, id, buffer.data(), nullptr, nullptr),
@@ -276,7 +295,8 @@ void write_exodus(const ExportChunk& chunk, const std::string& path) {
       buffer[static_cast<std::size_t>(i)] =
           elem_global[static_cast<std::size_t>(order[static_cast<std::size_t>(first + i)])] + 1;
     clear_exodus_error();
-    file.check(ex_put_partial_id_map(exoid, EX_ELEM_MAP, first + 1, n, buffer.data()), "ex_put_partial_id_map(element)");
+    file.check(ex_put_partial_id_map(exoid, EX_ELEM_MAP, first + 1, n, buffer.data()),
+               "ex_put_partial_id_map(element)");
   }
   // Sets need the inverse: the 0-based file position of each chunk element.
   std::vector<Id> file_pos(order.size());

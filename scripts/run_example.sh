@@ -15,5 +15,8 @@ build/dicer query "$out/sphere.dice.h5" --element 123456 --json
 build/dicer query "$out/sphere.dice.h5" --nodes 1000:1003 --json
 build/dicer verify "$out/sphere.dice.h5" --stats
 build/dicer footprint "$out/sphere.dice.h5"
+build/dicer export "$out/sphere.dice.h5" --format vtkhdf --chunks 4 -o "$out/sphere.vtkhdf"
+build/dicer export "$out/sphere.dice.h5" --format exodus --chunk 1/8 -o "$out/sphere_chunk1.exo"
+build/dicer export "$out/sphere.dice.h5" --format msh --box -2,-2,-2,2,2,0 -o "$out/sphere_lower_half.msh"
 build/dicer dice examples/dealii_step-49_example.msh --interval 8 -o "$out/plate.dice.h5"
 build/dicer verify "$out/plate.dice.h5" --quiet

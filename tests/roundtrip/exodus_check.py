@@ -20,6 +20,7 @@ so the C++ test can pick a line by key:
   conn_digest   the same over meshio's 0-based connectivity, blocks in file
                 order, rows flattened
   point_sets    {name: size} from meshio
+  id_types      netCDF types of node_num_map, elem_num_map, eb_prop1 (those present)
   block_ids, block_names, block_types
                 eb_prop1, eb_names, connect*.elem_type
   node_map_digest, elem_map_digest
@@ -92,6 +93,8 @@ def main(argv):
 
     with netCDF4.Dataset(path) as nc:
         out["format"] = nc.data_model
+        out["id_types"] = [str(nc.variables[v].dtype) for v in ("node_num_map", "elem_num_map", "eb_prop1")
+                           if v in nc.variables]
         nblk = dim(nc, "num_el_blk")
         out["block_ids"] = [int(v) for v in ints(nc, "eb_prop1")] if nblk else []
         out["block_names"] = names(nc, "eb_names", nblk)
