@@ -28,34 +28,13 @@
 
 #include "dicer/coarse_mesh.hpp"
 #include "dicer/error.hpp"
+#include "exodus_errors.hpp"
 
 namespace dicer {
 namespace {
 
 // ---------------------------------------------------------------- errors ---
 
-// The library keeps its last message in a static buffer; we clear it before
-// each call so that a failure reports its own message, never a stale one.
-void clear_exodus_error() { ex_err("dicer", "", EX_MSG); }
-
-std::string exodus_reason(int rc) {
-  const char* msg = nullptr;
-  const char* func = nullptr;
-  int code = 0;
-  ex_get_err(&msg, &func, &code);
-  std::string text = (msg != nullptr) ? msg : "";
-  // Library messages contain tabs and newlines; keep the error on one line.
-  for (char& c : text)
-    if (c == '\n' || c == '\t') c = ' ';
-  while (!text.empty() && text.back() == ' ') text.pop_back();
-  if (text.rfind("Error: ", 0) == 0) text.erase(0, 7);
-  if (code != 0 && code != EX_MSG && code > -1000 && code < 1000) {
-    if (!text.empty()) text += ": ";
-    text += nc_strerror(code);
-  }
-  if (text.empty()) text = "exodus error code " + std::to_string(rc);
-  return text;
-}
 
 [[noreturn]] void fail(ErrorKind kind, const std::string& path, const std::string& what) {
   throw Error(kind, path + ": " + what);
@@ -64,7 +43,7 @@ std::string exodus_reason(int rc) {
 // Checks the return code of an Exodus call: negative is an error (positive
 // values are warnings such as "no names stored", which are harmless here).
 void check(int rc, const std::string& path, const std::string& what) {
-  if (rc < 0) fail(ErrorKind::BadInput, path, what + " failed (" + exodus_reason(rc) + ")");
+  if (rc < 0) fail(ErrorKind::BadInput, path, what + " failed (" + exodus::reason(rc) + ")");
 }
 
 // ----------------------------------------------------------- file access ---
@@ -215,7 +194,7 @@ std::vector<std::string> read_names(int exoid, ex_entity_type type, std::int64_t
                                          std::vector<char>(static_cast<std::size_t>(name_len) + 1, '\0'));
   std::vector<char*> pointers;
   for (auto& b : buffers) pointers.push_back(b.data());
-  clear_exodus_error();
+  exodus::clear_error();
   check(ex_get_names(exoid, type, pointers.data()), path, "reading " + what + " names");
   for (std::size_t i = 0; i < names.size(); ++i) {
     buffers[i].back() = '\0';
@@ -228,7 +207,7 @@ std::vector<std::int64_t> read_ids(int exoid, ex_entity_type type, std::int64_t 
                                    const std::string& what) {
   std::vector<std::int64_t> ids(static_cast<std::size_t>(count));
   if (count == 0) return ids;
-  clear_exodus_error();
+  exodus::clear_error();
   check(ex_get_ids(exoid, type, ids.data()), path, "reading " + what + " ids");
   return ids;
 }
@@ -240,7 +219,7 @@ std::vector<Id> read_id_map(int exoid, ex_entity_type type, std::int64_t count, 
                             const std::string& what, std::vector<std::string>& warnings) {
   std::vector<Id> map(static_cast<std::size_t>(count));
   if (count == 0) return map;
-  clear_exodus_error();
+  exodus::clear_error();
   check(ex_get_id_map(exoid, type, map.data()), path, "reading the " + what + " id map");
   std::vector<Id> sorted = map;
   std::sort(sorted.begin(), sorted.end());
@@ -310,19 +289,19 @@ CoarseMesh read_exodus(const std::string& path) {
   ex_opts(0);  // no chatter on stderr, never abort; we report errors ourselves
   int cpu_word_size = 8, io_word_size = 0;
   float version = 0;
-  clear_exodus_error();
+  exodus::clear_error();
   const int exoid = ex_open(path.c_str(), EX_READ, &cpu_word_size, &io_word_size, &version);
   if (exoid < 0)
-    fail(ErrorKind::BadInput, path, "not a readable Exodus II file (" + exodus_reason(exoid) + ")");
+    fail(ErrorKind::BadInput, path, "not a readable Exodus II file (" + exodus::reason(exoid) + ")");
   ExodusFile file(exoid);
-  clear_exodus_error();
+  exodus::clear_error();
   check(ex_set_int64_status(exoid, EX_ALL_INT64_API), path, "selecting the 64-bit integer API");
 
   ex_init_params init{};
-  clear_exodus_error();
+  exodus::clear_error();
   if (ex_get_init_ext(exoid, &init) < 0)
     fail(ErrorKind::BadInput, path,
-         "not a readable Exodus II file (reading the header failed: " + exodus_reason(-1) + ")");
+         "not a readable Exodus II file (reading the header failed: " + exodus::reason(-1) + ")");
 
   // ---- sanity of the header counts before any allocation ----
   const std::uint64_t budget = storage_budget(exoid, facts.size);
@@ -358,7 +337,7 @@ CoarseMesh read_exodus(const std::string& path) {
     char type[MAX_STR_LENGTH + 1] = {};
     std::int64_t edges = 0, faces = 0, attrs = 0;
     const std::string what = "element block " + std::to_string(info.id);
-    clear_exodus_error();
+    exodus::clear_error();
     check(ex_get_block(exoid, EX_ELEM_BLOCK, info.id, type, &info.count, &info.nodes_per_element, &edges,
                        &faces, &attrs),
           path, "reading " + what);
@@ -423,7 +402,7 @@ CoarseMesh read_exodus(const std::string& path) {
   mesh.y.assign(num_nodes, 0.0);
   mesh.z.assign(num_nodes, 0.0);
   if (num_nodes > 0) {
-    clear_exodus_error();
+    exodus::clear_error();
     check(ex_get_coord(exoid, mesh.x.data(), mesh.y.data(), init.num_dim >= 3 ? mesh.z.data() : nullptr), path,
           "reading node coordinates");
   }
@@ -465,7 +444,7 @@ CoarseMesh read_exodus(const std::string& path) {
     if (!b.kept || b.count == 0) continue;
     const std::string what = "element block " + std::to_string(b.id);
     std::vector<std::int64_t> conn(static_cast<std::size_t>(b.count * b.nodes_per_element));
-    clear_exodus_error();
+    exodus::clear_error();
     check(ex_get_conn(exoid, EX_ELEM_BLOCK, b.id, conn.data(), nullptr, nullptr), path,
           "reading the connectivity of " + what);
     for (std::int64_t e = 0; e < b.count; ++e) {
@@ -497,12 +476,12 @@ CoarseMesh read_exodus(const std::string& path) {
     set.name = side_set_names[s];
     const std::string what = "side set " + std::to_string(set.id);
     std::int64_t count = 0, num_df = 0;
-    clear_exodus_error();
+    exodus::clear_error();
     check(ex_get_set_param(exoid, EX_SIDE_SET, set.id, &count, &num_df), path, "reading " + what);
     check_count(count, 8, budget, facts.size, path, "sides in " + what);
     std::vector<std::int64_t> elems(static_cast<std::size_t>(count)), sides(static_cast<std::size_t>(count));
     if (count > 0) {
-      clear_exodus_error();
+      exodus::clear_error();
       check(ex_get_set(exoid, EX_SIDE_SET, set.id, elems.data(), sides.data()), path, "reading " + what);
     }
     std::int64_t dropped = 0;
@@ -550,12 +529,12 @@ CoarseMesh read_exodus(const std::string& path) {
     set.name = node_set_names[s];
     const std::string what = "node set " + std::to_string(set.id);
     std::int64_t count = 0, num_df = 0;
-    clear_exodus_error();
+    exodus::clear_error();
     check(ex_get_set_param(exoid, EX_NODE_SET, set.id, &count, &num_df), path, "reading " + what);
     check_count(count, 4, budget, facts.size, path, "nodes in " + what);
     std::vector<std::int64_t> nodes(static_cast<std::size_t>(count));
     if (count > 0) {
-      clear_exodus_error();
+      exodus::clear_error();
       check(ex_get_set(exoid, EX_NODE_SET, set.id, nodes.data(), nullptr), path, "reading " + what);
     }
     set.vertex.reserve(nodes.size());

@@ -53,6 +53,7 @@
 #include "dicer/error.hpp"
 #include "dicer/export.hpp"
 #include "dicer/hdf5_lock.hpp"
+#include "../dicer/exodus_errors.hpp"
 
 namespace dicer {
 namespace {
@@ -60,26 +61,6 @@ namespace {
 constexpr std::int64_t kSlice = std::int64_t{1} << 16;  // id map entries per library call
 constexpr std::size_t kMaxName = 255;                   // longest name kept (netCDF-4: NC_MAX_NAME = 256)
 
-void clear_exodus_error() { ex_err("dicer", "", EX_MSG); }
-
-// The library's last message, on one line (same treatment as read_exodus).
-std::string exodus_reason(int rc) {
-  const char* msg = nullptr;
-  const char* func = nullptr;
-  int code = 0;
-  ex_get_err(&msg, &func, &code);
-  std::string text = (msg != nullptr) ? msg : "";
-  for (char& c : text)
-    if (c == '\n' || c == '\t') c = ' ';
-  while (!text.empty() && text.back() == ' ') text.pop_back();
-  if (text.rfind("Error: ", 0) == 0) text.erase(0, 7);
-  if (code != 0 && code != EX_MSG && code > -1000 && code < 1000) {
-    if (!text.empty()) text += ": ";
-    text += nc_strerror(code);
-  }
-  if (text.empty()) text = "exodus error code " + std::to_string(rc);
-  return text;
-}
 
 // The temporary file: closed and removed unless committed.
 class TempExodus {
@@ -102,15 +83,15 @@ class TempExodus {
   // Negative return codes are errors; positive ones are warnings, harmless
   // here (names are cut to the file's limit before they are written).
   void check(int rc, const std::string& call) const {
-    if (rc < 0) fail(call, exodus_reason(rc));
+    if (rc < 0) fail(call, exodus::reason(rc));
   }
 
   void create() {
     int cpu_word_size = 8, io_word_size = 8;
     const int mode = EX_CLOBBER | EX_NETCDF4 | EX_IDS_INT64_DB | EX_MAPS_INT64_DB | EX_ALL_INT64_API;
-    clear_exodus_error();
+    exodus::clear_error();
     const int id = ex_create(temp_.c_str(), mode, &cpu_word_size, &io_word_size);
-    if (id < 0) fail("ex_create", exodus_reason(id));
+    if (id < 0) fail("ex_create", exodus::reason(id));
     exoid_ = id;
   }
   int id() const { return exoid_; }
@@ -118,7 +99,7 @@ class TempExodus {
   void close_and_rename() {
     const int id = exoid_;
     exoid_ = -1;
-    clear_exodus_error();
+    exodus::clear_error();
     check(ex_close(id), "ex_close");
     std::error_code ec;
     std::filesystem::rename(temp_, final_, ec);
@@ -215,7 +196,7 @@ void write_exodus(const ExportChunk& chunk, const std::string& path) {
   if (name_len > MAX_NAME_LENGTH) {
     const int status = nc_put_att_int(exoid, NC_GLOBAL, "maximum_name_length", NC_INT, 1, &name_len);
     if (status != NC_NOERR) file.fail("nc_put_att_int(maximum_name_length)", nc_strerror(status));
-    clear_exodus_error();
+    exodus::clear_error();
     file.check(ex_set_max_name_length(exoid, name_len), "ex_set_max_name_length");
   }
   const auto cut = [&](const std::string& name) { return name.substr(0, static_cast<std::size_t>(name_len)); };
@@ -235,17 +216,17 @@ void write_exodus(const ExportChunk& chunk, const std::string& path) {
   init.num_elem_blk = static_cast<std::int64_t>(present.size());
   init.num_side_sets = static_cast<std::int64_t>(chunk.side_sets().size());
   init.num_node_sets = static_cast<std::int64_t>(chunk.node_sets().size());
-  clear_exodus_error();
+  exodus::clear_error();
   file.check(ex_put_init_ext(exoid, &init), "ex_put_init_ext");
 
   // ---- nodes ----
   {
     NameList names{{"x", "y", "z"}, {}};
-    clear_exodus_error();
+    exodus::clear_error();
     file.check(ex_put_coord_names(exoid, names.data()), "ex_put_coord_names");
   }
   if (num_nodes > 0) {
-    clear_exodus_error();
+    exodus::clear_error();
     file.check(ex_put_coord(exoid, chunk.x().data(), chunk.y().data(), chunk.z().data()), "ex_put_coord");
   }
   std::vector<std::int64_t> buffer;
@@ -255,7 +236,7 @@ void write_exodus(const ExportChunk& chunk, const std::string& path) {
     buffer.resize(static_cast<std::size_t>(n));
     for (Id i = 0; i < n; ++i)
       buffer[static_cast<std::size_t>(i)] = node_global[static_cast<std::size_t>(first + i)] + 1;
-    clear_exodus_error();
+    exodus::clear_error();
     file.check(ex_put_partial_id_map(exoid, EX_NODE_MAP, first + 1, n, buffer.data()),
                "ex_put_partial_id_map(node)");
   }
@@ -264,14 +245,14 @@ void write_exodus(const ExportChunk& chunk, const std::string& path) {
   for (std::size_t b : present) {
     const std::int64_t id = info.blocks[b].id;
     const Id count = block_start[b + 1] - block_start[b];
-    clear_exodus_error();
+    exodus::clear_error();
     file.check(ex_put_block(exoid, EX_ELEM_BLOCK, id, volume ? "HEX8" : "SHELL4", count, corners, 0, 0, 0),
                "ex_put_block(" + std::to_string(id) + ")");
   }
   if (!present.empty()) {
     NameList names;
     for (std::size_t b : present) names.text.push_back(cut(info.blocks[b].name));
-    clear_exodus_error();
+    exodus::clear_error();
     file.check(ex_put_names(exoid, EX_ELEM_BLOCK, names.data()), "ex_put_names(element blocks)");
   }
   for (std::size_t b : present) {
@@ -284,7 +265,7 @@ void write_exodus(const ExportChunk& chunk, const std::string& path) {
       const std::size_t e = static_cast<std::size_t>(order[static_cast<std::size_t>(f)]);
       for (std::size_t c = 0; c < width; ++c) buffer[k++] = conn[e * width + c] + 1;
     }
-    clear_exodus_error();
+    exodus::clear_error();
     file.check(ex_put_conn(exoid, EX_ELEM_BLOCK, id, buffer.data(), nullptr, nullptr),
                "ex_put_conn(" + std::to_string(id) + ")");
   }
@@ -294,7 +275,7 @@ void write_exodus(const ExportChunk& chunk, const std::string& path) {
     for (Id i = 0; i < n; ++i)
       buffer[static_cast<std::size_t>(i)] =
           elem_global[static_cast<std::size_t>(order[static_cast<std::size_t>(first + i)])] + 1;
-    clear_exodus_error();
+    exodus::clear_error();
     file.check(ex_put_partial_id_map(exoid, EX_ELEM_MAP, first + 1, n, buffer.data()),
                "ex_put_partial_id_map(element)");
   }
@@ -307,7 +288,7 @@ void write_exodus(const ExportChunk& chunk, const std::string& path) {
   for (const auto& set : chunk.side_sets()) {
     const std::int64_t count = static_cast<std::int64_t>(set.element.size());
     const std::string what = "(side set " + std::to_string(set.id) + ")";
-    clear_exodus_error();
+    exodus::clear_error();
     file.check(ex_put_set_param(exoid, EX_SIDE_SET, set.id, count, 0), "ex_put_set_param" + what);
     if (count == 0) continue;
     std::vector<std::int64_t> elems(static_cast<std::size_t>(count)), sides(static_cast<std::size_t>(count));
@@ -315,13 +296,13 @@ void write_exodus(const ExportChunk& chunk, const std::string& path) {
       elems[i] = file_pos[static_cast<std::size_t>(set.element[i])] + 1;
       sides[i] = set.side[i] + 1;
     }
-    clear_exodus_error();
+    exodus::clear_error();
     file.check(ex_put_set(exoid, EX_SIDE_SET, set.id, elems.data(), sides.data()), "ex_put_set" + what);
   }
   if (!chunk.side_sets().empty()) {
     NameList names;
     for (const auto& set : chunk.side_sets()) names.text.push_back(cut(set.name));
-    clear_exodus_error();
+    exodus::clear_error();
     file.check(ex_put_names(exoid, EX_SIDE_SET, names.data()), "ex_put_names(side sets)");
   }
 
@@ -329,18 +310,18 @@ void write_exodus(const ExportChunk& chunk, const std::string& path) {
   for (const auto& set : chunk.node_sets()) {
     const std::int64_t count = static_cast<std::int64_t>(set.node.size());
     const std::string what = "(node set " + std::to_string(set.id) + ")";
-    clear_exodus_error();
+    exodus::clear_error();
     file.check(ex_put_set_param(exoid, EX_NODE_SET, set.id, count, 0), "ex_put_set_param" + what);
     if (count == 0) continue;
     std::vector<std::int64_t> nodes(set.node.begin(), set.node.end());
     for (std::int64_t& v : nodes) v += 1;
-    clear_exodus_error();
+    exodus::clear_error();
     file.check(ex_put_set(exoid, EX_NODE_SET, set.id, nodes.data(), nullptr), "ex_put_set" + what);
   }
   if (!chunk.node_sets().empty()) {
     NameList names;
     for (const auto& set : chunk.node_sets()) names.text.push_back(cut(set.name));
-    clear_exodus_error();
+    exodus::clear_error();
     file.check(ex_put_names(exoid, EX_NODE_SET, names.data()), "ex_put_names(node sets)");
   }
 

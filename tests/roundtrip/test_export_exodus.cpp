@@ -27,11 +27,6 @@
 #include "dicer/fine_mesh.hpp"
 #include "test_support.hpp"
 
-// Under CI a missing reader is a failure, not a skip: this test is the proof
-// that meshio accepts our files.
-#define DICER_SKIP_OR_FAIL_IN_CI(message)               \
-  if (std::getenv("CI") != nullptr) FAIL() << message; \
-  else GTEST_SKIP() << message
 
 using namespace dicer;
 
@@ -269,47 +264,9 @@ void check_against_mesh(const ExoFile& f, const ExportChunk& c) {
 
 // ------------------------------------------------------------ meshio (exodus_check.py)
 
-struct Proc {
-  int exit_code = -1;
-  std::string out, err;
-};
-
-// fork/exec without a shell, with PYTHONPATH/PYTHONHOME removed so Debian's
-// python3 sees its own packages.
-Proc run(const std::vector<std::string>& argv) {
-  test::TempDir tmp;
-  const std::string out_path = tmp.path("out"), err_path = tmp.path("err");
-  std::vector<std::string> env;
-  for (char** e = environ; *e; ++e) {
-    const std::string entry = *e, name = entry.substr(0, entry.find('='));
-    if (name != "PYTHONPATH" && name != "PYTHONHOME") env.push_back(entry);
-  }
-  std::vector<char*> envp;
-  for (auto& e : env) envp.push_back(e.data());
-  envp.push_back(nullptr);
-  std::vector<std::string> copy = argv;
-  std::vector<char*> args;
-  for (auto& a : copy) args.push_back(a.data());
-  args.push_back(nullptr);
-  const pid_t pid = ::fork();
-  if (pid < 0) throw std::runtime_error("fork failed");
-  if (pid == 0) {
-    const int o = ::open(out_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    const int e = ::open(err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    const int in = ::open("/dev/null", O_RDONLY);
-    if (o < 0 || e < 0 || in < 0) ::_exit(126);
-    ::dup2(o, 1), ::dup2(e, 2), ::dup2(in, 0);
-    ::execve(args[0], args.data(), envp.data());
-    ::_exit(127);
-  }
-  int status = 0;
-  ::waitpid(pid, &status, 0);
-  Proc r;
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  r.out = test::read_file(out_path);
-  r.err = test::read_file(err_path);
-  return r;
-}
+using Proc = test::CliResult;
+// Without a shell; the foreign python's variables must not leak into Debian's.
+Proc run(const std::vector<std::string>& argv) { return test::run_process(argv, {}, test::kForeignPythonEnv); }
 
 // exodus_check.py prints one `"key": value` per line; the value's text.
 std::string field(const std::string& json, const std::string& key) {

@@ -195,38 +195,9 @@ void check_with_gmsh(const ExportChunk& c, const std::string& path) {
   }
 }
 
-struct Proc {
-  int exit_code = -1;
-  std::string out, err;
-};
-
-// Runs argv without a shell, with PYTHONPATH/PYTHONHOME removed (the default
-// python3 on PATH is not Debian's; its variables must not leak in).
-Proc run(const std::vector<std::string>& args) {
-  test::TempDir tmp;
-  const std::string out_path = tmp.path("out"), err_path = tmp.path("err");
-  const pid_t pid = ::fork();
-  if (pid < 0) return {};
-  if (pid == 0) {
-    const int o = ::open(out_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    const int e = ::open(err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    ::dup2(o, 1), ::dup2(e, 2);
-    ::unsetenv("PYTHONPATH"), ::unsetenv("PYTHONHOME");
-    std::vector<char*> argv;
-    std::vector<std::string> copy = args;
-    for (auto& a : copy) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    ::execv(copy[0].c_str(), argv.data());
-    ::_exit(127);
-  }
-  int status = 0;
-  ::waitpid(pid, &status, 0);
-  Proc p;
-  p.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  p.out = test::read_file(out_path);
-  p.err = test::read_file(err_path);
-  return p;
-}
+using Proc = test::CliResult;
+// Without a shell; the foreign python's variables must not leak into Debian's.
+Proc run(const std::vector<std::string>& args) { return test::run_process(args, {}, test::kForeignPythonEnv); }
 
 // The value text of `"key": value` in msh_check.py's one-key-per-line output.
 std::string json_value(const std::string& json, const std::string& key) {

@@ -22,11 +22,6 @@
 #include "dicer/fine_mesh.hpp"
 #include "test_support.hpp"
 
-// Under CI a missing reader is a failure, not a skip: this test is the proof
-// that VTK accepts our files.
-#define DICER_SKIP_OR_FAIL_IN_CI(message)               \
-  if (std::getenv("CI") != nullptr) FAIL() << message; \
-  else GTEST_SKIP() << message
 
 using namespace dicer;
 
@@ -133,36 +128,9 @@ class JsonParser {
 };
 
 // ------------------------------------------------------------ helpers
-struct Proc {
-  int exit_code = -1;
-  std::string out, err;
-};
-
-Proc run(std::vector<std::string> argv) {
-  test::TempDir tmp;
-  const std::string out_path = tmp.path("out"), err_path = tmp.path("err");
-  std::vector<char*> args;
-  for (auto& a : argv) args.push_back(a.data());
-  args.push_back(nullptr);
-  const pid_t pid = ::fork();
-  if (pid < 0) throw std::runtime_error("fork failed");
-  if (pid == 0) {
-    const int o = ::open(out_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    const int e = ::open(err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    const int in = ::open("/dev/null", O_RDONLY);
-    if (o < 0 || e < 0 || in < 0) ::_exit(126);
-    ::dup2(o, 1), ::dup2(e, 2), ::dup2(in, 0);
-    ::execv(args[0], args.data());
-    ::_exit(127);
-  }
-  int status = 0;
-  ::waitpid(pid, &status, 0);
-  Proc r;
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  r.out = test::read_file(out_path);
-  r.err = test::read_file(err_path);
-  return r;
-}
+using Proc = test::CliResult;
+// Without a shell; the foreign python's variables must not leak into Debian's.
+Proc run(const std::vector<std::string>& argv) { return test::run_process(argv, {}, test::kForeignPythonEnv); }
 
 std::string check_script() { return std::string(DICER_SOURCE_DIR) + "/tests/roundtrip/vtkhdf_check.py"; }
 

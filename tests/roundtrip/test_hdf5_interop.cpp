@@ -20,12 +20,7 @@
 #include "lz4_filter.hpp"
 #include "test_support.hpp"
 
-using // Under CI (CI=true, where .ci/run installs the readers) a missing reader is
-// a failure, not a skip: this test is the proof that they accept our files.
-#define DICER_SKIP_OR_FAIL_IN_CI(message)               \
-  if (std::getenv("CI") != nullptr) FAIL() << message; \
-  else GTEST_SKIP() << message
-
+using 
 namespace dicer;
 using namespace dicer::store;
 using Bytes = std::vector<std::uint8_t>;
@@ -115,48 +110,10 @@ Bytes chunk_bytes(const std::vector<T>& all, std::size_t first_elem, std::size_t
   return b;
 }
 
-struct Proc {
-  int exit_code = -1;
-  std::string out, err;
-};
-
-// fork/exec without a shell; `set` / `unset` adjust the child's environment.
+using Proc = test::CliResult;
 Proc run(const std::vector<std::string>& argv, const std::map<std::string, std::string>& set = {},
          const std::vector<std::string>& unset = {}) {
-  test::TempDir tmp;
-  const std::string out_path = tmp.path("out"), err_path = tmp.path("err");
-  // The child's environment, built before fork (only async-signal-safe calls after it).
-  std::vector<std::string> env;
-  for (char** e = environ; *e; ++e) {
-    const std::string entry = *e, name = entry.substr(0, entry.find('='));
-    if (std::find(unset.begin(), unset.end(), name) == unset.end() && !set.count(name)) env.push_back(entry);
-  }
-  for (const auto& [k, v] : set) env.push_back(k + "=" + v);
-  std::vector<char*> envp;
-  for (auto& e : env) envp.push_back(e.data());
-  envp.push_back(nullptr);
-  std::vector<std::string> copy = argv;
-  std::vector<char*> args;
-  for (auto& a : copy) args.push_back(a.data());
-  args.push_back(nullptr);
-  const pid_t pid = ::fork();
-  if (pid < 0) throw std::runtime_error("fork failed");
-  if (pid == 0) {
-    const int o = ::open(out_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    const int e = ::open(err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    const int in = ::open("/dev/null", O_RDONLY);
-    if (o < 0 || e < 0 || in < 0) ::_exit(126);
-    ::dup2(o, 1), ::dup2(e, 2), ::dup2(in, 0);
-    ::execve(args[0], args.data(), envp.data());
-    ::_exit(127);
-  }
-  int status = 0;
-  ::waitpid(pid, &status, 0);
-  Proc r;
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  r.out = test::read_file(out_path);
-  r.err = test::read_file(err_path);
-  return r;
+  return test::run_process(argv, set, unset);
 }
 
 // The numbers in h5dump's DATA { ... } block, without the "(i,j):" indices.

@@ -4,6 +4,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <fstream>
 #include <random>
@@ -40,25 +41,34 @@ void write_file(const std::string& path, const std::string& bytes) {
   if (!out) throw std::runtime_error("cannot write " + path);
 }
 
-CliResult run_cli(const std::vector<std::string>& args) {
+CliResult run_process(const std::vector<std::string>& argv, const std::map<std::string, std::string>& set,
+                      const std::vector<std::string>& unset) {
   TempDir tmp;
   const std::string out_path = tmp.path("out"), err_path = tmp.path("err");
-  pid_t pid = ::fork();
+  // The child's environment and argv, built before fork (only
+  // async-signal-safe calls after it).
+  std::vector<std::string> env;
+  for (char** e = environ; *e; ++e) {
+    const std::string entry = *e, name = entry.substr(0, entry.find('='));
+    if (std::find(unset.begin(), unset.end(), name) == unset.end() && !set.count(name)) env.push_back(entry);
+  }
+  for (const auto& [k, v] : set) env.push_back(k + "=" + v);
+  std::vector<char*> envp;
+  for (auto& e : env) envp.push_back(e.data());
+  envp.push_back(nullptr);
+  std::vector<std::string> copy = argv;
+  std::vector<char*> args;
+  for (auto& a : copy) args.push_back(a.data());
+  args.push_back(nullptr);
+  const pid_t pid = ::fork();
   if (pid < 0) throw std::runtime_error("fork failed");
   if (pid == 0) {
-    int o = ::open(out_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    int e = ::open(err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    int in = ::open("/dev/null", O_RDONLY);
-    ::dup2(o, 1);
-    ::dup2(e, 2);
-    ::dup2(in, 0);
-    std::vector<char*> argv;
-    std::string exe = DICER_CLI;
-    argv.push_back(exe.data());
-    std::vector<std::string> copy = args;
-    for (auto& a : copy) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    ::execv(exe.c_str(), argv.data());
+    const int o = ::open(out_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    const int e = ::open(err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    const int in = ::open("/dev/null", O_RDONLY);
+    if (o < 0 || e < 0 || in < 0) ::_exit(126);
+    ::dup2(o, 1), ::dup2(e, 2), ::dup2(in, 0);
+    ::execve(args[0], args.data(), envp.data());
     ::_exit(127);
   }
   int status = 0;
@@ -68,6 +78,12 @@ CliResult run_cli(const std::vector<std::string>& args) {
   r.out = read_file(out_path);
   r.err = read_file(err_path);
   return r;
+}
+
+CliResult run_cli(const std::vector<std::string>& args) {
+  std::vector<std::string> argv{DICER_CLI};
+  argv.insert(argv.end(), args.begin(), args.end());
+  return run_process(argv);
 }
 
 }  // namespace dicer::test

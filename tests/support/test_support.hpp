@@ -1,6 +1,8 @@
 #pragma once
 // Helpers shared by the test binary: data paths, temp dirs, running the CLI.
+#include <cstdlib>
 #include <filesystem>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -30,6 +32,27 @@ struct CliResult {
 
 // Runs the built `dicer` binary with the given arguments (no shell).
 CliResult run_cli(const std::vector<std::string>& args);
+
+// Runs any program (argv[0] is its path; no shell, stdin from /dev/null);
+// `set` / `unset` adjust the child's environment.
+CliResult run_process(const std::vector<std::string>& argv, const std::map<std::string, std::string>& set = {},
+                      const std::vector<std::string>& unset = {});
+
+// Environment variables that make Debian's /usr/bin/python3 load the wrong
+// site packages (the machine's default python is not Debian's).
+inline const std::vector<std::string> kForeignPythonEnv = {"PYTHONPATH", "PYTHONHOME"};
+
+// Under CI (CI=true, where .ci/run installs the independent readers) a
+// missing reader is a failure, not a skip: those tests are the proof that
+// real readers accept our files.
+#define DICER_SKIP_OR_FAIL_IN_CI(message)   \
+  do {                                      \
+    if (std::getenv("CI") != nullptr) {     \
+      FAIL() << message;                    \
+    } else {                                \
+      GTEST_SKIP() << message;              \
+    }                                       \
+  } while (0)
 
 // Writes bytes to a file (bad-input fixtures made by the tests).
 void write_file(const std::string& path, const std::string& bytes);
