@@ -83,13 +83,17 @@ struct View {
     const bool rev = f.v[kQuadEdge[k][0]] > f.v[kQuadEdge[k][1]];
     return edge_point(e, rev ? e.n - s : s);
   }
-  // Coons interior point from the four sides' values at (u, v).
+  // Coons interior point at (u, v) from the four sides' values there
+  // (bottom, top, left, right) and the canonical corners p[0..3].
+  static Vec3 coons_point(Id nu, Id nv, Id u, Id v, const Vec3* s, const Vec3* p) {
+    const double a = tfi::weight(u, nu), b = tfi::weight(v, nv);
+    return {tfi::coons(a, b, s[0].x, s[1].x, s[2].x, s[3].x, p[0].x, p[1].x, p[2].x, p[3].x),
+            tfi::coons(a, b, s[0].y, s[1].y, s[2].y, s[3].y, p[0].y, p[1].y, p[2].y, p[3].y),
+            tfi::coons(a, b, s[0].z, s[1].z, s[2].z, s[3].z, p[0].z, p[1].z, p[2].z, p[3].z)};
+  }
   Vec3 face_interior(const FaceRec& f, Id u, Id v, const Vec3* s) const {
-    const Vec3 p0 = vertex(f.v[0]), p1 = vertex(f.v[1]), p2 = vertex(f.v[2]), p3 = vertex(f.v[3]);
-    const double a = tfi::weight(u, f.nu), b = tfi::weight(v, f.nv);
-    return {tfi::coons(a, b, s[0].x, s[1].x, s[2].x, s[3].x, p0.x, p1.x, p2.x, p3.x),
-            tfi::coons(a, b, s[0].y, s[1].y, s[2].y, s[3].y, p0.y, p1.y, p2.y, p3.y),
-            tfi::coons(a, b, s[0].z, s[1].z, s[2].z, s[3].z, p0.z, p1.z, p2.z, p3.z)};
+    const Vec3 p[4] = {vertex(f.v[0]), vertex(f.v[1]), vertex(f.v[2]), vertex(f.v[3])};
+    return coons_point(f.nu, f.nv, u, v, s, p);
   }
   Vec3 face_point(const FaceRec& f, Id u, Id v) const {
     if (v == 0) return face_side(f, 0, u);
@@ -99,35 +103,46 @@ struct View {
     const Vec3 sides[4] = {face_side(f, 0, u), face_side(f, 1, u), face_side(f, 2, v), face_side(f, 3, v)};
     return face_interior(f, u, v, sides);
   }
-  // Hex interior point: its 12 edge points and 6 face points from their
-  // owners, then tfi::hex_row + tfi::hex_point as the block fill does.
+  // Hex interior point: its 12 edge points and 6 face points, then
+  // tfi::hex_row + tfi::hex_point as the block fill does. Every input comes
+  // from the element row and its 8 corners alone: an edge's ends and a
+  // face's corners are hex corners, and every interval is the hex's own
+  // along that axis. The values (and so the bits) are those the owners
+  // compute; only the row lookups are saved.
   Vec3 cell_point(const ElemRec& h, Id i, Id j, Id k) const {
     const Id t[3] = {i, j, k};
+    Vec3 corner[8];
+    for (int q = 0; q < 8; ++q) corner[q] = vertex(h.conn[q]);
     double f[3][6], e[3][12], c[3][8];
     for (int q = 0; q < 12; ++q) {
-      const EdgeRec ed = edge(h.edge[q]);
-      const Vec3 x = edge_point(ed, h.rev(q) ? ed.n - t[q / 4] : t[q / 4]);
-      e[0][q] = x.x, e[1][q] = x.y, e[2][q] = x.z;
+      // Canonical direction: lo -> hi vertex id; rev means local end 1 is lo.
+      const bool rev = h.rev(q);
+      const Vec3& a = corner[kHexEdge[q][rev ? 1 : 0]];
+      const Vec3& b = corner[kHexEdge[q][rev ? 0 : 1]];
+      const Id n = h.n[q / 4], tc = rev ? n - t[q / 4] : t[q / 4];
+      const double s = tfi::weight(tc, n);
+      e[0][q] = tfi::edge(a.x, b.x, s), e[1][q] = tfi::edge(a.y, b.y, s), e[2][q] = tfi::edge(a.z, b.z, s);
     }
     for (int q = 0; q < 6; ++q) {
-      const FaceRec fa = face(h.face[q]);
       const FaceCode code = h.code(q);
+      // Canonical corner m is local face corner m' with code_corner(code, m') == m.
+      FaceRec fa{};
+      for (int m = 0; m < 4; ++m) fa.v[code_corner(code, m)] = kHexFace[q][m];  // hex corner index, not a vertex id
+      const bool swap = code_swaps_axes(code);
+      fa.nu = h.n[kHexFaceAxes[q][swap ? 1 : 0]];
+      fa.nv = h.n[kHexFaceAxes[q][swap ? 0 : 1]];
       const FaceMap fm = face_map(code, fa.nu, fa.nv);
       const Id a = t[kHexFaceAxes[q][0]], b = t[kHexFaceAxes[q][1]];
-      // The face's canonical sides at this point are hex edges evaluated
-      // above (the same fine nodes, so the same bits).
       Vec3 sides[4];
       for (int side = 0; side < 4; ++side) {
         const int le = hex_face_side_edge(q, code, side);
         sides[side] = {e[0][le], e[1][le], e[2][le]};
       }
-      const Vec3 x = face_interior(fa, fm.u(a, b), fm.v(a, b), sides);
+      const Vec3 pc[4] = {corner[fa.v[0]], corner[fa.v[1]], corner[fa.v[2]], corner[fa.v[3]]};
+      const Vec3 x = coons_point(fa.nu, fa.nv, fm.u(a, b), fm.v(a, b), sides, pc);
       f[0][q] = x.x, f[1][q] = x.y, f[2][q] = x.z;
     }
-    for (int q = 0; q < 8; ++q) {
-      const Vec3 x = vertex(h.conn[q]);
-      c[0][q] = x.x, c[1][q] = x.y, c[2][q] = x.z;
-    }
+    for (int q = 0; q < 8; ++q) c[0][q] = corner[q].x, c[1][q] = corner[q].y, c[2][q] = corner[q].z;
     const double u = tfi::weight(i, h.n[0]), v = tfi::weight(j, h.n[1]), w = tfi::weight(k, h.n[2]);
     double out[3];
     for (int d = 0; d < 3; ++d) {
