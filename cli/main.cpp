@@ -64,7 +64,7 @@ int main(int argc, char** argv) {
       {"footprint", cmd_footprint}, {"export", cmd_export}};
   auto it = commands.find(args[0]);
   if (it == commands.end()) {
-    std::fprintf(stderr, "dicer: unknown command \"%s\" (commands: sheets, dice, info, query, verify, footprint, export; see dicer --help)\n",
+    std::fprintf(stderr, "dicer: error: unknown command \"%s\" (commands: sheets, dice, info, query, verify, footprint, export; see dicer --help)\n",
                  args[0].c_str());
     return 2;
   }

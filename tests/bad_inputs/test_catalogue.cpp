@@ -1,0 +1,280 @@
+// The bad-input catalogue: every case runs the real `dicer` binary on a
+// hostile file or argument and checks (1) the documented exit code, (2) one
+// line on stderr naming the file (for file cases) and what is wrong, and
+// (3) that no output file, not even a temporary, is left behind.
+// Fixtures are made by the test from small texts or by editing real files.
+#include <exodusII.h>
+#include <gtest/gtest.h>
+#include <hdf5.h>
+
+#include <filesystem>
+#include <functional>
+
+#include "lz4_filter.hpp"
+#include "test_support.hpp"
+
+namespace fs = std::filesystem;
+using namespace dicer;
+
+namespace {
+
+// Two unit hexes side by side, MSH 2.2 ASCII; the cases edit this text.
+const std::string kNodes =
+    "$Nodes\n12\n1 0 0 0\n2 1 0 0\n3 1 1 0\n4 0 1 0\n5 0 0 1\n6 1 0 1\n7 1 1 1\n8 0 1 1\n"
+    "9 2 0 0\n10 2 1 0\n11 2 0 1\n12 2 1 1\n$EndNodes\n";
+const std::string kHeader = "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n";
+const std::string kHex1 = "1 5 2 1 1 1 2 3 4 5 6 7 8\n", kHex2 = "2 5 2 1 1 2 9 10 3 6 11 12 7\n";
+std::string msh(const std::string& nodes, const std::string& elements, int count) {
+  return kHeader + nodes + "$Elements\n" + std::to_string(count) + "\n" + elements + "$EndElements\n";
+}
+const std::string kGood = msh(kNodes, kHex1 + kHex2, 2);
+std::string replace(std::string s, const std::string& a, const std::string& b) {
+  const auto p = s.find(a);
+  if (p != std::string::npos) s.replace(p, a.size(), b);
+  return s;
+}
+
+struct Case {
+  const char* name;
+  // Makes the fixture in dir (if any) and returns the command line; "OUT"
+  // stands for the output path, "IN" for the fixture.
+  std::function<std::string(const test::TempDir&)> fixture;
+  std::vector<std::string> args;
+  int exit_code;
+  const char* says;
+};
+
+std::string text_file(const test::TempDir& d, const std::string& name, const std::string& bytes) {
+  test::write_file(d.path(name), bytes);
+  return d.path(name);
+}
+
+// A store to damage, made once per test process.
+const std::string& good_store() {
+  static test::TempDir dir;
+  static const std::string path = [] {
+    const std::string p = dir.path("good.dice.h5");
+    const auto r = test::run_cli({"dice", test::data_path("cardinal_sphere.e"), "--interval", "2", "-o", p});
+    if (r.exit_code != 0) throw std::runtime_error("cannot make the store: " + r.err);
+    return p;
+  }();
+  return path;
+}
+
+std::string edited_store(const test::TempDir& d, const std::function<void(hid_t)>& edit) {
+  const std::string p = d.path("bad.dice.h5");
+  fs::copy_file(good_store(), p, fs::copy_options::overwrite_existing);
+  hid_t f = H5Fopen(p.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+  edit(f);
+  H5Fclose(f);
+  return p;
+}
+
+// An Exodus file with one block of `type` and `nodes_per` nodes per element.
+std::string exodus_block(const test::TempDir& d, const char* type, int nodes_per) {
+  const std::string p = d.path("bad.exo");
+  int cpu = 8, io = 8;
+  const int id = ex_create(p.c_str(), EX_CLOBBER, &cpu, &io);
+  const int nn = nodes_per;
+  ex_put_init(id, "bad", 3, nn, 1, 1, 0, 0);
+  std::vector<double> x(nn), y(nn), z(nn);
+  for (int i = 0; i < nn; ++i) x[i] = i, y[i] = i % 2, z[i] = i % 3;
+  ex_put_coord(id, x.data(), y.data(), z.data());
+  ex_put_block(id, EX_ELEM_BLOCK, 1, type, 1, nodes_per, 0, 0, 0);
+  std::vector<int> conn(nodes_per);
+  for (int i = 0; i < nodes_per; ++i) conn[i] = i + 1;
+  ex_put_conn(id, EX_ELEM_BLOCK, 1, conn.data(), nullptr, nullptr);
+  ex_close(id);
+  return p;
+}
+
+std::vector<Case> catalogue() {
+  const std::string M = "dice", I = "--interval";
+  auto mesh_case = [&](const char* name, std::function<std::string(const test::TempDir&)> fx, int code, const char* says) {
+    return Case{name, std::move(fx), {M, "IN", I, "2", "-o", "OUT"}, code, says};
+  };
+  auto text = [](const char* file, std::string bytes) {
+    return [file, bytes](const test::TempDir& d) { return text_file(d, file, bytes); };
+  };
+  const std::string sphere = test::data_path("cardinal_sphere.e");
+  auto real = [sphere](const test::TempDir&) { return sphere; };
+  std::vector<Case> c = {
+      // ---- MSH
+      mesh_case("msh truncated in $Nodes", text("a.msh", kGood.substr(0, kGood.find("9 2 0 0"))), 3, "end of file"),
+      mesh_case("msh version 3.0", text("a.msh", replace(kGood, "2.2 0 8", "3.0 0 8")), 4, "3.0"),
+      mesh_case("msh version 4.0", text("a.msh", replace(kGood, "2.2 0 8", "4 0 8")), 4, "4"),
+      mesh_case("msh binary with data size 4", text("a.msh", replace(kGood, "2.2 0 8", "2.2 1 4")), 3, "size"),
+      mesh_case("msh binary with a bad endianness marker", text("a.msh", replace(kGood, "2.2 0 8\n", "2.2 1 8\nXXXX\n")), 3,
+                "a.msh"),
+      mesh_case("msh element references a missing node", text("a.msh", msh(kNodes, kHex1 + replace(kHex2, " 9 ", " 99 "), 2)),
+                3, "99"),
+      mesh_case("msh node tag out of range", text("a.msh", replace(kGood, "12 2 1 1\n$EndNodes", "-12 2 1 1\n$EndNodes")), 3,
+                "a.msh"),
+      mesh_case("msh tetrahedra", text("a.msh", msh(kNodes, kHex1 + "2 4 2 1 1 9 10 11 12\n", 2)), 4, "tetrahedr"),
+      mesh_case("msh triangles in a quad mesh", text("a.msh", msh(kNodes, "1 3 2 1 1 1 2 3 4\n2 2 2 1 1 9 10 11\n", 2)), 4,
+                "triangle"),
+      mesh_case("msh duplicated element", text("a.msh", msh(kNodes, kHex1 + replace(kHex1, "1 5", "2 5"), 2)), 3,
+                "duplicates"),
+      mesh_case("msh duplicated element tag", text("a.msh", msh(kNodes, kHex1 + replace(kHex2, "2 5 2", "1 5 2"), 2)), 3,
+                "element tag 1"),
+      mesh_case("msh NaN coordinate", text("a.msh", replace(kGood, "7 1 1 1", "7 nan 1 1")), 3, "7"),
+      mesh_case("msh Inf coordinate", text("a.msh", replace(kGood, "7 1 1 1", "7 1 inf 1")), 3, "7"),
+      mesh_case("msh huge node count", text("a.msh", replace(kGood, "$Nodes\n12\n", "$Nodes\n999999999999\n")), 3, "a.msh"),
+      mesh_case("msh empty file", text("a.msh", ""), 3, "empty"),
+      mesh_case("msh garbage", text("a.msh", "hello world\n"), 3, "not an Exodus II (netCDF) or Gmsh MSH file"),
+      mesh_case("msh without $Nodes", text("a.msh", kHeader + "$Elements\n1\n" + kHex1 + "$EndElements\n"), 3, "$Nodes"),
+      mesh_case("msh mixed handedness",
+                text("a.msh", msh(kNodes, kHex1 + "2 5 2 1 1 2 3 10 9 6 7 12 11\n", 2)), 3, "mixed handedness"),
+      mesh_case("msh tangled hex", text("a.msh", msh(replace(kNodes, "7 1 1 1", "7 -0.5 -0.5 1"), kHex1, 1)), 3,
+                "inverted or degenerate"),
+      mesh_case("msh degenerate hex", text("a.msh", msh(kNodes, "1 5 2 1 1 1 2 3 3 5 6 7 8\n", 1)), 3, "appears twice"),
+      // A third hex (inside the first, right-handed) on the face x = 1 that the first two share.
+      mesh_case("msh non-manifold face",
+                text("a.msh", msh(replace(replace(kNodes, "$Nodes\n12\n", "$Nodes\n16\n"), "$EndNodes",
+                                          "13 0.5 0 0\n14 0.5 1 0\n15 0.5 0 1\n16 0.5 1 1\n$EndNodes"),
+                                  kHex1 + kHex2 + "3 5 2 1 1 13 2 3 14 15 6 7 16\n", 3)),
+                3, "non-manifold face"),
+      // ---- Exodus
+      mesh_case("exodus truncated",
+                [](const test::TempDir& d) {
+                  const std::string b = test::read_file(test::data_path("cardinal_sphere.e"));
+                  return text_file(d, "cut.e", b.substr(0, b.size() / 2));
+                },
+                3, "cut.e"),
+      mesh_case("exodus corrupt netCDF", text("bad.e", std::string("CDF\x01", 4) + std::string(200, '\x7f')), 3, "bad.e"),
+      mesh_case("exodus tetra block", [](const test::TempDir& d) { return exodus_block(d, "TETRA4", 4); }, 4, "TETRA"),
+      mesh_case("exodus HEX block with 20 nodes", [](const test::TempDir& d) { return exodus_block(d, "HEX", 20); }, 4,
+                "20"),
+      mesh_case("missing input file", [](const test::TempDir& d) { return d.path("nope.exo"); }, 5, "nope.exo"),
+      // ---- the store
+      Case{"store that is not HDF5", text("x.dice.h5", "not a store"), {"info", "IN"}, 3, "not an HDF5 file"},
+      Case{"store of an unknown version",
+           [](const test::TempDir& d) {
+             return edited_store(d, [](hid_t f) {
+               hid_t a = H5Aopen(f, "format_version", H5P_DEFAULT);
+               const long long v = 99;
+               H5Awrite(a, H5T_NATIVE_LLONG, &v);
+               H5Aclose(a);
+             });
+           },
+           {"info", "IN"}, 4, "version 99"},
+      Case{"store with a missing dataset",
+           [](const test::TempDir& d) { return edited_store(d, [](hid_t f) { H5Ldelete(f, "topology/edges", H5P_DEFAULT); }); },
+           {"query", "IN", "--node", "0"}, 8, "topology/edges is missing"},
+      Case{"store truncated",
+           [](const test::TempDir& d) {
+             const std::string b = test::read_file(good_store());
+             return text_file(d, "cut.dice.h5", b.substr(0, b.size() / 3));
+           },
+           {"verify", "IN"}, 8, "cut.dice.h5"},
+      Case{"store with a flipped byte in a page",
+           [](const test::TempDir& d) {
+             haddr_t addr = 0;
+             hsize_t size = 0;
+             const std::string p = edited_store(d, [&](hid_t f) {
+               hid_t ds = H5Dopen2(f, "topology/elements", H5P_DEFAULT);
+               hsize_t off[2] = {0, 0};
+               unsigned mask = 0;
+               H5Dget_chunk_info_by_coord(ds, off, &mask, &addr, &size);
+               H5Dclose(ds);
+             });
+             std::string b = test::read_file(p);
+             b[addr + size / 3] ^= 1;
+             test::write_file(p, b);
+             return p;
+           },
+           {"query", "IN", "--element", "5"}, 8, "topology/elements page 0"},
+      Case{"store page whose size field lies",
+           [](const test::TempDir& d) {
+             return edited_store(d, [](hid_t f) {
+               hid_t ds = H5Dopen2(f, "topology/elements", H5P_DEFAULT);
+               hsize_t off[2] = {0, 0}, stored = 0;
+               H5Dget_chunk_storage_size(ds, off, &stored);
+               std::vector<std::uint8_t> raw(stored);
+               std::uint32_t mask = 0;
+               H5Dread_chunk(ds, H5P_DEFAULT, off, &mask, raw.data());
+               raw[7] ^= 0x10;  // the original-size field (8 bytes, big-endian)
+               const std::uint32_t sum = store::fletcher32(raw.data(), raw.size() - 4);  // a valid checksum of the lie
+               for (int k = 0; k < 4; ++k) raw[raw.size() - 4 + k] = static_cast<std::uint8_t>(sum >> (8 * k));
+               H5Dwrite_chunk(ds, H5P_DEFAULT, 0, off, raw.size(), raw.data());
+               H5Dclose(ds);
+             });
+           },
+           {"query", "IN", "--element", "5"}, 8, "topology/elements page 0"},
+      Case{"HDF5 file that is not a dicer store",
+           [](const test::TempDir& d) {
+             const std::string p = d.path("other.h5");
+             H5Fclose(H5Fcreate(p.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT));
+             return p;
+           },
+           {"info", "IN"}, 3, "not a dicer store"},
+      // ---- arguments
+      Case{"unknown flag", real, {"dice", "IN", "--frobnicate", "-o", "OUT"}, 2, "unknown option --frobnicate"},
+      Case{"unknown command", real, {"frobnicate"}, 2, "unknown command"},
+      Case{"interval 0", real, {"dice", "IN", "--interval", "0", "-o", "OUT"}, 2, ">= 1"},
+      Case{"negative interval", real, {"dice", "IN", "--interval", "-3", "-o", "OUT"}, 2, ">= 1"},
+      Case{"interval beyond 64 bits", real, {"dice", "IN", "--interval", "123456789012345678901", "-o", "OUT"}, 6,
+           "does not fit in 64 bits"},
+      Case{"counts overflow 64-bit ids", real, {"dice", "IN", "--interval", "2000000", "-o", "OUT"}, 6,
+           "overflows 64-bit ids"},
+      Case{"negative size", real, {"dice", "IN", "--size", "-1", "-o", "OUT"}, 2, "--size"},
+      Case{"unknown block", real, {"dice", "IN", "--block-interval", "inlet=3", "-o", "OUT"}, 2, "inlet"},
+      Case{"unknown sheet", real, {"dice", "IN", "--sheet-interval", "999=3", "-o", "OUT"}, 2, "no sheet 999"},
+      Case{"malformed intervals file", text("plan.json", "{\"global\": "), {"dice", sphere, "--intervals-file", "IN", "-o", "OUT"},
+           2, "not valid JSON"},
+      Case{"unknown key in intervals file", text("plan.json", "{\"globall\": 3}"),
+           {"dice", sphere, "--intervals-file", "IN", "-o", "OUT"}, 2, "globall"},
+      Case{"missing -o", real, {"dice", "IN", "--interval", "2"}, 2, "missing -o"},
+      Case{"malformed box", [](const test::TempDir&) { return good_store(); },
+           {"export", "IN", "--format", "msh", "--box", "0,0,0,1,1", "-o", "OUT"}, 2, "six numbers"},
+      Case{"inverted box", [](const test::TempDir&) { return good_store(); },
+           {"export", "IN", "--format", "msh", "--box", "1,0,0,0,1,1", "-o", "OUT"}, 2, "lower corner above upper"},
+      Case{"chunk k >= K", [](const test::TempDir&) { return good_store(); },
+           {"export", "IN", "--format", "exodus", "--chunk", "4/4", "-o", "OUT"}, 2, "0 <= K < N"},
+      Case{"chunk of zero", [](const test::TempDir&) { return good_store(); },
+           {"export", "IN", "--format", "exodus", "--chunk", "0/0", "-o", "OUT"}, 2, "0 <= K < N"},
+      Case{"unknown export format", [](const test::TempDir&) { return good_store(); },
+           {"export", "IN", "--format", "stl", "-o", "OUT"}, 2, "stl"},
+      Case{"cache budget 0", [](const test::TempDir&) { return good_store(); }, {"info", "IN", "--cache-mb", "0"}, 2,
+           "--cache-mb"},
+      Case{"node id out of range", [](const test::TempDir&) { return good_store(); },
+           {"query", "IN", "--node", "123456789"}, 2, "out of range"},
+  };
+  return c;
+}
+
+class Catalogue : public ::testing::TestWithParam<size_t> {};
+
+}  // namespace
+
+TEST_P(Catalogue, RefusedClearlyWithNothingLeftBehind) {
+  const Case c = catalogue()[GetParam()];
+  test::TempDir d;
+  const std::string in = c.fixture(d);
+  test::TempDir outdir;
+  const std::string out = outdir.path("result.out");
+  std::vector<std::string> args;
+  for (const auto& a : c.args) args.push_back(a == "IN" ? in : a == "OUT" ? out : a);
+  const auto r = test::run_cli(args);
+  SCOPED_TRACE(c.name);
+  EXPECT_EQ(r.exit_code, c.exit_code) << r.err;
+  EXPECT_NE(r.err.find(c.says), std::string::npos) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << "one line: " << r.err;
+  EXPECT_NE(r.err.find("error"), std::string::npos) << r.err;
+  const bool file_case = std::find(c.args.begin(), c.args.end(), "IN") != c.args.end() && in != good_store() &&
+                         in.find("/tests/data/") == std::string::npos;
+  if (file_case && c.exit_code != 2 && c.exit_code != 6) {
+    EXPECT_NE(r.err.find(fs::path(in).filename().string()), std::string::npos) << "names the file: " << r.err;
+  }
+  EXPECT_TRUE(fs::is_empty(outdir.dir())) << "nothing may be left in the output folder";
+}
+
+INSTANTIATE_TEST_SUITE_P(BadInputs, Catalogue, ::testing::Range<size_t>(0, catalogue().size()),
+                         [](const ::testing::TestParamInfo<size_t>& i) {
+                           std::string s = catalogue()[i.param].name;
+                           for (char& ch : s)
+                             if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
+                           return s;
+                         });
+
+TEST(CatalogueSize, HasAtLeastFortyCases) { EXPECT_GE(catalogue().size(), 40u); }
