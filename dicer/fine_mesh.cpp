@@ -38,24 +38,44 @@ struct View {
   MeshCursor& c;
   ElementLayout L;
 
+  // Rows are data, not trust (a store can be crafted with valid checksums):
+  // every id read is checked against its table and every interval against
+  // the fine element count before anything is sized or indexed by it.
+  [[noreturn]] void corrupt(const char* what, Id row) const {
+    throw Error(ErrorKind::Corrupt, (t.origin.empty() ? std::string("in memory") : t.origin) +
+                                        ": inconsistent mesh tables: " + what + " row " + std::to_string(row));
+  }
+  void check(bool ok, const char* what, Id row) const {
+    if (!ok) corrupt(what, row);
+  }
+
   Vec3 vertex(Id v) const {
     const double* r = t.vertices.row(v, c.vertices);
     return {r[0], r[1], r[2]};
   }
   EdgeRec edge(Id e) const {
+    check(e >= 0 && e < t.edges.rows(), "edge id out of range in a face or element", e);
     const std::int64_t* r = t.edges.row(e, c.edges);
-    return {r[kEdgeLo], r[kEdgeHi], r[kEdgeN], r[kEdgeNodeOffset]};
+    const EdgeRec rec{r[kEdgeLo], r[kEdgeHi], r[kEdgeN], r[kEdgeNodeOffset]};
+    const Id nv = t.vertices.rows();
+    check(rec.lo >= 0 && rec.lo < nv && rec.hi >= 0 && rec.hi < nv && rec.n >= 1 && rec.n <= (Id{1} << 40) &&
+              rec.off >= 0,
+          "edge", e);
+    return rec;
   }
   FaceRec face(Id f) const {
+    check(f >= 0 && f < t.faces.rows(), "face id out of range in an element", f);
     const std::int64_t* r = t.faces.row(f, c.faces);
     FaceRec rec;
     for (int k = 0; k < 4; ++k) rec.v[k] = r[kFaceV + k], rec.e[k] = r[kFaceE + k];
     rec.off = r[kFaceNodeOffset];
+    for (int k = 0; k < 4; ++k) check(rec.v[k] >= 0 && rec.v[k] < t.vertices.rows(), "face", f);
     rec.nu = edge(rec.e[0]).n;
     rec.nv = edge(rec.e[2]).n;
     return rec;
   }
   ElemRec element(Id h) const {
+    check(h >= 0 && h < t.elements.rows(), "element id out of range", h);
     const std::int64_t* r = t.elements.row(h, c.elements);
     ElemRec rec{};
     for (int k = 0; k < L.corners; ++k) rec.conn[k] = r[L.conn() + k];
@@ -66,6 +86,19 @@ struct View {
     rec.file_id = r[L.file_id()];
     rec.flags = static_cast<std::uint64_t>(r[L.flags()]);
     rec.n = {r[L.n()], r[L.n() + 1], r[L.n() + 2]};
+    const Id nv = t.vertices.rows();
+    for (int k = 0; k < L.corners; ++k) check(rec.conn[k] >= 0 && rec.conn[k] < nv, "element corner of", h);
+    for (int k = 0; k < L.edges; ++k) check(rec.edge[k] >= 0 && rec.edge[k] < t.edges.rows(), "element edge of", h);
+    for (int k = 0; k < L.faces; ++k) check(rec.face[k] >= 0 && rec.face[k] < t.faces.rows(), "element face of", h);
+    // Intervals: each >= 1, the block no bigger than 2^40 points (a larger
+    // one could never be allocated anyway).
+    __int128 points = 1;
+    for (int k = 0; k < 3; ++k) {
+      check(rec.n[k] >= 1 && rec.n[k] <= (Id{1} << 40), "element interval of", h);
+      points *= rec.n[k] + 1;
+    }
+    check(points <= (static_cast<__int128>(1) << 40) && rec.elem_off >= 0 && rec.cell_off >= 0 && rec.block >= 0,
+          "element", h);
     return rec;
   }
 

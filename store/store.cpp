@@ -316,6 +316,7 @@ FineMesh read_store(const std::string& path, const StoreOptions& options) {
   MeshTables tab;
   tab.mode = info.mode;
   tab.cache = cache;
+  tab.origin = path;
   auto paged = [&](auto tag, const std::string& name, std::int64_t width, std::int64_t rows) {
     using T = decltype(tag);
     const std::uint32_t id = open_paged<T>(*s, name, width, rows);

@@ -22,6 +22,7 @@
 // compare plus (on a page change) one cache pin when paged.
 #include <cstdint>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "dicer/cache.hpp"
@@ -127,6 +128,7 @@ inline const T* Table<T>::row(std::int64_t i, TableCursor& cur) const {
 struct MeshTables {
   Mode mode = Mode::Volume;
   std::shared_ptr<PageCache> cache;  // the pages behind paged tables (nullptr in memory)
+  std::string origin;                // the store's path, named in errors ("" in memory)
   // Page indexes of paged tables (empty in memory): the searched column's
   // value in the first row of every page, so an id -> entity lookup reads
   // one page of the table. O(rows / rows_per_page) each.

@@ -201,6 +201,29 @@ std::vector<Case> catalogue() {
              });
            },
            {"query", "IN", "--element", "5"}, 8, "topology/elements page 0"},
+      Case{"store row with a lying interval (valid checksum)",
+           [](const test::TempDir& d) {
+             return edited_store(d, [](hid_t f) {
+               hid_t ds = H5Dopen2(f, "topology/elements", H5P_DEFAULT);
+               hsize_t off[2] = {0, 0}, stored = 0, dims[2] = {0, 0}, chunk[2] = {0, 0};
+               H5Dget_chunk_storage_size(ds, off, &stored);
+               hid_t sp = H5Dget_space(ds), pl = H5Dget_create_plist(ds);
+               H5Sget_simple_extent_dims(sp, dims, nullptr);
+               H5Pget_chunk(pl, 2, chunk);
+               H5Sclose(sp), H5Pclose(pl);
+               std::vector<std::uint8_t> raw(stored), page;
+               std::uint32_t mask = 0;
+               H5Dread_chunk(ds, H5P_DEFAULT, off, &mask, raw.data());
+               store::decode_page(raw, page, chunk[0] * chunk[1] * 8, "fixture");
+               // Element 5's first interval (column W-3) claims 2^41.
+               std::int64_t* rows = reinterpret_cast<std::int64_t*>(page.data());
+               rows[5 * dims[1] + dims[1] - 3] = std::int64_t{1} << 41;
+               const auto stored_again = store::encode_page(page);
+               H5Dwrite_chunk(ds, H5P_DEFAULT, 0, off, stored_again.size(), stored_again.data());
+               H5Dclose(ds);
+             });
+           },
+           {"query", "IN", "--element", "40"}, 8, "inconsistent mesh tables: element interval of row 5"},
       Case{"HDF5 file that is not a dicer store",
            [](const test::TempDir& d) {
              const std::string p = d.path("other.h5");
