@@ -88,5 +88,6 @@ int cmd_query(const std::vector<std::string>& argv);
 int cmd_verify(const std::vector<std::string>& argv);
 int cmd_footprint(const std::vector<std::string>& argv);
 int cmd_export(const std::vector<std::string>& argv);
+int cmd_sweep(const std::vector<std::string>& argv);
 
 }  // namespace dicer::cli

@@ -26,6 +26,7 @@ Commands (in the order you use them):
                    counts, coincident nodes and element quality
   footprint STORE  bytes on disk and in memory vs an explicit mesh
   export  STORE    a chunk, a box or the whole mesh to VTKHDF, MSH 4.1 or Exodus II
+  sweep   STORE    every fine node and element in N threads, rate and checksum
 
 MESH is an Exodus II file (.e .exo .ex2 .g) or a Gmsh MSH 2.2/4.1 file
 (ASCII or binary) holding hexahedra (volume dicing) or quadrilaterals
@@ -61,10 +62,10 @@ int main(int argc, char** argv) {
   }
   const std::map<std::string, Command> commands = {
       {"sheets", cmd_sheets}, {"dice", cmd_dice}, {"info", cmd_info}, {"query", cmd_query}, {"verify", cmd_verify},
-      {"footprint", cmd_footprint}, {"export", cmd_export}};
+      {"footprint", cmd_footprint}, {"export", cmd_export}, {"sweep", cmd_sweep}};
   auto it = commands.find(args[0]);
   if (it == commands.end()) {
-    std::fprintf(stderr, "dicer: error: unknown command \"%s\" (commands: sheets, dice, info, query, verify, footprint, export; see dicer --help)\n",
+    std::fprintf(stderr, "dicer: error: unknown command \"%s\" (commands: sheets, dice, info, query, verify, footprint, export, sweep; see dicer --help)\n",
                  args[0].c_str());
     return 2;
   }

@@ -602,7 +602,49 @@ NodeCursor::NodeCursor(const FineMesh& mesh, Id begin, Id end)
 bool NodeCursor::next(Id& id, Vec3& xyz) {
   if (next_ >= end_) return false;
   id = next_++;
-  const NodeRef r = mesh_.locate_node(id, cur_);
+  NodeRef r;
+  if (id >= range_first_ && id < range_end_) {
+    // Same entity as the last node: its local index follows from the id.
+    r = range_ref_;
+    const Id l = id - range_first_;
+    switch (r.kind) {
+      case EntityKind::Vertex: r.entity = id; break;
+      case EntityKind::Edge: r.local[0] = l + 1; break;
+      case EntityKind::Face: r.local = {l % range_w0_ + 1, l / range_w0_ + 1, 0}; break;
+      case EntityKind::Cell: r.local = {l % range_w0_ + 1, (l / range_w0_) % range_w1_ + 1, l / (range_w0_ * range_w1_) + 1}; break;
+    }
+  } else {
+    r = mesh_.locate_node(id, cur_);
+    // The entity's id range, from its first and last local index.
+    const auto& base = mesh_.info().kind_base;
+    range_ref_ = r;
+    switch (r.kind) {
+      case EntityKind::Vertex:
+        range_first_ = 0, range_end_ = base[1];
+        break;
+      case EntityKind::Edge: {
+        const std::int64_t* e = mesh_.tables().edges.row(r.entity, cur_.edges);
+        range_first_ = e[kEdgeNodeOffset], range_end_ = range_first_ + e[kEdgeN] - 1;
+        break;
+      }
+      case EntityKind::Face: {
+        const std::int64_t* f = mesh_.tables().faces.row(r.entity, cur_.faces);
+        const Id off = f[kFaceNodeOffset], e0 = f[kFaceE], e2 = f[kFaceE + 2];
+        const Id w0 = mesh_.tables().edges.row(e0, cur_.edges)[kEdgeN] - 1;
+        const Id w1 = mesh_.tables().edges.row(e2, cur_.edges)[kEdgeN] - 1;
+        range_first_ = off, range_end_ = off + w0 * w1, range_w0_ = w0;
+        break;
+      }
+      case EntityKind::Cell: {
+        const ElementLayout L = mesh_.tables().layout();
+        const std::int64_t* h = mesh_.tables().elements.row(r.entity, cur_.elements);
+        const Id w0 = h[L.n()] - 1, w1 = h[L.n() + 1] - 1, w2 = h[L.n() + 2] - 1;
+        range_first_ = h[L.cell_offset()], range_end_ = range_first_ + w0 * w1 * w2;
+        range_w0_ = w0, range_w1_ = w1;
+        break;
+      }
+    }
+  }
   if (r.kind != EntityKind::Cell) {
     xyz = mesh_.node(r, cur_);
     return true;
@@ -622,8 +664,15 @@ ElementCursor::ElementCursor(const FineMesh& mesh, Id begin, Id end)
 bool ElementCursor::next(FineElement& el) {
   if (next_ >= end_) return false;
   el.id = next_++;
-  el.coarse_element = mesh_.locate_element(el.id, el.ijk, cur_);
-  if (block_.coarse_element != el.coarse_element || block_.conn.empty()) mesh_.fill_block(el.coarse_element, block_);
+  if (!block_.conn.empty() && el.id >= block_.first_element && el.id < block_.first_element + block_.num_elements()) {
+    // Still in the block filled last: no search.
+    const Id l = el.id - block_.first_element;
+    el.coarse_element = block_.coarse_element;
+    el.ijk = {l % block_.n[0], (l / block_.n[0]) % block_.n[1], l / (block_.n[0] * block_.n[1])};
+  } else {
+    el.coarse_element = mesh_.locate_element(el.id, el.ijk, cur_);
+    if (block_.coarse_element != el.coarse_element || block_.conn.empty()) mesh_.fill_block(el.coarse_element, block_);
+  }
   el.block = block_.block;
   el.num_nodes = mesh_.corners();
   const Id local = el.id - block_.first_element;

@@ -140,6 +140,10 @@ class NodeCursor {
   MeshCursor cur_;
   FineBlock block_;  // cell interiors come from a block fill, not per-node TFI
   Id block_cell_ = -1;
+  // The entity whose ids [range_first_, range_end_) the last lookup found:
+  // the next ids in it need no search.
+  NodeRef range_ref_;
+  Id range_first_ = 0, range_end_ = 0, range_w0_ = 1, range_w1_ = 1;
 };
 
 // Whole-mesh element iteration in id order [begin, end).

@@ -1,0 +1,203 @@
+#!/usr/bin/env bash
+# Crash safety, measured: SIGKILLs `dicer dice` and `dicer export` (msh,
+# exodus, vtkhdf) at TRIALS uniformly random moments each and checks after
+# every kill that
+#   - the file under the final name is the pre-existing one, byte for byte,
+#     or (the kill came after the rename) a complete new one;
+#   - nothing else carrying the final name sits in the folder, apart from the
+#     killed process's own temporary `.NAME.tmp-PID` (SIGKILL cannot clean
+#     up; those are counted, then removed before the next trial).
+# Each kill is classified by what the folder shows afterwards: before the
+# temporary file existed, during writing (temporary present), after the
+# rename (new file in place, process killed), or finished before the kill.
+#
+#   bash scripts/crash_safety.sh [TRIALS=50]        (SEED=n for a fixed sequence)
+#
+# Exit status: 0 when no trial violated the contract, 1 otherwise.
+set -uo pipefail
+cd "$(dirname "$0")/.."
+ROOT=$PWD
+TRIALS=${1:-50}
+[[ "$TRIALS" =~ ^[1-9][0-9]*$ ]] || { echo "usage: $0 [TRIALS>0]" >&2; exit 2; }
+RANDOM=${SEED:-$$}
+
+DICER=$ROOT/build/dicer
+if [[ ! -x "$DICER" ]]; then
+  echo "build/dicer missing: building it with scripts/build.sh" >&2
+  bash scripts/build.sh >&2 || exit 2
+fi
+command -v h5diff >/dev/null || { echo "h5diff (hdf5-tools) is needed to compare VTKHDF files" >&2; exit 2; }
+MESH=$ROOT/tests/data/vtkdata_disk_out_ref.ex2
+NEW_DICE_ELEMENTS=$((7472 * 343))   # interval 7
+
+WORK=$(mktemp -d "${TMPDIR:-/tmp}/dicer_crash.XXXXXX")
+trap 'rm -rf "$WORK"' EXIT
+mkdir -p "$WORK/pristine"
+# A private copy of the binary: build/ is shared, and a relink during the run
+# would make a trial fail to start (exit 126) rather than test anything.
+cp "$DICER" "$WORK/dicer" && DICER=$WORK/dicer
+
+sha() { sha256sum "$1" | cut -d' ' -f1; }
+now_us() { echo $(( $(date +%s%N) / 1000 )); }
+rand_u30() { echo $(( (RANDOM << 15) | RANDOM )); }
+
+# Stores: OLD (interval 2) is what sits under the final names before each
+# trial; SRC (interval 4) is what the killed exports write, so an old export
+# and a new one are always distinguishable.
+"$DICER" dice "$MESH" --interval 2 -o "$WORK/pristine/old.dice.h5" >/dev/null || exit 2
+"$DICER" dice "$MESH" --interval 4 -o "$WORK/pristine/src.dice.h5" >/dev/null || exit 2
+SRC=$WORK/pristine/src.dice.h5
+declare -A EXT=([msh]=msh [exodus]=exo [vtkhdf]=vtkhdf)
+declare -A DETERMINISTIC
+for fmt in msh exodus vtkhdf; do
+  "$DICER" export "$WORK/pristine/old.dice.h5" --format $fmt -o "$WORK/pristine/old.${EXT[$fmt]}" --quiet || exit 2
+  "$DICER" export "$SRC" --format $fmt -o "$WORK/pristine/ref.${EXT[$fmt]}" --quiet || exit 2
+done
+
+# Are the writers deterministic? (HDF5 object headers carry modification
+# times, so two exports made in different seconds may differ in a few bytes.)
+sleep 1.1
+for fmt in msh exodus vtkhdf; do
+  "$DICER" export "$SRC" --format $fmt -o "$WORK/pristine/again.${EXT[$fmt]}" --quiet || exit 2
+  if [[ $(sha "$WORK/pristine/again.${EXT[$fmt]}") == $(sha "$WORK/pristine/ref.${EXT[$fmt]}") ]]; then
+    DETERMINISTIC[$fmt]=yes
+  else
+    DETERMINISTIC[$fmt]=no
+  fi
+  rm -f "$WORK/pristine/again.${EXT[$fmt]}"
+done
+"$DICER" dice "$MESH" --interval 7 -o "$WORK/pristine/a.dice.h5" >/dev/null || exit 2
+"$DICER" dice "$MESH" --interval 7 -o "$WORK/pristine/b.dice.h5" >/dev/null || exit 2
+sleep 1.1
+"$DICER" dice "$MESH" --interval 7 -o "$WORK/pristine/b.dice.h5" >/dev/null || exit 2
+if [[ $(sha "$WORK/pristine/a.dice.h5") == $(sha "$WORK/pristine/b.dice.h5") ]]; then DETERMINISTIC[dice]=yes; else DETERMINISTIC[dice]=no; fi
+rm -f "$WORK/pristine/a.dice.h5" "$WORK/pristine/b.dice.h5"
+
+# Is FILE a complete new output of kind KIND?
+complete_new() {
+  local kind=$1 file=$2
+  case $kind in
+    dice)
+      "$DICER" verify "$file" --quiet >/dev/null 2>&1 || return 1
+      "$DICER" info "$file" --json 2>/dev/null | grep -q "\"fine_elements\":$NEW_DICE_ELEMENTS[,}]" ;;
+    msh|exodus)
+      [[ $(sha "$file") == $(sha "$WORK/pristine/ref.${EXT[$kind]}") ]] ;;
+    vtkhdf)
+      local ref=$WORK/pristine/ref.vtkhdf
+      [[ $(sha "$file") == $(sha "$ref") ]] && return 0
+      [[ $(stat -c %s "$file") == $(stat -c %s "$ref") ]] && h5diff -q "$ref" "$file" >/dev/null 2>&1 ;;
+  esac
+}
+
+# Runs the command once to completion, returns its wall time in microseconds.
+time_run() {
+  local t0 t1
+  t0=$(now_us)
+  "$@" >/dev/null 2>&1
+  t1=$(now_us)
+  echo $((t1 - t0))
+}
+
+declare -A BEFORE DURING AFTER FINISHED VIOL LEFTOVER DUR_US
+TOTAL_VIOL=0
+
+run_kind() {
+  local kind=$1 dir=$WORK/$1 name old
+  mkdir -p "$dir"
+  local -a cmd
+  if [[ $kind == dice ]]; then
+    name=out.dice.h5; old=$WORK/pristine/old.dice.h5
+    cmd=("$DICER" dice "$MESH" --interval 7 -o "$dir/$name")
+  else
+    name=out.${EXT[$kind]}; old=$WORK/pristine/old.${EXT[$kind]}
+    cmd=("$DICER" export "$SRC" --format "$kind" -o "$dir/$name" --quiet)
+  fi
+  local old_sha; old_sha=$(sha "$old")
+  # Duration: median of three complete runs.
+  local d1 d2 d3 dur
+  d1=$(time_run "${cmd[@]}"); d2=$(time_run "${cmd[@]}"); d3=$(time_run "${cmd[@]}")
+  dur=$(printf '%s\n' "$d1" "$d2" "$d3" | sort -n | sed -n 2p)
+  DUR_US[$kind]=$dur
+  local span=$((dur * 12 / 10))
+  BEFORE[$kind]=0; DURING[$kind]=0; AFTER[$kind]=0; FINISHED[$kind]=0; VIOL[$kind]=0; LEFTOVER[$kind]=0
+  for ((t = 1; t <= TRIALS; t++)); do
+    rm -rf "${dir:?}"/* "$dir"/.[!.]* 2>/dev/null
+    cp "$old" "$dir/$name"
+    local delay_us=$(( $(rand_u30) % (span + 1) ))
+    local delay; delay=$(printf '%d.%06d' $((delay_us / 1000000)) $((delay_us % 1000000)))
+    "${cmd[@]}" >/dev/null 2>&1 &
+    local pid=$!
+    sleep "$delay"
+    kill -KILL "$pid" 2>/dev/null
+    { wait "$pid"; } 2>/dev/null
+    local rc=$?
+    local problems=() temp_seen=0 entry
+    # Every entry of the folder: the final name, the killed writer's own
+    # temporary, or a violation.
+    shopt -s nullglob dotglob
+    for entry in "$dir"/*; do
+      entry=${entry##*/}
+      if [[ $entry == "$name" ]]; then continue
+      elif [[ $entry == ".$name.tmp-$pid" ]]; then temp_seen=1
+      else problems+=("stray file $entry")
+      fi
+    done
+    shopt -u nullglob dotglob
+    local phase
+    if [[ ! -f "$dir/$name" ]]; then
+      problems+=("nothing under the final name")
+      phase=BEFORE
+    elif [[ $(sha "$dir/$name") == "$old_sha" ]]; then
+      if ((temp_seen)); then phase=DURING; else phase=BEFORE; fi
+      ((rc == 0)) && problems+=("exited 0 but the old file is still in place")
+    else
+      if complete_new "$kind" "$dir/$name"; then :; else problems+=("final file is neither the old one nor a complete new one"); fi
+      if ((temp_seen)); then phase=DURING; problems+=("temporary left beside a renamed file")
+      elif ((rc == 0)); then phase=FINISHED
+      else phase=AFTER
+      fi
+    fi
+    ((rc != 0 && rc != 137)) && problems+=("exit status $rc (expected 137 or 0)")
+    case $phase in
+      BEFORE) BEFORE[$kind]=$((BEFORE[$kind] + 1)) ;;
+      DURING) DURING[$kind]=$((DURING[$kind] + 1)) ;;
+      AFTER) AFTER[$kind]=$((AFTER[$kind] + 1)) ;;
+      FINISHED) FINISHED[$kind]=$((FINISHED[$kind] + 1)) ;;
+    esac
+    ((temp_seen)) && LEFTOVER[$kind]=$((LEFTOVER[$kind] + 1))
+    if ((${#problems[@]})); then
+      VIOL[$kind]=$((VIOL[$kind] + 1)); TOTAL_VIOL=$((TOTAL_VIOL + 1))
+      printf 'VIOLATION %s trial %d (kill at %s s, exit %d): %s\n' "$kind" "$t" "$delay" "$rc" "$(IFS=';'; echo "${problems[*]}")"
+      cp "$dir/$name" "$WORK/violation_${kind}_$t" 2>/dev/null
+    fi
+  done
+  rm -rf "${dir:?}"
+}
+
+for kind in dice msh exodus vtkhdf; do
+  echo "killing $kind $TRIALS times..." >&2
+  run_kind "$kind"
+done
+
+echo
+echo "crash safety: $TRIALS SIGKILLs per command at uniform random moments in [0, 1.2 x run time]"
+printf '%-8s %8s %8s %8s %8s %8s %9s %9s %10s\n' command run_ms before during after finished leftover violations byte-determ
+for kind in dice msh exodus vtkhdf; do
+  printf '%-8s %8d %8d %8d %8d %8d %9d %9d %10s\n' "$kind" $((DUR_US[$kind] / 1000)) "${BEFORE[$kind]}" "${DURING[$kind]}" \
+    "${AFTER[$kind]}" "${FINISHED[$kind]}" "${LEFTOVER[$kind]}" "${VIOL[$kind]}" "${DETERMINISTIC[$kind]}"
+done
+cat <<'EOF'
+  before: killed before the temporary existed (old file intact)
+  during: killed while writing (temporary .NAME.tmp-PID present, old file intact)
+  after:  killed after the rename (a complete new file in place)
+  finished: the run ended before the kill (complete new file)
+  leftover: temporaries SIGKILL left behind (removed between trials)
+  new files: dice = `verify --quiet` exit 0 + interval-7 element count; msh, exodus = sha256
+  of a reference export; vtkhdf = sha256 or same size and `h5diff` identical
+  (byte-determ: whether two runs a second apart give the same bytes)
+EOF
+if ((TOTAL_VIOL)); then
+  echo "FAILED: $TOTAL_VIOL violation(s)"
+  exit 1
+fi
+echo "OK: no violation"
