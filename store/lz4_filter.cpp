@@ -1,5 +1,7 @@
 #include "lz4_filter.hpp"
 
+#include <zlib.h>
+
 #include <lz4.h>
 
 #include <algorithm>
@@ -283,6 +285,19 @@ void decode_page(std::span<const std::uint8_t> stored, std::vector<std::uint8_t>
     out.clear();
     fail(err);
   }
+}
+
+std::uint32_t page_crc(std::span<const std::uint8_t> bytes) {
+  // zlib's CRC-32: a well-kept implementation, already linked by HDF5.
+  uLong crc = crc32(0L, Z_NULL, 0);
+  const std::uint8_t* p = bytes.data();
+  std::size_t n = bytes.size();
+  while (n > 0) {
+    const uInt step = static_cast<uInt>(std::min<std::size_t>(n, 1u << 30));
+    crc = crc32(crc, p, step);
+    p += step, n -= step;
+  }
+  return static_cast<std::uint32_t>(crc);
 }
 
 }  // namespace dicer::store

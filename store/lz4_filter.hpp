@@ -85,4 +85,11 @@ std::vector<std::uint8_t> encode_page(std::span<const std::uint8_t> raw);
 void decode_page(std::span<const std::uint8_t> stored, std::vector<std::uint8_t>& out, std::size_t expected_size,
                  const std::string& what);
 
+// CRC-32 (zlib's) of a page's decoded bytes. Fletcher32 cannot see a 16-bit
+// word turning from 0x0000 into 0xFFFF (ones'-complement sums); every paged
+// dataset X therefore has a companion X + kPageCrcSuffix holding the CRC-32
+// of each of its decoded pages, which the store's loader checks too.
+std::uint32_t page_crc(std::span<const std::uint8_t> bytes);
+inline constexpr const char* kPageCrcSuffix = "_crc";
+
 }  // namespace dicer::store

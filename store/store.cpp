@@ -34,6 +34,21 @@ hid_t h5_type() {
 
 // Writes rows x width values as a chunked, LZ4 + Fletcher32 dataset, one
 // H5Dwrite_chunk per page: every page is written once, never re-read.
+// The CRC-32 of every decoded page of a dataset, as its companion dataset
+// (1-D uint32, LZ4 + Fletcher32 like the rest; read whole at open: O(pages)).
+void write_crcs(const h5::File& f, const std::string& name, const std::vector<std::uint32_t>& crcs) {
+  hsize_t dims[1] = {crcs.size()}, chunk[1] = {std::max<hsize_t>(1, std::min<hsize_t>(crcs.size(), 16384))};
+  h5::Handle space(H5Screate_simple(1, dims, nullptr), H5Sclose);
+  h5::Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
+  if (!space || !dcpl || H5Pset_chunk(dcpl.get(), 1, chunk) < 0)
+    throw Error(ErrorKind::Io, f.path() + ": " + name + ": cannot set up dataset");
+  store::add_page_filters(dcpl.get());
+  h5::Handle ds(H5Dcreate2(f.id(), name.c_str(), H5T_STD_U32LE, space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT),
+                H5Dclose);
+  if (!ds || (!crcs.empty() && H5Dwrite(ds.get(), H5T_NATIVE_UINT32, H5S_ALL, H5S_ALL, H5P_DEFAULT, crcs.data()) < 0))
+    throw Error(ErrorKind::Io, f.path() + ": " + name + ": write failed");
+}
+
 // Pages written so far and in all (for write_store's progress callback).
 struct WriteProgress {
   std::int64_t done = 0, total = 0;
@@ -58,11 +73,13 @@ void write_paged(const h5::File& f, const std::string& name, const T* data, std:
                 H5Dclose);
   if (!ds) throw Error(ErrorKind::Io, f.path() + ": " + name + ": cannot create dataset");
   std::vector<std::uint8_t> page(static_cast<size_t>(rpp * width) * sizeof(T));
+  std::vector<std::uint32_t> crcs;
   for (std::int64_t first = 0; first < rows; first += rpp) {
     const std::int64_t n = std::min(rpp, rows - first);
     std::fill(page.begin(), page.end(), 0);  // a partial last page is padded
     std::memcpy(page.data(), data + first * width, static_cast<size_t>(n * width) * sizeof(T));
     const std::vector<std::uint8_t> stored = store::encode_page(page);
+    crcs.push_back(store::page_crc(page));
     hsize_t offset[2] = {static_cast<hsize_t>(first), 0};
     if (H5Dwrite_chunk(ds.get(), H5P_DEFAULT, 0, offset, stored.size(), stored.data()) < 0)
       throw Error(ErrorKind::Io, f.path() + ": " + name + ": writing page " + std::to_string(first / rpp) + " failed");
@@ -71,6 +88,7 @@ void write_paged(const h5::File& f, const std::string& name, const T* data, std:
       (*g_write_progress->fn)(g_write_progress->done, std::max(g_write_progress->total, g_write_progress->done));
     }
   }
+  write_crcs(f, name + store::kPageCrcSuffix, crcs);
 }
 
 template <class T>
@@ -97,6 +115,7 @@ struct PagedDataset {
   h5::Handle ds;
   std::int64_t rows = 0, width = 0, rows_per_page = 0;
   std::size_t elem = 0;
+  std::vector<std::uint32_t> crc;  // CRC-32 of every decoded page (companion dataset)
 };
 
 struct OpenStore {
@@ -124,12 +143,15 @@ struct OpenStore {
       if (mask != 0) throw Error(ErrorKind::Corrupt, what + ": page was stored with filters skipped");
     }
     store::decode_page(raw, out, static_cast<size_t>(a.rows_per_page * a.width) * a.elem, what);
+    if (key.page >= a.crc.size() || store::page_crc(out) != a.crc[key.page])
+      throw Error(ErrorKind::Corrupt, what + ": page checksum (CRC-32) mismatch: the page is damaged");
     return raw.size();
   }
 };
 
 template <class T>
 std::uint32_t open_paged(OpenStore& s, const std::string& name, std::int64_t width, std::int64_t want_rows) {
+  std::lock_guard lock(hdf5_mutex());  // the read-ahead thread may be loading pages
   const std::string& path = s.file.path();
   if (!s.file.exists(name)) throw Error(ErrorKind::Corrupt, path + ": dataset " + name + " is missing");
   PagedDataset a;
@@ -158,6 +180,20 @@ std::uint32_t open_paged(OpenStore& s, const std::string& name, std::int64_t wid
   a.width = width;
   a.rows_per_page = static_cast<std::int64_t>(chunk[0]);
   a.elem = sizeof(T);
+  {
+    const std::string crc_name = name + store::kPageCrcSuffix;
+    const hsize_t pages = (dims[0] + chunk[0] - 1) / chunk[0];
+    if (!s.file.exists(crc_name)) throw Error(ErrorKind::Corrupt, path + ": dataset " + crc_name + " is missing");
+    h5::Handle cds(H5Dopen2(s.file.id(), crc_name.c_str(), H5P_DEFAULT), H5Dclose);
+    h5::Handle csp(H5Dget_space(cds.get()), H5Sclose);
+    hsize_t cdims[1] = {0};
+    if (!cds || H5Sget_simple_extent_ndims(csp.get()) != 1 || H5Sget_simple_extent_dims(csp.get(), cdims, nullptr) < 0 ||
+        cdims[0] != pages)
+      throw Error(ErrorKind::Corrupt, path + ": dataset " + crc_name + " does not have one entry per page of " + name);
+    a.crc.resize(static_cast<size_t>(pages));
+    if (pages > 0 && H5Dread(cds.get(), H5T_NATIVE_UINT32, H5S_ALL, H5S_ALL, H5P_DEFAULT, a.crc.data()) < 0)
+      throw Error(ErrorKind::Corrupt, path + ": dataset " + crc_name + " cannot be read (damaged)");
+  }
   s.arrays.push_back(std::move(a));
   return static_cast<std::uint32_t>(s.arrays.size() - 1);
 }

@@ -11,6 +11,7 @@
 #include <functional>
 
 #include "lz4_filter.hpp"
+#include "store_forge.hpp"
 #include "test_support.hpp"
 
 namespace fs = std::filesystem;
@@ -201,29 +202,35 @@ std::vector<Case> catalogue() {
              });
            },
            {"query", "IN", "--element", "5"}, 8, "topology/elements page 0"},
-      Case{"store row with a lying interval (valid checksum)",
+      Case{"store row with a lying interval (valid checksums)",
            [](const test::TempDir& d) {
              return edited_store(d, [](hid_t f) {
                hid_t ds = H5Dopen2(f, "topology/elements", H5P_DEFAULT);
-               hsize_t off[2] = {0, 0}, stored = 0, dims[2] = {0, 0}, chunk[2] = {0, 0};
-               H5Dget_chunk_storage_size(ds, off, &stored);
-               hid_t sp = H5Dget_space(ds), pl = H5Dget_create_plist(ds);
+               hid_t sp = H5Dget_space(ds);
+               hsize_t dims[2] = {0, 0};
                H5Sget_simple_extent_dims(sp, dims, nullptr);
-               H5Pget_chunk(pl, 2, chunk);
-               H5Sclose(sp), H5Pclose(pl);
-               std::vector<std::uint8_t> raw(stored), page;
-               std::uint32_t mask = 0;
-               H5Dread_chunk(ds, H5P_DEFAULT, off, &mask, raw.data());
-               store::decode_page(raw, page, chunk[0] * chunk[1] * 8, "fixture");
-               // Element 5's first interval (column W-3) claims 2^41.
-               std::int64_t* rows = reinterpret_cast<std::int64_t*>(page.data());
-               rows[5 * dims[1] + dims[1] - 3] = std::int64_t{1} << 41;
-               const auto stored_again = store::encode_page(page);
-               H5Dwrite_chunk(ds, H5P_DEFAULT, 0, off, stored_again.size(), stored_again.data());
-               H5Dclose(ds);
+               H5Sclose(sp), H5Dclose(ds);
+               // Element 5's first interval (column W-3) claims 2^41; Fletcher32 and CRC-32 recomputed.
+               test::forge_page(f, "topology/elements", 0, [&](std::vector<std::uint8_t>& page) {
+                 reinterpret_cast<std::int64_t*>(page.data())[5 * dims[1] + dims[1] - 3] = std::int64_t{1} << 41;
+               }, true);
              });
            },
            {"query", "IN", "--element", "40"}, 8, "inconsistent mesh tables: element interval of row 5"},
+      Case{"store page with the Fletcher32 blind spot (0x0000 -> 0xFFFF)",
+           [](const test::TempDir& d) {
+             return edited_store(d, [](hid_t f) {
+               // A zero 16-bit word turned into 0xFFFF keeps Fletcher32 valid; only the CRC-32 sees it.
+               test::forge_page(f, "coarse/vertices", 0, [](std::vector<std::uint8_t>& page) {
+                 for (size_t i = 0; i + 1 < page.size(); i += 2)
+                   if (page[i] == 0 && page[i + 1] == 0) {
+                     page[i] = page[i + 1] = 0xff;
+                     return;
+                   }
+               }, false);
+             });
+           },
+           {"query", "IN", "--node", "0"}, 8, "coarse/vertices page 0: page checksum (CRC-32) mismatch"},
       Case{"HDF5 file that is not a dicer store",
            [](const test::TempDir& d) {
              const std::string p = d.path("other.h5");
