@@ -42,15 +42,7 @@ TEST(ExportCli, CtrlCLeavesNoPartialOutput) {
   // 7472 hexes at interval 12: 12.9M fine elements, several seconds of export.
   ASSERT_EQ(test::run_cli({"dice", test::data_path("vtkdata_disk_out_ref.ex2"), "--interval", "12", "-o", store}).exit_code, 0);
   const std::string out = tmp.path("whole.msh");
-  const pid_t pid = ::fork();
-  ASSERT_GE(pid, 0);
-  if (pid == 0) {
-    ::freopen("/dev/null", "w", stdout);
-    ::freopen("/dev/null", "w", stderr);
-    const std::string exe = DICER_CLI;
-    ::execl(exe.c_str(), exe.c_str(), "export", store.c_str(), "--format", "msh", "-o", out.c_str(), nullptr);
-    ::_exit(127);
-  }
+  const pid_t pid = test::spawn_cli({"export", store, "--format", "msh", "-o", out});
   std::this_thread::sleep_for(std::chrono::milliseconds(700));
   ::kill(pid, SIGINT);
   int status = 0;

@@ -172,15 +172,7 @@ TEST(StorePaged, AKilledWriterNeverDamagesTheExistingStore) {
   const std::string before = test::read_file(out);
   int killed_while_writing = 0;
   for (int trial = 0; trial < 8; ++trial) {
-    const pid_t pid = ::fork();
-    ASSERT_GE(pid, 0);
-    if (pid == 0) {
-      ::freopen("/dev/null", "w", stdout);
-      ::freopen("/dev/null", "w", stderr);
-      const std::string exe = DICER_CLI;
-      ::execl(exe.c_str(), exe.c_str(), "dice", mesh.c_str(), "--interval", "7", "-o", out.c_str(), nullptr);
-      ::_exit(127);
-    }
+    const pid_t pid = test::spawn_cli({"dice", mesh, "--interval", "7", "-o", out});
     // Even trials: kill as soon as the temporary file appears (mid-write).
     // Odd trials: kill at a random moment, whatever the writer is doing.
     const auto start = std::chrono::steady_clock::now();

@@ -80,6 +80,23 @@ CliResult run_process(const std::vector<std::string>& argv, const std::map<std::
   return r;
 }
 
+pid_t spawn_cli(const std::vector<std::string>& args) {
+  std::vector<std::string> copy{DICER_CLI};
+  copy.insert(copy.end(), args.begin(), args.end());
+  std::vector<char*> argv;
+  for (auto& a : copy) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  const pid_t pid = ::fork();
+  if (pid < 0) throw std::runtime_error("fork failed");
+  if (pid == 0) {
+    const int null = ::open("/dev/null", O_RDWR);
+    ::dup2(null, 0), ::dup2(null, 1), ::dup2(null, 2);
+    ::execv(argv[0], argv.data());
+    ::_exit(127);
+  }
+  return pid;
+}
+
 CliResult run_cli(const std::vector<std::string>& args) {
   std::vector<std::string> argv{DICER_CLI};
   argv.insert(argv.end(), args.begin(), args.end());

@@ -1,5 +1,7 @@
 #pragma once
 // Helpers shared by the test binary: data paths, temp dirs, running the CLI.
+#include <sys/types.h>
+
 #include <cstdlib>
 #include <filesystem>
 #include <map>
@@ -32,6 +34,10 @@ struct CliResult {
 
 // Runs the built `dicer` binary with the given arguments (no shell).
 CliResult run_cli(const std::vector<std::string>& args);
+
+// Starts the built `dicer` binary in the background (stdout and stderr to
+// /dev/null) and returns its pid, for tests that signal it mid-work.
+pid_t spawn_cli(const std::vector<std::string>& args);
 
 // Runs any program (argv[0] is its path; no shell, stdin from /dev/null);
 // `set` / `unset` adjust the child's environment.
