@@ -18,10 +18,10 @@ namespace {
 // Rows copied out of the tables (a row pointer dies when its cursor moves).
 
 struct EdgeRec {
-  Id lo, hi, n, off;
+  Id lo, hi, n, off, bound;
 };
 struct FaceRec {
-  Id v[4], e[4], off, nu, nv;
+  Id v[4], e[4], off, nu, nv, bound;
 };
 struct ElemRec {
   Id conn[8], edge[12], face[6];
@@ -30,6 +30,7 @@ struct ElemRec {
   std::uint64_t flags;
   std::array<Id, 3> n;
   bool rev(int k) const { return (flags >> k) & 1; }
+  bool curved() const { return (flags >> kElemCurvedBit) & 1; }
   FaceCode code(int k) const { return static_cast<FaceCode>((flags >> (12 + 3 * k)) & 7); }
 };
 
@@ -56,10 +57,10 @@ struct View {
   EdgeRec edge(Id e) const {
     check(e >= 0 && e < t.edges.rows(), "edge id out of range in a face or element", e);
     const std::int64_t* r = t.edges.row(e, c.edges);
-    const EdgeRec rec{r[kEdgeLo], r[kEdgeHi], r[kEdgeN], r[kEdgeNodeOffset]};
+    const EdgeRec rec{r[kEdgeLo], r[kEdgeHi], r[kEdgeN], r[kEdgeNodeOffset], r[kEdgeBound]};
     const Id nv = t.vertices.rows();
     check(rec.lo >= 0 && rec.lo < nv && rec.hi >= 0 && rec.hi < nv && rec.n >= 1 && rec.n <= (Id{1} << 40) &&
-              rec.off >= 0,
+              rec.off >= 0 && (rec.bound == -1 || (rec.bound >= 0 && rec.bound <= t.bounding.rows() - (rec.n - 1))),
           "edge", e);
     return rec;
   }
@@ -69,9 +70,11 @@ struct View {
     FaceRec rec;
     for (int k = 0; k < 4; ++k) rec.v[k] = r[kFaceV + k], rec.e[k] = r[kFaceE + k];
     rec.off = r[kFaceNodeOffset];
+    rec.bound = r[kFaceBound];
     for (int k = 0; k < 4; ++k) check(rec.v[k] >= 0 && rec.v[k] < t.vertices.rows(), "face", f);
     rec.nu = edge(rec.e[0]).n;
     rec.nv = edge(rec.e[2]).n;
+    check(rec.bound == -1 || (rec.bound >= 0 && rec.bound <= t.bounding.rows() - (rec.nu - 1) * (rec.nv - 1)), "face", f);
     return rec;
   }
   ElemRec element(Id h) const {
@@ -102,13 +105,19 @@ struct View {
     return rec;
   }
 
-  // Equal spacing, canonical t in [0, n].
+  // A predicted point corrected by bounding row `row` (a node on the CAD).
+  Vec3 moved(const Vec3& p, Id row) const {
+    const std::int64_t* r = t.bounding.row(row, c.bounding);
+    return {tfi::bounding_apply(p.x, r[0]), tfi::bounding_apply(p.y, r[1]), tfi::bounding_apply(p.z, r[2])};
+  }
+  // Equal spacing, canonical t in [0, n]; moved onto the CAD when bounded.
   Vec3 edge_point(const EdgeRec& e, Id t) const {
     if (t == 0) return vertex(e.lo);
     if (t == e.n) return vertex(e.hi);
     const Vec3 a = vertex(e.lo), b = vertex(e.hi);
     const double s = tfi::weight(t, e.n);
-    return {tfi::edge(a.x, b.x, s), tfi::edge(a.y, b.y, s), tfi::edge(a.z, b.z, s)};
+    const Vec3 p{tfi::edge(a.x, b.x, s), tfi::edge(a.y, b.y, s), tfi::edge(a.z, b.z, s)};
+    return e.bound < 0 ? p : moved(p, e.bound + t - 1);
   }
   // Side k of a face (0 v0v1, 1 v3v2, 2 v0v3, 3 v1v2) at face parameter s.
   Vec3 face_side(const FaceRec& f, int k, Id s) const {
@@ -126,7 +135,8 @@ struct View {
   }
   Vec3 face_interior(const FaceRec& f, Id u, Id v, const Vec3* s) const {
     const Vec3 p[4] = {vertex(f.v[0]), vertex(f.v[1]), vertex(f.v[2]), vertex(f.v[3])};
-    return coons_point(f.nu, f.nv, u, v, s, p);
+    const Vec3 x = coons_point(f.nu, f.nv, u, v, s, p);
+    return f.bound < 0 ? x : moved(x, f.bound + (u - 1) + (v - 1) * (f.nu - 1));
   }
   Vec3 face_point(const FaceRec& f, Id u, Id v) const {
     if (v == 0) return face_side(f, 0, u);
@@ -147,7 +157,25 @@ struct View {
     Vec3 corner[8];
     for (int q = 0; q < 8; ++q) corner[q] = vertex(h.conn[q]);
     double f[3][6], e[3][12], c[3][8];
-    for (int q = 0; q < 12; ++q) {
+    if (h.curved()) {
+      // Some boundary is on the CAD: take each edge and face point from its
+      // owner (moved values included), exactly as the block fill gathers them.
+      for (int q = 0; q < 12; ++q) {
+        const EdgeRec er = edge(h.edge[q]);
+        const Id n = h.n[q / 4], tc = h.rev(q) ? n - t[q / 4] : t[q / 4];
+        check(er.n == n, "interval disagrees with an element using edge", h.edge[q]);
+        const Vec3 x = edge_point(er, tc);
+        e[0][q] = x.x, e[1][q] = x.y, e[2][q] = x.z;
+      }
+      for (int q = 0; q < 6; ++q) {
+        const FaceRec fr = face(h.face[q]);
+        const FaceMap fm = face_map(h.code(q), fr.nu, fr.nv);
+        const Id a = t[kHexFaceAxes[q][0]], b = t[kHexFaceAxes[q][1]];
+        const Vec3 x = face_point(fr, fm.u(a, b), fm.v(a, b));
+        f[0][q] = x.x, f[1][q] = x.y, f[2][q] = x.z;
+      }
+    }
+    for (int q = 0; q < 12 && !h.curved(); ++q) {
       // Canonical direction: lo -> hi vertex id; rev means local end 1 is lo.
       const bool rev = h.rev(q);
       const Vec3& a = corner[kHexEdge[q][rev ? 1 : 0]];
@@ -156,7 +184,7 @@ struct View {
       const double s = tfi::weight(tc, n);
       e[0][q] = tfi::edge(a.x, b.x, s), e[1][q] = tfi::edge(a.y, b.y, s), e[2][q] = tfi::edge(a.z, b.z, s);
     }
-    for (int q = 0; q < 6; ++q) {
+    for (int q = 0; q < 6 && !h.curved(); ++q) {
       const FaceCode code = h.code(q);
       // Canonical corner m is local face corner m' with code_corner(code, m') == m.
       FaceRec fa{};
@@ -327,6 +355,7 @@ FineMesh compile(std::shared_ptr<const CoarseMesh> cm, const Topology& t, const 
     std::int64_t* r = &edges[static_cast<size_t>(e) * kEdgeWidth];
     r[kEdgeLo] = t.edge_v[2 * e], r[kEdgeHi] = t.edge_v[2 * e + 1], r[kEdgeN] = num.edge_n(e);
     r[kEdgeNodeOffset] = num.edge_node_offset(e), r[kEdgeSheet] = edge_sheet[e], r[kEdgeMinElement] = emin[e];
+    r[kEdgeOwner] = -1, r[kEdgeBound] = -1;
   }
   std::vector<std::int64_t> faces(static_cast<size_t>(t.num_faces()) * kFaceWidth);
   for (Id f = 0; f < t.num_faces(); ++f) {
@@ -334,6 +363,7 @@ FineMesh compile(std::shared_ptr<const CoarseMesh> cm, const Topology& t, const 
     for (int k = 0; k < 4; ++k) r[kFaceV + k] = t.face_v[4 * f + k], r[kFaceE + k] = t.face_edge[4 * f + k];
     r[kFaceNodeOffset] = num.face_node_offset(f);
     r[kFaceMinElement] = fmin[f];
+    r[kFaceOwner] = -1, r[kFaceBound] = -1;
   }
   const Id ne = m.num_elements();
   const int W = L.width();
@@ -371,6 +401,11 @@ FineMesh compile(std::shared_ptr<const CoarseMesh> cm, const Topology& t, const 
   tab.edges = Table<std::int64_t>(kEdgeWidth, std::move(edges));
   tab.faces = Table<std::int64_t>(kFaceWidth, std::move(faces));
   tab.elements = Table<std::int64_t>(W, std::move(elems));
+  tab.bounding = Table<std::int64_t>(3, {});
+  std::vector<std::int32_t> vowner(static_cast<size_t>(m.num_vertices()) * 2, -1);
+  for (size_t v = 0; v < m.vertex_geo_dim.size() && v < m.vertex_geo_tag.size(); ++v)
+    vowner[2 * v] = m.vertex_geo_dim[v], vowner[2 * v + 1] = m.vertex_geo_tag[v];
+  tab.vertex_owner = Table<std::int32_t>(2, std::move(vowner));
   info.coarse_vertices = m.num_vertices();
   info.coarse_edges = t.num_edges();
   info.coarse_faces = t.num_faces();
@@ -415,6 +450,91 @@ FineMesh FineMesh::dice(CoarseMesh coarse, const IntervalRequest& request, std::
   FineMesh f = compile(ordered, t, num, edge_sheet, s0.num_sheets());
   f.sheet_intervals_ = std::move(plan.sheet_interval);
   return f;
+}
+
+// ---------------------------------------------------------------- geometry
+
+void FineMesh::require_memory(const char* what) const {
+  if (!tables_.edges.in_memory() || !tables_.bounding.in_memory())
+    throw Error(ErrorKind::Usage, std::string(what) + ": the mesh must be diced in this process (not opened from a store)");
+}
+
+void FineMesh::set_vertex(Id v, const Vec3& x, int dim, int tag) {
+  require_memory("set_vertex");
+  if (tables_.bounding.rows() > 0) throw Error(ErrorKind::Usage, "set_vertex after nodes were moved");
+  auto& m = tables_.vertices.memory();
+  m[3 * v] = x.x, m[3 * v + 1] = x.y, m[3 * v + 2] = x.z;
+  auto& o = tables_.vertex_owner.memory();
+  o[2 * v] = dim, o[2 * v + 1] = tag;
+}
+
+void FineMesh::set_owner(EntityKind kind, Id entity, std::int64_t owner) {
+  require_memory("set_owner");
+  if (kind == EntityKind::Edge) tables_.edges.memory()[static_cast<size_t>(entity) * kEdgeWidth + kEdgeOwner] = owner;
+  else if (kind == EntityKind::Face) tables_.faces.memory()[static_cast<size_t>(entity) * kFaceWidth + kFaceOwner] = owner;
+  else throw Error(ErrorKind::Usage, "set_owner: only edges and faces carry owners");
+}
+
+std::int64_t FineMesh::owner(EntityKind kind, Id entity, MeshCursor& cur) const {
+  if (kind == EntityKind::Edge) return tables_.edges.row(entity, cur.edges)[kEdgeOwner];
+  if (kind == EntityKind::Face) return tables_.faces.row(entity, cur.faces)[kFaceOwner];
+  if (kind == EntityKind::Vertex) {
+    const std::int32_t* r = tables_.vertex_owner.row(entity, cur.vertex_owner);
+    return r[0] < 0 ? -1 : pack_owner(r[0], r[1]);
+  }
+  return -1;
+}
+
+void FineMesh::move_nodes(EntityKind kind, Id entity, std::span<const Vec3> xyz) {
+  require_memory("move_nodes");
+  MeshCursor cur;
+  const View V{tables_, cur, tables_.layout()};
+  std::vector<Vec3> pred;
+  std::int64_t* bound = nullptr;
+  if (kind == EntityKind::Edge) {
+    if (faces_moved_) throw Error(ErrorKind::Usage, "move_nodes: every edge must be moved before any face");
+    const EdgeRec e = V.edge(entity);
+    if (e.bound >= 0) throw Error(ErrorKind::Usage, "move_nodes: edge " + std::to_string(entity) + " moved twice");
+    for (Id t = 1; t < e.n; ++t) pred.push_back(V.edge_point(e, t));
+    bound = &tables_.edges.memory()[static_cast<size_t>(entity) * kEdgeWidth + kEdgeBound];
+  } else if (kind == EntityKind::Face) {
+    faces_moved_ = true;
+    const FaceRec f = V.face(entity);
+    if (f.bound >= 0) throw Error(ErrorKind::Usage, "move_nodes: face " + std::to_string(entity) + " moved twice");
+    for (Id v = 1; v < f.nv; ++v)
+      for (Id u = 1; u < f.nu; ++u) pred.push_back(V.face_point(f, u, v));  // Coons of the moved sides
+    bound = &tables_.faces.memory()[static_cast<size_t>(entity) * kFaceWidth + kFaceBound];
+  } else {
+    throw Error(ErrorKind::Usage, "move_nodes: only edge and face nodes are moved");
+  }
+  if (xyz.size() != pred.size())
+    throw Error(ErrorKind::Usage, "move_nodes: " + std::to_string(xyz.size()) + " points given for " +
+                                      std::to_string(pred.size()) + " nodes");
+  if (pred.empty()) return;
+  auto& b = tables_.bounding.memory();
+  *bound = tables_.bounding.rows();
+  for (size_t q = 0; q < pred.size(); ++q) {
+    b.push_back(tfi::bounding_code(pred[q].x, xyz[q].x));
+    b.push_back(tfi::bounding_code(pred[q].y, xyz[q].y));
+    b.push_back(tfi::bounding_code(pred[q].z, xyz[q].z));
+  }
+  tables_.bounding.reshape();
+}
+
+void FineMesh::finish_moves() {
+  require_memory("finish_moves");
+  const ElementLayout L = tables_.layout();
+  auto& el = tables_.elements.memory();
+  const auto& ed = tables_.edges.memory();
+  const auto& fa = tables_.faces.memory();
+  for (Id h = 0; h < tables_.elements.rows(); ++h) {
+    std::int64_t* r = &el[static_cast<size_t>(h) * L.width()];
+    bool curved = false;
+    for (int k = 0; k < L.edges; ++k) curved |= ed[static_cast<size_t>(r[L.edge() + k]) * kEdgeWidth + kEdgeBound] >= 0;
+    for (int k = 0; k < L.faces; ++k) curved |= fa[static_cast<size_t>(r[L.face() + k]) * kFaceWidth + kFaceBound] >= 0;
+    const std::uint64_t flags = static_cast<std::uint64_t>(r[L.flags()]) & ~(std::uint64_t{1} << kElemCurvedBit);
+    r[L.flags()] = static_cast<std::int64_t>(flags | (static_cast<std::uint64_t>(curved) << kElemCurvedBit));
+  }
 }
 
 // ---------------------------------------------------------------- queries
@@ -542,6 +662,13 @@ void FineMesh::fill_block(Id hid, FineBlock& b, bool nodes_only) const {
       for (Id v = 1; v < nv; ++v) {
         const double tv = s.t[v];
         for (Id u = 1; u < nu; ++u) *out++ = tfi::coons(s.s[u], tv, B[u], T[u], Lf[v], R[v], p0, p1, p2, p3);
+      }
+    }
+    if (f.bound >= 0) {  // on the CAD: the stored corrections, as View::face_interior applies them
+      const Id m = (nu - 1) * (nv - 1);
+      for (Id q = 0; q < m; ++q) {
+        const std::int64_t* r = tables_.bounding.row(f.bound + q, b.cursor.bounding);
+        for (int d = 0; d < 3; ++d) s.face[d][q] = tfi::bounding_apply(s.face[d][q], r[d]);
       }
     }
     const FaceMap fm = face_map(h.code(lf), nu, nv);

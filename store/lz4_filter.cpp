@@ -287,6 +287,22 @@ void decode_page(std::span<const std::uint8_t> stored, std::vector<std::uint8_t>
   }
 }
 
+void shuffle_bytes(std::span<const std::uint8_t> in, std::size_t elem, std::vector<std::uint8_t>& out) {
+  out.resize(in.size());
+  const std::size_t count = elem ? in.size() / elem : 0;
+  for (std::size_t i = 0; i < count; ++i)
+    for (std::size_t j = 0; j < elem; ++j) out[j * count + i] = in[i * elem + j];
+  std::copy(in.begin() + static_cast<std::ptrdiff_t>(count * elem), in.end(), out.begin() + static_cast<std::ptrdiff_t>(count * elem));
+}
+
+void unshuffle_bytes(std::span<const std::uint8_t> in, std::size_t elem, std::vector<std::uint8_t>& out) {
+  out.resize(in.size());
+  const std::size_t count = elem ? in.size() / elem : 0;
+  for (std::size_t i = 0; i < count; ++i)
+    for (std::size_t j = 0; j < elem; ++j) out[i * elem + j] = in[j * count + i];
+  std::copy(in.begin() + static_cast<std::ptrdiff_t>(count * elem), in.end(), out.begin() + static_cast<std::ptrdiff_t>(count * elem));
+}
+
 std::uint32_t page_crc(std::span<const std::uint8_t> bytes) {
   // zlib's CRC-32: a well-kept implementation, already linked by HDF5.
   uLong crc = crc32(0L, Z_NULL, 0);

@@ -90,6 +90,15 @@ void decode_page(std::span<const std::uint8_t> stored, std::vector<std::uint8_t>
 // dataset X therefore has a companion X + kPageCrcSuffix holding the CRC-32
 // of each of its decoded pages, which the store's loader checks too.
 std::uint32_t page_crc(std::span<const std::uint8_t> bytes);
+
+// HDF5's byte shuffle (H5Z_FILTER_SHUFFLE) of a page of elements of `elem`
+// bytes: byte j of element i goes to j * count + i, a tail of fewer than
+// `elem` bytes stays in place. Used before LZ4 on the bounding arrays, whose
+// small zigzag-coded corrections leave their high byte planes all zero.
+// Written here (30 lines) because H5Dwrite_chunk / H5Dread_chunk bypass
+// HDF5's filters and the library exposes no shuffle call of its own.
+void shuffle_bytes(std::span<const std::uint8_t> in, std::size_t elem, std::vector<std::uint8_t>& out);
+void unshuffle_bytes(std::span<const std::uint8_t> in, std::size_t elem, std::vector<std::uint8_t>& out);
 inline constexpr const char* kPageCrcSuffix = "_crc";
 
 }  // namespace dicer::store

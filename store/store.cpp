@@ -57,7 +57,8 @@ struct WriteProgress {
 thread_local WriteProgress* g_write_progress = nullptr;
 
 template <class T>
-void write_paged(const h5::File& f, const std::string& name, const T* data, std::int64_t rows, std::int64_t width) {
+void write_paged(const h5::File& f, const std::string& name, const T* data, std::int64_t rows, std::int64_t width,
+                 bool shuffle = false) {
   const int rank = 2;
   // Small datasets get one page of their own size, not a padded 64 KiB one.
   const std::int64_t rpp = std::min(rows_per_page(width, sizeof(T)), std::max<std::int64_t>(rows, 1));
@@ -68,17 +69,20 @@ void write_paged(const h5::File& f, const std::string& name, const T* data, std:
   h5::Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
   if (!space || !dcpl || H5Pset_chunk(dcpl.get(), rank, chunk) < 0)
     throw Error(ErrorKind::Io, f.path() + ": " + name + ": cannot set up dataset");
+  if (shuffle && H5Pset_shuffle(dcpl.get()) < 0) throw Error(ErrorKind::Io, f.path() + ": " + name + ": cannot add shuffle");
   store::add_page_filters(dcpl.get());
   h5::Handle ds(H5Dcreate2(f.id(), name.c_str(), h5_type<T>(), space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT),
                 H5Dclose);
   if (!ds) throw Error(ErrorKind::Io, f.path() + ": " + name + ": cannot create dataset");
   std::vector<std::uint8_t> page(static_cast<size_t>(rpp * width) * sizeof(T));
   std::vector<std::uint32_t> crcs;
+  std::vector<std::uint8_t> shuffled;
   for (std::int64_t first = 0; first < rows; first += rpp) {
     const std::int64_t n = std::min(rpp, rows - first);
     std::fill(page.begin(), page.end(), 0);  // a partial last page is padded
     std::memcpy(page.data(), data + first * width, static_cast<size_t>(n * width) * sizeof(T));
-    const std::vector<std::uint8_t> stored = store::encode_page(page);
+    if (shuffle) store::shuffle_bytes(page, sizeof(T), shuffled);
+    const std::vector<std::uint8_t> stored = store::encode_page(shuffle ? shuffled : page);
     crcs.push_back(store::page_crc(page));
     hsize_t offset[2] = {static_cast<hsize_t>(first), 0};
     if (H5Dwrite_chunk(ds.get(), H5P_DEFAULT, 0, offset, stored.size(), stored.data()) < 0)
@@ -92,8 +96,9 @@ void write_paged(const h5::File& f, const std::string& name, const T* data, std:
 }
 
 template <class T>
-void write_paged(const h5::File& f, const std::string& name, const std::vector<T>& v, std::int64_t width = 1) {
-  write_paged(f, name, v.data(), static_cast<std::int64_t>(v.size()) / width, width);
+void write_paged(const h5::File& f, const std::string& name, const std::vector<T>& v, std::int64_t width = 1,
+                 bool shuffle = false) {
+  write_paged(f, name, v.data(), static_cast<std::int64_t>(v.size()) / width, width, shuffle);
 }
 
 void write_strings(h5::File& f, const std::string& base, const std::vector<std::string>& names) {
@@ -115,6 +120,7 @@ struct PagedDataset {
   h5::Handle ds;
   std::int64_t rows = 0, width = 0, rows_per_page = 0;
   std::size_t elem = 0;
+  bool shuffled = false;           // HDF5 byte shuffle before LZ4 (the bounding arrays)
   std::vector<std::uint32_t> crc;  // CRC-32 of every decoded page (companion dataset)
 };
 
@@ -143,6 +149,11 @@ struct OpenStore {
       if (mask != 0) throw Error(ErrorKind::Corrupt, what + ": page was stored with filters skipped");
     }
     store::decode_page(raw, out, static_cast<size_t>(a.rows_per_page * a.width) * a.elem, what);
+    if (a.shuffled) {
+      std::vector<std::uint8_t> plain;
+      store::unshuffle_bytes(out, a.elem, plain);
+      out.swap(plain);
+    }
     if (key.page >= a.crc.size() || store::page_crc(out) != a.crc[key.page])
       throw Error(ErrorKind::Corrupt, what + ": page checksum (CRC-32) mismatch: the page is damaged");
     return raw.size();
@@ -173,8 +184,11 @@ std::uint32_t open_paged(OpenStore& s, const std::string& name, std::int64_t wid
     throw Error(ErrorKind::Corrupt, path + ": dataset " + name + " has an unexpected page shape");
   if (H5Tget_size(type.get()) != sizeof(T) || H5Tequal(type.get(), h5_type<T>()) <= 0)
     throw Error(ErrorKind::Corrupt, path + ": dataset " + name + " has an unexpected element type");
-  if (H5Pget_nfilters(dcpl.get()) < 1 || H5Pget_filter2(dcpl.get(), 0, nullptr, nullptr, nullptr, 0, nullptr, nullptr) !=
-                                             store::kLz4FilterId)
+  const int nfilters = H5Pget_nfilters(dcpl.get());
+  a.shuffled = nfilters >= 1 && H5Pget_filter2(dcpl.get(), 0, nullptr, nullptr, nullptr, 0, nullptr, nullptr) == H5Z_FILTER_SHUFFLE;
+  const unsigned lz4_at = a.shuffled ? 1 : 0;
+  if (nfilters < static_cast<int>(lz4_at) + 1 ||
+      H5Pget_filter2(dcpl.get(), lz4_at, nullptr, nullptr, nullptr, 0, nullptr, nullptr) != store::kLz4FilterId)
     throw Error(ErrorKind::Corrupt, path + ": dataset " + name + " is not LZ4-paged (filter 32004)");
   a.rows = static_cast<std::int64_t>(dims[0]);
   a.width = width;
@@ -232,7 +246,8 @@ void write_store(const FineMesh& mesh, const std::string& path,
     const std::int64_t rpp = rows_per_page(tab.width(), sizeof(tab.memory()[0]));
     return (tab.rows() + rpp - 1) / rpp;
   };
-  wp.total = pages(t.vertices) + pages(t.vertex_elements) + pages(t.edges) + pages(t.faces) + pages(t.elements) + 40;
+  wp.total = pages(t.vertices) + pages(t.vertex_elements) + pages(t.edges) + pages(t.faces) + pages(t.elements) +
+             pages(t.bounding) + pages(t.vertex_owner) + 40;
   g_write_progress = &wp;
   struct Reset {
     ~Reset() { g_write_progress = nullptr; }
@@ -251,16 +266,14 @@ void write_store(const FineMesh& mesh, const std::string& path,
       f.write_attr("sheets", info.sheets);
       f.write_attr("fine_nodes", info.nodes);
       f.write_attr("fine_elements", info.elements);
+      f.write_attr("bounding_nodes", t.bounding.rows());
       f.write_attr("page_bytes", static_cast<std::int64_t>(kStorePageBytes));
       for (const char* g : {"coarse", "topology", "sheets", "numbering", "geometry", "sets"}) f.group(g);
       write_paged(f, "coarse/vertices", t.vertices.memory(), 3);
       write_paged(f, "coarse/vertex_file_id", c->vertex_file_id);
       write_paged(f, "topology/vertex_elements", t.vertex_elements.memory(), 1);
-      std::vector<std::int32_t> owner(static_cast<size_t>(c->num_vertices()) * 2, -1);
-      for (size_t v = 0; v < c->vertex_geo_dim.size() && v < c->vertex_geo_tag.size(); ++v)
-        owner[2 * v] = c->vertex_geo_dim[v], owner[2 * v + 1] = c->vertex_geo_tag[v];
-      write_paged(f, "geometry/vertex_owner", owner, 2);
-      write_paged(f, "geometry/bounding_xyz", std::vector<double>{}, 3);  // filled by geometry-conforming dicing
+      write_paged(f, "geometry/vertex_owner", t.vertex_owner.memory(), 2);
+      write_paged(f, "geometry/bounding", t.bounding.memory(), 3, /*shuffle=*/true);
       write_paged(f, "topology/edges", t.edges.memory(), kEdgeWidth);
       write_paged(f, "topology/faces", t.faces.memory(), kFaceWidth);
       write_paged(f, "topology/elements", t.elements.memory(), t.layout().width());
@@ -342,6 +355,7 @@ FineMesh read_store(const std::string& path, const StoreOptions& options) {
   info.coarse_vertices = count("coarse_vertices"), info.coarse_edges = count("coarse_edges");
   info.coarse_faces = count("coarse_faces"), info.coarse_elements = count("coarse_elements");
   info.sheets = count("sheets"), info.nodes = count("fine_nodes"), info.elements = count("fine_elements");
+  const std::int64_t bounding_nodes = count("bounding_nodes");
 
   PageCache::Options co;
   co.budget_bytes = options.cache_bytes;
@@ -365,6 +379,8 @@ FineMesh read_store(const std::string& path, const StoreOptions& options) {
   tab.edges = paged(std::int64_t{}, "topology/edges", kEdgeWidth, info.coarse_edges);
   tab.faces = paged(std::int64_t{}, "topology/faces", kFaceWidth, info.coarse_faces);
   tab.elements = paged(std::int64_t{}, "topology/elements", tab.layout().width(), info.coarse_elements);
+  tab.bounding = paged(std::int64_t{}, "geometry/bounding", 3, bounding_nodes);
+  tab.vertex_owner = paged(std::int32_t{}, "geometry/vertex_owner", 2, info.coarse_vertices);
   // Small metadata, read whole now (O(blocks)); pages come through the cache
   // so they are checked like every other page.
   lock.unlock();  // the loader takes the HDF5 lock itself

@@ -119,11 +119,33 @@ class FineMesh {
   // nodes_only, its elements' connectivity (conn).
   void fill_block(Id h, FineBlock& out, bool nodes_only = false) const;
 
+  // ---- Geometry-conforming dicing (geometry/conform.cpp drives these; they
+  // need the in-memory tables of a mesh diced in this process).
+  // Moves coarse vertex v (snapped onto its CAD entity) and records its owner.
+  // Only before any move_nodes.
+  void set_vertex(Id v, const Vec3& x, int dim, int tag);
+  // Records the geometric owner (pack_owner) of a coarse edge or face.
+  void set_owner(EntityKind kind, Id entity, std::int64_t owner);
+  // Owner of a vertex, edge or face (-1 unknown). Works on a store too.
+  std::int64_t owner(EntityKind kind, Id entity, MeshCursor& cur) const;
+  // Replaces the interior fine nodes of a coarse edge (n-1 points, canonical
+  // order) or face ((nu-1)(nv-1) points, u fastest) by `xyz`, kept as
+  // bounding rows relative to the TFI prediction. Every edge must be moved
+  // before the first face (a face's prediction is the Coons patch of its
+  // moved sides); each entity at most once. Then finish_moves().
+  void move_nodes(EntityKind kind, Id entity, std::span<const Vec3> xyz);
+  // Flags the elements that touch moved nodes (their interiors read them).
+  void finish_moves();
+  // Number of fine nodes moved onto the CAD (rows of the bounding arrays).
+  Id num_bounding_nodes() const { return tables_.bounding.rows(); }
+
  private:
   MeshInfo info_;
   MeshTables tables_;
   std::shared_ptr<const CoarseMesh> coarse_;
   std::vector<Id> sheet_intervals_;
+  bool faces_moved_ = false;
+  void require_memory(const char* what) const;
 };
 
 // Whole-mesh node iteration in id order [begin, end).

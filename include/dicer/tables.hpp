@@ -10,14 +10,21 @@
 // Layouts (int64 unless noted; ids 0-based; "offset" = first fine id):
 //   vertices  [V x 3] float64  x, y, z
 //   vertex_elements [V x 1]  lowest coarse element using the vertex
-//   edges     [E x 6]  lo, hi, n (interval), node offset, sheet, lowest
-//                      coarse element using the edge
-//   faces     [F x 10] v0..v3 (canonical corners), e0..e3 (sides: v0v1,
-//                      v3v2, v0v3, v1v2), node offset, lowest element
+//   edges     [E x 8]  lo, hi, n (interval), node offset, sheet, lowest
+//                      coarse element using the edge, geometric owner,
+//                      first bounding row (-1: the nodes are not moved)
+//   faces     [F x 12] v0..v3 (canonical corners), e0..e3 (sides: v0v1,
+//                      v3v2, v0v3, v1v2), node offset, lowest element,
+//                      geometric owner, first bounding row (-1: none)
 //   elements  [H x W]  corners (8|4), edges (12|4), faces (6|1), element
 //                      offset, cell node offset, block index, file id,
 //                      flags = edge reversal bits | face codes << 12 (3 bits
-//                      each), n1, n2, n3
+//                      each) | kElemCurvedBit, n1, n2, n3
+//   bounding  [N x 3]  the bounding fine arrays: for every node moved onto
+//                      the CAD, tfi::bounding_code of x, y, z against its
+//                      TFI prediction (an edge's n-1 interior nodes in
+//                      canonical order, a face's (nu-1)(nv-1), u fastest)
+//   vertex_owner [V x 2] int32 geometric entity (dim, tag), -1 unknown
 // Cost: a row lookup is a pointer computation in memory, and a page-index
 // compare plus (on a page change) one cache pin when paged.
 #include <cstdint>
@@ -31,8 +38,24 @@
 namespace dicer {
 
 // Column positions.
-enum EdgeCol : int { kEdgeLo = 0, kEdgeHi, kEdgeN, kEdgeNodeOffset, kEdgeSheet, kEdgeMinElement, kEdgeWidth };
-enum FaceCol : int { kFaceV = 0, kFaceE = 4, kFaceNodeOffset = 8, kFaceMinElement = 9, kFaceWidth = 10 };
+enum EdgeCol : int {
+  kEdgeLo = 0, kEdgeHi, kEdgeN, kEdgeNodeOffset, kEdgeSheet, kEdgeMinElement, kEdgeOwner, kEdgeBound, kEdgeWidth
+};
+enum FaceCol : int {
+  kFaceV = 0, kFaceE = 4, kFaceNodeOffset = 8, kFaceMinElement = 9, kFaceOwner = 10, kFaceBound = 11, kFaceWidth = 12
+};
+// Element flag: some edge or face of the element has bounding nodes, so its
+// hex interior must read them (elements without it take the fast path).
+inline constexpr int kElemCurvedBit = 30;
+
+// Geometric owner of an edge or face: the lowest-dimensional CAD entity it
+// lies on, packed as dim << 32 | tag; -1 when none is known. dim 3 (a
+// volume) means "interior": nothing to move.
+inline std::int64_t pack_owner(int dim, int tag) {
+  return (static_cast<std::int64_t>(dim) << 32) | static_cast<std::uint32_t>(tag);
+}
+inline int owner_dim(std::int64_t o) { return o < 0 ? -1 : static_cast<int>(o >> 32); }
+inline int owner_tag(std::int64_t o) { return o < 0 ? -1 : static_cast<std::int32_t>(o & 0xffffffff); }
 
 // Element row layout, which depends on the mode.
 struct ElementLayout {
@@ -67,6 +90,8 @@ class Table {
   std::int64_t width() const { return width_; }
   bool in_memory() const { return !cache_; }
   const std::vector<T>& memory() const { return mem_; }
+  std::vector<T>& memory() { return mem_; }  // in-memory tables only (dicing)
+  void reshape() { rows_ = width_ ? static_cast<std::int64_t>(mem_.size()) / width_ : 0; }  // after memory() grew
   std::int64_t rows_per_page() const { return rows_per_page_; }
   std::uint32_t array() const { return array_; }
 
@@ -135,14 +160,17 @@ struct MeshTables {
   std::vector<std::int64_t> edge_index, face_index, elem_index, cell_index;
   Table<double> vertices;
   Table<std::int64_t> vertex_elements, edges, faces, elements;
+  Table<std::int64_t> bounding;       // [N x 3], N = 0 without geometry
+  Table<std::int32_t> vertex_owner;   // [V x 2]
   ElementLayout layout() const { return ElementLayout::of(mode); }
 };
 
 // One cursor per table: what a reader (a block, a query, a thread) carries.
 struct MeshCursor {
-  TableCursor vertices, vertex_elements, edges, faces, elements;
+  TableCursor vertices, vertex_elements, edges, faces, elements, bounding, vertex_owner;
   void release() {
     vertices.release(), vertex_elements.release(), edges.release(), faces.release(), elements.release();
+    bounding.release(), vertex_owner.release();
   }
 };
 

@@ -6,6 +6,7 @@
 // call these same inline functions with the same inputs, and the build turns
 // off floating-point contraction, so every path gives bit-identical results.
 // Weights are t/n computed as double(t) / double(n), complements as 1 - t/n.
+#include <bit>
 #include <cstdint>
 
 namespace dicer::tfi {
@@ -55,6 +56,24 @@ inline double hex_point(const HexRow& r, double u, double U, double f2, double f
                         double e1, double e2, double e3) {
   return ((U * r.A + u * r.B) + ((r.V * f2 + r.v * f3) + (r.W * f4 + r.w * f5))) -
          ((r.VW * e0 + r.vW * e1) + (r.Vw * e2 + r.vw * e3));
+}
+
+// Bounding fine arrays (nodes moved onto the CAD) are stored as corrections
+// to this recipe: the difference between the bit patterns of the moved value
+// and of its TFI prediction (computed by the functions above from the already
+// moved edges), zigzag-coded so small corrections of either sign have zero
+// high bytes (which the store's byte shuffle + LZ4 then squeeze). Lossless by
+// construction: integer arithmetic modulo 2^64 on the bits, and the reader
+// recomputes the same prediction bit for bit.
+inline std::int64_t bounding_code(double predicted, double moved) {
+  const std::uint64_t d = std::bit_cast<std::uint64_t>(moved) - std::bit_cast<std::uint64_t>(predicted);
+  const std::int64_t s = static_cast<std::int64_t>(d);
+  return static_cast<std::int64_t>((d << 1) ^ static_cast<std::uint64_t>(s >> 63));
+}
+inline double bounding_apply(double predicted, std::int64_t code) {
+  const std::uint64_t z = static_cast<std::uint64_t>(code);
+  const std::uint64_t d = (z >> 1) ^ (0 - (z & 1));
+  return std::bit_cast<double>(std::bit_cast<std::uint64_t>(predicted) + d);
 }
 
 }  // namespace dicer::tfi

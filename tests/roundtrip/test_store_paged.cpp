@@ -107,7 +107,7 @@ TEST(StorePaged, ASmallBudgetIsNeverExceededAndGivesTheSameBits) {
 TEST(StorePaged, ConcurrentReadersShareOneCacheAndAgreeBitForBit) {
   test::TempDir tmp;
   const Diced d = dice_to_store(tmp, "vtkdata_mug.e", 3);
-  const FineMesh s = read_store(d.path, StoreOptions{2ull << 20, 4});
+  const FineMesh s = read_store(d.path, StoreOptions{4ull << 20, 4});
   std::vector<std::thread> threads;
   std::atomic<int> mismatches{0};
   for (int t = 0; t < 4; ++t)
