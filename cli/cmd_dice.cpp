@@ -5,11 +5,12 @@
 #include "dicer/coarse_mesh.hpp"
 #include "dicer/error.hpp"
 #include "dicer/fine_mesh.hpp"
+#include "dicer/geometry.hpp"
 #include "dicer/store.hpp"
 
 namespace dicer::cli {
 
-static const char* kHelp = R"(Usage: dicer dice MESH -o STORE [interval options] [--quiet]
+static const char* kHelp = R"(Usage: dicer dice MESH -o STORE [interval options] [--geometry CAD] [--quiet]
 
 Refines every coarse element of MESH by transfinite interpolation, one
 interval count per dicer sheet (see `dicer sheets`), and writes the fine
@@ -29,13 +30,27 @@ Interval options (precedence: sheet > block > size > global > 1):
                           {"global": 4, "size": 0.05, "blocks": {"2": 6,
                           "inlet": 3}, "sheets": {"17": 12}}
                           flags on the command line override the file
+Geometry (fine nodes on the CAD instead of the coarse facets):
+  --geometry CAD          STEP (.step/.stp) or BREP (.brep/.brp) model the
+                          coarse mesh was made from. Boundary vertices,
+                          edges and faces are matched to its points, curves
+                          and surfaces (MSH classification when the tags
+                          agree, geometrically otherwise); edge nodes then
+                          face nodes move onto them; hex interiors follow.
+                          The moved nodes go into the store, so reading it
+                          never needs the CAD. Refused (exit 7) when the mesh
+                          does not fit the CAD or a fine element would invert.
+  --geometry-tol T        a boundary vertex must be within T x the CAD's
+                          bounding-box diagonal of its entity (default 1e-4)
 Other options:
   -o, --output STORE      the store to write (written to a temporary name in
                           the same folder, renamed when complete)
   --quiet                 no summary on stdout
 
-Example:
+Examples:
   dicer dice part.exo --interval 8 --block-interval 2=4 -o part.dice.h5
+  dicer mesh-coarse part.step --size 4 -o coarse.msh
+  dicer dice coarse.msh --geometry part.step --interval 10 -o fine.dice.h5
 )";
 
 int cmd_dice(const std::vector<std::string>& argv) {
@@ -44,17 +59,29 @@ int cmd_dice(const std::vector<std::string>& argv) {
   std::vector<std::string> vflags = kIntervalFlags;
   vflags.push_back("-o");
   vflags.push_back("--output");
+  vflags.push_back("--geometry");
+  vflags.push_back("--geometry-tol");
   Args args("dice", argv, vflags, {"--quiet"}, 1);
   const std::string in = args.need_positional(0, "MESH");
   auto out = args.value("-o");
   if (!out) out = args.value("--output");
   if (!out) throw Error(ErrorKind::Usage, "missing -o STORE (the output file)");
   const IntervalRequest req = interval_request(args);
+  const auto cad = args.value("--geometry");
+  ConformOptions copt;
+  if (auto t = args.value("--geometry-tol")) copt.tolerance = parse_double("--geometry-tol", *t);
+  if (args.value("--geometry-tol") && !cad) throw Error(ErrorKind::Usage, "--geometry-tol needs --geometry CAD");
   CoarseMesh mesh = read_coarse_mesh(in);
   for (const auto& w : mesh.warnings) std::fprintf(stderr, "dicer dice: warning: %s: %s\n", in.c_str(), w.c_str());
   std::vector<std::string> notes;
-  const FineMesh fine = FineMesh::dice(std::move(mesh), req, &notes);
+  FineMesh fine = FineMesh::dice(std::move(mesh), req, &notes);
   for (const auto& n : notes) std::fprintf(stderr, "dicer dice: note: %s\n", n.c_str());
+  ConformReport geo;
+  if (cad) {
+    Progress bar("dice: geometry", 1, args.has("--quiet"));
+    copt.progress = [&](const char*, Id done, Id total) { bar.update(done, total); };
+    geo = conform_to_geometry(fine, *cad, copt);
+  }
   {
     Progress bar("dice: writing", 1, args.has("--quiet"));
     write_store(fine, *out, [&](std::int64_t done, std::int64_t total) { bar.update(done, total); });
@@ -64,6 +91,16 @@ int cmd_dice(const std::vector<std::string>& argv) {
                 static_cast<long long>(fine.num_coarse_elements()), fine.mode() == Mode::Volume ? "hexes" : "quads",
                 human_count(fine.num_nodes()).c_str(), human_count(fine.num_elements()).c_str(),
                 static_cast<long long>(fine.info().sheets), out->c_str());
+  if (cad && !args.has("--quiet"))
+    std::printf("geometry %s: %lld vertices on the CAD (largest snap %.3g), %lld edges on curves, %lld on surfaces, "
+                "%lld faces on surfaces; moved %lld edges + %lld faces = %s bounding nodes (%lld by closest point); "
+                "min scaled Jacobian %.4f over %s elements checked\n",
+                cad->c_str(), static_cast<long long>(geo.vertices_on_cad), geo.max_vertex_snap,
+                static_cast<long long>(geo.edges_on_curves), static_cast<long long>(geo.edges_on_surfaces),
+                static_cast<long long>(geo.faces_on_surfaces), static_cast<long long>(geo.edges_moved),
+                static_cast<long long>(geo.faces_moved), human_count(geo.bounding_nodes).c_str(),
+                static_cast<long long>(geo.closest_point_fallbacks), geo.min_scaled_jacobian,
+                human_count(geo.elements_checked).c_str());
   return 0;
 }
 

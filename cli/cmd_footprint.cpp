@@ -34,18 +34,21 @@ int cmd_footprint(const std::vector<std::string>& argv) {
   const std::string path = args.need_positional(0, "STORE");
   const FineMesh m = read_store(path, store_options(args));
   const StoreSummary s = store_summary(path);
-  const Footprint fp = measure_footprint(m, s.file_bytes, args.has("--exact") ? 0 : 2048);
+  Footprint fp = measure_footprint(m, s.file_bytes, args.has("--exact") ? 0 : 2048);
+  fp.bounding_bytes = s.bounding_bytes;
   const double rr = static_cast<double>(fp.explicit_raw_bytes) / static_cast<double>(fp.store_bytes);
   const double rl = static_cast<double>(fp.explicit_lz4_bytes) / static_cast<double>(fp.store_bytes);
   auto u = [](std::uint64_t v) { return static_cast<unsigned long long>(v); };
   if (args.has("--json")) {
     std::printf("{\"store_bytes\":%llu,\"open_resident_bytes\":%llu,\"query_resident_bytes\":%llu,\"bounding_bytes\":%llu,"
                 "\"explicit_raw_bytes\":%llu,\"explicit_lz4_bytes\":%llu,\"lz4_sampled_fraction\":%s,\"ratio_raw\":%s,"
-                "\"ratio_lz4\":%s,\"fine_nodes\":%lld,\"fine_elements\":%lld}\n",
+                "\"ratio_lz4\":%s,\"fine_nodes\":%lld,\"fine_elements\":%lld,\"bounding_nodes\":%lld,"
+                "\"rest_bytes\":%llu}\n",
                 u(fp.store_bytes), u(fp.open_resident_bytes), u(fp.query_resident_bytes), u(fp.bounding_bytes),
                 u(fp.explicit_raw_bytes), u(fp.explicit_lz4_bytes), json_double(fp.lz4_sampled_fraction).c_str(),
                 json_double(rr).c_str(), json_double(rl).c_str(), static_cast<long long>(m.num_nodes()),
-                static_cast<long long>(m.num_elements()));
+                static_cast<long long>(m.num_elements()), static_cast<long long>(s.bounding_nodes),
+                u(fp.store_bytes - std::min(fp.store_bytes, fp.bounding_bytes)));
     return 0;
   }
   const double ne = static_cast<double>(m.num_elements());
@@ -56,7 +59,11 @@ int cmd_footprint(const std::vector<std::string>& argv) {
     std::printf("  %-22s %12s %14.4f\n", what, human_bytes(b).c_str(), static_cast<double>(b) / ne);
   };
   row("store on disk", fp.store_bytes);
-  row("  of it bounding arrays", fp.bounding_bytes);
+  row("  bounding arrays", fp.bounding_bytes);
+  row("  everything else", fp.store_bytes - std::min(fp.store_bytes, fp.bounding_bytes));
+  if (s.bounding_nodes > 0)
+    std::printf("  %-22s %12s   (%.2f B per moved node, raw float64 24 B)\n", "  moved fine nodes",
+                human_count(s.bounding_nodes).c_str(), static_cast<double>(fp.bounding_bytes) / static_cast<double>(s.bounding_nodes));
   row("resident to open", fp.open_resident_bytes);
   row("resident to query", fp.query_resident_bytes);
   row("explicit, raw", fp.explicit_raw_bytes);

@@ -2,12 +2,13 @@
 #include <cstdio>
 
 #include "common.hpp"
+#include "dicer/geometry.hpp"
 #include "dicer/store.hpp"
 #include "dicer/verify.hpp"
 
 namespace dicer::cli {
 
-static const char* kHelp = R"(Usage: dicer verify STORE [--json] [--quiet]
+static const char* kHelp = R"(Usage: dicer verify STORE [--geometry CAD] [--json] [--quiet]
 
 Regenerates every fine element, one coarse element at a time (memory stays
 proportional to the coarse mesh), and checks:
@@ -19,8 +20,14 @@ proportional to the coarse mesh), and checks:
     fine boundary faces cover the coarse boundary exactly once;
   - no two distinct node ids have the same coordinates;
   - minimum scaled Jacobian; number of inverted fine elements.
+With --geometry CAD (the STEP/BREP file the store was diced against), also:
+  - the largest distance from a fine node on a CAD curve or surface (as the
+    store records its owner) to that entity; it must be at most
+    max(1e-9 x the model's bounding-box diagonal, 1e-7), 1e-7 being
+    OpenCASCADE's own point-confusion tolerance (Precision::Confusion).
 Exit status 0 only if everything holds, 1 if a check fails.
 
+  --geometry CAD  distance-to-CAD check (needs Gmsh; plain verify does not)
   --json    the report as one JSON object
   --quiet   no progress bar
   --cache-mb N   page cache budget in MiB (default 64)
@@ -30,7 +37,9 @@ Exit status 0 only if everything holds, 1 if a check fails.
 int cmd_verify(const std::vector<std::string>& argv) {
   for (const auto& a : argv)
     if (a == "--help" || a == "-h") return std::fputs(kHelp, stdout), 0;
-  Args args("verify", argv, kStoreFlags, {"--json", "--quiet", "--stats"}, 1);
+  std::vector<std::string> vflags = kStoreFlags;
+  vflags.push_back("--geometry");
+  Args args("verify", argv, vflags, {"--json", "--quiet", "--stats"}, 1);
   const std::string path = args.need_positional(0, "STORE");
   const FineMesh m = read_store(path, store_options(args));
   VerifyReport r;
@@ -38,17 +47,32 @@ int cmd_verify(const std::vector<std::string>& argv) {
     Progress bar("verify", m.num_coarse_elements(), args.has("--quiet"));
     r = verify(m, [&](Id done, Id) { bar.update(done); });
   }
+  const auto cad = args.value("--geometry");
+  GeometryCheck g;
+  bool geo_ok = true;
+  if (cad) {
+    Progress bar("verify: geometry", 1, args.has("--quiet"));
+    g = check_geometry(m, *cad, [&](Id done, Id total) { bar.update(done, total); });
+    geo_ok = g.max_distance <= g.tolerance;
+  }
+  const bool ok = r.ok() && geo_ok;
   auto ll = [](Id v) { return static_cast<long long>(v); };
   if (args.has("--json")) {
     std::printf("{\"ok\":%s,\"nodes\":%lld,\"nodes_formula\":%lld,\"elements\":%lld,\"elements_formula\":%lld,"
                 "\"fine_faces_checked\":%lld,\"boundary_fine_faces\":%lld,\"id_errors\":%lld,\"bit_identity_errors\":%lld,"
                 "\"coincident_nodes\":%lld,\"conformity_errors\":%lld,\"inverted\":%lld,\"min_scaled_jacobian\":%s,"
                 "\"problems\":[",
-                r.ok() ? "true" : "false", ll(r.nodes), ll(r.nodes_formula), ll(r.elements), ll(r.elements_formula),
+                ok ? "true" : "false", ll(r.nodes), ll(r.nodes_formula), ll(r.elements), ll(r.elements_formula),
                 ll(r.fine_faces_checked), ll(r.boundary_fine_faces), ll(r.id_errors), ll(r.bit_identity_errors),
                 ll(r.coincident_nodes), ll(r.conformity_errors), ll(r.inverted), json_double(r.min_scaled_jacobian).c_str());
     for (size_t i = 0; i < r.problems.size(); ++i) std::printf("%s%s", i ? "," : "", json_string(r.problems[i]).c_str());
-    std::printf("]}\n");
+    std::printf("]");
+    if (cad)
+      std::printf(",\"geometry\":{\"max_distance\":%s,\"tolerance\":%s,\"diagonal\":%s,\"worst_node\":%lld,"
+                  "\"worst_entity\":%s,\"nodes_checked\":%lld}",
+                  json_double(g.max_distance).c_str(), json_double(g.tolerance).c_str(), json_double(g.diagonal).c_str(),
+                  ll(g.worst_node), json_string(g.worst_entity).c_str(), ll(g.nodes_checked));
+    std::printf("}\n");
   } else {
     auto mark = [](bool ok) { return ok ? "ok  " : "FAIL"; };
     std::printf("verify %s\n", path.c_str());
@@ -61,11 +85,16 @@ int cmd_verify(const std::vector<std::string>& argv) {
     std::printf("  %s distinct nodes %lld coincident\n", mark(r.coincident_nodes == 0), ll(r.coincident_nodes));
     std::printf("  %s quality        min scaled Jacobian %.4f, %lld inverted\n", mark(r.inverted == 0), r.min_scaled_jacobian,
                 ll(r.inverted));
+    if (cad)
+      std::printf("  %s geometry       max distance to the CAD %.3g (node %lld on %s; limit %.3g, %.3g of the diagonal), "
+                  "%lld nodes checked\n",
+                  mark(geo_ok), g.max_distance, ll(g.worst_node), g.worst_entity.empty() ? "-" : g.worst_entity.c_str(),
+                  g.tolerance, g.diagonal > 0 ? g.max_distance / g.diagonal : 0.0, ll(g.nodes_checked));
     for (const auto& p : r.problems) std::printf("    %s\n", p.c_str());
-    std::printf("%s\n", r.ok() ? "all checks passed" : "VERIFY FAILED");
+    std::printf("%s\n", ok ? "all checks passed" : "VERIFY FAILED");
   }
   if (args.has("--stats")) print_cache_stats(m, "verify");
-  return r.ok() ? 0 : kExitDefect;
+  return ok ? 0 : kExitDefect;
 }
 
 }  // namespace dicer::cli

@@ -18,6 +18,8 @@ fine meshes that are stored implicitly: coarse mesh + intervals + recipe.
 Usage: dicer <command> [options]      dicer <command> --help for details
 
 Commands (in the order you use them):
+  mesh-coarse CAD -o MESH  coarse all-hex (--surface: all-quad) mesh of a STEP
+                   or BREP model with Gmsh, ready for dice --geometry CAD
   sheets  MESH     list the dicer sheets (edges that must share one interval)
   dice    MESH -o STORE   choose intervals and write the implicit fine mesh
   info    STORE    counts, blocks and settings of a store
@@ -35,6 +37,8 @@ MESH is an Exodus II file (.e .exo .ex2 .g) or a Gmsh MSH 2.2/4.1 file
 Example:
   dicer sheets examples/cardinal_sphere.e
   dicer dice examples/cardinal_sphere.e --interval 8 -o sphere.dice.h5
+  dicer mesh-coarse part.step --size 4 -o coarse.msh
+  dicer dice coarse.msh --geometry part.step --interval 10 -o part.dice.h5
   dicer info sphere.dice.h5
   dicer query sphere.dice.h5 --element 1000 --json
   dicer verify sphere.dice.h5
@@ -42,7 +46,8 @@ Example:
 Exit codes:
   0 success            1 verify found a defect     2 bad command-line usage
   3 bad input file     4 unsupported content       5 I/O error
-  6 counts overflow 64-bit ids                     7 geometry mismatch
+  6 counts overflow 64-bit ids                     7 mesh and CAD do not fit,
+                                                     or an element would invert
   8 corrupt or unknown store                       70 internal error
   130 interrupted (Ctrl-C): no output file was left behind
 )";
@@ -62,10 +67,10 @@ int main(int argc, char** argv) {
   }
   const std::map<std::string, Command> commands = {
       {"sheets", cmd_sheets}, {"dice", cmd_dice}, {"info", cmd_info}, {"query", cmd_query}, {"verify", cmd_verify},
-      {"footprint", cmd_footprint}, {"export", cmd_export}, {"sweep", cmd_sweep}};
+      {"footprint", cmd_footprint}, {"export", cmd_export}, {"sweep", cmd_sweep}, {"mesh-coarse", cmd_mesh_coarse}};
   auto it = commands.find(args[0]);
   if (it == commands.end()) {
-    std::fprintf(stderr, "dicer: error: unknown command \"%s\" (commands: sheets, dice, info, query, verify, footprint, export, sweep; see dicer --help)\n",
+    std::fprintf(stderr, "dicer: error: unknown command \"%s\" (commands: mesh-coarse, sheets, dice, info, query, verify, footprint, export, sweep; see dicer --help)\n",
                  args[0].c_str());
     return 2;
   }

@@ -508,6 +508,13 @@ StoreSummary store_summary(const std::string& path) {
   h5::File f = h5::File::open_read(path);
   StoreSummary s;
   s.format_version = static_cast<int>(f.read_attr_int("format_version"));
+  if (s.format_version == kStoreFormatVersion) {
+    s.bounding_nodes = f.read_attr_int("bounding_nodes");
+    for (const char* name : {"geometry/bounding", "geometry/bounding_crc"}) {
+      h5::Handle ds(H5Dopen2(f.id(), name, H5P_DEFAULT), H5Dclose);
+      if (ds) s.bounding_bytes += H5Dget_storage_size(ds.get());
+    }
+  }
   std::error_code ec;
   s.file_bytes = std::filesystem::file_size(path, ec);
   return s;

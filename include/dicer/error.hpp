@@ -16,7 +16,7 @@ enum class ErrorKind {
   Unsupported = 4,  // valid file, but content dicer cannot dice (tets, HEX20...)
   Io = 5,           // the OS or HDF5 failed to read or write
   Overflow = 6,     // requested fine counts do not fit 64-bit ids
-  Geometry = 7,     // mesh and CAD do not match (later issues)
+  Geometry = 7,     // mesh and CAD do not match, or projection would invert an element
   Corrupt = 8,      // store page checksum or structure mismatch
 };
 

@@ -18,7 +18,7 @@ struct Footprint {
   std::uint64_t store_bytes = 0;            // bytes on disk of the store
   std::uint64_t open_resident_bytes = 0;    // resident after opening: metadata + pages read to open
   std::uint64_t query_resident_bytes = 0;   // plus the pages one block fill pins (one per table)
-  std::uint64_t bounding_bytes = 0;         // bounding fine arrays (0 until geometry-conforming dicing)
+  std::uint64_t bounding_bytes = 0;         // bounding fine arrays on disk (StoreSummary; 0 without geometry)
   std::uint64_t explicit_raw_bytes = 0;     // 24 B per node + 8 B per element corner
   std::uint64_t explicit_lz4_bytes = 0;     // the same, LZ4 in 64 KiB pages (measured or extrapolated)
   double lz4_sampled_fraction = 1.0;        // 1: every page compressed

@@ -57,6 +57,8 @@ StoreSets read_store_sets(const std::string& path);
 struct StoreSummary {
   int format_version = 0;
   std::uint64_t file_bytes = 0;
+  std::uint64_t bounding_bytes = 0;   // stored (compressed) bytes of geometry/bounding + its CRCs
+  std::int64_t bounding_nodes = 0;    // fine nodes moved onto the CAD
 };
 StoreSummary store_summary(const std::string& path);
 

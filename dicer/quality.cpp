@@ -1,0 +1,88 @@
+// Scaled Jacobians of fine elements, one coarse element's block at a time.
+#include "dicer/quality.hpp"
+
+#include <cmath>
+
+#include "dicer/orientation.hpp"
+
+namespace dicer {
+namespace {
+
+Vec3 sub(const Vec3& a, const Vec3& b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+Vec3 cross(const Vec3& a, const Vec3& b) { return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x}; }
+double dot(const Vec3& a, const Vec3& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+double norm(const Vec3& a) { return std::sqrt(dot(a, a)); }
+
+}  // namespace
+
+double hex_scaled_jacobian(const Vec3 (&p)[8]) {
+  double worst = 1.0;
+  for (int c = 0; c < 8; ++c) {
+    // kHexCornerNbr: the corner's three neighbours in right-handed order.
+    const Vec3 e1 = sub(p[kHexCornerNbr[c][0]], p[c]), e2 = sub(p[kHexCornerNbr[c][1]], p[c]),
+               e3 = sub(p[kHexCornerNbr[c][2]], p[c]);
+    const double l = norm(e1) * norm(e2) * norm(e3);
+    const double j = l > 0 ? dot(cross(e1, e2), e3) / l : 0.0;  // a collapsed edge counts as degenerate
+    worst = std::min(worst, j);
+  }
+  return worst;
+}
+
+double quad_scaled_jacobian(const Vec3 (&p)[4]) {
+  Vec3 n{0, 0, 0}, c[4];
+  for (int k = 0; k < 4; ++k) {
+    const Vec3 e1 = sub(p[(k + 1) % 4], p[k]), e2 = sub(p[(k + 3) % 4], p[k]);
+    const double l = norm(e1) * norm(e2);
+    c[k] = l > 0 ? cross(e1, e2) : Vec3{0, 0, 0};
+    if (l > 0) c[k] = {c[k].x / l, c[k].y / l, c[k].z / l};
+    n = {n.x + c[k].x, n.y + c[k].y, n.z + c[k].z};
+  }
+  const double ln = norm(n);
+  if (!(ln > 0)) return 0.0;
+  double worst = 1.0;
+  for (const Vec3& ck : c) worst = std::min(worst, dot(ck, n) / ln);
+  return worst;
+}
+
+QualityReport check_quality(const FineMesh& mesh, const std::function<bool(Id)>& select,
+                            const std::function<void(Id, Id)>& progress) {
+  QualityReport r;
+  FineBlock b;
+  const Id H = mesh.num_coarse_elements();
+  const bool vol = mesh.mode() == Mode::Volume;
+  for (Id h = 0; h < H; ++h) {
+    if (progress && (h & 63) == 0) progress(h, H);
+    if (select && !select(h)) continue;
+    mesh.fill_block(h, b, /*nodes_only=*/true);
+    const Id ne = b.num_elements();
+    for (Id e = 0; e < ne; ++e) {
+      const Id i = e % b.n[0], j = (e / b.n[0]) % b.n[1], k = e / (b.n[0] * b.n[1]);
+      double q;
+      if (vol) {
+        Vec3 p[8];
+        for (int c = 0; c < 8; ++c) {
+          const Id g = b.point_index(i + kHexCorner[c][0], j + kHexCorner[c][1], k + kHexCorner[c][2]);
+          p[c] = {b.x[g], b.y[g], b.z[g]};
+        }
+        q = hex_scaled_jacobian(p);
+      } else {
+        Vec3 p[4];
+        for (int c = 0; c < 4; ++c) {
+          const Id g = b.point_index(i + kHexCorner[c][0], j + kHexCorner[c][1], 0);
+          p[c] = {b.x[g], b.y[g], b.z[g]};
+        }
+        q = quad_scaled_jacobian(p);
+      }
+      ++r.elements_checked;
+      if (!(q > 0)) ++r.inverted;
+      if (q < r.min_scaled_jacobian || r.worst_element < 0) {
+        r.min_scaled_jacobian = std::min(r.min_scaled_jacobian, q);
+        r.worst_element = b.first_element + e, r.worst_coarse_element = h;
+      }
+    }
+  }
+  if (progress) progress(H, H);
+  return r;
+}
+
+}  // namespace dicer

@@ -1,0 +1,580 @@
+// Geometry-conforming dicing: owners, snapping, projection (edges before
+// faces), inversion check. The method and its justification are in
+// include/dicer/geometry.hpp.
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include "cad.hpp"
+#include "dicer/error.hpp"
+#include "dicer/geometry.hpp"
+#include "dicer/quality.hpp"
+#include "dicer/tfi.hpp"
+
+namespace dicer {
+namespace {
+
+using geometry::Cad;
+using geometry::CadEntity;
+
+double dist(const Vec3& a, const Vec3& b) { return std::hypot(a.x - b.x, a.y - b.y, a.z - b.z); }
+Vec3 at(const std::vector<double>& v, size_t i) { return {v[3 * i], v[3 * i + 1], v[3 * i + 2]}; }
+void push(std::vector<double>& v, const Vec3& p) { v.push_back(p.x), v.push_back(p.y), v.push_back(p.z); }
+
+const char* dim_name(int d) {
+  static const char* k[4] = {"point", "curve", "surface", "volume"};
+  return d >= 0 && d <= 3 ? k[d] : "entity";
+}
+std::string fmt(double x) {
+  std::ostringstream s;
+  s.precision(3);
+  s << x;
+  return s.str();
+}
+std::string fmt(const Vec3& p) {
+  std::ostringstream s;
+  s.precision(10);
+  s << "(" << p.x << ", " << p.y << ", " << p.z << ")";
+  return s.str();
+}
+
+struct Owner {
+  int dim = -1, tag = -1;
+  bool operator<(const Owner& o) const { return dim != o.dim ? dim < o.dim : tag < o.tag; }
+  bool operator==(const Owner& o) const { return dim == o.dim && tag == o.tag; }
+};
+
+// The entities whose closure holds `o`: o itself and everything above it.
+class Closure {
+ public:
+  explicit Closure(const Cad& cad) : cad_(cad) {}
+  const std::set<Owner>& of(Owner o) {
+    auto it = memo_.find(o);
+    if (it != memo_.end()) return it->second;
+    std::set<Owner> s{o};
+    if (const CadEntity* e = cad_.find(o.dim, o.tag))
+      for (int up : e->up) {
+        const auto& u = of({o.dim + 1, up});
+        s.insert(u.begin(), u.end());
+      }
+    return memo_[o] = std::move(s);
+  }
+
+ private:
+  const Cad& cad_;
+  std::map<Owner, std::set<Owner>> memo_;
+};
+
+// Distances of points to one entity (batched kernel call).
+std::vector<double> distances(const Cad& cad, Owner o, const std::vector<Vec3>& pts, std::vector<Vec3>* on = nullptr) {
+  std::vector<double> xyz, c, p;
+  for (const Vec3& q : pts) push(xyz, q);
+  cad.closest(o.dim, o.tag, xyz, c, p);
+  std::vector<double> d(pts.size());
+  if (on) on->resize(pts.size());
+  for (size_t i = 0; i < pts.size(); ++i) {
+    d[i] = dist(pts[i], at(c, i));
+    if (on) (*on)[i] = at(c, i);
+  }
+  return d;
+}
+
+bool in_box(const CadEntity& e, const Vec3& p, double pad) {
+  return p.x >= e.box[0] - pad && p.y >= e.box[1] - pad && p.z >= e.box[2] - pad && p.x <= e.box[3] + pad &&
+         p.y <= e.box[4] + pad && p.z <= e.box[5] + pad;
+}
+
+// Moves parameters of a periodic entity to within half a period of `ref`.
+void unwrap(const CadEntity& e, double* uv, const double* ref) {
+  for (int k = 0; k < e.dim && k < 2; ++k) {
+    if (!e.periodic[k]) continue;
+    const double P = e.pmax[k] - e.pmin[k];
+    while (uv[k] - ref[k] > 0.5 * P) uv[k] -= P;
+    while (ref[k] - uv[k] > 0.5 * P) uv[k] += P;
+  }
+}
+
+class Conformer {
+ public:
+  Conformer(FineMesh& mesh, const Cad& cad, const ConformOptions& opt)
+      : mesh_(mesh), cad_(cad), opt_(opt), T_(mesh.tables()), closure_(cad) {
+    rep_.diagonal = cad.diagonal();
+    tol_ = opt.tolerance * rep_.diagonal;
+    tiny_ = 1e-12 * rep_.diagonal;
+  }
+
+  ConformReport run() {
+    find_candidate_faces();
+    assign_vertices();
+    assign_edges();
+    assign_faces();
+    check_coverage();
+    snap_vertices();
+    move_edges();
+    move_faces();
+    mesh_.finish_moves();
+    check_inversion();
+    rep_.bounding_nodes = mesh_.num_bounding_nodes();
+    return rep_;
+  }
+
+ private:
+  FineMesh& mesh_;
+  const Cad& cad_;
+  const ConformOptions& opt_;
+  const MeshTables& T_;
+  Closure closure_;
+  ConformReport rep_;
+  double tol_ = 0, tiny_ = 0;
+  MeshCursor cur_;
+  std::vector<char> cand_face_, boundary_face_, need_vertex_, boundary_vertex_;
+  std::vector<Owner> vowner_, eowner_, fowner_;
+  std::vector<Vec3> snap_;
+  std::vector<Id> cand_edges_;
+
+  void progress(const char* stage, Id done, Id total) {
+    if (opt_.progress) opt_.progress(stage, done, total);
+  }
+  std::string src() const { return mesh_.info().source.empty() ? std::string("mesh") : mesh_.info().source; }
+  Id vfile(Id v) const {
+    const CoarseMesh* c = mesh_.coarse();
+    return c && v < static_cast<Id>(c->vertex_file_id.size()) ? c->vertex_file_id[v] : v + 1;
+  }
+  Vec3 vertex(Id v) { const double* r = T_.vertices.row(v, cur_.vertices); return {r[0], r[1], r[2]}; }
+  const std::int64_t* edge(Id e) { return T_.edges.row(e, cur_.edges); }
+  const std::int64_t* face(Id f) { return T_.faces.row(f, cur_.faces); }
+  Vec3 node(EntityKind k, Id ent, Id a, Id b = 0) {
+    NodeRef r;
+    r.kind = k, r.entity = ent, r.local = {a, b, 0};
+    return mesh_.node(r, cur_);
+  }
+
+  void find_candidate_faces() {
+    const Id F = T_.faces.rows(), H = T_.elements.rows();
+    const ElementLayout L = T_.layout();
+    std::vector<int> count(static_cast<size_t>(F), 0);
+    std::vector<std::int64_t> block(static_cast<size_t>(F), -1);
+    std::vector<char> mixed(static_cast<size_t>(F), 0);
+    for (Id h = 0; h < H; ++h) {
+      const std::int64_t* r = T_.elements.row(h, cur_.elements);
+      for (int k = 0; k < L.faces; ++k) {
+        const Id f = r[L.face() + k];
+        ++count[f];
+        if (block[f] >= 0 && block[f] != r[L.block()]) mixed[f] = 1;
+        block[f] = r[L.block()];
+      }
+    }
+    const bool vol = mesh_.mode() == Mode::Volume;
+    cand_face_.assign(static_cast<size_t>(F), 0);
+    boundary_face_.assign(static_cast<size_t>(F), 0);
+    need_vertex_.assign(static_cast<size_t>(T_.vertices.rows()), 0);
+    boundary_vertex_.assign(static_cast<size_t>(T_.vertices.rows()), 0);
+    for (Id f = 0; f < F; ++f) {
+      const std::int64_t* r = face(f);
+      bool classified = true;
+      for (int k = 0; k < 4; ++k) {
+        const std::int32_t* o = T_.vertex_owner.row(r[kFaceV + k], cur_.vertex_owner);
+        classified &= o[0] >= 0 && o[0] <= 2 && cad_.find(o[0], o[1]) != nullptr;
+      }
+      boundary_face_[f] = !vol || count[f] == 1;
+      cand_face_[f] = boundary_face_[f] || mixed[f] || classified;
+      if (!cand_face_[f]) continue;
+      for (int k = 0; k < 4; ++k) {
+        need_vertex_[r[kFaceV + k]] = 1;
+        if (boundary_face_[f]) boundary_vertex_[r[kFaceV + k]] = 1;
+      }
+    }
+  }
+
+  void assign_vertices() {
+    const Id V = T_.vertices.rows();
+    vowner_.assign(static_cast<size_t>(V), Owner{});
+    snap_.assign(static_cast<size_t>(V), Vec3{});
+    std::vector<double> best(static_cast<size_t>(V), INFINITY);
+    std::vector<Owner> nearest(static_cast<size_t>(V));
+    // 1. The MSH classification, where the CAD has that entity and agrees.
+    std::map<Owner, std::vector<Id>> by_tag;
+    Id classified = 0;
+    for (Id v = 0; v < V; ++v) {
+      if (!need_vertex_[v]) continue;
+      const std::int32_t* o = T_.vertex_owner.row(v, cur_.vertex_owner);
+      if (o[0] >= 0 && o[0] <= 2 && cad_.find(o[0], o[1])) by_tag[{o[0], o[1]}].push_back(v), ++classified;
+    }
+    Id kept = 0;
+    for (const auto& [o, vs] : by_tag) {
+      std::vector<Vec3> pts, on;
+      for (Id v : vs) pts.push_back(vertex(v));
+      const auto d = distances(cad_, o, pts, &on);
+      for (size_t i = 0; i < vs.size(); ++i)
+        if (d[i] <= tol_) vowner_[vs[i]] = o, snap_[vs[i]] = on[i], best[vs[i]] = d[i], ++kept;
+    }
+    rep_.tags_matched = classified > 0 && kept == classified;
+    // 2. Geometric matching for the rest: lowest dimension within tolerance.
+    for (int d = 0; d <= 2; ++d) {
+      Id done = 0;
+      for (const CadEntity& e : cad_.entities(d)) {
+        progress("matching vertices", done++, static_cast<Id>(cad_.entities(d).size()));
+        std::vector<Id> vs;
+        std::vector<Vec3> pts, on;
+        for (Id v = 0; v < V; ++v)
+          if (need_vertex_[v] && vowner_[v].dim < 0 && in_box(e, vertex(v), std::max(tol_, 1e-3 * rep_.diagonal)))
+            vs.push_back(v), pts.push_back(vertex(v));
+        if (vs.empty()) continue;
+        const auto dd = distances(cad_, {d, e.tag}, pts, &on);
+        for (size_t i = 0; i < vs.size(); ++i) {
+          const Id v = vs[i];
+          if (dd[i] < best[v]) best[v] = dd[i], nearest[v] = {d, e.tag}, snap_[v] = on[i];
+        }
+      }
+      for (Id v = 0; v < V; ++v)
+        if (need_vertex_[v] && vowner_[v].dim < 0 && best[v] <= tol_) vowner_[v] = nearest[v];
+    }
+    for (Id v = 0; v < V; ++v) {
+      if (!need_vertex_[v]) continue;
+      if (vowner_[v].dim >= 0) {
+        ++rep_.vertices_on_cad;
+        continue;
+      }
+      if (!boundary_vertex_[v]) continue;  // an interface that is no CAD surface: stays interior
+      std::string near = nearest[v].dim >= 0 ? std::string(" from the nearest, CAD ") + dim_name(nearest[v].dim) + " " +
+                                                   std::to_string(nearest[v].tag)
+                                             : std::string(" from every CAD entity (none within 1e-3 of the diagonal)");
+      throw Error(ErrorKind::Geometry,
+                  src() + ": coarse vertex " + std::to_string(vfile(v)) + " at " + fmt(vertex(v)) + " on the boundary is " +
+                      (std::isfinite(best[v]) ? fmt(best[v]) : std::string("far")) + near + ", more than the tolerance " +
+                      fmt(tol_) + " (" + fmt(opt_.tolerance) + " of the model's diagonal " + fmt(rep_.diagonal) +
+                      "): the mesh does not fit " + cad_.path());
+    }
+  }
+
+  // Lowest common entity of the corners' closures (dim <= max_dim) whose
+  // geometry passes near `mid`, within `slack`.
+  Owner common(const std::vector<Id>& corners, const Vec3& mid, double slack, int min_dim, int max_dim) {
+    std::set<Owner> s;
+    bool first = true;
+    for (Id v : corners) {
+      if (vowner_[v].dim < 0) return {};
+      const auto& c = closure_.of(vowner_[v]);
+      if (first) s = c, first = false;
+      else {
+        std::set<Owner> t;
+        std::set_intersection(s.begin(), s.end(), c.begin(), c.end(), std::inserter(t, t.begin()));
+        s.swap(t);
+      }
+    }
+    for (int d = min_dim; d <= max_dim; ++d) {
+      Owner best;
+      double bd = INFINITY;
+      for (const Owner& o : s) {
+        if (o.dim != d) continue;
+        const double dd = distances(cad_, o, {mid})[0];
+        if (dd < bd) bd = dd, best = o;
+      }
+      if (best.dim >= 0 && bd <= slack) return best;
+    }
+    return {};
+  }
+
+  void assign_edges() {
+    const Id E = T_.edges.rows(), F = T_.faces.rows();
+    eowner_.assign(static_cast<size_t>(E), Owner{});
+    std::vector<char> cand(static_cast<size_t>(E), 0), on_boundary(static_cast<size_t>(E), 0);
+    for (Id f = 0; f < F; ++f)
+      if (cand_face_[f])
+        for (int k = 0; k < 4; ++k) {
+          const Id e = face(f)[kFaceE + k];
+          cand[e] = 1;
+          on_boundary[e] |= boundary_face_[f];
+        }
+    for (Id e = 0; e < E; ++e) {
+      if (!cand[e]) continue;
+      progress("matching edges", e, E);
+      cand_edges_.push_back(e);
+      const Id lo = edge(e)[kEdgeLo], hi = edge(e)[kEdgeHi];
+      const Vec3 a = vertex(lo), b = vertex(hi);
+      const Vec3 mid{0.5 * (a.x + b.x), 0.5 * (a.y + b.y), 0.5 * (a.z + b.z)};
+      // A chord across a curved surface's corner must not be taken for the
+      // curve: the curve has to pass within half the edge's length.
+      const Owner o = common({lo, hi}, mid, 0.5 * dist(a, b) + tol_, 1, 2);
+      eowner_[e] = o;
+      if (o.dim == 1) ++rep_.edges_on_curves;
+      else if (o.dim == 2) ++rep_.edges_on_surfaces;
+      else if (on_boundary[e] && vowner_[lo].dim >= 0 && vowner_[hi].dim >= 0)
+        throw Error(ErrorKind::Geometry, src() + ": coarse edge (" + std::to_string(vfile(lo)) + ", " +
+                                             std::to_string(vfile(hi)) + ") on the boundary lies on no CAD curve or surface "
+                                             "common to its ends: the mesh does not fit " + cad_.path());
+      mesh_.set_owner(EntityKind::Edge, e, o.dim >= 0 ? pack_owner(o.dim, o.tag) : -1);
+    }
+  }
+
+  void assign_faces() {
+    const Id F = T_.faces.rows();
+    fowner_.assign(static_cast<size_t>(F), Owner{});
+    for (Id f = 0; f < F; ++f) {
+      if (!cand_face_[f]) continue;
+      progress("matching faces", f, F);
+      const std::int64_t* r = face(f);
+      std::vector<Id> vs{r[kFaceV], r[kFaceV + 1], r[kFaceV + 2], r[kFaceV + 3]};
+      Vec3 c{0, 0, 0};
+      double diam = 0;
+      for (Id v : vs) {
+        const Vec3 p = vertex(v);
+        c = {c.x + 0.25 * p.x, c.y + 0.25 * p.y, c.z + 0.25 * p.z};
+      }
+      diam = std::max(dist(vertex(vs[0]), vertex(vs[2])), dist(vertex(vs[1]), vertex(vs[3])));
+      const Owner o = common(vs, c, 0.5 * diam + tol_, 2, 2);
+      fowner_[f] = o;
+      if (o.dim == 2) ++rep_.faces_on_surfaces;
+      else if (boundary_face_[f] && std::all_of(vs.begin(), vs.end(), [&](Id v) { return vowner_[v].dim >= 0; }))
+        throw Error(ErrorKind::Geometry, src() + ": coarse face (" + std::to_string(vfile(vs[0])) + ", " +
+                                             std::to_string(vfile(vs[1])) + ", " + std::to_string(vfile(vs[2])) + ", " +
+                                             std::to_string(vfile(vs[3])) +
+                                             ") on the boundary lies on no CAD surface: the mesh does not fit " + cad_.path());
+      mesh_.set_owner(EntityKind::Face, f, o.dim >= 0 ? pack_owner(o.dim, o.tag) : -1);
+    }
+  }
+
+  void check_coverage() {
+    std::set<int> covered;
+    for (const Owner& o : fowner_)
+      if (o.dim == 2) covered.insert(o.tag);
+    for (const CadEntity& e : cad_.entities(2))
+      if (!covered.count(e.tag))
+        throw Error(ErrorKind::Geometry, cad_.path() + ": CAD surface " + std::to_string(e.tag) + " (" + e.type +
+                                             ") has no coarse face of " + src() +
+                                             " on it: the mesh does not cover this CAD model");
+  }
+
+  void snap_vertices() {
+    for (Id v = 0; v < T_.vertices.rows(); ++v) {
+      if (vowner_[v].dim < 0 || vowner_[v].dim > 2) continue;
+      rep_.max_vertex_snap = std::max(rep_.max_vertex_snap, dist(vertex(v), snap_[v]));
+      mesh_.set_vertex(v, snap_[v], vowner_[v].dim, vowner_[v].tag);
+    }
+  }
+
+  // Points in parameter space -> xyz; false when a parameter is degenerate
+  // (a pole: the surface does not move with that parameter).
+  bool degenerate(const CadEntity& e, const std::vector<double>& params) {
+    std::vector<double> sp;
+    cad_.speed(e.dim, e.tag, params, sp);
+    for (double s : sp)
+      if (!(s > 1e-9 * rep_.diagonal)) return true;
+    return false;
+  }
+
+  // Accepts points interpolated in parameters when each is within `reach`
+  // (a quarter of the fine spacing) of the closest point of its TFI
+  // prediction: the parameters then only even out the spacing. A
+  // parametrisation far from arc length (the longitudes near a sphere's
+  // pole, a face across more than half a period) fails this and the closest
+  // points are used instead.
+  static bool plausible(const std::vector<Vec3>& got, const std::vector<Vec3>& closest, double reach) {
+    for (size_t i = 0; i < got.size(); ++i)
+      if (!(dist(got[i], closest[i]) <= reach)) return false;
+    return true;
+  }
+
+  void finish_entity(EntityKind kind, Id id, const std::vector<Vec3>& pts, const std::vector<Vec3>& pred) {
+    double dmax = 0;
+    for (size_t i = 0; i < pts.size(); ++i) dmax = std::max(dmax, dist(pts[i], pred[i]));
+    if (dmax <= tiny_) return;  // already on the CAD (a ruling of a cylinder, say): nothing to store
+    mesh_.move_nodes(kind, id, pts);
+    ++(kind == EntityKind::Edge ? rep_.edges_moved : rep_.faces_moved);
+  }
+
+  std::vector<Vec3> project(const CadEntity& e, const std::vector<Vec3>& pred) {
+    std::vector<Vec3> on;
+    distances(cad_, {e.dim, e.tag}, pred, &on);
+    return on;
+  }
+
+  void move_edges() {
+    Id done = 0;
+    for (Id e : cand_edges_) {
+      progress("moving edge nodes", done++, static_cast<Id>(cand_edges_.size()));
+      const Owner o = eowner_[e];
+      const CadEntity* ent = o.dim >= 1 ? cad_.find(o.dim, o.tag) : nullptr;
+      if (!ent || ent->flat) continue;
+      const std::int64_t* r = edge(e);
+      const Id n = r[kEdgeN], lo = r[kEdgeLo], hi = r[kEdgeHi];
+      if (n < 2) continue;
+      std::vector<Vec3> pred;
+      for (Id t = 1; t < n; ++t) pred.push_back(node(EntityKind::Edge, e, t));
+      const Vec3 a = vertex(lo), b = vertex(hi);
+      std::vector<double> ends, p;
+      push(ends, a), push(ends, b);
+      cad_.param(o.dim, o.tag, ends, p);
+      const int D = o.dim;
+      unwrap(*ent, &p[D], &p[0]);
+      std::vector<Vec3> pts;
+      if (D == 1 || !degenerate(*ent, p)) {
+        std::vector<double> q, xyz;
+        for (Id t = 1; t < n; ++t) {
+          const double s = tfi::weight(t, n);
+          for (int k = 0; k < D; ++k) q.push_back(tfi::edge(p[k], p[D + k], s));
+        }
+        cad_.value(D, o.tag, q, xyz);
+        for (size_t i = 0; i < pred.size(); ++i) pts.push_back(at(xyz, i));
+      }
+      std::vector<Vec3> proj = project(*ent, pred);
+      if (pts.empty() || !plausible(pts, proj, 0.25 * dist(a, b) / static_cast<double>(n) + tol_))
+        pts.swap(proj), ++rep_.closest_point_fallbacks;
+      finish_entity(EntityKind::Edge, e, pts, pred);
+    }
+  }
+
+  void move_faces() {
+    const Id F = T_.faces.rows();
+    for (Id f = 0; f < F; ++f) {
+      if (!cand_face_[f]) continue;
+      progress("moving face nodes", f, F);
+      const Owner o = fowner_[f];
+      const CadEntity* ent = o.dim == 2 ? cad_.find(2, o.tag) : nullptr;
+      if (!ent || ent->flat) continue;
+      const std::int64_t* r = face(f);
+      const Id nu = T_.edges.row(r[kFaceE], cur_.edges)[kEdgeN], nv = T_.edges.row(r[kFaceE + 2], cur_.edges)[kEdgeN];
+      if (nu < 2 || nv < 2) continue;
+      std::vector<Vec3> pred;
+      for (Id v = 1; v < nv; ++v)
+        for (Id u = 1; u < nu; ++u) pred.push_back(node(EntityKind::Face, f, u, v));
+      // The moved boundary: bottom, top (u = 0..nu), left, right (v = 0..nv).
+      std::vector<double> bxyz;
+      for (Id u = 0; u <= nu; ++u) push(bxyz, node(EntityKind::Face, f, u, 0));
+      for (Id u = 0; u <= nu; ++u) push(bxyz, node(EntityKind::Face, f, u, nv));
+      for (Id v = 0; v <= nv; ++v) push(bxyz, node(EntityKind::Face, f, 0, v));
+      for (Id v = 0; v <= nv; ++v) push(bxyz, node(EntityKind::Face, f, nu, v));
+      std::vector<double> uv;
+      cad_.param(2, o.tag, bxyz, uv);
+      const double ref[2] = {uv[0], uv[1]};
+      for (size_t i = 0; i < uv.size() / 2; ++i) unwrap(*ent, &uv[2 * i], ref);
+      std::vector<Vec3> pts;
+      if (!degenerate(*ent, uv)) {
+        const size_t B = 0, Tp = static_cast<size_t>(nu + 1), Lf = 2 * Tp, R = Lf + static_cast<size_t>(nv + 1);
+        auto P = [&](size_t i, int k) { return uv[2 * i + k]; };
+        std::vector<double> q, xyz;
+        for (Id v = 1; v < nv; ++v)
+          for (Id u = 1; u < nu; ++u) {
+            const double s = tfi::weight(u, nu), t = tfi::weight(v, nv);
+            for (int k = 0; k < 2; ++k)
+              q.push_back(tfi::coons(s, t, P(B + u, k), P(Tp + u, k), P(Lf + v, k), P(R + v, k), P(B, k),
+                                     P(B + nu, k), P(Tp + nu, k), P(Tp, k)));
+          }
+        cad_.value(2, o.tag, q, xyz);
+        for (size_t i = 0; i < pred.size(); ++i) pts.push_back(at(xyz, i));
+      }
+      const size_t Tp = static_cast<size_t>(nu + 1);
+      const double diam = std::max(dist(at(bxyz, 0), at(bxyz, Tp + nu)), dist(at(bxyz, nu), at(bxyz, Tp)));
+      std::vector<Vec3> proj = project(*ent, pred);
+      if (pts.empty() || !plausible(pts, proj, 0.25 * diam / static_cast<double>(std::max(nu, nv)) + tol_))
+        pts.swap(proj), ++rep_.closest_point_fallbacks;
+      finish_entity(EntityKind::Face, f, pts, pred);
+    }
+  }
+
+  void check_inversion() {
+    const ElementLayout L = T_.layout();
+    const QualityReport q = check_quality(
+        mesh_,
+        [&](Id h) {
+          MeshCursor c;
+          return ((static_cast<std::uint64_t>(T_.elements.row(h, c.elements)[L.flags()]) >> kElemCurvedBit) & 1) != 0;
+        },
+        [&](Id d, Id t) { progress("checking elements", d, t); });
+    rep_.min_scaled_jacobian = q.min_scaled_jacobian;
+    rep_.elements_checked = q.elements_checked;
+    if (q.inverted > 0) {
+      const CoarseMesh* c = mesh_.coarse();
+      const Id file_id = c ? c->element_file_id[q.worst_coarse_element] : q.worst_coarse_element + 1;
+      throw Error(ErrorKind::Geometry,
+                  src() + ": moving the boundary onto " + cad_.path() + " would invert " + std::to_string(q.inverted) +
+                      " fine element(s); the worst is fine element " + std::to_string(q.worst_element) +
+                      " in coarse element " + std::to_string(file_id) + " (scaled Jacobian " + fmt(q.min_scaled_jacobian) +
+                      "): refine the coarse mesh there or check that it matches the CAD; nothing was written");
+    }
+  }
+};
+
+}  // namespace
+
+ConformReport conform_to_geometry(FineMesh& mesh, const std::string& cad_path, const ConformOptions& options) {
+  if (!(options.tolerance > 0 && options.tolerance < 1))
+    throw Error(ErrorKind::Usage, "geometry tolerance " + fmt(options.tolerance) + " must be in (0, 1)");
+  const Cad cad(cad_path);
+  return Conformer(mesh, cad, options).run();
+}
+
+// ---------------------------------------------------------------- verify
+
+GeometryCheck check_geometry(const FineMesh& mesh, const std::string& cad_path, const std::function<void(Id, Id)>& progress) {
+  const Cad cad(cad_path);
+  GeometryCheck g;
+  g.diagonal = cad.diagonal();
+  g.tolerance = std::max(1e-9 * g.diagonal, kKernelTolerance);
+  const MeshTables& T = mesh.tables();
+  MeshCursor cur;
+  auto check = [&](int dim, int tag, const std::vector<Vec3>& pts, const std::vector<Id>& ids) {
+    if (pts.empty() || dim < 0 || dim > 2) return;
+    if (!cad.find(dim, tag))
+      throw Error(ErrorKind::Geometry, cad_path + ": the store names CAD " + dim_name(dim) + " " + std::to_string(tag) +
+                                           ", which this CAD file does not have (a different CAD file?)");
+    const auto d = distances(cad, {dim, tag}, pts);
+    for (size_t i = 0; i < d.size(); ++i) {
+      ++g.nodes_checked;
+      if (d[i] > g.max_distance || g.worst_node < 0)
+        g.max_distance = std::max(g.max_distance, d[i]), g.worst_node = ids[i],
+        g.worst_entity = std::string(dim_name(dim)) + " " + std::to_string(tag);
+    }
+  };
+  const Id V = T.vertices.rows(), E = T.edges.rows(), F = T.faces.rows();
+  const Id total = V + E + F;
+  // Vertices, grouped per entity for batched projections.
+  std::map<std::pair<int, int>, std::pair<std::vector<Vec3>, std::vector<Id>>> groups;
+  for (Id v = 0; v < V; ++v) {
+    const std::int64_t o = mesh.owner(EntityKind::Vertex, v, cur);
+    if (owner_dim(o) < 0 || owner_dim(o) > 2) continue;
+    auto& gr = groups[{owner_dim(o), owner_tag(o)}];
+    NodeRef r;
+    r.kind = EntityKind::Vertex, r.entity = v;
+    gr.first.push_back(mesh.node(r, cur));
+    gr.second.push_back(mesh.node_id(r, cur));
+  }
+  for (const auto& [k, gr] : groups) check(k.first, k.second, gr.first, gr.second);
+  for (Id e = 0; e < E; ++e) {
+    if (progress && (e & 255) == 0) progress(V + e, total);
+    const std::int64_t o = mesh.owner(EntityKind::Edge, e, cur);
+    if (owner_dim(o) < 1 || owner_dim(o) > 2) continue;
+    const Id n = T.edges.row(e, cur.edges)[kEdgeN];
+    std::vector<Vec3> pts;
+    std::vector<Id> ids;
+    for (Id t = 1; t < n; ++t) {
+      NodeRef r;
+      r.kind = EntityKind::Edge, r.entity = e, r.local = {t, 0, 0};
+      pts.push_back(mesh.node(r, cur)), ids.push_back(mesh.node_id(r, cur));
+    }
+    check(owner_dim(o), owner_tag(o), pts, ids);
+  }
+  for (Id f = 0; f < F; ++f) {
+    if (progress && (f & 255) == 0) progress(V + E + f, total);
+    const std::int64_t o = mesh.owner(EntityKind::Face, f, cur);
+    if (owner_dim(o) != 2) continue;
+    const std::int64_t* r = T.faces.row(f, cur.faces);
+    const Id e0 = r[kFaceE], e2 = r[kFaceE + 2];
+    const Id nu = T.edges.row(e0, cur.edges)[kEdgeN], nv = T.edges.row(e2, cur.edges)[kEdgeN];
+    std::vector<Vec3> pts;
+    std::vector<Id> ids;
+    for (Id v = 1; v < nv; ++v)
+      for (Id u = 1; u < nu; ++u) {
+        NodeRef q;
+        q.kind = EntityKind::Face, q.entity = f, q.local = {u, v, 0};
+        pts.push_back(mesh.node(q, cur)), ids.push_back(mesh.node_id(q, cur));
+      }
+    check(2, owner_tag(o), pts, ids);
+  }
+  if (progress) progress(total, total);
+  return g;
+}
+
+}  // namespace dicer

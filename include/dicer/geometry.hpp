@@ -1,0 +1,101 @@
+#pragma once
+// Geometry-conforming dicing: the fine mesh follows the CAD model, not the
+// coarse facets (the paper's Figure 2). Library dicer_geometry, the only
+// part of dicer that links Gmsh (OpenCASCADE underneath); a store written
+// with it is read and queried without Gmsh (the moved nodes are in its
+// bounding arrays, tables.hpp).
+//
+// The steps, in the order the paper requires:
+//  1. Owners. Coarse faces that can lie on the CAD (boundary faces,
+//     interfaces between blocks, faces whose corners the MSH file classified
+//     on surfaces) and their vertices and edges are given the lowest-
+//     dimensional CAD entity they lie on. A vertex keeps its MSH
+//     classification when that entity exists in the CAD and the vertex is
+//     within tolerance of it; otherwise it is matched geometrically (points,
+//     then curves, then surfaces within tolerance), so a STEP file whose
+//     tags OpenCASCADE renumbered still fits. An edge or face takes the
+//     lowest entity common to its corners' closures whose geometry passes
+//     through its midpoint. A boundary vertex, edge or face that fits
+//     nothing, or a CAD surface with no face on it, is refused
+//     (Error{Geometry}) naming the entity and the distance.
+//  2. Vertices are snapped onto their entity.
+//  3. Edge nodes on curves (and on surfaces) move first, then face nodes;
+//     hex interiors need no move: their TFI reads the moved boundary.
+//     Method: interpolate equally in the entity's parameter space between
+//     the ends (edges) or by a Coons patch of the moved boundary's
+//     parameters (faces), then evaluate there, which keeps the spacing the
+//     TFI would give in the parameters. Periodic parameters (a circle, a
+//     cylinder's angle, a torus) are unwrapped across the seam. Where that
+//     fails (a degenerate pole such as a sphere's, a face spanning more than
+//     half a period, a parametrisation far from arc length), the node's TFI
+//     prediction is projected to the closest point instead. Lines and planes
+//     need no move and no storage.
+//  4. Every fine element of a coarse element with moved nodes is checked:
+//     a non-positive scaled Jacobian is refused (Error{Geometry}) naming the
+//     element, never written.
+#include <functional>
+#include <string>
+
+#include "dicer/fine_mesh.hpp"
+
+namespace dicer {
+
+struct ConformOptions {
+  // A coarse vertex must lie within tolerance * (CAD bounding-box diagonal)
+  // of its entity.
+  double tolerance = 1e-4;
+  std::function<void(const char* stage, Id done, Id total)> progress;
+};
+
+struct ConformReport {
+  double diagonal = 0;                 // of the CAD's bounding box
+  Id vertices_on_cad = 0;              // coarse vertices given a point, curve or surface
+  double max_vertex_snap = 0;          // largest distance a coarse vertex moved
+  Id edges_on_curves = 0, edges_on_surfaces = 0, faces_on_surfaces = 0;
+  Id edges_moved = 0, faces_moved = 0; // non-flat entities whose nodes moved
+  Id closest_point_fallbacks = 0;      // entities projected instead of interpolated in parameters
+  Id bounding_nodes = 0;
+  double min_scaled_jacobian = 1;      // over the elements of coarse elements with moved nodes
+  Id elements_checked = 0;
+  bool tags_matched = false;           // every classified vertex kept its MSH entity
+};
+
+// Moves the boundary of a mesh diced in this process onto the CAD file
+// (STEP or BREP). Throws Error{Geometry} for a mismatch or an inversion,
+// Error{Io|BadInput|Unsupported} for an unreadable CAD file.
+ConformReport conform_to_geometry(FineMesh& mesh, const std::string& cad_path, const ConformOptions& options = {});
+
+struct GeometryCheck {
+  double diagonal = 0;
+  double max_distance = 0;   // largest distance of a fine node on a curve or surface from it
+  Id worst_node = -1;        // fine node id where it is
+  std::string worst_entity;  // e.g. "surface 3"
+  Id nodes_checked = 0;
+  double tolerance = 0;      // documented bound: max(1e-9 * diagonal, kKernelTolerance)
+};
+// OpenCASCADE's Precision::Confusion(), the distance under which its
+// projections call two points the same.
+inline constexpr double kKernelTolerance = 1e-7;
+
+// Distance of every fine node on a CAD curve or surface (owners as stored)
+// from that entity. Works on a store. progress(done, total) in coarse entities.
+GeometryCheck check_geometry(const FineMesh& mesh, const std::string& cad_path,
+                             const std::function<void(Id, Id)>& progress = {});
+
+struct CoarseMeshOptions {
+  double size = 0;         // target coarse element size (> 0)
+  bool surface = false;    // all-quad surface mesh instead of all-hex volume mesh
+  bool subdivide = false;  // skip the transfinite attempt
+};
+struct CoarseMeshReport {
+  std::string method;      // "transfinite" or "subdivision"
+  Id vertices = 0, elements = 0, volumes = 0, surfaces = 0;
+};
+// CAD -> coarse all-hex (or all-quad) mesh with Gmsh, written as MSH 4.1
+// with a physical group per volume (blocks) and per surface (side sets) and
+// node classification, ready for `dicer dice --geometry` with the same CAD.
+// Transfinite where every volume (surface) admits it, else Gmsh's all-hex
+// (all-quad) subdivision.
+CoarseMeshReport mesh_coarse(const std::string& cad_path, const std::string& msh_path, const CoarseMeshOptions& options);
+
+}  // namespace dicer

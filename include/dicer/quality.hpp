@@ -1,0 +1,32 @@
+#pragma once
+// Element quality of the fine mesh: the scaled Jacobian, streamed block by
+// block so it never needs more than one coarse element's fine nodes.
+//
+// Scaled Jacobian of a hex: the minimum over its 8 corners of
+// det(e1, e2, e3) / (|e1| |e2| |e3|) with e1..e3 the corner's three edges in
+// right-handed order (1 for a cube, <= 0 when the element is inverted). Of a
+// quad (surface mode): the minimum over its 4 corners of the corner normal
+// (e1 x e2) / (|e1| |e2|) projected on the quad's mean normal.
+#include <functional>
+
+#include "dicer/fine_mesh.hpp"
+
+namespace dicer {
+
+double hex_scaled_jacobian(const Vec3 (&p)[8]);  // VTK/Exodus HEX8 corner order
+double quad_scaled_jacobian(const Vec3 (&p)[4]);
+
+struct QualityReport {
+  double min_scaled_jacobian = 1.0;
+  Id worst_element = -1;         // fine element id where the minimum is
+  Id worst_coarse_element = -1;  // its coarse element (file id in messages comes from the row)
+  Id inverted = 0;               // fine elements with scaled Jacobian <= 0
+  Id elements_checked = 0;
+};
+
+// Checks every fine element of the coarse elements h with select(h) true
+// (all when select is empty). progress(done, total) in coarse elements.
+QualityReport check_quality(const FineMesh& mesh, const std::function<bool(Id)>& select = {},
+                            const std::function<void(Id, Id)>& progress = {});
+
+}  // namespace dicer
