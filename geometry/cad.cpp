@@ -117,6 +117,24 @@ Cad::Cad(const std::string& path) : path_(path), lock_(gmsh_mutex()) {
     if (ents_[1].empty() && ents_[2].empty()) throw Error(ErrorKind::Geometry, path + ": the CAD file holds no curve or surface");
     diag_ = std::sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) + (hi[2] - lo[2]) * (hi[2] - lo[2]));
   });
+  // Degenerate curves (a sphere's poles as a STEP file writes them) have no
+  // geometry to project on: dropped, so nothing is ever owned by them.
+  {
+    auto& curves = ents_[1];
+    curves.erase(std::remove_if(curves.begin(), curves.end(),
+                                [&](const CadEntity& e) {
+                                  std::vector<double> c{0.5 * (e.box[0] + e.box[3]), 0.5 * (e.box[1] + e.box[4]),
+                                                        0.5 * (e.box[2] + e.box[5])},
+                                      on, par;
+                                  try {
+                                    closest(1, e.tag, c, on, par);
+                                    return false;
+                                  } catch (const Error&) {
+                                    return true;
+                                  }
+                                }),
+                 curves.end());
+  }
   // Periodicity: a parameter is periodic when the entity closes on itself
   // along it (same point at both bounds), e.g. a full circle or the u of a
   // cylinder; interpolation across the seam then unwraps by the period.

@@ -268,7 +268,7 @@ class Conformer {
       Owner best;
       double bd = INFINITY;
       for (const Owner& o : s) {
-        if (o.dim != d) continue;
+        if (o.dim != d || !cad_.find(o.dim, o.tag)) continue;
         const double dd = distances(cad_, o, {mid})[0];
         if (dd < bd) bd = dd, best = o;
       }

@@ -1,0 +1,317 @@
+// Geometry-conforming dicing against CAD made with Gmsh inside the tests
+// (cylinder, sphere in a box, torus, a planar box). Distances are checked
+// against the shapes' analytic equations, not against Gmsh's projections.
+#include <gmsh.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <bit>
+#include <filesystem>
+#include <functional>
+#include <random>
+
+#include "cad.hpp"
+#include "dicer/coarse_mesh.hpp"
+#include "dicer/error.hpp"
+#include "dicer/geometry.hpp"
+#include "dicer/quality.hpp"
+#include "dicer/store.hpp"
+#include "dicer/sweep.hpp"
+#include "dicer/tfi.hpp"
+#include "dicer/verify.hpp"
+#include "test_support.hpp"
+
+namespace dicer {
+namespace {
+
+using test::TempDir;
+
+// Builds an OpenCASCADE model with Gmsh's API and writes it (BREP or STEP).
+void make_cad(const std::string& path, const std::function<void()>& build) {
+  geometry::gmsh_start();
+  geometry::gmsh_call(ErrorKind::Io, "making " + path, [&] {
+    gmsh::model::add("test_cad");
+    build();
+    gmsh::model::occ::synchronize();
+    gmsh::write(path);
+    gmsh::model::remove();
+  });
+}
+
+struct Shape {
+  const char* name;
+  double size;
+  std::function<void()> build;
+  // Distance of p from the nearest analytic surface of the shape.
+  std::function<double(const Vec3&)> distance;
+  double diagonal;
+};
+
+double hyp(double a, double b) { return std::sqrt(a * a + b * b); }
+
+Shape cylinder() {
+  return {"cylinder", 0.8, [] { gmsh::model::occ::addCylinder(0, 0, 0, 0, 0, 2, 1); },
+          [](const Vec3& p) { return std::min({std::abs(hyp(p.x, p.y) - 1), std::abs(p.z), std::abs(p.z - 2)}); },
+          std::sqrt(4.0 + 4.0 + 4.0)};
+}
+Shape sphere_in_box() {
+  return {"sphere_in_box", 0.5,
+          [] {
+            gmsh::model::occ::addBox(-2, -2, -2, 4, 4, 4, 1);
+            gmsh::model::occ::addSphere(0, 0, 0, 1, 2);
+            gmsh::vectorpair out;
+            std::vector<gmsh::vectorpair> map;
+            gmsh::model::occ::fragment({{3, 1}}, {{3, 2}}, out, map);
+          },
+          [](const Vec3& p) {
+            const double r = std::sqrt(p.x * p.x + p.y * p.y + p.z * p.z);
+            return std::min({std::abs(r - 1), std::abs(std::abs(p.x) - 2), std::abs(std::abs(p.y) - 2),
+                             std::abs(std::abs(p.z) - 2)});
+          },
+          std::sqrt(48.0)};
+}
+Shape torus() {
+  return {"torus", 0.45, [] { gmsh::model::occ::addTorus(0, 0, 0, 2, 0.7); },
+          [](const Vec3& p) { return std::abs(hyp(hyp(p.x, p.y) - 2, p.z) - 0.7); }, hyp(2 * 2.7, hyp(2 * 2.7, 1.4))};
+}
+
+// Every fine node the store says lies on a curve or surface, with its id.
+void for_each_cad_node(const FineMesh& m, const std::function<void(Id, const Vec3&)>& fn) {
+  MeshCursor cur;
+  const MeshTables& T = m.tables();
+  auto visit = [&](EntityKind k, Id ent, Id a, Id b) {
+    NodeRef r;
+    r.kind = k, r.entity = ent, r.local = {a, b, 0};
+    fn(m.node_id(r, cur), m.node(r, cur));
+  };
+  for (Id v = 0; v < T.vertices.rows(); ++v) {
+    const auto o = m.owner(EntityKind::Vertex, v, cur);
+    if (owner_dim(o) >= 0 && owner_dim(o) <= 2) visit(EntityKind::Vertex, v, 0, 0);
+  }
+  for (Id e = 0; e < T.edges.rows(); ++e) {
+    const auto o = m.owner(EntityKind::Edge, e, cur);
+    if (owner_dim(o) < 1 || owner_dim(o) > 2) continue;
+    for (Id t = 1; t < T.edges.row(e, cur.edges)[kEdgeN]; ++t) visit(EntityKind::Edge, e, t, 0);
+  }
+  for (Id f = 0; f < T.faces.rows(); ++f) {
+    if (owner_dim(m.owner(EntityKind::Face, f, cur)) != 2) continue;
+    const std::int64_t* r = T.faces.row(f, cur.faces);
+    const Id e0 = r[kFaceE], e2 = r[kFaceE + 2];
+    const Id nu = T.edges.row(e0, cur.edges)[kEdgeN], nv = T.edges.row(e2, cur.edges)[kEdgeN];
+    for (Id v = 1; v < nv; ++v)
+      for (Id u = 1; u < nu; ++u) visit(EntityKind::Face, f, u, v);
+  }
+}
+
+struct Case {
+  Shape shape;
+  std::vector<Id> intervals;
+};
+
+class CurvedPart : public ::testing::TestWithParam<int> {};
+
+Case case_of(int k) {
+  if (k == 0) return {cylinder(), {2, 3, 5, 8}};
+  if (k == 1) return {sphere_in_box(), {2, 5}};
+  return {torus(), {2, 4}};
+}
+
+TEST_P(CurvedPart, FineNodesOnTheCadNoInversionConformingAndBitIdenticalThroughTheStore) {
+  const Case c = case_of(GetParam());
+  TempDir tmp;
+  const std::string cad = tmp.path(std::string(c.shape.name) + ".brep"), msh = tmp.path("coarse.msh");
+  make_cad(cad, c.shape.build);
+  CoarseMeshOptions mo;
+  mo.size = c.shape.size;
+  const CoarseMeshReport cr = mesh_coarse(cad, msh, mo);
+  ASSERT_GT(cr.elements, 0);
+  for (Id n : c.intervals) {
+    SCOPED_TRACE(std::string(c.shape.name) + " interval " + std::to_string(n));
+    IntervalRequest req;
+    req.global = n;
+    FineMesh fine = FineMesh::dice(read_coarse_mesh(msh), req);
+    const ConformReport rep = conform_to_geometry(fine, cad);
+    EXPECT_GT(rep.faces_moved, 0);
+    EXPECT_GT(rep.bounding_nodes, 0);
+    EXPECT_TRUE(rep.tags_matched);  // mesh-coarse classified on this very CAD
+    // On the CAD: the analytic surfaces, to 1e-12 of the diagonal (the
+    // issue's bound is 1e-9; OpenCASCADE's evaluations are far better).
+    double worst = 0;
+    Id checked = 0;
+    for_each_cad_node(fine, [&](Id, const Vec3& p) {
+      worst = std::max(worst, c.shape.distance(p));
+      ++checked;
+    });
+    EXPECT_GT(checked, fine.num_bounding_nodes());
+    EXPECT_LE(worst, 1e-12 * c.shape.diagonal);
+    // Every fine element valid.
+    const QualityReport q = check_quality(fine);
+    EXPECT_EQ(q.inverted, 0);
+    EXPECT_GT(q.min_scaled_jacobian, 0.0);
+    // Conformity, counts, id round trips, node(id) == block fill bit for bit,
+    // both neighbours of every shared coarse face and edge agree.
+    const VerifyReport vr = verify(fine);
+    EXPECT_TRUE(vr.ok()) << (vr.problems.empty() ? std::string() : vr.problems.front());
+    if (n != c.intervals.back()) continue;
+    // Through the store: the same nodes bit for bit, and the same distances
+    // measured by Gmsh against the CAD.
+    const std::string store = tmp.path("fine.dice.h5");
+    write_store(fine, store);
+    const FineMesh s = read_store(store, StoreOptions{8ull << 20, 0});
+    EXPECT_EQ(s.num_bounding_nodes(), fine.num_bounding_nodes());
+    EXPECT_EQ(sweep(s, 2).checksum, sweep(fine, 1).checksum);
+    EXPECT_TRUE(verify(s).ok());
+    const GeometryCheck g = check_geometry(s, cad);
+    EXPECT_LE(g.max_distance, 1e-9 * g.diagonal) << "worst node " << g.worst_node << " on " << g.worst_entity;
+    EXPECT_GT(g.nodes_checked, 0);
+    const StoreSummary sum = store_summary(store);
+    EXPECT_EQ(sum.bounding_nodes, fine.num_bounding_nodes());
+    // Below raw float64 (24 B per node) after the prediction + shuffle + LZ4.
+    EXPECT_LT(static_cast<double>(sum.bounding_bytes), 24.0 * static_cast<double>(sum.bounding_nodes));
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Gmsh, CurvedPart, ::testing::Values(0, 1, 2), [](const auto& info) {
+  return std::string(case_of(info.param).shape.name);
+});
+
+TEST(Geometry, PlanarBoxNeedsNoBoundingBytes) {
+  TempDir tmp;
+  const std::string cad = tmp.path("box.step"), msh = tmp.path("box.msh");
+  make_cad(cad, [] { gmsh::model::occ::addBox(0, 0, 0, 1, 2, 3); });
+  CoarseMeshOptions mo;
+  mo.size = 0.5;
+  EXPECT_EQ(mesh_coarse(cad, msh, mo).method, "transfinite");
+  IntervalRequest req;
+  req.global = 6;
+  FineMesh fine = FineMesh::dice(read_coarse_mesh(msh), req);
+  const ConformReport rep = conform_to_geometry(fine, cad);
+  EXPECT_GT(rep.faces_on_surfaces, 0);
+  EXPECT_EQ(rep.edges_moved + rep.faces_moved, 0);
+  EXPECT_EQ(fine.num_bounding_nodes(), 0);
+  const std::string store = tmp.path("box.dice.h5");
+  write_store(fine, store);
+  const StoreSummary sum = store_summary(store);
+  EXPECT_EQ(sum.bounding_nodes, 0);
+  EXPECT_EQ(sum.bounding_bytes, 0u);
+  EXPECT_TRUE(verify(read_store(store, StoreOptions{8ull << 20, 0})).ok());
+}
+
+TEST(Geometry, RenumberedCadIsMatchedGeometrically) {
+  // The same sphere-in-box built in the opposite order: OpenCASCADE numbers
+  // its surfaces and curves differently from the file the mesh came from.
+  TempDir tmp;
+  const Shape sh = sphere_in_box();
+  const std::string cad = tmp.path("a.brep"), other = tmp.path("b.step"), msh = tmp.path("a.msh");
+  make_cad(cad, sh.build);
+  make_cad(other, [] {
+    gmsh::model::occ::addSphere(0, 0, 0, 1, 1);
+    gmsh::model::occ::addBox(-2, -2, -2, 4, 4, 4, 2);
+    gmsh::vectorpair out;
+    std::vector<gmsh::vectorpair> map;
+    gmsh::model::occ::fragment({{3, 2}}, {{3, 1}}, out, map);
+  });
+  CoarseMeshOptions mo;
+  mo.size = sh.size;
+  mesh_coarse(cad, msh, mo);
+  IntervalRequest req;
+  req.global = 3;
+  FineMesh a = FineMesh::dice(read_coarse_mesh(msh), req);
+  FineMesh b = FineMesh::dice(read_coarse_mesh(msh), req);
+  const ConformReport ra = conform_to_geometry(a, cad), rb = conform_to_geometry(b, other);
+  EXPECT_TRUE(ra.tags_matched);
+  EXPECT_FALSE(rb.tags_matched);
+  EXPECT_EQ(ra.faces_on_surfaces, rb.faces_on_surfaces);
+  EXPECT_EQ(ra.edges_on_curves, rb.edges_on_curves);
+  double worst = 0;
+  for_each_cad_node(b, [&](Id, const Vec3& p) { worst = std::max(worst, sh.distance(p)); });
+  EXPECT_LE(worst, 1e-12 * sh.diagonal);
+  EXPECT_EQ(check_quality(b).inverted, 0);
+}
+
+TEST(Geometry, MismatchedCadIsRefusedNamingVertexAndDistance) {
+  TempDir tmp;
+  const std::string cad = tmp.path("cyl.brep"), wrong = tmp.path("wide.brep"), msh = tmp.path("cyl.msh");
+  make_cad(cad, [] { gmsh::model::occ::addCylinder(0, 0, 0, 0, 0, 2, 1); });
+  make_cad(wrong, [] { gmsh::model::occ::addCylinder(0, 0, 0, 0, 0, 2, 1.2); });
+  CoarseMeshOptions mo;
+  mo.size = 0.8;
+  mesh_coarse(cad, msh, mo);
+  IntervalRequest req;
+  req.global = 2;
+  FineMesh fine = FineMesh::dice(read_coarse_mesh(msh), req);
+  try {
+    conform_to_geometry(fine, wrong);
+    FAIL() << "a cylinder of radius 1 fitted a CAD of radius 1.2";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.kind(), ErrorKind::Geometry);
+    const std::string m = e.what();
+    EXPECT_NE(m.find("coarse vertex"), std::string::npos) << m;
+    EXPECT_NE(m.find("from the nearest"), std::string::npos) << m;
+    EXPECT_NE(m.find("wide.brep"), std::string::npos) << m;
+  }
+  // The CLI: exit 7, one line, no store left behind.
+  const auto r = test::run_cli({"dice", msh, "--geometry", wrong, "--interval", "2", "-o", tmp.path("x.dice.h5"), "--quiet"});
+  EXPECT_EQ(r.exit_code, 7) << r.err;
+  EXPECT_NE(r.err.find("does not fit"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(tmp.path("x.dice.h5")));
+  // A CAD file that is missing: exit 5 (I/O), naming it.
+  const auto m = test::run_cli({"dice", msh, "--geometry", tmp.path("missing.step"), "-o", tmp.path("y.dice.h5")});
+  EXPECT_EQ(m.exit_code, 5) << m.err;
+  EXPECT_NE(m.err.find("missing.step"), std::string::npos) << m.err;
+  EXPECT_FALSE(std::filesystem::exists(tmp.path("y.dice.h5")));
+  // Not a CAD format.
+  const auto u = test::run_cli({"dice", msh, "--geometry", msh, "-o", tmp.path("z.dice.h5")});
+  EXPECT_EQ(u.exit_code, 4) << u.err;
+}
+
+TEST(Geometry, SurfaceModeOnACurvedShell) {
+  TempDir tmp;
+  const std::string cad = tmp.path("cyl.brep"), msh = tmp.path("skin.msh");
+  make_cad(cad, [] { gmsh::model::occ::addCylinder(0, 0, 0, 0, 0, 2, 1); });
+  CoarseMeshOptions mo;
+  mo.size = 0.8;
+  mo.surface = true;
+  mesh_coarse(cad, msh, mo);
+  const CoarseMesh cm = read_coarse_mesh(msh);
+  ASSERT_EQ(cm.mode, Mode::Surface);
+  IntervalRequest req;
+  req.global = 6;
+  FineMesh fine = FineMesh::dice(read_coarse_mesh(msh), req);
+  const ConformReport rep = conform_to_geometry(fine, cad);
+  EXPECT_GT(rep.faces_moved, 0);
+  double worst = 0;
+  Id n = 0;
+  NodeCursor cur(fine);  // surface mode: every fine node is on the CAD
+  Id id;
+  Vec3 p;
+  while (cur.next(id, p)) worst = std::max(worst, cylinder().distance(p)), ++n;
+  EXPECT_EQ(n, fine.num_nodes());
+  EXPECT_LE(worst, 1e-12 * cylinder().diagonal);
+  EXPECT_EQ(check_quality(fine).inverted, 0);
+  const std::string store = tmp.path("skin.dice.h5");
+  write_store(fine, store);
+  const FineMesh s = read_store(store, StoreOptions{8ull << 20, 0});
+  EXPECT_TRUE(verify(s).ok());
+  EXPECT_EQ(sweep(s, 1).checksum, sweep(fine, 1).checksum);
+  EXPECT_LE(check_geometry(s, cad).max_distance, 1e-9 * cylinder().diagonal);
+}
+
+TEST(Geometry, BoundingCodeIsLosslessForEveryPair) {
+  std::mt19937_64 rng(7);
+  const double special[] = {0.0, -0.0, 1e-308, -1e-308, 5e-324, 1.0, -1.0, 1e308, -1e308, INFINITY, -INFINITY};
+  std::vector<double> vals(std::begin(special), std::end(special));
+  for (int i = 0; i < 2000; ++i) vals.push_back(std::ldexp(std::uniform_real_distribution<double>(-1, 1)(rng), static_cast<int>(rng() % 200) - 100));
+  for (double a : vals)
+    for (int k = 0; k < 8; ++k) {
+      const double b = vals[rng() % vals.size()];
+      const double back = tfi::bounding_apply(a, tfi::bounding_code(a, b));
+      ASSERT_EQ(std::bit_cast<std::uint64_t>(back), std::bit_cast<std::uint64_t>(b)) << a << " " << b;
+    }
+  // Small corrections have small codes (the point of the zigzag).
+  EXPECT_EQ(tfi::bounding_code(1.0, std::nextafter(1.0, 2.0)), 2);
+  EXPECT_EQ(tfi::bounding_code(1.0, std::nextafter(1.0, 0.0)), 1);
+}
+
+}  // namespace
+}  // namespace dicer
