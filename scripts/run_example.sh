@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The main job on a bundled real mesh: install, build, list sheets, dice,
-# print the summary, query, verify.
+# print the summary, query, verify, export; then CAD -> coarse mesh -> fine
+# mesh on the CAD.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install_deps.sh
@@ -20,3 +21,8 @@ build/dicer export "$out/sphere.dice.h5" --format exodus --chunk 1/8 -o "$out/sp
 build/dicer export "$out/sphere.dice.h5" --format msh --box -2,-2,-2,2,2,0 -o "$out/sphere_lower_half.msh"
 build/dicer dice examples/dealii_step-49_example.msh --interval 8 -o "$out/plate.dice.h5"
 build/dicer verify "$out/plate.dice.h5" --quiet
+# CAD -> coarse all-hex mesh (Gmsh) -> fine mesh on the CAD, checked against it.
+build/dicer mesh-coarse examples/cylinder.brep --size 0.8 -o "$out/cylinder.msh"
+build/dicer dice "$out/cylinder.msh" --geometry examples/cylinder.brep --interval 12 -o "$out/cylinder.dice.h5"
+build/dicer verify "$out/cylinder.dice.h5" --geometry examples/cylinder.brep --quiet
+build/dicer footprint "$out/cylinder.dice.h5"

@@ -2,8 +2,8 @@
 // Store: one HDF5 file holding everything needed to regenerate a fine mesh:
 // the coarse mesh tables (tables.hpp: vertices, edges, faces, elements,
 // which carry topology, orientation codes, intervals and numbering offsets),
-// blocks, side and node sets, sheets, geometric owners and the (future)
-// bounding fine arrays. Layout: store/FORMAT.md; version kStoreFormatVersion.
+// blocks, side and node sets, sheets, geometric owners and the bounding
+// fine arrays (nodes moved onto the CAD, geometry.hpp). Layout: store/FORMAT.md; version kStoreFormatVersion.
 //
 // Every dataset is chunked; a chunk is a page of whole rows, compressed with
 // HDF5 filter 32004 (LZ4) and checksummed with Fletcher32. read_store opens
