@@ -11,6 +11,7 @@
 #include <random>
 #include <vector>
 
+#include "bench_util.hpp"
 #include "dicer/fine_mesh.hpp"
 
 using namespace dicer;
@@ -37,12 +38,7 @@ void BM_WriteBandwidth(benchmark::State& st) {
   Id nodes = 0;
   for (auto _ : st) {
     for (Id h = 0; h < m.num_coarse_elements(); ++h) {
-      const double v = static_cast<double>(h);
-      for (size_t i = 0; i < per_block; ++i) x[i] = v, y[i] = v + 1, z[i] = v + 2;
-      benchmark::DoNotOptimize(x.data());
-      benchmark::DoNotOptimize(y.data());
-      benchmark::DoNotOptimize(z.data());
-      benchmark::ClobberMemory();
+      bench::write_xyz(x.data(), y.data(), z.data(), per_block, static_cast<double>(h));
       nodes += static_cast<Id>(per_block);
     }
   }

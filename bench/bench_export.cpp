@@ -33,6 +33,7 @@
 #include <optional>
 #include <string>
 
+#include "bench_util.hpp"
 #include "dicer/export.hpp"
 #include "dicer/store.hpp"
 #include "gmsh_transfinite.hpp"
@@ -64,35 +65,12 @@ std::string temp_dir() {
   return std::filesystem::temp_directory_path() / ("dicer-bench-export-" + std::to_string(::getpid()));
 }
 
-// Peak RSS since the last reset (Linux: clear_refs 5 resets VmHWM).
-void reset_peak_rss() { std::ofstream("/proc/self/clear_refs") << "5"; }
-double status_bytes(const char* key) {
-  std::ifstream in("/proc/self/status");
-  std::string line;
-  const std::string k = key;
-  while (std::getline(in, line))
-    if (line.rfind(k, 0) == 0) return std::stod(line.substr(k.size())) * 1024.0;
-  return 0;
-}
-double peak_rss_bytes() { return status_bytes("VmHWM:"); }
-// The RSS now, after handing free heap pages back (an earlier case's freed
-// memory would otherwise hide this case's rise).
-double rss_bytes() {
-  ::malloc_trim(0);
-  return status_bytes("VmRSS:");
-}
-constexpr double kMiB = 1 << 20;
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
-// Process CPU seconds (user + system; every case here is single-threaded):
-// what the shared machine's load does not inflate.
-double cpu_now() {
-  timespec ts{};
-  ::clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
+using bench::cpu_now;
+using bench::kMiB;
+using bench::peak_rss_bytes;
+using bench::reset_peak_rss;
+using bench::rss_bytes;
+using bench::seconds_since;
 
 // The store (written once per process), the chunk and what Gmsh needs.
 struct Setup {

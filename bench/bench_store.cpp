@@ -19,6 +19,7 @@
 #include <random>
 #include <string>
 
+#include "bench_util.hpp"
 #include "dicer/store.hpp"
 
 using namespace dicer;
@@ -50,15 +51,8 @@ const FineMesh& memory_mesh(Id interval) {
   return meshes.emplace(interval, FineMesh::dice(read_coarse_mesh(data("vtkdata_disk_out_ref.ex2")), r)).first->second;
 }
 
-// Peak RSS since the last reset (Linux: clear_refs 5 resets VmHWM).
-void reset_peak_rss() { std::ofstream("/proc/self/clear_refs") << "5"; }
-double peak_rss_bytes() {
-  std::ifstream in("/proc/self/status");
-  std::string line;
-  while (std::getline(in, line))
-    if (line.rfind("VmHWM:", 0) == 0) return std::stod(line.substr(6)) * 1024.0;
-  return 0;
-}
+using bench::peak_rss_bytes;
+using bench::reset_peak_rss;
 
 void BM_Sweep(benchmark::State& st) {
   const Id interval = 52;
