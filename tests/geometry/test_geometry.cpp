@@ -111,9 +111,9 @@ struct Case {
 class CurvedPart : public ::testing::TestWithParam<int> {};
 
 Case case_of(int k) {
-  if (k == 0) return {cylinder(), {2, 3, 5, 8}};
-  if (k == 1) return {sphere_in_box(), {2, 5}};
-  return {torus(), {2, 4}};
+  if (k == 0) return {cylinder(), {2, 3, 6}};
+  if (k == 1) return {sphere_in_box(), {2, 4}};
+  return {torus(), {2, 3}};
 }
 
 TEST_P(CurvedPart, FineNodesOnTheCadNoInversionConformingAndBitIdenticalThroughTheStore) {
