@@ -324,6 +324,8 @@ def plot(res, run, png):
     a = ax[2]
     for spec in DISK_SERIES:
         series(a, *spec)
+    xs = [min(E), 2e10]
+    a.plot(xs, [88 * x for x in xs], "-", color="tab:gray", alpha=0.3, lw=6, label="explicit raw, 88 B/hex, extrapolated")
     xs = [r["fine_elements"] for r in iv]
     a.plot(xs, [r["store_bytes"] for r in iv], "o-", color="tab:blue", label="dicer store")
     for key, mk in (("jittered", "D"), ("lattice", "d")):

@@ -14,7 +14,7 @@ cmake -S . -B build-bench -DCMAKE_BUILD_TYPE=Release -DDICER_BUILD_TESTS=OFF >/d
 cmake --build build-bench -j1 --target dicer bench_side_by_side
 if [ "${DICER_SBS_SMOKE:-0}" = 1 ]; then
   out=/tmp/dicer-sbs-smoke.json
-  /usr/bin/python3 scripts/bench_side_by_side.py --box 4,5,8 --intervals 2,4 --coarser-box 2,2,5 --coarser-interval 4 --store-interval 4 --reps 1 --out "$out" "$@"
+  /usr/bin/python3 scripts/bench_side_by_side.py --box 4,5,8 --intervals 2,4 --coarser-box 2,2,5 --coarser-interval 4 --store-interval 4 --reps 1 --no-cylinder --out "$out" "$@"
   /usr/bin/python3 scripts/bench_plot.py "$out" --png /tmp/dicer-sbs-smoke.png --no-readme
   exit 0
 fi
