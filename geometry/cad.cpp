@@ -218,7 +218,8 @@ void Cad::speed(int dim, int tag, const std::vector<double>& params, std::vector
 
 #if defined(__SANITIZE_ADDRESS__)
 // Gmsh 4.8 leaks a few hundred bytes per surface it meshes (meshGFace) and
-// keeps its global state until exit; LeakSanitizer would fail every process
-// that used it. Only leaks allocated inside libgmsh are suppressed.
-extern "C" const char* __lsan_default_suppressions() { return "leak:libgmsh.so\n"; }
+// keeps its global state until exit, and OpenCASCADE's STEP reader and
+// writer (libTK*) keep theirs; LeakSanitizer would fail every process that
+// used them. Only leaks allocated inside those libraries are suppressed.
+extern "C" const char* __lsan_default_suppressions() { return "leak:libgmsh.so\nleak:libTK\n"; }
 #endif
