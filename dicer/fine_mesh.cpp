@@ -4,6 +4,7 @@
 #include "dicer/fine_mesh.hpp"
 
 #include <algorithm>
+#include <atomic>
 
 #include "dicer/error.hpp"
 #include "dicer/orientation.hpp"
@@ -213,6 +214,43 @@ struct View {
     return {out[0], out[1], out[2]};
   }
 
+  // Every interior point of face f in its canonical frame (u fastest, the
+  // order of its node ids), one array per coordinate in s.face, moved onto
+  // the CAD when bounded: the sides gathered as face_point gathers them.
+  // Block fills and the node cursor both fill faces through this.
+  void face_fill(const FaceRec& f, FineBlock::Scratch& s) const {
+    const Id nu = f.nu, nv = f.nv;
+    auto gather = [&](int k, Id len, std::vector<double>* out) {
+      for (int d = 0; d < 3; ++d) out[d].resize(static_cast<size_t>(len + 1));
+      for (Id q = 1; q < len; ++q) {
+        const Vec3 x = face_side(f, k, q);
+        out[0][q] = x.x, out[1][q] = x.y, out[2][q] = x.z;
+      }
+    };
+    gather(0, nu, s.bottom), gather(1, nu, s.top), gather(2, nv, s.left), gather(3, nv, s.right);
+    s.s.resize(static_cast<size_t>(nu)), s.t.resize(static_cast<size_t>(nv));
+    for (Id u = 1; u < nu; ++u) s.s[u] = tfi::weight(u, nu);
+    for (Id v = 1; v < nv; ++v) s.t[v] = tfi::weight(v, nv);
+    const Vec3 pc[4] = {vertex(f.v[0]), vertex(f.v[1]), vertex(f.v[2]), vertex(f.v[3])};
+    const size_t m = static_cast<size_t>((nu - 1) * (nv - 1));
+    for (int d = 0; d < 3; ++d) {
+      auto comp = [&](const Vec3& p) { return d == 0 ? p.x : d == 1 ? p.y : p.z; };
+      const double p0 = comp(pc[0]), p1 = comp(pc[1]), p2 = comp(pc[2]), p3 = comp(pc[3]);
+      s.face[d].resize(m);
+      double* out = s.face[d].data();
+      const double *B = s.bottom[d].data(), *T = s.top[d].data(), *Lf = s.left[d].data(), *R = s.right[d].data();
+      for (Id v = 1; v < nv; ++v) {
+        const double tv = s.t[v];
+        for (Id u = 1; u < nu; ++u) *out++ = tfi::coons(s.s[u], tv, B[u], T[u], Lf[v], R[v], p0, p1, p2, p3);
+      }
+    }
+    if (f.bound >= 0)  // on the CAD: the stored corrections, as face_interior applies them
+      for (size_t q = 0; q < m; ++q) {
+        const std::int64_t* r = t.bounding.row(f.bound + static_cast<Id>(q), c.bounding);
+        for (int d = 0; d < 3; ++d) s.face[d][q] = tfi::bounding_apply(s.face[d][q], r[d]);
+      }
+  }
+
   NodeRef grid_node(const ElemRec& h, Id hid, Id i, Id j, Id k) const {
     const auto& n = h.n;
     NodeRef r;
@@ -291,7 +329,7 @@ struct View {
   }
 };
 
-// Hex interior of one coordinate array of a block whose boundary is filled:
+// Hex interior, one coordinate, from the block's boundary values:
 // tfi::hex_row once per (j, k), tfi::hex_point along i, the same two calls
 // View::cell_point() makes, fed the same boundary values. Built twice
 // (AVX2 and baseline x86-64): both are plain IEEE mul/add/sub in the same
@@ -303,30 +341,33 @@ struct View {
 #else
 #define DICER_CLONES __attribute__((target_clones("avx2", "default")))
 #endif
-DICER_CLONES void hex_interior(double* a, std::array<Id, 3> n, const double* u, const double* U) {
-  const Id sj = n[0] + 1, sk = (n[0] + 1) * (n[1] + 1);
+// One interior plane k (0 < k < n[2]) of one coordinate: a0 and aN are the
+// planes k = 0 and k = n[2], ak plane k with its ring (i or j at 0 or n)
+// filled; all three with row stride n[0] + 1. A plane at a time, so a block
+// can be produced in slabs (cursors hold O(n^2), not O(n^3)).
+DICER_CLONES void hex_interior_plane(const double* a0, const double* aN, double* ak, std::array<Id, 3> n, Id k,
+                                     const double* u, const double* U) {
+  const Id sj = n[0] + 1;
+  const Id n1 = n[1] * sj;
   double c[8];
-  for (int q = 0; q < 8; ++q) c[q] = a[kHexCorner[q][0] * n[0] + kHexCorner[q][1] * n[1] * sj + kHexCorner[q][2] * n[2] * sk];
-  const double* e0 = a;                          // (i, 0, 0)
-  const double* e1 = a + n[1] * sj;              // (i, n1, 0)
-  const double* e2 = a + n[2] * sk;              // (i, 0, n2)
-  const double* e3 = a + n[1] * sj + n[2] * sk;  // (i, n1, n2)
-  for (Id k = 1; k < n[2]; ++k) {
-    const double w = tfi::weight(k, n[2]);
-    const double* f2 = a + k * sk;               // (i, 0, k)
-    const double* f3 = a + n[1] * sj + k * sk;   // (i, n1, k)
-    for (Id j = 1; j < n[1]; ++j) {
-      const double v = tfi::weight(j, n[1]);
-      const double* f4 = a + j * sj;             // (i, j, 0)
-      const double* f5 = a + j * sj + n[2] * sk; // (i, j, n2)
-      const double e[12] = {0, 0, 0, 0, a[j * sj], a[n[0] + j * sj], a[j * sj + n[2] * sk],
-                            a[n[0] + j * sj + n[2] * sk], a[k * sk], a[n[0] + k * sk],
-                            a[n[0] + n[1] * sj + k * sk], a[n[1] * sj + k * sk]};
-      const tfi::HexRow row = tfi::hex_row(v, w, a[j * sj + k * sk], a[n[0] + j * sj + k * sk], e, c);
-      double* out = a + j * sj + k * sk;
-      for (Id i = 1; i < n[0]; ++i)
-        out[i] = tfi::hex_point(row, u[i], U[i], f2[i], f3[i], f4[i], f5[i], e0[i], e1[i], e2[i], e3[i]);
-    }
+  for (int q = 0; q < 8; ++q) c[q] = (kHexCorner[q][2] ? aN : a0)[kHexCorner[q][0] * n[0] + kHexCorner[q][1] * n1];
+  const double* e0 = a0;       // (i, 0, 0)
+  const double* e1 = a0 + n1;  // (i, n1, 0)
+  const double* e2 = aN;       // (i, 0, n2)
+  const double* e3 = aN + n1;  // (i, n1, n2)
+  const double w = tfi::weight(k, n[2]);
+  const double* f2 = ak;       // (i, 0, k)
+  const double* f3 = ak + n1;  // (i, n1, k)
+  for (Id j = 1; j < n[1]; ++j) {
+    const double v = tfi::weight(j, n[1]);
+    const double* f4 = a0 + j * sj;  // (i, j, 0)
+    const double* f5 = aN + j * sj;  // (i, j, n2)
+    const double e[12] = {0, 0, 0, 0, a0[j * sj], a0[n[0] + j * sj], aN[j * sj], aN[n[0] + j * sj],
+                          ak[0], ak[n[0]], ak[n[0] + n1], ak[n1]};
+    const tfi::HexRow row = tfi::hex_row(v, w, ak[j * sj], ak[n[0] + j * sj], e, c);
+    double* out = ak + j * sj;
+    for (Id i = 1; i < n[0]; ++i)
+      out[i] = tfi::hex_point(row, u[i], U[i], f2[i], f3[i], f4[i], f5[i], e0[i], e1[i], e2[i], e3[i]);
   }
 }
 
@@ -454,6 +495,11 @@ FineMesh FineMesh::dice(CoarseMesh coarse, const IntervalRequest& request, std::
 
 // ---------------------------------------------------------------- geometry
 
+std::uint64_t FineMesh::next_serial() {
+  static std::atomic<std::uint64_t> last{0};
+  return ++last;
+}
+
 void FineMesh::require_memory(const char* what) const {
   if (!tables_.edges.in_memory() || !tables_.bounding.in_memory())
     throw Error(ErrorKind::Usage, std::string(what) + ": the mesh must be diced in this process (not opened from a store)");
@@ -461,6 +507,7 @@ void FineMesh::require_memory(const char* what) const {
 
 void FineMesh::set_vertex(Id v, const Vec3& x, int dim, int tag) {
   require_memory("set_vertex");
+  serial_ = next_serial();
   if (tables_.bounding.rows() > 0) throw Error(ErrorKind::Usage, "set_vertex after nodes were moved");
   auto& m = tables_.vertices.memory();
   m[3 * v] = x.x, m[3 * v + 1] = x.y, m[3 * v + 2] = x.z;
@@ -470,6 +517,7 @@ void FineMesh::set_vertex(Id v, const Vec3& x, int dim, int tag) {
 
 void FineMesh::set_owner(EntityKind kind, Id entity, std::int64_t owner) {
   require_memory("set_owner");
+  serial_ = next_serial();
   if (kind == EntityKind::Edge) tables_.edges.memory()[static_cast<size_t>(entity) * kEdgeWidth + kEdgeOwner] = owner;
   else if (kind == EntityKind::Face) tables_.faces.memory()[static_cast<size_t>(entity) * kFaceWidth + kFaceOwner] = owner;
   else throw Error(ErrorKind::Usage, "set_owner: only edges and faces carry owners");
@@ -487,6 +535,7 @@ std::int64_t FineMesh::owner(EntityKind kind, Id entity, MeshCursor& cur) const 
 
 void FineMesh::move_nodes(EntityKind kind, Id entity, std::span<const Vec3> xyz) {
   require_memory("move_nodes");
+  serial_ = next_serial();
   MeshCursor cur;
   const View V{tables_, cur, tables_.layout()};
   std::vector<Vec3> pred;
@@ -523,6 +572,7 @@ void FineMesh::move_nodes(EntityKind kind, Id entity, std::span<const Vec3> xyz)
 
 void FineMesh::finish_moves() {
   require_memory("finish_moves");
+  serial_ = next_serial();
   const ElementLayout L = tables_.layout();
   auto& el = tables_.elements.memory();
   const auto& ed = tables_.edges.memory();
@@ -598,114 +648,133 @@ FineElement FineMesh::element(Id id, MeshCursor& cur) const {
 
 // ---------------------------------------------------------------- blocks
 
-void FineMesh::fill_block(Id hid, FineBlock& b, bool nodes_only) const {
-  const View V{tables_, b.cursor, tables_.layout()};
-  const ElemRec h = V.element(hid);
+namespace {
+// The boundary of coarse element h (corners, edges, faces) into b's
+// scratch (Boundary::index): ids always, coordinates if asked.
+void fill_boundary(const View& V, std::uint64_t mesh, const ElemRec& h, Id hid, FineBlock& b, bool coords) {
   const auto n = h.n;
-  const bool vol = mode() == Mode::Volume;
-  const int nc = corners();
-  b.coarse_element = hid;
-  b.n = n;
-  b.first_element = h.elem_off;
-  b.block = h.block;
-  const Id ni = n[0] + 1, nj = n[1] + 1, nk = vol ? n[2] + 1 : 1;
-  const size_t np = static_cast<size_t>(ni * nj * nk);
-  b.node_id.resize(np);
-  b.x.resize(np), b.y.resize(np), b.z.resize(np);
-  Id* ids = b.node_id.data();
-  double* X[3] = {b.x.data(), b.y.data(), b.z.data()};
-  auto put = [&](Id g, Id id, const Vec3& p) { ids[g] = id, X[0][g] = p.x, X[1][g] = p.y, X[2][g] = p.z; };
-  auto grid = [&](const int* c, int axis, Id t) {  // grid point of corner c, moved to t along axis
+  const bool vol = V.t.mode == Mode::Volume;
+  auto& B = b.scratch.boundary;
+  B.mesh = mesh, B.h = hid, B.coords = coords, B.n = n, B.volume = vol;
+  const size_t nb = static_cast<size_t>(B.size());
+  B.id.resize(nb);
+  for (int d = 0; d < 3; ++d) coords ? B.x[d].resize(nb) : B.x[d].clear();
+  Id* ids = B.id.data();
+  double* X[3] = {B.x[0].data(), B.x[1].data(), B.x[2].data()};
+  auto put = [&](Id g, Id id, const Vec3& p) {
+    ids[g] = id;
+    if (coords) X[0][g] = p.x, X[1][g] = p.y, X[2][g] = p.z;
+  };
+  auto grid = [&](const int* c, int axis, Id t) {  // boundary slot of corner c, moved to t along axis
     Id p[3] = {c[0] * n[0], c[1] * n[1], vol ? c[2] * n[2] : 0};
     if (axis >= 0) p[axis] = t;
-    return b.point_index(p[0], p[1], p[2]);
+    return B.index(p[0], p[1], p[2]);
   };
-  for (int q = 0; q < nc; ++q) put(grid(kHexCorner[q], -1, 0), h.conn[q], V.vertex(h.conn[q]));
+  for (int q = 0; q < V.L.corners; ++q) put(grid(kHexCorner[q], -1, 0), h.conn[q], coords ? V.vertex(h.conn[q]) : Vec3{});
 
   // Edges: every interior point from edge_point in the canonical direction.
-  const int epe = V.L.edges;
-  for (int le = 0; le < epe; ++le) {
+  for (int le = 0; le < V.L.edges; ++le) {
     const EdgeRec e = V.edge(h.edge[le]);
     const int a = vol ? kHexEdge[le][0] : kQuadEdge[le][0];
     const int axis = vol ? le / 4 : le / 2;
     for (Id t = 1; t < e.n; ++t) {
       const Id tc = h.rev(le) ? e.n - t : t;
-      put(grid(kHexCorner[a], axis, t), e.off + tc - 1, V.edge_point(e, tc));
+      put(grid(kHexCorner[a], axis, t), e.off + tc - 1, coords ? V.edge_point(e, tc) : Vec3{});
     }
   }
 
-  // Faces: canonical fill (the sides gathered as face_point gathers them),
-  // then scattered through the face map.
+  // Faces: canonical fill, then scattered through the face map.
   auto& s = b.scratch;
   for (int lf = 0; lf < V.L.faces; ++lf) {
     const FaceRec f = V.face(h.face[lf]);
     const Id nu = f.nu, nv = f.nv;
     if (nu < 2 || nv < 2) continue;
-    auto gather = [&](int k, Id len, std::vector<double>* out) {
-      for (int d = 0; d < 3; ++d) out[d].resize(static_cast<size_t>(len + 1));
-      for (Id q = 1; q < len; ++q) {
-        const Vec3 x = V.face_side(f, k, q);
-        out[0][q] = x.x, out[1][q] = x.y, out[2][q] = x.z;
-      }
-    };
-    gather(0, nu, s.bottom), gather(1, nu, s.top), gather(2, nv, s.left), gather(3, nv, s.right);
-    s.s.resize(static_cast<size_t>(nu)), s.t.resize(static_cast<size_t>(nv));
-    for (Id u = 1; u < nu; ++u) s.s[u] = tfi::weight(u, nu);
-    for (Id v = 1; v < nv; ++v) s.t[v] = tfi::weight(v, nv);
-    const Vec3 pc[4] = {V.vertex(f.v[0]), V.vertex(f.v[1]), V.vertex(f.v[2]), V.vertex(f.v[3])};
-    for (int d = 0; d < 3; ++d) {
-      auto comp = [&](const Vec3& p) { return d == 0 ? p.x : d == 1 ? p.y : p.z; };
-      const double p0 = comp(pc[0]), p1 = comp(pc[1]), p2 = comp(pc[2]), p3 = comp(pc[3]);
-      s.face[d].resize(static_cast<size_t>((nu - 1) * (nv - 1)));
-      double* out = s.face[d].data();
-      const double *B = s.bottom[d].data(), *T = s.top[d].data(), *Lf = s.left[d].data(), *R = s.right[d].data();
-      for (Id v = 1; v < nv; ++v) {
-        const double tv = s.t[v];
-        for (Id u = 1; u < nu; ++u) *out++ = tfi::coons(s.s[u], tv, B[u], T[u], Lf[v], R[v], p0, p1, p2, p3);
-      }
-    }
-    if (f.bound >= 0) {  // on the CAD: the stored corrections, as View::face_interior applies them
-      const Id m = (nu - 1) * (nv - 1);
-      for (Id q = 0; q < m; ++q) {
-        const std::int64_t* r = tables_.bounding.row(f.bound + q, b.cursor.bounding);
-        for (int d = 0; d < 3; ++d) s.face[d][q] = tfi::bounding_apply(s.face[d][q], r[d]);
-      }
-    }
+    if (coords) V.face_fill(f, s);
     const FaceMap fm = face_map(h.code(lf), nu, nv);
     const int ax = vol ? kHexFaceAxes[lf][0] : 0, bx = vol ? kHexFaceAxes[lf][1] : 1;
-    const Id na = n[ax], nb = n[bx];
+    const Id na = n[ax], nbb = n[bx];
     Id p[3] = {0, 0, 0};
     if (vol) p[lf / 2] = (lf % 2) ? n[lf / 2] : 0;
-    for (Id q = 1; q < nb; ++q)
+    for (Id q = 1; q < nbb; ++q)
       for (Id pp = 1; pp < na; ++pp) {
         p[ax] = pp, p[bx] = q;
         const Id c = (fm.u(pp, q) - 1) + (fm.v(pp, q) - 1) * (nu - 1);
-        const Id g = b.point_index(p[0], p[1], p[2]);
+        const Id g = B.index(p[0], p[1], p[2]);
         ids[g] = f.off + c;
-        for (int d = 0; d < 3; ++d) X[d][g] = s.face[d][c];
+        if (coords)
+          for (int d = 0; d < 3; ++d) X[d][g] = s.face[d][c];
       }
   }
+}
+}  // namespace
 
-  if (vol && n[0] > 1 && n[1] > 1 && n[2] > 1) {
+void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool conn) const {
+  const View V{tables_, b.cursor, tables_.layout()};
+  const ElemRec h = V.element(hid);
+  const auto n = h.n;
+  const bool vol = mode() == Mode::Volume;
+  if (k1 < 0) k1 = vol ? n[2] : 0;
+  if (k0 < 0 || k0 > k1 || k1 > (vol ? n[2] : 0) || (conn && vol && k0 == k1))
+    throw Error(ErrorKind::Usage, "fill_slab: planes " + std::to_string(k0) + ".." + std::to_string(k1) +
+                                      " of coarse element " + std::to_string(hid) + " (it has " +
+                                      std::to_string(vol ? n[2] : 0) + ")");
+  auto& B = b.scratch.boundary;
+  if (B.mesh != serial_ || B.h != hid || (coords && !B.coords)) fill_boundary(V, serial_, h, hid, b, coords);
+  b.coarse_element = hid;
+  b.n = n;
+  b.block = h.block;
+  b.plane0 = k0;
+  b.planes = k1 - k0 + 1;
+  b.layers = vol ? k1 - k0 : 1;
+  b.first_element = h.elem_off + n[0] * n[1] * k0;
+  const Id ni = n[0] + 1, nj = n[1] + 1, pp = ni * nj;
+  const size_t np = static_cast<size_t>(pp * b.planes);
+  b.node_id.resize(np);
+  for (auto* x : {&b.x, &b.y, &b.z}) coords ? x->resize(np) : x->clear();
+  auto& s = b.scratch;
+  if (coords && vol) {
     s.u.resize(static_cast<size_t>(n[0])), s.U.resize(static_cast<size_t>(n[0]));
     for (Id i = 1; i < n[0]; ++i) s.u[i] = tfi::weight(i, n[0]), s.U[i] = 1.0 - s.u[i];
-    Id id = h.cell_off;
-    for (Id k = 1; k < n[2]; ++k)
-      for (Id j = 1; j < n[1]; ++j)
-        for (Id i = 1; i < n[0]; ++i) ids[b.point_index(i, j, k)] = id++;
-    for (int d = 0; d < 3; ++d) hex_interior(X[d], n, s.u.data(), s.U.data());
+  }
+  for (Id k = k0; k <= k1; ++k) {
+    const size_t at = static_cast<size_t>((k - k0) * pp);
+    Id* ids = b.node_id.data() + at;
+    double* X[3] = {nullptr, nullptr, nullptr};
+    if (coords) X[0] = b.x.data() + at, X[1] = b.y.data() + at, X[2] = b.z.data() + at;
+    if (!vol || k == 0 || k == n[2]) {  // a face plane: all boundary
+      const size_t from = static_cast<size_t>(B.index(0, 0, k));
+      std::copy_n(B.id.data() + from, pp, ids);
+      for (int d = 0; d < 3 && coords; ++d) std::copy_n(B.x[d].data() + from, pp, X[d]);
+      continue;
+    }
+    // The ring of plane k from the side faces and edges, the rest hex interior.
+    const size_t ring = static_cast<size_t>(B.index(0, 0, k));
+    auto ring_copy = [&](const auto* src, auto* dst) {
+      for (Id i = 0; i < ni; ++i) dst[i] = src[i], dst[i + n[1] * ni] = src[ni + i];
+      for (Id j = 1; j < n[1]; ++j) dst[j * ni] = src[2 * ni + j - 1], dst[n[0] + j * ni] = src[2 * ni + n[1] - 1 + j - 1];
+    };
+    ring_copy(B.id.data() + ring, ids);
+    const Id base = h.cell_off + (n[0] - 1) * (n[1] - 1) * (k - 1);
+    for (Id j = 1; j < n[1]; ++j)
+      for (Id i = 1; i < n[0]; ++i) ids[i + ni * j] = base + (i - 1) + (n[0] - 1) * (j - 1);
+    for (int d = 0; d < 3 && coords; ++d) {
+      ring_copy(B.x[d].data() + ring, X[d]);
+      hex_interior_plane(B.x[d].data(), B.x[d].data() + pp, X[d], n, k, s.u.data(), s.U.data());
+    }
   }
 
-  if (nodes_only) {
+  if (!conn) {
     b.conn.clear();
     return;
   }
+  const int nc = corners();
   b.conn.resize(static_cast<size_t>(b.num_elements()) * nc);
   Id* out = b.conn.data();
+  const Id* ids = b.node_id.data();
   if (vol) {
-    const Id sj = ni, sk = ni * nj;
+    const Id sj = ni, sk = pp;
     const Id off[8] = {0, 1, 1 + sj, sj, sk, 1 + sk, 1 + sj + sk, sj + sk};
-    for (Id k = 0; k < n[2]; ++k)
+    for (Id k = k0; k < k1; ++k)
       for (Id j = 0; j < n[1]; ++j)
         for (Id i = 0; i < n[0]; ++i) {
           const Id g = b.point_index(i, j, k);
@@ -721,89 +790,107 @@ void FineMesh::fill_block(Id hid, FineBlock& b, bool nodes_only) const {
   }
 }
 
+void FineMesh::fill_block(Id hid, FineBlock& b, bool nodes_only) const { fill_slab(hid, 0, -1, b, true, !nodes_only); }
+
 // ---------------------------------------------------------------- cursors
 
-NodeCursor::NodeCursor(const FineMesh& mesh, Id begin, Id end)
-    : mesh_(mesh), next_(std::max<Id>(begin, 0)), end_(std::min(end, mesh.num_nodes())) {}
+namespace {
+// Grid planes per cursor slab: O(interval^2) values, never a whole block.
+Id slab_planes(const std::array<Id, 3>& n, Id points) { return std::max<Id>(1, points / ((n[0] + 1) * (n[1] + 1))); }
+}  // namespace
+
+NodeCursor::NodeCursor(const FineMesh& mesh, Id begin, Id end, Id slab_points)
+    : mesh_(mesh), next_(std::max<Id>(begin, 0)), end_(std::min(end, mesh.num_nodes())), slab_points_(slab_points) {}
 
 bool NodeCursor::next(Id& id, Vec3& xyz) {
   if (next_ >= end_) return false;
   id = next_++;
-  NodeRef r;
-  if (id >= range_first_ && id < range_end_) {
-    // Same entity as the last node: its local index follows from the id.
-    r = range_ref_;
-    const Id l = id - range_first_;
-    switch (r.kind) {
-      case EntityKind::Vertex: r.entity = id; break;
-      case EntityKind::Edge: r.local[0] = l + 1; break;
-      case EntityKind::Face: r.local = {l % range_w0_ + 1, l / range_w0_ + 1, 0}; break;
-      case EntityKind::Cell: r.local = {l % range_w0_ + 1, (l / range_w0_) % range_w1_ + 1, l / (range_w0_ * range_w1_) + 1}; break;
+  if (id < range_first_ || id >= range_end_) enter(id);
+  const Id l = id - range_first_;
+  switch (range_ref_.kind) {
+    case EntityKind::Vertex: xyz = mesh_.node(NodeRef{EntityKind::Vertex, id, {0, 0, 0}}, cur_); return true;
+    case EntityKind::Edge:
+    case EntityKind::Face: {
+      const auto q = static_cast<size_t>(l);
+      xyz = {line_[0][q], line_[1][q], line_[2][q]};
+      return true;
     }
-  } else {
-    r = mesh_.locate_node(id, cur_);
-    // The entity's id range, from its first and last local index.
-    const auto& base = mesh_.info().kind_base;
-    range_ref_ = r;
-    switch (r.kind) {
-      case EntityKind::Vertex:
-        range_first_ = 0, range_end_ = base[1];
-        break;
-      case EntityKind::Edge: {
-        const std::int64_t* e = mesh_.tables().edges.row(r.entity, cur_.edges);
-        range_first_ = e[kEdgeNodeOffset], range_end_ = range_first_ + e[kEdgeN] - 1;
-        break;
-      }
-      case EntityKind::Face: {
-        const std::int64_t* f = mesh_.tables().faces.row(r.entity, cur_.faces);
-        const Id off = f[kFaceNodeOffset], e0 = f[kFaceE], e2 = f[kFaceE + 2];
-        const Id w0 = mesh_.tables().edges.row(e0, cur_.edges)[kEdgeN] - 1;
-        const Id w1 = mesh_.tables().edges.row(e2, cur_.edges)[kEdgeN] - 1;
-        range_first_ = off, range_end_ = off + w0 * w1, range_w0_ = w0;
-        break;
-      }
-      case EntityKind::Cell: {
-        const ElementLayout L = mesh_.tables().layout();
-        const std::int64_t* h = mesh_.tables().elements.row(r.entity, cur_.elements);
-        const Id w0 = h[L.n()] - 1, w1 = h[L.n() + 1] - 1, w2 = h[L.n() + 2] - 1;
-        range_first_ = h[L.cell_offset()], range_end_ = range_first_ + w0 * w1 * w2;
-        range_w0_ = w0, range_w1_ = w1;
-        break;
-      }
-    }
+    case EntityKind::Cell: break;
   }
-  if (r.kind != EntityKind::Cell) {
-    xyz = mesh_.node(r, cur_);
-    return true;
-  }
-  if (block_cell_ != r.entity) {
-    mesh_.fill_block(r.entity, block_, true);
-    block_cell_ = r.entity;
-  }
-  const Id g = block_.point_index(r.local[0], r.local[1], r.local[2]);
+  // Cell interior: (i, j, k) from the local index, then the slab holding plane k.
+  const Id i = l % range_w0_ + 1, j = (l / range_w0_) % range_w1_ + 1, k = l / (range_w0_ * range_w1_) + 1;
+  if (k < block_.plane0 || k >= block_.plane0 + block_.planes || block_.coarse_element != range_ref_.entity)
+    mesh_.fill_slab(range_ref_.entity, k, std::min(k + slab_planes(range_n_, slab_points_) - 1, range_n_[2] - 1), block_, true, false);
+  const Id g = block_.point_index(i, j, k);
   xyz = {block_.x[g], block_.y[g], block_.z[g]};
   return true;
 }
 
-ElementCursor::ElementCursor(const FineMesh& mesh, Id begin, Id end)
-    : mesh_(mesh), next_(std::max<Id>(begin, 0)), end_(std::min(end, mesh.num_elements())) {}
+// The entity owning node `id`: its id range, and for edges and faces all of
+// its points at once (one canonical fill, not one evaluation per node).
+void NodeCursor::enter(Id id) {
+  const NodeRef r = mesh_.locate_node(id, cur_);
+  const auto& base = mesh_.info().kind_base;
+  const View V{mesh_.tables(), cur_, mesh_.tables().layout()};
+  range_ref_ = r;
+  switch (r.kind) {
+    case EntityKind::Vertex:
+      range_first_ = 0, range_end_ = base[1];
+      break;
+    case EntityKind::Edge: {
+      const EdgeRec e = V.edge(r.entity);
+      range_first_ = e.off, range_end_ = e.off + e.n - 1;
+      for (auto& a : line_) a.resize(static_cast<size_t>(e.n - 1));
+      for (Id t = 1; t < e.n; ++t) {
+        const Vec3 x = V.edge_point(e, t);
+        line_[0][t - 1] = x.x, line_[1][t - 1] = x.y, line_[2][t - 1] = x.z;
+      }
+      break;
+    }
+    case EntityKind::Face: {
+      const FaceRec f = V.face(r.entity);
+      range_first_ = f.off, range_end_ = f.off + (f.nu - 1) * (f.nv - 1);
+      V.face_fill(f, face_);
+      for (int d = 0; d < 3; ++d) line_[d].swap(face_.face[d]);
+      break;
+    }
+    case EntityKind::Cell: {
+      const ElemRec h = V.element(r.entity);
+      range_w0_ = h.n[0] - 1, range_w1_ = h.n[1] - 1, range_n_ = h.n;
+      range_first_ = h.cell_off, range_end_ = h.cell_off + range_w0_ * range_w1_ * (h.n[2] - 1);
+      break;
+    }
+  }
+  if (id < range_first_ || id >= range_end_)
+    V.corrupt("node numbering: the entity found for a node id does not hold it; entity", r.entity);
+}
+
+ElementCursor::ElementCursor(const FineMesh& mesh, Id begin, Id end, Id slab_points)
+    : mesh_(mesh), next_(std::max<Id>(begin, 0)), end_(std::min(end, mesh.num_elements())), slab_points_(slab_points) {}
 
 bool ElementCursor::next(FineElement& el) {
   if (next_ >= end_) return false;
   el.id = next_++;
-  if (!block_.conn.empty() && el.id >= block_.first_element && el.id < block_.first_element + block_.num_elements()) {
-    // Still in the block filled last: no search.
-    const Id l = el.id - block_.first_element;
-    el.coarse_element = block_.coarse_element;
-    el.ijk = {l % block_.n[0], (l / block_.n[0]) % block_.n[1], l / (block_.n[0] * block_.n[1])};
-  } else {
-    el.coarse_element = mesh_.locate_element(el.id, el.ijk, cur_);
-    if (block_.coarse_element != el.coarse_element || block_.conn.empty()) mesh_.fill_block(el.coarse_element, block_);
+  const bool held = !block_.conn.empty() && el.id >= block_.first_element &&
+                    el.id < block_.first_element + block_.num_elements();
+  if (!held) {
+    // A slab of element layers, ids and connectivity only (no coordinates).
+    std::array<Id, 3> ijk;
+    const Id h = mesh_.locate_element(el.id, ijk, cur_);
+    if (mesh_.mode() == Mode::Volume) {
+      const View V{mesh_.tables(), cur_, mesh_.tables().layout()};
+      const std::array<Id, 3> n = V.element(h).n;
+      mesh_.fill_slab(h, ijk[2], std::min(ijk[2] + slab_planes(n, slab_points_), n[2]), block_, false, true);
+    } else {
+      mesh_.fill_slab(h, 0, 0, block_, false, true);
+    }
   }
+  const Id l = el.id - block_.first_element;
+  el.coarse_element = block_.coarse_element;
+  el.ijk = {l % block_.n[0], (l / block_.n[0]) % block_.n[1], l / (block_.n[0] * block_.n[1]) + block_.plane0};
   el.block = block_.block;
   el.num_nodes = mesh_.corners();
-  const Id local = el.id - block_.first_element;
-  std::copy_n(&block_.conn[static_cast<size_t>(local) * el.num_nodes], el.num_nodes, el.nodes.begin());
+  std::copy_n(&block_.conn[static_cast<size_t>(l) * el.num_nodes], el.num_nodes, el.nodes.begin());
   return true;
 }
 

@@ -48,16 +48,17 @@ SweepResult sweep(const FineMesh& mesh, unsigned threads, const std::function<vo
   auto work = [&](unsigned t) {
     try {
       std::uint64_t sum = 0;
-      const Id nb = nn * t / threads, ne_ = nn * (t + 1) / threads;
-      NodeCursor nc(mesh, nb, ne_);
-      Id id, local = 0;
-      Vec3 x;
-      while (nc.next(id, x)) {
-        sum += node_checksum_term(id, x);
-        if (++local == 65536) done += local, local = 0;
+      Id local = 0;
+      {  // one cursor at a time: each holds a slab of a coarse block
+        NodeCursor nc(mesh, nn * t / threads, nn * (t + 1) / threads);
+        Id id;
+        Vec3 x;
+        while (nc.next(id, x)) {
+          sum += node_checksum_term(id, x);
+          if (++local == 65536) done += local, local = 0;
+        }
       }
-      const Id eb = ne * t / threads, ee = ne * (t + 1) / threads;
-      ElementCursor ec(mesh, eb, ee);
+      ElementCursor ec(mesh, ne * t / threads, ne * (t + 1) / threads);
       FineElement el;
       while (ec.next(el)) {
         sum += element_checksum_term(el);

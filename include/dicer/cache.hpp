@@ -37,7 +37,10 @@
 // them (bounded queue; the destructor stops and joins it); otherwise the
 // pinning thread loads them before pin() returns. Read-ahead only runs for
 // arrays whose page count was given by set_array_pages() and never past
-// it. Read-ahead never evicts pinned pages, pages with their reference bit
+// it, and only while the budget holds 4 x read_ahead_pages x (arrays pinned
+// so far) of the largest page seen: a smaller budget would let each
+// stream's read-ahead evict the others' pages in use. Read-ahead never
+// evicts pinned pages, pages with their reference bit
 // set, or other read-ahead pages not yet pinned; if that leaves no room it
 // is skipped (a hot working set is not flushed by a speculative read).
 // Pages that a sequential stream pins do not get their reference bit set

@@ -40,24 +40,54 @@ struct FineElement {
   std::array<Id, 3> ijk{};       // position in the coarse element's local grid
 };
 
-// The nodes and elements of one coarse element. Grid point (i, j, k) is at
-// index i + (n[0]+1) * (j + (n[1]+1) * k); element (i, j, k) at
-// i + n[0] * (j + n[1] * k), its nodes at conn[corners*e ...].
+// The nodes and elements of one coarse element, or of a slab of its grid
+// planes (fill_slab). Grid point (i, j, k) is at index
+// i + (n[0]+1) * (j + (n[1]+1) * (k - plane0)); element (i, j, k) at
+// i + n[0] * (j + n[1] * (k - plane0)), its nodes at conn[corners*e ...].
 struct FineBlock {
   Id coarse_element = -1;
   std::array<Id, 3> n{};         // intervals along local i, j, k (k = 1 in surface mode)
-  Id first_element = 0;          // fine id of element (0,0,0); elements are consecutive
+  Id first_element = 0;          // fine id of element (0, 0, plane0); elements are consecutive
   std::int32_t block = -1;
+  Id plane0 = 0;                 // grid planes [plane0, plane0 + planes) are held
+  Id planes = 0;
+  Id layers = 0;                 // element layers held (planes - 1; 1 in surface mode)
   std::vector<Id> node_id;       // per grid point
-  std::vector<double> x, y, z;   // per grid point
-  std::vector<Id> conn;          // corners per element, fine node ids (empty if nodes_only)
+  std::vector<double> x, y, z;   // per grid point (empty when filled without coordinates)
+  std::vector<Id> conn;          // corners per element, fine node ids (empty if not asked)
   Id num_points() const { return static_cast<Id>(node_id.size()); }
-  Id num_elements() const { return n[0] * n[1] * n[2]; }
-  Id point_index(Id i, Id j, Id k) const { return i + (n[0] + 1) * (j + (n[1] + 1) * k); }
+  Id num_elements() const { return n[0] * n[1] * layers; }
+  Id point_index(Id i, Id j, Id k) const { return i + (n[0] + 1) * (j + (n[1] + 1) * (k - plane0)); }
 
   // Work space of fill_block, kept here so a reused block allocates nothing.
   struct Scratch {
     std::vector<double> face[3], bottom[3], top[3], left[3], right[3], s, t, u, U;
+    // The boundary (corners, edges, faces) of the element filled last, so a
+    // block produced slab by slab evaluates it once: planes k = 0 and k = n[2]
+    // whole, then for each 0 < k < n[2] the ring of plane k (j = 0, j = n[1],
+    // i = 0, i = n[0]). O(n^2). Keyed on the mesh's identity and element.
+    struct Boundary {
+      std::uint64_t mesh = 0;
+      Id h = -1;
+      bool coords = false, volume = true;
+      std::array<Id, 3> n{};
+      std::vector<Id> id;
+      std::vector<double> x[3];
+      Id plane() const { return (n[0] + 1) * (n[1] + 1); }
+      Id perimeter() const { return 2 * (n[0] + 1) + 2 * (n[1] - 1); }
+      Id size() const { return volume ? 2 * plane() + (n[2] - 1) * perimeter() : plane(); }
+      // Slot of boundary grid point (i, j, k); (0, 0, k) is the start of plane
+      // k (k = 0, n[2]) or of its ring.
+      Id index(Id i, Id j, Id k) const {
+        const Id ni = n[0] + 1;
+        if (!volume || k == 0) return i + ni * j;
+        if (k == n[2]) return plane() + i + ni * j;
+        const Id ring = 2 * plane() + (k - 1) * perimeter();
+        if (j == 0) return ring + i;
+        if (j == n[1]) return ring + ni + i;
+        return ring + 2 * ni + (i == 0 ? 0 : n[1] - 1) + j - 1;
+      }
+    } boundary;
   } scratch;
   MeshCursor cursor;
 };
@@ -118,6 +148,13 @@ class FineMesh {
   // Fills out with every node of coarse element h (ids, x, y, z) and, unless
   // nodes_only, its elements' connectivity (conn).
   void fill_block(Id h, FineBlock& out, bool nodes_only = false) const;
+  // Grid planes k0..k1 of coarse element h (k1 = -1: the last; both 0 in
+  // surface mode), with the element layers between them when `conn`
+  // (then k0 < k1 in volume mode), coordinates only when `coords`. The same
+  // values, bit for bit, as fill_block. A block's boundary is evaluated once
+  // and kept in `out` (O(n^2)), so consecutive slabs of one element cost
+  // only their own planes: cursors use this to hold O(n^2), not O(n^3).
+  void fill_slab(Id h, Id k0, Id k1, FineBlock& out, bool coords, bool conn) const;
 
   // ---- Geometry-conforming dicing (geometry/conform.cpp drives these; they
   // need the in-memory tables of a mesh diced in this process).
@@ -145,41 +182,52 @@ class FineMesh {
   std::shared_ptr<const CoarseMesh> coarse_;
   std::vector<Id> sheet_intervals_;
   bool faces_moved_ = false;
+  // Identity of this mesh's content (a new value on every change), the key
+  // of a FineBlock's cached boundary.
+  std::uint64_t serial_ = next_serial();
+  static std::uint64_t next_serial();
   void require_memory(const char* what) const;
 };
 
-// Whole-mesh node iteration in id order [begin, end).
+// Grid points a cursor's slab holds (rounded to whole planes, at least
+// one): 2^16 points are ~2 MiB of ids and coordinates at any interval.
+inline constexpr Id kCursorSlabPoints = Id{1} << 16;
+
+// Whole-mesh node iteration in id order [begin, end). Edges and faces are
+// filled whole on entry, cell interiors slab by slab: O(interval^2) memory.
 class NodeCursor {
  public:
-  NodeCursor(const FineMesh& mesh, Id begin, Id end);
+  NodeCursor(const FineMesh& mesh, Id begin, Id end, Id slab_points = kCursorSlabPoints);
   explicit NodeCursor(const FineMesh& mesh) : NodeCursor(mesh, 0, mesh.num_nodes()) {}
   // Next node; false at the end.
   bool next(Id& id, Vec3& xyz);
 
  private:
+  void enter(Id id);
   const FineMesh& mesh_;
-  Id next_, end_;
+  Id next_, end_, slab_points_;
   MeshCursor cur_;
-  FineBlock block_;  // cell interiors come from a block fill, not per-node TFI
-  Id block_cell_ = -1;
+  FineBlock block_;  // the slab of cell interior planes in use
+  std::vector<double> line_[3];  // the points of the edge or face in use, in id order
+  FineBlock::Scratch face_;
   // The entity whose ids [range_first_, range_end_) the last lookup found:
   // the next ids in it need no search.
   NodeRef range_ref_;
   Id range_first_ = 0, range_end_ = 0, range_w0_ = 1, range_w1_ = 1;
+  std::array<Id, 3> range_n_{};
 };
 
-// Whole-mesh element iteration in id order [begin, end).
+// Whole-mesh element iteration in id order [begin, end), slab by slab
+// (connectivity only, no coordinates).
 class ElementCursor {
  public:
-  ElementCursor(const FineMesh& mesh, Id begin, Id end);
+  ElementCursor(const FineMesh& mesh, Id begin, Id end, Id slab_points = kCursorSlabPoints);
   explicit ElementCursor(const FineMesh& mesh) : ElementCursor(mesh, 0, mesh.num_elements()) {}
   bool next(FineElement& out);
-  // The block holding the last element returned (its coordinates are there).
-  const FineBlock& block() const { return block_; }
 
  private:
   const FineMesh& mesh_;
-  Id next_, end_;
+  Id next_, end_, slab_points_;
   MeshCursor cur_;
   FineBlock block_;
 };

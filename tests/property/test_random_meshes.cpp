@@ -12,6 +12,7 @@
 #include <numeric>
 #include <random>
 
+#include "dicer/error.hpp"
 #include "dicer/fine_mesh.hpp"
 #include "dicer/verify.hpp"
 #include "random_mesh.hpp"
@@ -176,17 +177,20 @@ TEST(RandomMeshes, EveryAccessPathIsBitIdentical) {
   // node(id) vs the cursor.
   std::vector<Vec3> by_id(static_cast<size_t>(f.num_nodes()));
   for (Id id = 0; id < f.num_nodes(); ++id) by_id[id] = f.node(id);
-  NodeCursor c(f);
-  Id id;
-  Vec3 p;
-  Id seen = 0;
-  while (c.next(id, p)) {
-    ASSERT_EQ(id, seen++);
-    ASSERT_EQ(std::bit_cast<std::uint64_t>(p.x), std::bit_cast<std::uint64_t>(by_id[id].x));
-    ASSERT_EQ(std::bit_cast<std::uint64_t>(p.y), std::bit_cast<std::uint64_t>(by_id[id].y));
-    ASSERT_EQ(std::bit_cast<std::uint64_t>(p.z), std::bit_cast<std::uint64_t>(by_id[id].z));
+  // Slabs of 1 point (one plane at a time), a few planes, the default.
+  for (const Id slab : {Id{1}, Id{40}, kCursorSlabPoints}) {
+    NodeCursor c(f, 0, f.num_nodes(), slab);
+    Id id;
+    Vec3 p;
+    Id seen = 0;
+    while (c.next(id, p)) {
+      ASSERT_EQ(id, seen++);
+      ASSERT_EQ(std::bit_cast<std::uint64_t>(p.x), std::bit_cast<std::uint64_t>(by_id[id].x)) << "slab " << slab;
+      ASSERT_EQ(std::bit_cast<std::uint64_t>(p.y), std::bit_cast<std::uint64_t>(by_id[id].y)) << "slab " << slab;
+      ASSERT_EQ(std::bit_cast<std::uint64_t>(p.z), std::bit_cast<std::uint64_t>(by_id[id].z)) << "slab " << slab;
+    }
+    EXPECT_EQ(seen, f.num_nodes());
   }
-  EXPECT_EQ(seen, f.num_nodes());
   // Every block (so both neighbours of every shared face) vs node(id).
   FineBlock b;
   for (Id h = 0; h < f.num_coarse_elements(); ++h) {
@@ -202,14 +206,72 @@ TEST(RandomMeshes, EveryAccessPathIsBitIdentical) {
       for (int q = 0; q < 8; ++q) ASSERT_EQ(el.nodes[q], b.conn[8 * e + q]);
     }
   }
-  // Element cursor vs element(id).
-  ElementCursor ec(f);
-  FineElement el;
-  while (ec.next(el)) {
-    const FineElement ref = f.element(el.id);
-    ASSERT_EQ(ref.nodes, el.nodes);
-    ASSERT_EQ(ref.ijk, el.ijk);
+  // Element cursor vs element(id), slabs of one layer up to whole blocks.
+  for (const Id slab : {Id{1}, Id{40}, kCursorSlabPoints}) {
+    ElementCursor ec(f, 0, f.num_elements(), slab);
+    FineElement el;
+    Id seen = 0;
+    while (ec.next(el)) {
+      ASSERT_EQ(el.id, seen++);
+      const FineElement ref = f.element(el.id);
+      ASSERT_EQ(ref.nodes, el.nodes) << "slab " << slab;
+      ASSERT_EQ(ref.ijk, el.ijk) << "slab " << slab;
+      ASSERT_EQ(ref.coarse_element, el.coarse_element);
+    }
+    EXPECT_EQ(seen, f.num_elements());
   }
+}
+
+// fill_slab gives exactly the block's planes and layers, with and without
+// coordinates, whatever was filled before with the same FineBlock (its
+// cached boundary is keyed on the mesh: a second mesh must not see the
+// first one's boundary).
+TEST(RandomMeshes, SlabsAreTheBlocksPlanesBitForBit) {
+  std::mt19937_64 rng(77);
+  test::BoxSpec spec;
+  spec.a = 2, spec.b = 2, spec.c = 2;
+  IntervalRequest req;
+  req.global = 4;
+  req.sheets = {{0, 6}, {1, 1}};
+  const FineMesh f = FineMesh::dice(test::random_box(spec, rng), req);
+  req.global = 4;
+  req.sheets = {{0, 6}, {1, 1}};
+  const FineMesh g = FineMesh::dice(test::random_box(spec, rng), req);  // other coordinates, same structure
+  FineBlock whole, slab;
+  for (Id h = 0; h < f.num_coarse_elements(); ++h)
+    for (const FineMesh* m : {&f, &g, &f}) {
+      m->fill_block(h, whole);
+      const Id n2 = whole.n[2];
+      std::uniform_int_distribution<Id> pick(0, n2 - 1);
+      for (int trial = 0; trial < 6; ++trial) {
+        const Id k0 = pick(rng), k1 = std::uniform_int_distribution<Id>(k0 + 1, n2)(rng);
+        const bool coords = trial % 3 != 0;
+        m->fill_slab(h, k0, k1, slab, coords, true);
+        ASSERT_EQ(slab.plane0, k0);
+        ASSERT_EQ(slab.planes, k1 - k0 + 1);
+        ASSERT_EQ(slab.num_elements(), whole.n[0] * whole.n[1] * (k1 - k0));
+        ASSERT_EQ(slab.first_element, whole.first_element + whole.n[0] * whole.n[1] * k0);
+        ASSERT_EQ(slab.x.empty(), !coords);
+        for (Id k = k0; k <= k1; ++k)
+          for (Id j = 0; j <= whole.n[1]; ++j)
+            for (Id i = 0; i <= whole.n[0]; ++i) {
+              const Id a = whole.point_index(i, j, k), b = slab.point_index(i, j, k);
+              ASSERT_EQ(slab.node_id[b], whole.node_id[a]) << h << " " << i << " " << j << " " << k;
+              if (coords) {
+                ASSERT_TRUE(std::bit_cast<std::uint64_t>(slab.x[b]) == std::bit_cast<std::uint64_t>(whole.x[a]) &&
+                            std::bit_cast<std::uint64_t>(slab.y[b]) == std::bit_cast<std::uint64_t>(whole.y[a]) &&
+                            std::bit_cast<std::uint64_t>(slab.z[b]) == std::bit_cast<std::uint64_t>(whole.z[a]));
+              }
+            }
+        const size_t first = static_cast<size_t>(whole.n[0] * whole.n[1] * k0) * 8;
+        ASSERT_TRUE(std::equal(slab.conn.begin(), slab.conn.end(), whole.conn.begin() + static_cast<std::ptrdiff_t>(first)));
+      }
+    }
+  // Out-of-range planes are refused, not read.
+  FineBlock b;
+  EXPECT_THROW(f.fill_slab(0, 2, 1, b, true, false), Error);
+  EXPECT_THROW(f.fill_slab(0, 0, 100, b, true, false), Error);
+  EXPECT_THROW(f.fill_slab(0, 1, 1, b, false, true), Error);  // no element layer between one plane
 }
 
 TEST(RandomMeshes, NumberingRoundTripsAndFollowsTheLayout) {
