@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <numeric>
 
 #include "dicer/error.hpp"
 #include "dicer/export.hpp"
@@ -43,6 +44,11 @@ bool coarse_box_misses(const FineMesh& mesh, Id h, const Box& box, MeshCursor& c
     if (hi[d] < box.lo[d] || lo[d] > box.hi[d]) return true;
   return false;
 }
+
+// A run of consecutive global node ids and the local id of its first.
+struct NodeRange {
+  Id global, count, local;
+};
 
 void centroid(const FineBlock& b, Id e, int corners, double c[3]) {
   c[0] = c[1] = c[2] = 0;
@@ -147,22 +153,48 @@ void ExportChunk::prepare(const MeshSets& sets, const std::function<void(Id, Id)
   };
   std::vector<std::uint8_t> kept_coarse(static_cast<size_t>(span), 1);
 
-  // Pass 1: which elements are kept and which nodes they use. Without a box
-  // every grid point of every block is used: collect one id per grid point
-  // (not 8 per element), then sort and deduplicate.
+  // Pass 1: which elements are kept and which nodes they use, as ranges of
+  // global ids. Without a box a chunk uses whole entities: the vertices,
+  // edges, faces and cells of its coarse elements, each one contiguous range
+  // of ids (numbering.hpp), so the sorted id list is the entities' ranges in
+  // id order, no per-node sort. With a box, the ids of kept elements' nodes
+  // are sorted and deduplicated, each a range of one.
   node_global_.clear(), elem_global_.clear(), conn_.clear(), elem_block_.clear();
-  std::vector<std::uint8_t> keep;  // per element of the current block (box only)
-  for (Id h = first; h < end; ++h) {
-    check_cancel();
-    if (box_ && coarse_box_misses(mesh_, h, *box_, cur)) {
-      kept_coarse[h - first] = 0;
-      if (progress) progress(h - first + 1, 2 * span);
-      continue;
+  std::vector<NodeRange> ranges;
+  if (!box_) {
+    std::vector<Id> verts, edges, faces;
+    for (Id h = first; h < end; ++h) {
+      const std::int64_t* row = t.elements.row(h, cur.elements);
+      verts.insert(verts.end(), row + L.conn(), row + L.conn() + L.corners);
+      edges.insert(edges.end(), row + L.edge(), row + L.edge() + L.edges);
+      faces.insert(faces.end(), row + L.face(), row + L.face() + L.faces);
+      const Id n0 = row[L.n()], n1 = row[L.n() + 1], n2 = row[L.n() + 2];  // surface: interiors are face nodes
+      if (vol) ranges.push_back({row[L.cell_offset()], (n0 - 1) * (n1 - 1) * (n2 - 1), 0});
     }
-    if (!box_) {
-      mesh_.fill_block(h, b, true);
-      node_global_.insert(node_global_.end(), b.node_id.begin(), b.node_id.end());
-    } else {
+    for (auto* v : {&verts, &edges, &faces}) {
+      std::sort(v->begin(), v->end());
+      v->erase(std::unique(v->begin(), v->end()), v->end());
+    }
+    for (Id v : verts) ranges.push_back({v, 1, 0});
+    for (Id e : edges) {
+      const std::int64_t* r = t.edges.row(e, cur.edges);
+      ranges.push_back({r[kEdgeNodeOffset], r[kEdgeN] - 1, 0});
+    }
+    for (Id f : faces) {
+      const std::int64_t* r = t.faces.row(f, cur.faces);
+      const Id off = r[kFaceNodeOffset], e0 = r[kFaceE], e2 = r[kFaceE + 2];
+      const Id w0 = t.edges.row(e0, cur.edges)[kEdgeN] - 1, w1 = t.edges.row(e2, cur.edges)[kEdgeN] - 1;
+      ranges.push_back({off, w0 * w1, 0});
+    }
+    check_cancel();
+  } else {
+    for (Id h = first; h < end; ++h) {
+      check_cancel();
+      if (coarse_box_misses(mesh_, h, *box_, cur)) {
+        kept_coarse[h - first] = 0;
+        if (progress) progress(h - first + 1, 2 * span);
+        continue;
+      }
       mesh_.fill_block(h, b);
       bool any = false;
       for (Id e = 0; e < b.num_elements(); ++e) {
@@ -173,39 +205,78 @@ void ExportChunk::prepare(const MeshSets& sets, const std::function<void(Id, Id)
         node_global_.insert(node_global_.end(), b.conn.begin() + e * nc, b.conn.begin() + (e + 1) * nc);
       }
       if (!any) kept_coarse[h - first] = 0;
+      if (progress) progress(h - first + 1, 2 * span);
     }
-    if (progress) progress(h - first + 1, 2 * span);
+    std::sort(node_global_.begin(), node_global_.end());
+    node_global_.erase(std::unique(node_global_.begin(), node_global_.end()), node_global_.end());
+    for (Id g : node_global_) ranges.push_back({g, 1, 0});
   }
-  std::sort(node_global_.begin(), node_global_.end());
-  node_global_.erase(std::unique(node_global_.begin(), node_global_.end()), node_global_.end());
+  // Ranges in id order, adjacent ones merged (a whole mesh is one range per
+  // kind of entity), each with its first local id.
+  std::sort(ranges.begin(), ranges.end(), [](const NodeRange& a, const NodeRange& b) { return a.global < b.global; });
+  {
+    size_t w = 0;
+    Id local = 0;
+    for (const NodeRange& r : ranges) {
+      if (r.count == 0) continue;
+      if (r.global < 0 || r.count < 0 || r.global > mesh_.num_nodes() - r.count)
+        throw Error(ErrorKind::Corrupt, (t.origin.empty() ? std::string("in memory") : t.origin) +
+                                            ": inconsistent mesh tables: node id range " + std::to_string(r.global) +
+                                            " + " + std::to_string(r.count) + " outside the mesh");
+      if (w > 0 && ranges[w - 1].global + ranges[w - 1].count == r.global) {
+        ranges[w - 1].count += r.count;
+      } else {
+        if (w > 0 && ranges[w - 1].global + ranges[w - 1].count > r.global)
+          throw Error(ErrorKind::Corrupt, (t.origin.empty() ? std::string("in memory") : t.origin) +
+                                              ": inconsistent mesh tables: overlapping node id ranges at id " +
+                                              std::to_string(r.global));
+        ranges[w] = r;
+        ranges[w].local = local;
+        ++w;
+      }
+      local += r.count;
+    }
+    ranges.resize(w);
+    if (!box_) {
+      node_global_.resize(static_cast<size_t>(local));
+      for (const NodeRange& r : ranges) std::iota(&node_global_[r.local], &node_global_[r.local] + r.count, r.global);
+    }
+  }
   node_global_.shrink_to_fit();
 
-  // Pass 2: each grid point mapped to its local id once (consecutive ids,
-  // the common case inside a block, cost one compare), then coordinates
-  // scattered and connectivity taken from grid offsets.
+  // Pass 2: each grid point mapped to its local id through the ranges (the
+  // range of the previous point first: runs of one entity need no search),
+  // then coordinates scattered and connectivity taken from grid offsets.
   const Id nn = num_nodes();
   x_.assign(static_cast<size_t>(nn), 0), y_.assign(static_cast<size_t>(nn), 0), z_.assign(static_cast<size_t>(nn), 0);
+  if (!box_) {  // every element of the chunk is kept: size the arrays once
+    const Id ne = std::clamp<Id>(range_.fine_elements, 0, mesh_.num_elements());
+    elem_global_.reserve(static_cast<size_t>(ne)), elem_block_.reserve(static_cast<size_t>(ne));
+    conn_.reserve(static_cast<size_t>(ne) * nc);
+  }
   std::vector<Id> local;
+  const NodeRange* in = ranges.empty() ? nullptr : &ranges.front();
+  auto local_of = [&](Id id) -> Id {
+    if (in == nullptr) return -1;
+    if (id < in->global || id >= in->global + in->count) {
+      auto it = std::upper_bound(ranges.begin(), ranges.end(), id, [](Id g, const NodeRange& r) { return g < r.global; });
+      if (it == ranges.begin()) return -1;
+      --it;
+      if (id >= it->global + it->count) return -1;  // a point no kept element uses (box)
+      in = &*it;
+    }
+    return in->local + (id - in->global);
+  };
   for (Id h = first; h < end; ++h) {
     check_cancel();
     if (kept_coarse[h - first]) {
       mesh_.fill_block(h, b, true);
       local.resize(static_cast<size_t>(b.num_points()));
-      size_t pos = 0;
       for (Id g = 0; g < b.num_points(); ++g) {
-        const Id id = b.node_id[g];
-        if (pos + 1 < node_global_.size() && node_global_[pos + 1] == id) {
-          ++pos;
-        } else if (pos >= node_global_.size() || node_global_[pos] != id) {
-          const auto it = std::lower_bound(node_global_.begin(), node_global_.end(), id);
-          if (it == node_global_.end() || *it != id) {  // a point no kept element uses (box)
-            local[g] = -1;
-            continue;
-          }
-          pos = static_cast<size_t>(it - node_global_.begin());
-        }
-        local[g] = static_cast<Id>(pos);
-        x_[pos] = b.x[g], y_[pos] = b.y[g], z_[pos] = b.z[g];
+        const Id l = local_of(b.node_id[g]);
+        local[g] = l;
+        if (l < 0) continue;
+        x_[l] = b.x[g], y_[l] = b.y[g], z_[l] = b.z[g];
       }
       const auto n = b.n;
       const Id sj = n[0] + 1, sk = (n[0] + 1) * (n[1] + 1);
@@ -214,7 +285,6 @@ void ExportChunk::prepare(const MeshSets& sets, const std::function<void(Id, Id)
         for (Id j = 0; j < n[1]; ++j)
           for (Id i = 0; i < n[0]; ++i) {
             const Id g0 = b.point_index(i, j, k);
-            bool take = true;
             if (box_) {
               double c[3] = {0, 0, 0};
               for (int q = 0; q < nc; ++q) {
@@ -222,9 +292,8 @@ void ExportChunk::prepare(const MeshSets& sets, const std::function<void(Id, Id)
                 c[0] += b.x[g], c[1] += b.y[g], c[2] += b.z[g];
               }
               for (double& v : c) v /= nc;
-              take = box_->contains(c[0], c[1], c[2]);
+              if (!box_->contains(c[0], c[1], c[2])) continue;
             }
-            if (!take) continue;
             elem_global_.push_back(b.first_element + i + n[0] * (j + n[1] * k));
             elem_block_.push_back(b.block);
             for (int q = 0; q < nc; ++q) conn_.push_back(local[g0 + off[q]]);
@@ -251,7 +320,7 @@ void ExportChunk::prepare(const MeshSets& sets, const std::function<void(Id, Id)
     node_sets_.push_back({ns.id, ns.name, {}});
   }
   const auto& base = mesh_.info().kind_base;
-  for (Id l = 0; l < nn; ++l) {
+  for (Id l = 0; l < nn && (!plan.empty() || any_node_sets); ++l) {
     const Id g = node_global_[l];
     if (g >= base[3] && !any_node_sets) continue;  // hex interior: only this chunk holds it
     const NodeRef r = mesh_.locate_node(g, cur);

@@ -367,7 +367,12 @@ void write_body(const ExportChunk& c, Out& o) {
       for (std::uint64_t i = first; i < end; ++i) o.size(static_cast<std::uint64_t>(ng[order[i]]) + 1, '\n');
       for (std::uint64_t i = first; i < end; ++i) {
         const Id l = order[i];
-        o.dbl(X[l]), o.dbl(Y[l]), o.dbl(Z[l], '\n');
+        if (o.binary()) {  // one copy per node, not three
+          const double xyz[3] = {X[l], Y[l], Z[l]};
+          o.raw(xyz, sizeof xyz);
+        } else {
+          o.dbl(X[l]), o.dbl(Y[l]), o.dbl(Z[l], '\n');
+        }
       }
     }
     o.text(o.binary() ? "\n$EndNodes\n" : "$EndNodes\n");
@@ -422,6 +427,13 @@ void write_body(const ExportChunk& c, Out& o) {
       o.size(vents[v].count, '\n');
       for (std::uint64_t i = pos[v]; i < pos[v + 1]; ++i) {
         const Id e = order[i];
+        if (o.binary()) {  // the tag and the nodes in one copy
+          std::size_t rec[9];
+          rec[0] = static_cast<std::size_t>(eg[e]) + 1;
+          for (int q = 0; q < nc; ++q) rec[q + 1] = static_cast<std::size_t>(ng[conn[static_cast<std::size_t>(e) * nc + q]]) + 1;
+          o.raw(rec, sizeof(std::size_t) * static_cast<std::size_t>(nc + 1));
+          continue;
+        }
         o.size(static_cast<std::uint64_t>(eg[e]) + 1);
         for (int q = 0; q < nc; ++q)
           o.size(static_cast<std::uint64_t>(ng[conn[static_cast<std::size_t>(e) * nc + q]]) + 1,

@@ -14,7 +14,7 @@
 //     reused FineBlock allocates nothing once warm.
 //  3. NodeCursor / ElementCursor: whole-mesh iteration in id order.
 // Memory: O(blocks) metadata + the tables (in memory) or the cache budget
-// (paged), plus one block buffer per cursor.
+// (paged), plus one slab (kCursorSlabPoints grid points) per cursor.
 // Thread safety: const member functions may be called concurrently; the
 // overloads taking a MeshCursor need one cursor per thread.
 #include <array>
