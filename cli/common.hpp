@@ -21,6 +21,12 @@ namespace dicer::cli {
 inline constexpr int kExitDefect = 1;
 inline constexpr int kExitInternal = 70;
 
+// In `dicer` (built without Gmsh): when args (command first) need a CAD
+// model, replaces this process by `dicer-cad` with the same argv (beside
+// this executable, or $DICER_CAD); throws Error{Io} when it cannot. In
+// `dicer-cad`: does nothing (cli/cad/with.cpp).
+void hand_over_if_cad(char** argv, const std::vector<std::string>& args);
+
 // Flags: "--name value", "--name=value", boolean "--name". Unknown flags,
 // missing values and stray positionals are usage errors naming the flag.
 class Args {

@@ -30,6 +30,9 @@ Commands (in the order you use them):
   export  STORE    a chunk, a box or the whole mesh to VTKHDF, MSH 4.1 or Exodus II
   sweep   STORE    every fine node and element in N threads, rate and checksum
 
+mesh-coarse and --geometry run dicer-cad (the same commands built with Gmsh),
+installed beside dicer; DICER_CAD=PATH overrides where it is found.
+
 MESH is an Exodus II file (.e .exo .ex2 .g) or a Gmsh MSH 2.2/4.1 file
 (ASCII or binary) holding hexahedra (volume dicing) or quadrilaterals
 (surface dicing). STORE is the HDF5 file `dice` writes (.dice.h5).
@@ -75,6 +78,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   try {
+    hand_over_if_cad(argv, args);
     return it->second(std::vector<std::string>(args.begin() + 1, args.end()));
   } catch (const dicer::Error& e) {
     std::fprintf(stderr, "dicer %s: error: %s\n", args[0].c_str(), e.what());

@@ -3,7 +3,9 @@
 #include <gtest/gtest.h>
 #include <hdf5.h>
 
+#include <algorithm>
 #include <filesystem>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
@@ -192,4 +194,38 @@ TEST(Cli, HelpTeaches) {
   }
   r = run_cli({"dice", "--help"});
   EXPECT_NE(r.out.find("precedence"), std::string::npos);
+}
+
+// `dicer` does not link Gmsh/OpenCASCADE; the commands that need a CAD
+// model run in `dicer-cad` (found beside it, or through DICER_CAD), and a
+// missing dicer-cad is a clear I/O error that names it, not a crash.
+TEST(Cli, GmshIsLoadedOnlyByTheCadCommands) {
+  const test::CliResult ldd = test::run_process({"/usr/bin/ldd", DICER_CLI});
+  ASSERT_EQ(ldd.exit_code, 0) << ldd.err;
+  EXPECT_NE(ldd.out.find("libhdf5"), std::string::npos) << ldd.out;  // ldd did list the libraries
+  EXPECT_EQ(ldd.out.find("libgmsh"), std::string::npos) << ldd.out;
+  EXPECT_EQ(ldd.out.find("libTK"), std::string::npos) << ldd.out;
+
+  test::TempDir tmp;
+  const std::string missing = tmp.path("no-such-dicer-cad");
+  const std::map<std::string, std::string> env = {{"DICER_CAD", missing}};
+  test::CliResult r = test::run_process({DICER_CLI, "mesh-coarse", tmp.path("part.step"), "--size", "1", "-o", tmp.path("c.msh")}, env);
+  EXPECT_EQ(r.exit_code, 5) << r.err;
+  EXPECT_NE(r.err.find(missing), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("dicer-cad"), std::string::npos) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  const std::string store = tmp.path("s.dice.h5");
+  r = test::run_process({DICER_CLI, "dice", test::data_path("cardinal_sphere.e"), "--interval", "2", "--geometry=x.step",
+                         "-o", store}, env);
+  EXPECT_EQ(r.exit_code, 5) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(store));
+  // Commands without a CAD model never need it.
+  r = test::run_process({DICER_CLI, "dice", test::data_path("cardinal_sphere.e"), "--interval", "2", "-o", store}, env);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  r = test::run_process({DICER_CLI, "verify", store, "--quiet"}, env);
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  // The hand-over keeps the arguments: dicer-cad refuses a missing CAD by name.
+  r = run_cli({"verify", store, "--geometry", tmp.path("absent.step")});
+  EXPECT_EQ(r.exit_code, 5) << r.err;
+  EXPECT_NE(r.err.find("absent.step"), std::string::npos) << r.err;
 }
