@@ -234,8 +234,6 @@ TEST(RandomMeshes, SlabsAreTheBlocksPlanesBitForBit) {
   req.global = 4;
   req.sheets = {{0, 6}, {1, 1}};
   const FineMesh f = FineMesh::dice(test::random_box(spec, rng), req);
-  req.global = 4;
-  req.sheets = {{0, 6}, {1, 1}};
   const FineMesh g = FineMesh::dice(test::random_box(spec, rng), req);  // other coordinates, same structure
   FineBlock whole, slab;
   for (Id h = 0; h < f.num_coarse_elements(); ++h)
