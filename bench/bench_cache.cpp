@@ -43,7 +43,7 @@
 
 #include "bench_util.hpp"
 #include "dicer/export.hpp"
-#include "dicer/hdf5_lock.hpp"
+#include "hdf5_lock.hpp"
 #include "dicer/store.hpp"
 
 using namespace dicer;

@@ -42,7 +42,7 @@
 #include <vector>
 
 #include "bench_util.hpp"
-#include "dicer/hdf5_lock.hpp"
+#include "hdf5_lock.hpp"
 #include "dicer/store.hpp"
 #include "gmsh_transfinite.hpp"
 

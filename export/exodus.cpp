@@ -52,8 +52,8 @@
 
 #include "dicer/error.hpp"
 #include "dicer/export.hpp"
-#include "dicer/hdf5_lock.hpp"
-#include "../dicer/exodus_errors.hpp"
+#include "hdf5_lock.hpp"
+#include "exodus_errors.hpp"
 
 namespace dicer {
 namespace {

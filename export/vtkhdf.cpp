@@ -29,7 +29,7 @@
 
 #include "dicer/error.hpp"
 #include "dicer/export.hpp"
-#include "dicer/hdf5_lock.hpp"
+#include "hdf5_lock.hpp"
 
 namespace dicer {
 namespace {

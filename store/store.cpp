@@ -9,7 +9,7 @@
 #include <mutex>
 
 #include "dicer/error.hpp"
-#include "dicer/hdf5_lock.hpp"
+#include "hdf5_lock.hpp"
 #include "hdf5_file.hpp"
 #include "lz4_filter.hpp"
 

@@ -22,6 +22,12 @@
 
 namespace dicer {
 
+// The one limit on an interval, checked wherever one enters (flags, the
+// intervals file, --size): a whole number in [1, kMaxInterval]. Throws
+// Error{Usage} below 1 or fractional, Error{Overflow} above the limit.
+inline constexpr Id kMaxInterval = Id{1} << 40;  // any larger overflows counts long before
+Id checked_interval(const std::string& what, long double n);
+
 struct IntervalRequest {
   std::optional<Id> global;
   std::optional<double> size;

@@ -1,5 +1,5 @@
 #pragma once
-// Thin RAII over the HDF5 C API, private to store/. Every failure becomes a
+// Thin RAII over the HDF5 C API, private to the io layer (store/, export/). Every failure becomes a
 // dicer::Error naming the file and the dataset.
 #include <hdf5.h>
 

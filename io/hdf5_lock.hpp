@@ -3,7 +3,8 @@
 // the process (the store's page loads, which the cache's read-ahead thread
 // makes in the background, and the VTKHDF writer) holds this one lock.
 // Recursive, so a writer holding it may call code that takes it again.
-// No HDF5 here: the lock lives in the core so all libraries share it.
+// Private to the io layer (io/): the store, the exporters and the Exodus
+// reader share it through dicer_io.
 #include <mutex>
 
 namespace dicer {

@@ -1,6 +1,6 @@
 #pragma once
 // The Exodus library's last error message, on one line: shared by the
-// Exodus reader (dicer/read_exodus.cpp) and writer (export/exodus.cpp).
+// Exodus reader (readers/read_exodus.cpp) and writer (export/exodus.cpp).
 // Private: include only from those two files.
 #include <exodusII.h>
 #include <netcdf.h>

@@ -1,4 +1,4 @@
-#include "dicer/hdf5_lock.hpp"
+#include "hdf5_lock.hpp"
 
 namespace dicer {
 std::recursive_mutex& hdf5_lock() {
