@@ -43,6 +43,7 @@
 
 #include "bench_util.hpp"
 #include "hdf5_lock.hpp"
+#include "dicer/rows.hpp"
 #include "dicer/store.hpp"
 #include "gmsh_transfinite.hpp"
 
@@ -65,11 +66,7 @@ FineMesh open_store() { return read_store(store_path(), StoreOptions{64ull << 20
 
 // Intervals of coarse element h, from its table row (the same row
 // gmsh_transfinite reads).
-std::array<Id, 3> block_intervals(const FineMesh& m, Id h, MeshCursor& cur) {
-  const ElementLayout L = m.tables().layout();
-  const std::int64_t* r = m.tables().elements.row(h, cur.elements);
-  return {r[L.n()], r[L.n() + 1], r[L.n() + 2]};
-}
+std::array<Id, 3> block_intervals(const FineMesh& m, Id h, MeshCursor& cur) { return RowReader(m.tables(), cur).element(h).n; }
 
 void BM_WriteBandwidth(benchmark::State& st) {
   const FineMesh m = open_store();

@@ -1,5 +1,7 @@
 #include "gmsh_transfinite.hpp"
 
+#include "dicer/rows.hpp"
+
 #include <gmsh.h>
 
 #include <exception>
@@ -28,26 +30,19 @@ void gmsh_call(const char* what, F&& f) {
 
 TransfiniteInput transfinite_input(const FineMesh& mesh, Id first_coarse, Id end_coarse) {
   if (mesh.mode() != Mode::Volume) throw std::runtime_error("transfinite_input: volume meshes only");
-  const MeshTables& t = mesh.tables();
-  const ElementLayout L = t.layout();
   MeshCursor cur;
+  const RowReader R(mesh.tables(), cur);
   TransfiniteInput in;
   std::unordered_map<Id, int> point_of, line_of, face_of;  // table row -> 0-based local index
   auto point = [&](Id v) {
     auto [it, fresh] = point_of.try_emplace(v, static_cast<int>(point_of.size()));
     if (fresh) {
-      const double* p = t.vertices.row(v, cur.vertices);
-      in.xyz.insert(in.xyz.end(), p, p + 3);
+      const Vec3 p = R.xyz(v);
+      in.xyz.insert(in.xyz.end(), {p.x, p.y, p.z});
     }
     return it->second;
   };
-  struct EdgeRow {
-    Id lo, hi, n;
-  };
-  auto edge_row = [&](Id e) {
-    const std::int64_t* r = t.edges.row(e, cur.edges);
-    return EdgeRow{r[kEdgeLo], r[kEdgeHi], r[kEdgeN]};
-  };
+  auto edge_row = [&](Id e) { return R.edge(e); };
   auto line = [&](Id e) {
     auto [it, fresh] = line_of.try_emplace(e, static_cast<int>(in.lines.size()));
     if (fresh) {
@@ -67,11 +62,9 @@ TransfiniteInput transfinite_input(const FineMesh& mesh, Id first_coarse, Id end
   auto face = [&](Id f) {
     auto [it, fresh] = face_of.try_emplace(f, static_cast<int>(in.faces.size()));
     if (fresh) {
-      Id v[4], e[4];
-      {
-        const std::int64_t* r = t.faces.row(f, cur.faces);
-        for (int q = 0; q < 4; ++q) v[q] = r[kFaceV + q], e[q] = r[kFaceE + q];
-      }
+      const FaceRow r = R.face(f);
+      const auto& v = r.v;
+      const auto& e = r.e;
       // sides: e0 = v0v1, e1 = v3v2, e2 = v0v3, e3 = v1v2; loop v0 v1 v2 v3
       in.faces.push_back({signed_line(e[0], v[0], v[1]), signed_line(e[3], v[1], v[2]), signed_line(e[1], v[2], v[3]),
                           signed_line(e[2], v[3], v[0])});
@@ -79,14 +72,10 @@ TransfiniteInput transfinite_input(const FineMesh& mesh, Id first_coarse, Id end
     return it->second;
   };
   for (Id h = first_coarse; h < end_coarse; ++h) {
-    Id faces[6], n[3];
-    {
-      const std::int64_t* r = t.elements.row(h, cur.elements);
-      for (int q = 0; q < 6; ++q) faces[q] = r[L.face() + q];
-      for (int d = 0; d < 3; ++d) n[d] = r[L.n() + d];
-    }
+    const ElementRow r = R.element(h);
+    const auto& n = r.n;
     std::array<int, 6> hex{};
-    for (int q = 0; q < 6; ++q) hex[q] = face(faces[q]);
+    for (int q = 0; q < 6; ++q) hex[q] = face(r.face[q]);
     in.hexes.push_back(hex);
     in.fine_hexes += n[0] * n[1] * n[2];
   }

@@ -1,7 +1,5 @@
 #include "dicer/numbering.hpp"
 
-#include "dicer/tables.hpp"
-
 #include <algorithm>
 
 #include "dicer/error.hpp"
@@ -27,10 +25,13 @@ Id add(Id a, Id b, const char* what) {
 }  // namespace
 
 Numbering::Numbering(const Topology& t, std::vector<Id> edge_n) : edge_n_(std::move(edge_n)) {
-  const Id ne = t.num_edges(), nf = t.num_faces(), nh = t.num_elements();
+  const Id nv = t.num_vertices, ne = t.num_edges(), nf = t.num_faces(), nh = t.num_elements();
   if (static_cast<Id>(edge_n_.size()) != ne)
     throw Error(ErrorKind::BadInput, "interval list has " + std::to_string(edge_n_.size()) + " entries for " +
                                          std::to_string(ne) + " edges");
+  if (static_cast<Id>(t.edge_owner_elem.size()) != ne || static_cast<Id>(t.face_owner_elem.size()) != nf ||
+      static_cast<Id>(t.vertex_owner_elem.size()) != nv)
+    throw Error(ErrorKind::Usage, "Numbering: the topology is not in owner order (call to_owner_order)");
   for (Id e = 0; e < ne; ++e)
     if (edge_n_[e] < 1) throw Error(ErrorKind::BadInput, "edge " + std::to_string(e) + " has interval < 1");
   face_n_.resize(static_cast<size_t>(nf));
@@ -42,50 +43,68 @@ Numbering::Numbering(const Topology& t, std::vector<Id> edge_n) : edge_n_(std::m
     face_n_[f] = {edge_n_[fe[0]], edge_n_[fe[2]]};
   }
   const int epe = t.edges_per_element();
+  const bool vol = t.mode == Mode::Volume;
   elem_n_.resize(static_cast<size_t>(nh));
   for (Id h = 0; h < nh; ++h) {
     const Id* ee = &t.elem_edge[h * epe];
-    elem_n_[h] = t.mode == Mode::Volume ? std::array<Id, 3>{edge_n_[ee[0]], edge_n_[ee[4]], edge_n_[ee[8]]}
-                                        : std::array<Id, 3>{edge_n_[ee[0]], edge_n_[ee[2]], 1};
-  }
-  edge_off_.assign(static_cast<size_t>(ne) + 1, 0);
-  for (Id e = 0; e < ne; ++e) edge_off_[e + 1] = add(edge_off_[e], edge_n_[e] - 1, "node");
-  face_off_.assign(static_cast<size_t>(nf) + 1, 0);
-  for (Id f = 0; f < nf; ++f)
-    face_off_[f + 1] = add(face_off_[f], mul(face_n_[f][0] - 1, face_n_[f][1] - 1, "node"), "node");
-  const bool vol = t.mode == Mode::Volume;
-  cell_off_.assign(static_cast<size_t>(vol ? nh : 0) + 1, 0);
-  elem_offset_.assign(static_cast<size_t>(nh) + 1, 0);
-  for (Id h = 0; h < nh; ++h) {
+    elem_n_[h] = vol ? std::array<Id, 3>{edge_n_[ee[0]], edge_n_[ee[4]], edge_n_[ee[8]]}
+                     : std::array<Id, 3>{edge_n_[ee[0]], edge_n_[ee[2]], 1};
+    // The limit every reader checks (rows.hpp): refused here, not written.
     const auto& n = elem_n_[h];
-    if (vol)
-      cell_off_[h + 1] = add(cell_off_[h], mul(mul(n[0] - 1, n[1] - 1, "node"), n[2] - 1, "node"), "node");
-    elem_offset_[h + 1] = add(elem_offset_[h], mul(mul(n[0], n[1], "element"), n[2], "element"), "element");
+    const __int128 points = static_cast<__int128>(n[0] + 1) * (n[1] + 1) * (vol ? n[2] + 1 : 1);
+    if (points > kMaxElementPoints)
+      throw Error(ErrorKind::Overflow, "coarse element " + std::to_string(h) + " would have " + std::to_string(n[0]) +
+                                           " x " + std::to_string(n[1]) + (vol ? " x " + std::to_string(n[2]) : "") +
+                                           " fine elements, more than 2^40 grid points in one coarse element");
   }
-  base_[0] = 0;
-  base_[1] = t.num_vertices;
-  base_[2] = add(base_[1], edge_off_.back(), "node");
-  base_[3] = add(base_[2], face_off_.back(), "node");
-  num_nodes_ = add(base_[3], cell_off_.back(), "node");
+  // Owner order: element by element, what it owns, in entity id order. The
+  // owner arrays are ordered by entity id, so one cursor per kind suffices.
+  vertex_node_.assign(static_cast<size_t>(nv), -1);
+  edge_node_.assign(static_cast<size_t>(ne), -1);
+  face_node_.assign(static_cast<size_t>(nf), -1);
+  cell_node_.assign(static_cast<size_t>(nh), 0);
+  node_first_.assign(static_cast<size_t>(nh), 0);
+  element_first_.assign(static_cast<size_t>(nh) + 1, 0);
+  Id next = 0, v = 0, e = 0, f = 0;
+  for (Id h = 0; h < nh; ++h) {
+    node_first_[h] = next;
+    for (; v < nv && t.vertex_owner_elem[v] == h; ++v) vertex_node_[v] = next, next = add(next, 1, "node");
+    for (; e < ne && t.edge_owner_elem[e] == h; ++e)
+      edge_node_[e] = next, next = add(next, ids::edge_nodes(edge_n_[e]), "node");
+    for (; f < nf && t.face_owner_elem[f] == h; ++f)
+      face_node_[f] = next, next = add(next, mul(face_n_[f][0] - 1, face_n_[f][1] - 1, "node"), "node");
+    const auto& n = elem_n_[h];
+    if (vol) {
+      cell_node_[h] = next;
+      next = add(next, mul(mul(n[0] - 1, n[1] - 1, "node"), n[2] - 1, "node"), "node");
+    } else {
+      cell_node_[h] = face_node_[t.elem_face[h]];  // a quad's interior is its face
+    }
+    element_first_[h + 1] = add(element_first_[h], mul(mul(n[0], n[1], "element"), n[2], "element"), "element");
+  }
+  if (v != nv || e != ne || f != nf)
+    throw Error(ErrorKind::Usage, "Numbering: entities are not in owner order (to_owner_order)");
+  num_nodes_ = next;
 }
 
 namespace {
 
-// Last row whose column `col` is <= x (the entity owning offset x); rows
-// with no nodes share their successor's offset and are skipped by taking
-// the last such row.
-Id owner_row(const Table<std::int64_t>& t, int col, Id x, TableCursor& cur, const std::vector<std::int64_t>& index) {
-  Id lo = 0, hi = t.rows();  // first row with value > x, in [lo, hi]
+// Last element whose column value (node_first or element_first) is <= x:
+// the page index picks the page, a binary search the row.
+Id search_elements(const MeshTables& t, Id x, bool by_node, MeshCursor& cur) {
+  const RowReader R(t, cur);
+  const std::vector<std::int64_t>& index = by_node ? t.node_index : t.element_index;
+  const Id rpp = t.elements.rows_per_page();
+  Id lo = 0, hi = t.elements.rows();  // first row with value > x lies in [lo, hi]
   if (!index.empty()) {
-    // The last page whose first row is <= x holds the answer.
     const Id p = static_cast<Id>(std::upper_bound(index.begin(), index.end(), x) - index.begin()) - 1;
     if (p < 0) return -1;
-    lo = p * t.rows_per_page();
-    hi = std::min(t.rows(), lo + t.rows_per_page());
+    lo = p * rpp;
+    hi = std::min(t.elements.rows(), lo + rpp);
   }
   while (lo < hi) {
     const Id mid = lo + (hi - lo) / 2;
-    if (t.row(mid, cur)[col] <= x) lo = mid + 1;
+    if ((by_node ? R.node_first(mid) : R.element_first(mid)) <= x) lo = mid + 1;
     else hi = mid;
   }
   return lo - 1;
@@ -93,62 +112,65 @@ Id owner_row(const Table<std::int64_t>& t, int col, Id x, TableCursor& cur, cons
 
 }  // namespace
 
-NodeRef locate_node(const MeshTables& t, const std::array<Id, 4>& base, Id nodes, Id id, MeshCursor& cur) {
-  (void)nodes;
-  NodeRef r;
-  const ElementLayout L = t.layout();
-  if (id < base[1]) {
-    r.kind = EntityKind::Vertex;
-    r.entity = id;
-  } else if (id < base[2]) {
-    r.kind = EntityKind::Edge;
-    r.entity = owner_row(t.edges, kEdgeNodeOffset, id, cur.edges, t.edge_index);
-    r.local[0] = id - t.edges.row(r.entity, cur.edges)[kEdgeNodeOffset] + 1;
-  } else if (id < base[3]) {
-    r.kind = EntityKind::Face;
-    r.entity = owner_row(t.faces, kFaceNodeOffset, id, cur.faces, t.face_index);
-    const std::int64_t* f = t.faces.row(r.entity, cur.faces);
-    const Id l = id - f[kFaceNodeOffset], e0 = f[kFaceE];
-    const Id w = t.edges.row(e0, cur.edges)[kEdgeN] - 1;
-    r.local = {l % w + 1, l / w + 1, 0};
-  } else {
-    r.kind = EntityKind::Cell;
-    r.entity = owner_row(t.elements, L.cell_offset(), id, cur.elements, t.cell_index);
-    const std::int64_t* h = t.elements.row(r.entity, cur.elements);
-    const Id l = id - h[L.cell_offset()];
-    const Id a = h[L.n()] - 1, b = h[L.n() + 1] - 1;
-    r.local = {l % a + 1, (l / a) % b + 1, l / (a * b) + 1};
-  }
-  return r;
+Id owner_element(const MeshTables& t, Id id, MeshCursor& cur) {
+  const Id h = search_elements(t, id, true, cur);
+  if (h < 0) RowReader(t, cur).corrupt(RowTable::Elements, 0, "no element owns node " + std::to_string(id));
+  return h;
 }
 
-Id node_id(const MeshTables& t, const std::array<Id, 4>& base, const NodeRef& r, MeshCursor& cur) {
-  (void)base;
-  const ElementLayout L = t.layout();
+NodeRef locate_node(const MeshTables& t, Id id, MeshCursor& cur) {
+  const Id hid = owner_element(t, id, cur);
+  const RowReader R(t, cur);
+  const ElementRow h = R.element(hid);
+  const bool vol = t.mode == Mode::Volume;
+  NodeRef r;
+  if (vol && id >= h.cell_node && id - h.cell_node < ids::cell_nodes(h.n)) {
+    r.kind = EntityKind::Cell, r.entity = hid, r.local = ids::cell_local(id - h.cell_node, h.n);
+    return r;
+  }
+  for (int k = 0; k < R.corners(); ++k)
+    if (h.corner_node[k] == id) return NodeRef{EntityKind::Vertex, h.corner[k], {0, 0, 0}};
+  for (int k = 0; k < R.edges(); ++k) {
+    const Id n = h.n[vol ? k / 4 : k / 2];
+    if (h.owns(h.edge_node[k]) && id >= h.edge_node[k] && id - h.edge_node[k] < ids::edge_nodes(n))
+      return NodeRef{EntityKind::Edge, h.edge[k], {id - h.edge_node[k] + 1, 0, 0}};
+  }
+  for (int k = 0; k < R.faces(); ++k) {
+    const auto [nu, nv] = face_intervals(h, k, t.mode);
+    if (h.owns(h.face_node[k]) && id >= h.face_node[k] && id - h.face_node[k] < ids::face_nodes(nu, nv)) {
+      const auto uv = ids::face_local(id - h.face_node[k], nu);
+      return NodeRef{EntityKind::Face, h.face[k], {uv[0], uv[1], 0}};
+    }
+  }
+  R.corrupt(RowTable::Elements, hid, "node " + std::to_string(id) + " is in none of the entities the element owns");
+}
+
+Id node_id(const MeshTables& t, const NodeRef& r, MeshCursor& cur) {
+  const RowReader R(t, cur);
   switch (r.kind) {
-    case EntityKind::Vertex: return r.entity;
-    case EntityKind::Edge: return t.edges.row(r.entity, cur.edges)[kEdgeNodeOffset] + (r.local[0] - 1);
+    case EntityKind::Vertex: return R.vertex(r.entity).node;
+    case EntityKind::Edge: return ids::edge_node(R.edge(r.entity).node, r.local[0]);
     case EntityKind::Face: {
-      const std::int64_t* f = t.faces.row(r.entity, cur.faces);
-      const Id off = f[kFaceNodeOffset], e0 = f[kFaceE];
-      const Id w = t.edges.row(e0, cur.edges)[kEdgeN] - 1;
-      return off + (r.local[0] - 1) + (r.local[1] - 1) * w;
+      const FaceRow f = R.face(r.entity);
+      return ids::face_node(f.node, f.nu, r.local[0], r.local[1]);
     }
     case EntityKind::Cell: {
-      const std::int64_t* h = t.elements.row(r.entity, cur.elements);
-      const Id a = h[L.n()] - 1, b = h[L.n() + 1] - 1;
-      return h[L.cell_offset()] + (r.local[0] - 1) + a * ((r.local[1] - 1) + b * (r.local[2] - 1));
+      const ElementRow h = R.element(r.entity);
+      return ids::cell_node(h.cell_node, h.n, r.local[0], r.local[1], r.local[2]);
     }
   }
   return -1;
 }
 
 Id locate_element(const MeshTables& t, Id id, std::array<Id, 3>& ijk, MeshCursor& cur) {
-  const ElementLayout L = t.layout();
-  const Id h = owner_row(t.elements, L.elem_offset(), id, cur.elements, t.elem_index);
-  const std::int64_t* row = t.elements.row(h, cur.elements);
-  const Id l = id - row[L.elem_offset()], n0 = row[L.n()], n1 = row[L.n() + 1];
-  ijk = {l % n0, (l / n0) % n1, l / (n0 * n1)};
+  const Id h = search_elements(t, id, false, cur);
+  const RowReader R(t, cur);
+  if (h < 0) R.corrupt(RowTable::Elements, 0, "no coarse element holds fine element " + std::to_string(id));
+  const ElementRow row = R.element(h);
+  const Id l = id - row.element_first;
+  if (l >= row.n[0] * row.n[1] * row.n[2])
+    R.corrupt(RowTable::Elements, h, "fine element " + std::to_string(id) + " lies past the element's own");
+  ijk = ids::element_local(l, row.n);
   return h;
 }
 

@@ -47,28 +47,35 @@ FaceMap face_map(FaceCode code, std::int64_t nu, std::int64_t nv) {
 }
 
 namespace {
+// Local edge joining the local corners that hold the canonical ends of
+// `side` (kQuadEdge gives a side's canonical corners), for a face whose
+// local corners are face_corners[0..3] in an element with edges edges[].
+template <int E>
+int side_edge(const int* face_corners, const int (&edges)[E][2], FaceCode code, int side) {
+  int lc[2] = {-1, -1};
+  for (int end = 0; end < 2; ++end)
+    for (int m = 0; m < 4; ++m)
+      if (code_corner(code, m) == kQuadEdge[side][end]) lc[end] = face_corners[m];
+  for (int e = 0; e < E; ++e)
+    if ((edges[e][0] == lc[0] && edges[e][1] == lc[1]) || (edges[e][0] == lc[1] && edges[e][1] == lc[0])) return e;
+  return -1;
+}
+
 struct SideEdgeTable {
-  int edge[6][8][4];
+  int hex[6][8][4], quad[8][4];
   SideEdgeTable() {
-    static constexpr int kSideCorners[4][2] = {{0, 1}, {3, 2}, {0, 3}, {1, 2}};
-    for (int f = 0; f < 6; ++f)
-      for (int c = 0; c < 8; ++c)
-        for (int side = 0; side < 4; ++side) {
-          // Local face corners holding canonical corners of this side.
-          int lc[2] = {-1, -1};
-          for (int end = 0; end < 2; ++end)
-            for (int m = 0; m < 4; ++m)
-              if (code_corner(static_cast<FaceCode>(c), m) == kSideCorners[side][end]) lc[end] = kHexFace[f][m];
-          edge[f][c][side] = -1;
-          for (int e = 0; e < 12; ++e)
-            if ((kHexEdge[e][0] == lc[0] && kHexEdge[e][1] == lc[1]) || (kHexEdge[e][0] == lc[1] && kHexEdge[e][1] == lc[0]))
-              edge[f][c][side] = e;
-        }
+    static constexpr int kQuadCorners[4] = {0, 1, 2, 3};
+    for (int c = 0; c < 8; ++c)
+      for (int side = 0; side < 4; ++side) {
+        for (int f = 0; f < 6; ++f) hex[f][c][side] = side_edge(kHexFace[f], kHexEdge, static_cast<FaceCode>(c), side);
+        quad[c][side] = side_edge(kQuadCorners, kQuadEdge, static_cast<FaceCode>(c), side);
+      }
   }
 };
 const SideEdgeTable kSideEdges;
 }  // namespace
 
-int hex_face_side_edge(int face, FaceCode code, int side) { return kSideEdges.edge[face][code][side]; }
+int hex_face_side_edge(int face, FaceCode code, int side) { return kSideEdges.hex[face][code][side]; }
+int quad_side_edge(FaceCode code, int side) { return kSideEdges.quad[code][side]; }
 
 }  // namespace dicer

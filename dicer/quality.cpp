@@ -28,20 +28,55 @@ double hex_scaled_jacobian(const Vec3 (&p)[8]) {
   return worst;
 }
 
+double quad_scaled_jacobian(const Vec3 (&p)[4], const Vec3& normal) {
+  const double ln = norm(normal);
+  if (!(ln > 0)) return 0.0;
+  double worst = 1.0;
+  for (int k = 0; k < 4; ++k) {
+    const Vec3 e1 = sub(p[(k + 1) % 4], p[k]), e2 = sub(p[(k + 3) % 4], p[k]);
+    const double l = norm(e1) * norm(e2) * ln;
+    worst = std::min(worst, l > 0 ? dot(cross(e1, e2), normal) / l : 0.0);
+  }
+  return worst;
+}
+
 double quad_scaled_jacobian(const Vec3 (&p)[4]) {
-  Vec3 n{0, 0, 0}, c[4];
+  Vec3 n{0, 0, 0};
   for (int k = 0; k < 4; ++k) {
     const Vec3 e1 = sub(p[(k + 1) % 4], p[k]), e2 = sub(p[(k + 3) % 4], p[k]);
     const double l = norm(e1) * norm(e2);
-    c[k] = l > 0 ? cross(e1, e2) : Vec3{0, 0, 0};
-    if (l > 0) c[k] = {c[k].x / l, c[k].y / l, c[k].z / l};
-    n = {n.x + c[k].x, n.y + c[k].y, n.z + c[k].z};
+    if (l > 0) {
+      const Vec3 c = cross(e1, e2);
+      n = {n.x + c.x / l, n.y + c.y / l, n.z + c.z / l};
+    }
   }
-  const double ln = norm(n);
-  if (!(ln > 0)) return 0.0;
-  double worst = 1.0;
-  for (const Vec3& ck : c) worst = std::min(worst, dot(ck, n) / ln);
-  return worst;
+  return quad_scaled_jacobian(p, n);
+}
+
+Vec3 block_normal(const FineBlock& b) {
+  auto corner = [&](Id i, Id j) {
+    const Id g = b.point_index(i, j, 0);
+    return Vec3{b.x[g], b.y[g], b.z[g]};
+  };
+  const Vec3 a = corner(0, 0), q1 = corner(b.n[0], 0), q2 = corner(b.n[0], b.n[1]), q3 = corner(0, b.n[1]);
+  return cross(sub(q2, a), sub(q3, q1));
+}
+
+double element_scaled_jacobian(const FineBlock& b, Id i, Id j, Id k, const Vec3& normal) {
+  if (b.planes > 1) {  // a volume block holds at least two planes
+    Vec3 p[8];
+    for (int c = 0; c < 8; ++c) {
+      const Id g = b.point_index(i + kHexCorner[c][0], j + kHexCorner[c][1], k + kHexCorner[c][2]);
+      p[c] = {b.x[g], b.y[g], b.z[g]};
+    }
+    return hex_scaled_jacobian(p);
+  }
+  Vec3 p[4];
+  for (int c = 0; c < 4; ++c) {
+    const Id g = b.point_index(i + kHexCorner[c][0], j + kHexCorner[c][1], 0);
+    p[c] = {b.x[g], b.y[g], b.z[g]};
+  }
+  return quad_scaled_jacobian(p, normal);
 }
 
 QualityReport check_quality(const FineMesh& mesh, const std::function<bool(Id)>& select,
@@ -54,25 +89,11 @@ QualityReport check_quality(const FineMesh& mesh, const std::function<bool(Id)>&
     if (progress && (h & 63) == 0) progress(h, H);
     if (select && !select(h)) continue;
     mesh.fill_block(h, b, /*nodes_only=*/true);
+    const Vec3 normal = vol ? Vec3{} : block_normal(b);
     const Id ne = b.num_elements();
     for (Id e = 0; e < ne; ++e) {
       const Id i = e % b.n[0], j = (e / b.n[0]) % b.n[1], k = e / (b.n[0] * b.n[1]);
-      double q;
-      if (vol) {
-        Vec3 p[8];
-        for (int c = 0; c < 8; ++c) {
-          const Id g = b.point_index(i + kHexCorner[c][0], j + kHexCorner[c][1], k + kHexCorner[c][2]);
-          p[c] = {b.x[g], b.y[g], b.z[g]};
-        }
-        q = hex_scaled_jacobian(p);
-      } else {
-        Vec3 p[4];
-        for (int c = 0; c < 4; ++c) {
-          const Id g = b.point_index(i + kHexCorner[c][0], j + kHexCorner[c][1], 0);
-          p[c] = {b.x[g], b.y[g], b.z[g]};
-        }
-        q = quad_scaled_jacobian(p);
-      }
+      const double q = element_scaled_jacobian(b, i, j, k, normal);
       ++r.elements_checked;
       if (!(q > 0)) ++r.inverted;
       if (q < r.min_scaled_jacobian || r.worst_element < 0) {

@@ -23,7 +23,8 @@ std::uint64_t spread3(std::uint64_t v) {
 
 }  // namespace
 
-CoarseMesh sfc_order(const CoarseMesh& in, std::vector<Id>* old_vertex_of_new, std::vector<Id>* old_element_of_new) {
+CoarseMesh sfc_order(const CoarseMesh& in, std::vector<Id>* old_vertex_of_new, std::vector<Id>* old_element_of_new,
+                     bool morton) {
   const int nc = in.corners_per_element();
   const Id ne = in.num_elements(), nv = in.num_vertices();
   double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
@@ -41,7 +42,7 @@ CoarseMesh sfc_order(const CoarseMesh& in, std::vector<Id>* old_vertex_of_new, s
       const double t = span > 0 ? (c - lo[d]) / span : 0.0;
       code |= spread3(static_cast<std::uint64_t>(std::clamp(t, 0.0, 1.0) * 2097151.0)) << d;
     }
-    key[e] = {code, e};
+    key[e] = {morton ? code : 0, e};
   }
   std::sort(key.begin(), key.end());  // ties keep file order (second key)
 

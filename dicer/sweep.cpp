@@ -8,6 +8,8 @@
 #include <thread>
 #include <vector>
 
+#include "dicer/rows.hpp"
+
 namespace dicer {
 namespace {
 
@@ -34,6 +36,34 @@ std::uint64_t element_checksum_term(const FineElement& e) {
   return h;
 }
 
+namespace {
+
+// Coarse elements [first, end) split into `parts` ranges of about equal work
+// (owned nodes + fine elements: node_first + element_first rises by exactly
+// that from one element to the next). O(parts log H) rows.
+std::vector<Id> split_work(const FineMesh& mesh, unsigned parts) {
+  const Id H = mesh.num_coarse_elements();
+  const __int128 total = static_cast<__int128>(mesh.num_nodes()) + mesh.num_elements();
+  MeshCursor cur;
+  const RowReader R(mesh.tables(), cur);
+  auto work_before = [&](Id h) { return static_cast<__int128>(R.node_first(h)) + R.element_first(h); };
+  std::vector<Id> at(parts + 1, H);
+  at[0] = 0;
+  for (unsigned p = 1; p < parts; ++p) {
+    const __int128 want = total * p / parts;
+    Id lo = at[p - 1], hi = H;  // first element whose work before it is >= want
+    while (lo < hi) {
+      const Id mid = lo + (hi - lo) / 2;
+      if (work_before(mid) < want) lo = mid + 1;
+      else hi = mid;
+    }
+    at[p] = lo;
+  }
+  return at;
+}
+
+}  // namespace
+
 SweepResult sweep(const FineMesh& mesh, unsigned threads, const std::function<void(Id, Id)>& progress) {
   threads = std::max(1u, threads);
   if (const auto& cache = mesh.tables().cache) {
@@ -42,27 +72,47 @@ SweepResult sweep(const FineMesh& mesh, unsigned threads, const std::function<vo
   }
   const auto start = std::chrono::steady_clock::now();
   const Id nn = mesh.num_nodes(), ne = mesh.num_elements(), total = nn + ne;
+  const std::vector<Id> split = split_work(mesh, threads);
+  const bool vol = mesh.mode() == Mode::Volume;
   std::atomic<Id> done{0};
   std::vector<std::uint64_t> sums(threads, 0);
   std::vector<std::exception_ptr> errors(threads);
+  // One pass over coarse elements in store order: a block's own nodes (ids
+  // >= node_first) and its elements, slab by slab; so each page of the
+  // store is read once per sweep.
   auto work = [&](unsigned t) {
     try {
       std::uint64_t sum = 0;
       Id local = 0;
-      {  // one cursor at a time: each holds a slab of a coarse block
-        NodeCursor nc(mesh, nn * t / threads, nn * (t + 1) / threads);
-        Id id;
-        Vec3 x;
-        while (nc.next(id, x)) {
-          sum += node_checksum_term(id, x);
-          if (++local == 65536) done += local, local = 0;
+      FineBlock b;
+      for (Id h = split[t]; h < split[t + 1]; ++h) {
+        const std::array<Id, 3> n = RowReader(mesh.tables(), b.cursor).element(h).n;
+        const Id n2 = vol ? n[2] : 0;
+        const Id step = std::max<Id>(1, kCursorSlabPoints / ((n[0] + 1) * (n[1] + 1)));
+        for (Id k0 = 0; k0 < std::max<Id>(n2, 1); k0 += step) {
+          const Id k1 = vol ? std::min(k0 + step, n2) : 0;
+          mesh.fill_slab(h, k0, k1, b, true, true);
+          // Nodes of planes k0 .. k1 - 1, and k1 on the last slab.
+          const Id plane = (n[0] + 1) * (n[1] + 1);
+          const Id points = (k1 == n2 ? k1 - k0 + 1 : k1 - k0) * plane;
+          Id own = 0;
+          for (Id g = 0; g < points; ++g) {
+            const Id id = b.node_id[g];
+            if (id < b.node_first) continue;
+            sum += node_checksum_term(id, {b.x[g], b.y[g], b.z[g]});
+            ++own;
+          }
+          FineElement el;
+          el.num_nodes = mesh.corners();
+          const Id m = b.num_elements();
+          for (Id e = 0; e < m; ++e) {
+            el.id = b.first_element + e;
+            std::copy_n(&b.conn[static_cast<size_t>(e) * el.num_nodes], el.num_nodes, el.nodes.begin());
+            sum += element_checksum_term(el);
+          }
+          local += m + own;
+          if (local >= 65536) done += local, local = 0;
         }
-      }
-      ElementCursor ec(mesh, ne * t / threads, ne * (t + 1) / threads);
-      FineElement el;
-      while (ec.next(el)) {
-        sum += element_checksum_term(el);
-        if (++local == 65536) done += local, local = 0;
       }
       done += local;
       sums[t] = sum;
@@ -75,7 +125,7 @@ SweepResult sweep(const FineMesh& mesh, unsigned threads, const std::function<vo
   if (progress) {
     std::thread first(work, 0u);
     while (done.load() < total && first.joinable()) {
-      progress(done.load(), total);
+      progress(std::min(done.load(), total), total);
       std::this_thread::sleep_for(std::chrono::milliseconds(100));
       bool all_errored = false;
       for (auto& e : errors) all_errored = all_errored || e;

@@ -11,6 +11,7 @@
 namespace dicer {
 
 Id find_edge(const Topology& t, Id a, Id b) {
+  if (!t.edges_sorted) throw Error(ErrorKind::Usage, "find_edge: the topology is in owner order, not sorted by vertex ids");
   if (a > b) std::swap(a, b);
   Id lo = 0, hi = t.num_edges();
   while (lo < hi) {
@@ -116,15 +117,59 @@ Topology build_topology(const CoarseMesh& m) {
   // Face -> edges in the canonical frame.
   const Id nf = t.num_faces();
   t.face_edge.resize(static_cast<size_t>(nf) * 4);
-  t.face_edge_rev.resize(static_cast<size_t>(nf) * 4);
-  for (Id f = 0; f < nf; ++f) {
-    for (int k = 0; k < 4; ++k) {
-      const Id a = t.face_v[4 * f + kQuadEdge[k][0]], b = t.face_v[4 * f + kQuadEdge[k][1]];
-      t.face_edge[4 * f + k] = find_edge(t, a, b);
-      t.face_edge_rev[4 * f + k] = a > b ? 1 : 0;
-    }
-  }
+  for (Id f = 0; f < nf; ++f)
+    for (int k = 0; k < 4; ++k)
+      t.face_edge[4 * f + k] = find_edge(t, t.face_v[4 * f + kQuadEdge[k][0]], t.face_v[4 * f + kQuadEdge[k][1]]);
   return t;
+}
+
+namespace {
+
+// Ranks entities by (lowest element containing them, first local index in
+// it): rank[old id] = new id. slots[h * per + k] is element h's local entity k.
+std::vector<Id> owner_rank(const std::vector<Id>& slots, int per, Id count, std::vector<Id>& owner) {
+  std::vector<Id> rank(static_cast<size_t>(count), -1);
+  owner.assign(static_cast<size_t>(count), -1);
+  Id next = 0;
+  for (size_t s = 0; s < slots.size(); ++s) {
+    const Id x = slots[s];
+    if (rank[x] >= 0) continue;
+    owner[next] = static_cast<Id>(s) / per;
+    rank[x] = next++;
+  }
+  return rank;
+}
+
+}  // namespace
+
+void to_owner_order(Topology& t, const std::vector<Id>& conn) {
+  const int cpe = t.mode == Mode::Volume ? 8 : 4, epe = t.edges_per_element(), fpe = t.faces_per_element();
+  // Vertices must already be in first-use order (sfc_order makes them so):
+  // the fine node ids of vertices then rise with their ids.
+  {
+    std::vector<Id> rank = owner_rank(conn, cpe, t.num_vertices, t.vertex_owner_elem);
+    for (Id v = 0; v < t.num_vertices; ++v)
+      if (rank[v] != v)
+        throw Error(ErrorKind::Usage, "to_owner_order: vertices are not numbered in order of first use (vertex " +
+                                          std::to_string(v) + ")");
+  }
+  const std::vector<Id> erank = owner_rank(t.elem_edge, epe, t.num_edges(), t.edge_owner_elem);
+  const std::vector<Id> frank = owner_rank(t.elem_face, fpe, t.num_faces(), t.face_owner_elem);
+  auto permute = [](std::vector<Id>& v, int width, const std::vector<Id>& rank) {
+    std::vector<Id> out(v.size());
+    for (size_t i = 0; i < rank.size(); ++i)
+      std::copy_n(v.begin() + static_cast<std::ptrdiff_t>(i) * width, width,
+                  out.begin() + static_cast<std::ptrdiff_t>(rank[i]) * width);
+    v.swap(out);
+  };
+  permute(t.edge_v, 2, erank);
+  permute(t.face_v, 4, frank);
+  permute(t.face_edge, 4, frank);
+  permute(t.face_elem, 2, frank);
+  for (Id& e : t.face_edge) e = erank[e];
+  for (Id& e : t.elem_edge) e = erank[e];
+  for (Id& f : t.elem_face) f = frank[f];
+  t.edges_sorted = false;
 }
 
 }  // namespace dicer

@@ -7,7 +7,8 @@
 #include <cstring>
 
 #include "dicer/orientation.hpp"
-#include "dicer/tables.hpp"
+#include "dicer/quality.hpp"
+#include "dicer/rows.hpp"
 
 namespace dicer {
 namespace {
@@ -33,85 +34,44 @@ struct FaceSide {
   bool seen = false;
 };
 
-double hex_min_scaled_jacobian(const FineBlock& b, Id i, Id j, Id k) {
-  double best = 2.0;
-  Id g[8];
-  for (int q = 0; q < 8; ++q) g[q] = b.point_index(i + kHexCorner[q][0], j + kHexCorner[q][1], k + kHexCorner[q][2]);
-  for (int q = 0; q < 8; ++q) {
-    double e[3][3];
-    for (int d = 0; d < 3; ++d) {
-      const Id o = g[q], p = g[kHexCornerNbr[q][d]];
-      e[d][0] = b.x[p] - b.x[o], e[d][1] = b.y[p] - b.y[o], e[d][2] = b.z[p] - b.z[o];
-    }
-    const double det = e[0][0] * (e[1][1] * e[2][2] - e[1][2] * e[2][1]) -
-                       e[0][1] * (e[1][0] * e[2][2] - e[1][2] * e[2][0]) +
-                       e[0][2] * (e[1][0] * e[2][1] - e[1][1] * e[2][0]);
-    const double l = std::sqrt((e[0][0] * e[0][0] + e[0][1] * e[0][1] + e[0][2] * e[0][2]) *
-                               (e[1][0] * e[1][0] + e[1][1] * e[1][1] + e[1][2] * e[1][2]) *
-                               (e[2][0] * e[2][0] + e[2][1] * e[2][1] + e[2][2] * e[2][2]));
-    best = std::min(best, l > 0 ? det / l : -1.0);
-  }
-  return best;
-}
-
-double quad_min_scaled_jacobian(const FineBlock& b, Id i, Id j, const double nrm[3]) {
-  static constexpr int kQuadNbr[4][2] = {{1, 3}, {2, 0}, {3, 1}, {0, 2}};
-  Id g[4];
-  for (int q = 0; q < 4; ++q) g[q] = b.point_index(i + kHexCorner[q][0], j + kHexCorner[q][1], 0);
-  double best = 2.0;
-  const double nl = std::sqrt(nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]);
-  for (int q = 0; q < 4; ++q) {
-    double e[2][3];
-    for (int d = 0; d < 2; ++d) {
-      const Id o = g[q], p = g[kQuadNbr[q][d]];
-      e[d][0] = b.x[p] - b.x[o], e[d][1] = b.y[p] - b.y[o], e[d][2] = b.z[p] - b.z[o];
-    }
-    const double c[3] = {e[0][1] * e[1][2] - e[0][2] * e[1][1], e[0][2] * e[1][0] - e[0][0] * e[1][2],
-                         e[0][0] * e[1][1] - e[0][1] * e[1][0]};
-    const double l = std::sqrt((e[0][0] * e[0][0] + e[0][1] * e[0][1] + e[0][2] * e[0][2]) *
-                               (e[1][0] * e[1][0] + e[1][1] * e[1][1] + e[1][2] * e[1][2])) * nl;
-    best = std::min(best, l > 0 ? (c[0] * nrm[0] + c[1] * nrm[1] + c[2] * nrm[2]) / l : -1.0);
-  }
-  return best;
-}
-
 }  // namespace
 
 VerifyReport verify(const FineMesh& mesh, const std::function<void(Id, Id)>& progress) {
   VerifyReport r;
   const MeshTables& t = mesh.tables();
   const MeshInfo& info = mesh.info();
-  const ElementLayout L = t.layout();
   const bool vol = mesh.mode() == Mode::Volume;
   const int nc = mesh.corners();
   MeshCursor cur;
+  const RowReader R(t, cur);
 
-  // Closed formula from the edge intervals alone (not from the stored offsets).
+  // Closed formula from the edge intervals alone (not from the stored
+  // offsets, nor the faces' and elements' own interval columns).
   {
-    Id nodes = info.coarse_vertices, elems = 0;
-    for (Id e = 0; e < t.edges.rows(); ++e) nodes += t.edges.row(e, cur.edges)[kEdgeN] - 1;
-    auto edge_n = [&](Id e) { return t.edges.row(e, cur.edges)[kEdgeN]; };
+    __int128 nodes = info.coarse_vertices, elems = 0;
+    for (Id e = 0; e < t.edges.rows(); ++e) nodes += R.edge(e).n - 1;
     for (Id f = 0; f < t.faces.rows(); ++f) {
-      const Id e0 = t.faces.row(f, cur.faces)[kFaceE], e2 = t.faces.row(f, cur.faces)[kFaceE + 2];
-      nodes += (edge_n(e0) - 1) * (edge_n(e2) - 1);
+      const FaceRow fr = R.face(f);
+      nodes += static_cast<__int128>(R.edge(fr.e[0]).n - 1) * (R.edge(fr.e[2]).n - 1);
     }
     for (Id h = 0; h < t.elements.rows(); ++h) {
-      const std::int64_t* row = t.elements.row(h, cur.elements);
-      const Id ei = row[L.edge()], ej = row[L.edge() + (vol ? 4 : 2)], ek = vol ? row[L.edge() + 8] : -1;
-      const Id n0 = edge_n(ei), n1 = edge_n(ej), n2 = vol ? edge_n(ek) : 1;
+      const ElementRow row = R.element(h);
+      const __int128 n0 = R.edge(row.edge[0]).n, n1 = R.edge(row.edge[vol ? 4 : 2]).n, n2 = vol ? R.edge(row.edge[8]).n : 1;
       if (vol) nodes += (n0 - 1) * (n1 - 1) * (n2 - 1);
       elems += n0 * n1 * n2;
     }
-    r.nodes_formula = nodes;
-    r.elements_formula = elems;
+    auto clamp = [](__int128 v) { return v > INT64_MAX ? INT64_MAX : static_cast<Id>(v); };
+    r.nodes_formula = clamp(nodes);
+    r.elements_formula = clamp(elems);
     r.nodes = mesh.num_nodes();
     r.elements = mesh.num_elements();
-    Id by_block = 0;
+    __int128 by_block = 0;
     for (Id c : info.block_fine_elements) by_block += c;
     if (!r.counts_ok() || by_block != elems) {
       r.id_errors += 1;
       note(r, "counts differ from the closed formula: nodes " + std::to_string(r.nodes) + " vs " +
-                  std::to_string(nodes) + ", elements " + std::to_string(r.elements) + " vs " + std::to_string(elems));
+                  std::to_string(r.nodes_formula) + ", elements " + std::to_string(r.elements) + " vs " +
+                  std::to_string(r.elements_formula));
     }
   }
 
@@ -119,8 +79,8 @@ VerifyReport verify(const FineMesh& mesh, const std::function<void(Id, Id)>& pro
   {
     std::vector<std::array<double, 3>> pts(static_cast<size_t>(t.vertices.rows()));
     for (Id v = 0; v < t.vertices.rows(); ++v) {
-      const double* p = t.vertices.row(v, cur.vertices);
-      pts[v] = {p[0], p[1], p[2]};
+      const Vec3 p = R.xyz(v);
+      pts[v] = {p.x, p.y, p.z};
     }
     std::sort(pts.begin(), pts.end());
     for (size_t i = 1; i < pts.size(); ++i)
@@ -191,18 +151,7 @@ VerifyReport verify(const FineMesh& mesh, const std::function<void(Id, Id)>& pro
     // Fine faces (hex) or edges (quad) of every element, with the block side they lie on.
     faces.clear();
     const Id ne = b.num_elements();
-    double normal[3] = {0, 0, 0};
-    if (!vol) {  // coarse quad normal (cross product of its diagonals) orients the fine quads
-      auto corner = [&](Id i, Id j) {
-        const Id g = b.point_index(i, j, 0);
-        return Vec3{b.x[g], b.y[g], b.z[g]};
-      };
-      const Vec3 a = corner(0, 0), q1 = corner(n[0], 0), q2 = corner(n[0], n[1]), q3 = corner(0, n[1]);
-      const double d1[3] = {q2.x - a.x, q2.y - a.y, q2.z - a.z}, d2[3] = {q3.x - q1.x, q3.y - q1.y, q3.z - q1.z};
-      normal[0] = d1[1] * d2[2] - d1[2] * d2[1];
-      normal[1] = d1[2] * d2[0] - d1[0] * d2[2];
-      normal[2] = d1[0] * d2[1] - d1[1] * d2[0];
-    }
+    const Vec3 normal = vol ? Vec3{} : block_normal(b);
     static constexpr int kQuadSides[4][2] = {{0, 1}, {1, 2}, {2, 3}, {3, 0}};
     for (Id e = 0; e < ne; ++e) {
       const Id i = e % n[0], j = (e / n[0]) % n[1], k = e / (n[0] * n[1]);
@@ -227,7 +176,7 @@ VerifyReport verify(const FineMesh& mesh, const std::function<void(Id, Id)>& pro
           faces.emplace_back(key, on ? kEdgeOfSide[s] : -1);
         }
       }
-      const double sj = vol ? hex_min_scaled_jacobian(b, i, j, k) : quad_min_scaled_jacobian(b, i, j, normal);
+      const double sj = element_scaled_jacobian(b, i, j, k, normal);
       r.min_scaled_jacobian = std::min(r.min_scaled_jacobian, sj);
       if (sj <= 0) {
         ++r.inverted;
@@ -251,14 +200,10 @@ VerifyReport verify(const FineMesh& mesh, const std::function<void(Id, Id)>& pro
     }
 
     // Coarse faces (volume) / coarse edges (both modes): hash what this block sees.
-    std::int64_t row[64];
-    {
-      const std::int64_t* rp = t.elements.row(h, cur.elements);
-      std::copy_n(rp, L.width(), row);
-    }
+    const ElementRow row = R.element(h);
     if (vol) {
       for (int lf = 0; lf < 6; ++lf) {
-        const Id f = row[L.face() + lf];
+        const Id f = row.face[lf];
         FaceSide* fs = &side[2 * f];
         if (fs->seen) fs = &side[2 * f + 1];
         if (fs->seen) {
@@ -280,16 +225,15 @@ VerifyReport verify(const FineMesh& mesh, const std::function<void(Id, Id)>& pro
         }
       }
     }
-    const int epe = L.edges;
-    const std::uint64_t flags = static_cast<std::uint64_t>(row[L.flags()]);
+    const int epe = R.edges();
     for (int le = 0; le < epe; ++le) {
-      const Id e = row[L.edge() + le];
+      const Id e = row.edge[le];
       const int axis = vol ? le / 4 : le / 2;
       const int a = vol ? kHexEdge[le][0] : kQuadEdge[le][0];
       std::uint64_t hv = 0;
       const Id ne_ = n[axis];
       for (Id s = 0; s <= ne_; ++s) {
-        const Id tt = ((flags >> le) & 1) ? ne_ - s : s;  // canonical order
+        const Id tt = row.rev(le) ? ne_ - s : s;  // canonical order
         Id p[3] = {kHexCorner[a][0] * n[0], kHexCorner[a][1] * n[1], vol ? kHexCorner[a][2] * n[2] : 0};
         p[axis] = tt;
         const Id g = b.point_index(p[0], p[1], p[2]);
@@ -309,9 +253,8 @@ VerifyReport verify(const FineMesh& mesh, const std::function<void(Id, Id)>& pro
 
   if (vol) {
     for (Id f = 0; f < t.faces.rows(); ++f) {
-      const std::int64_t* fr = t.faces.row(f, cur.faces);
-      const Id e0 = fr[kFaceE], e2 = fr[kFaceE + 2];
-      const Id want = t.edges.row(e0, cur.edges)[kEdgeN] * t.edges.row(e2, cur.edges)[kEdgeN];
+      const FaceRow fr = R.face(f);
+      const Id want = R.edge(fr.e[0]).n * R.edge(fr.e[2]).n;
       const FaceSide &a = side[2 * f], &c = side[2 * f + 1];
       const bool interior = c.seen;
       if (a.count != want || (interior && (c.count != want || c.hash != a.hash))) {

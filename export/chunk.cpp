@@ -7,7 +7,9 @@
 
 #include "dicer/error.hpp"
 #include "dicer/export.hpp"
+#include "dicer/numbering.hpp"
 #include "dicer/orientation.hpp"
+#include "dicer/rows.hpp"
 
 namespace dicer {
 namespace {
@@ -28,27 +30,18 @@ SidePlane shell_side_plane(int side) {
 }
 
 bool coarse_box_misses(const FineMesh& mesh, Id h, const Box& box, MeshCursor& cur) {
-  const MeshTables& t = mesh.tables();
-  const ElementLayout L = t.layout();
-  Id corners[8];
-  {
-    const std::int64_t* row = t.elements.row(h, cur.elements);
-    std::copy_n(row + L.conn(), L.corners, corners);
-  }
+  Vec3 c[8];
+  const RowReader R(mesh.tables(), cur);
+  R.corner_xyz(h, c);
   double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-  for (int q = 0; q < L.corners; ++q) {
-    const double* p = t.vertices.row(corners[q], cur.vertices);
+  for (int q = 0; q < R.corners(); ++q) {
+    const double p[3] = {c[q].x, c[q].y, c[q].z};
     for (int d = 0; d < 3; ++d) lo[d] = std::min(lo[d], p[d]), hi[d] = std::max(hi[d], p[d]);
   }
   for (int d = 0; d < 3; ++d)
     if (hi[d] < box.lo[d] || lo[d] > box.hi[d]) return true;
   return false;
 }
-
-// A run of consecutive global node ids and the local id of its first.
-struct NodeRange {
-  Id global, count, local;
-};
 
 void centroid(const FineBlock& b, Id e, int corners, double c[3]) {
   c[0] = c[1] = c[2] = 0;
@@ -64,27 +57,33 @@ void centroid(const FineBlock& b, Id e, int corners, double c[3]) {
 
 std::vector<ChunkRange> plan_chunks(const FineMesh& mesh, Id count) {
   if (count < 1) throw Error(ErrorKind::Usage, "chunk count must be at least 1 (got " + std::to_string(count) + ")");
-  const MeshTables& t = mesh.tables();
-  const ElementLayout L = t.layout();
   const Id nh = mesh.num_coarse_elements(), total = mesh.num_elements();
   MeshCursor cur;
+  const RowReader R(mesh.tables(), cur);
   // Boundary k: the first coarse element whose first fine element is at or
   // past k * total / count (so each boundary misses the ideal by less than
-  // one coarse element).
+  // one coarse element); a binary search each, O(count log H) rows.
   std::vector<Id> start(static_cast<size_t>(count) + 1, nh);
   start[0] = 0;
-  Id k = 1;
-  for (Id h = 0; h < nh && k < count; ++h) {
-    const Id off = t.elements.row(h, cur.elements)[L.elem_offset()];
-    while (k < count && static_cast<__int128>(off) * count >= static_cast<__int128>(total) * k) start[k++] = h;
+  for (Id k = 1; k < count; ++k) {
+    Id lo = start[k - 1], hi = nh;
+    while (lo < hi) {
+      const Id mid = lo + (hi - lo) / 2;
+      if (static_cast<__int128>(R.element_first(mid)) * count >= static_cast<__int128>(total) * k) hi = mid;
+      else lo = mid + 1;
+    }
+    start[k] = lo;
   }
-  while (k < count) start[k++] = nh;
+  auto first_element = [&](Id h) { return h < nh ? R.element(h).element_first : total; };
+  auto first_node = [&](Id h) { return h < nh ? R.element(h).node_first : mesh.num_nodes(); };
   std::vector<ChunkRange> out;
   for (Id c = 0; c < count; ++c) {
-    ChunkRange r{c, count, start[c], std::max(start[c], start[c + 1]), 0};
-    const Id a = r.first_coarse < nh ? t.elements.row(r.first_coarse, cur.elements)[L.elem_offset()] : total;
-    const Id b = r.end_coarse < nh ? t.elements.row(r.end_coarse, cur.elements)[L.elem_offset()] : total;
-    r.fine_elements = b - a;
+    ChunkRange r{c, count, start[c], std::max(start[c], start[c + 1]), 0, 0, 0};
+    r.fine_elements = first_element(r.end_coarse) - first_element(r.first_coarse);
+    r.node_begin = first_node(r.first_coarse);
+    r.node_end = first_node(r.end_coarse);
+    if (r.fine_elements < 0 || r.node_end < r.node_begin)
+      R.corrupt(RowTable::Elements, r.first_coarse, "element or node ids do not rise with the elements");
     out.push_back(r);
   }
   return out;
@@ -137,57 +136,152 @@ ExportChunk::ExportChunk(const FineMesh& mesh, ChunkRange range, std::optional<B
     : mesh_(mesh), range_(range), box_(box) {
   if (range_.first_coarse < 0 || range_.end_coarse > mesh.num_coarse_elements() || range_.first_coarse > range_.end_coarse)
     throw Error(ErrorKind::Usage, "chunk range is outside the mesh");
+  // The own node range follows from the coarse range (owner order); a
+  // caller-made ChunkRange need not know it.
+  MeshCursor cur;
+  const auto own = mesh.owned_nodes(range_.first_coarse, range_.end_coarse, cur);
+  range_.node_begin = own[0], range_.node_end = own[1];
 }
+
+namespace {
+
+// Node-set membership of a fine node: every vertex of its owning entity is
+// in the set. Per coarse element, the entities whose corners are all in
+// the set give whole id ranges (numbering.hpp), no per-node test.
+void node_set_ranges(const ElementRow& h, Mode mode, const std::vector<Id>& sorted_vertices,
+                     std::vector<std::array<Id, 2>>& out) {
+  const bool vol = mode == Mode::Volume;
+  const int nc = vol ? 8 : 4, ne = vol ? 12 : 4, nf = vol ? 6 : 1;
+  bool in[8];
+  bool any = false, all = true;
+  for (int k = 0; k < nc; ++k) {
+    in[k] = std::binary_search(sorted_vertices.begin(), sorted_vertices.end(), h.corner[k]);
+    any |= in[k], all &= in[k];
+  }
+  if (!any) return;
+  for (int k = 0; k < nc; ++k)
+    if (in[k]) out.push_back({h.corner_node[k], h.corner_node[k] + 1});
+  for (int k = 0; k < ne; ++k) {
+    const int a = vol ? kHexEdge[k][0] : kQuadEdge[k][0], b = vol ? kHexEdge[k][1] : kQuadEdge[k][1];
+    if (in[a] && in[b])
+      out.push_back({h.edge_node[k], h.edge_node[k] + ids::edge_nodes(h.n[vol ? k / 4 : k / 2])});
+  }
+  for (int k = 0; k < nf; ++k) {
+    bool face_in = true;
+    for (int m = 0; m < 4; ++m) face_in &= in[vol ? kHexFace[k][m] : m];
+    const auto [nu, nv] = face_intervals(h, k, mode);
+    if (face_in) out.push_back({h.face_node[k], h.face_node[k] + ids::face_nodes(nu, nv)});
+  }
+  if (all && vol) out.push_back({h.cell_node, h.cell_node + ids::cell_nodes(h.n)});
+}
+
+}  // namespace
 
 void ExportChunk::prepare(const MeshSets& sets, const std::function<void(Id, Id)>& progress,
                           const std::function<bool()>& cancel) {
-  const MeshTables& t = mesh_.tables();
-  const ElementLayout L = t.layout();
+  const Mode mode = this->mode();
   const int nc = corners();
-  const bool vol = mode() == Mode::Volume;
   const Id first = range_.first_coarse, end = range_.end_coarse, span = end - first;
   MeshCursor cur;
+  const RowReader R(mesh_.tables(), cur);
   FineBlock b;
   auto check_cancel = [&] {
     if (cancel && cancel()) throw Error(ErrorKind::Usage, "interrupted");
   };
-  std::vector<std::uint8_t> kept_coarse(static_cast<size_t>(span), 1);
-
-  // Pass 1: which elements are kept and which nodes they use, as ranges of
-  // global ids. Without a box a chunk uses whole entities: the vertices,
-  // edges, faces and cells of its coarse elements, each one contiguous range
-  // of ids (numbering.hpp), so the sorted id list is the entities' ranges in
-  // id order, no per-node sort. With a box, the ids of kept elements' nodes
-  // are sorted and deduplicated, each a range of one.
   node_global_.clear(), elem_global_.clear(), conn_.clear(), elem_block_.clear();
-  std::vector<NodeRange> ranges;
+  x_.clear(), y_.clear(), z_.clear();
+  side_sets_.clear(), node_sets_.clear();
+  std::vector<std::uint8_t> kept_coarse(static_cast<size_t>(span), 1);
+  std::vector<std::vector<Id>> node_set_sorted;
+  std::vector<std::vector<std::array<Id, 2>>> node_set_ids(sets.node_sets.size());
+  for (const auto& ns : sets.node_sets) {
+    node_set_sorted.push_back(ns.vertex);
+    std::sort(node_set_sorted.back().begin(), node_set_sorted.back().end());
+    node_sets_.push_back({ns.id, ns.name, {}});
+  }
+  auto elements_of = [&](const FineBlock& blk, bool keep_all, auto&& on_element) {
+    const auto n = blk.n;
+    const Id sj = n[0] + 1, sk = (n[0] + 1) * (n[1] + 1);
+    const Id off[8] = {0, 1, 1 + sj, sj, sk, 1 + sk, 1 + sj + sk, sj + sk};
+    for (Id k = 0; k < blk.layers; ++k)
+      for (Id j = 0; j < n[1]; ++j)
+        for (Id i = 0; i < n[0]; ++i) {
+          const Id g0 = blk.point_index(i, j, k + blk.plane0);
+          if (!keep_all) {  // the same centroid as for_each_in_box
+            double c[3];
+            centroid(blk, i + n[0] * (j + n[1] * k), nc, c);
+            if (!box_->contains(c[0], c[1], c[2])) continue;
+          }
+          on_element(ids::element(blk.first_element, n, i, j, k), g0, off);
+        }
+  };
+
   if (!box_) {
-    std::vector<Id> verts, edges, faces;
+    // One pass in store order (each page read once). The chunk's own nodes
+    // are one id range [node_begin, node_end) (owner order); the others its
+    // elements use (ghosts) have lower ids, owned by earlier chunks. Local
+    // order is global id order: ghosts, then the own range.
+    const Id own0 = range_.node_begin, nown = range_.node_end - range_.node_begin;
+    if (nown < 0 || own0 < 0 || range_.node_end > mesh_.num_nodes())
+      R.corrupt(RowTable::Elements, first, "the chunk's own node range lies outside the mesh");
+    std::vector<double> ox(static_cast<size_t>(nown)), oy(ox.size()), oz(ox.size());
+    struct Ghost {
+      Id id;
+      double x, y, z;
+    };
+    std::vector<Ghost> ghosts;
+    const Id ne = std::clamp<Id>(range_.fine_elements, 0, mesh_.num_elements());
+    elem_global_.reserve(static_cast<size_t>(ne)), elem_block_.reserve(static_cast<size_t>(ne));
+    conn_.reserve(static_cast<size_t>(ne) * nc);
     for (Id h = first; h < end; ++h) {
-      const std::int64_t* row = t.elements.row(h, cur.elements);
-      verts.insert(verts.end(), row + L.conn(), row + L.conn() + L.corners);
-      edges.insert(edges.end(), row + L.edge(), row + L.edge() + L.edges);
-      faces.insert(faces.end(), row + L.face(), row + L.face() + L.faces);
-      const Id n0 = row[L.n()], n1 = row[L.n() + 1], n2 = row[L.n() + 2];  // surface: interiors are face nodes
-      if (vol) ranges.push_back({row[L.cell_offset()], (n0 - 1) * (n1 - 1) * (n2 - 1), 0});
+      check_cancel();
+      mesh_.fill_block(h, b, true);
+      for (Id g = 0; g < b.num_points(); ++g) {
+        const Id id = b.node_id[g];
+        if (id >= own0 && id - own0 < nown) {
+          ox[id - own0] = b.x[g], oy[id - own0] = b.y[g], oz[id - own0] = b.z[g];
+        } else if (id < own0) {
+          ghosts.push_back({id, b.x[g], b.y[g], b.z[g]});
+        } else {
+          R.corrupt(RowTable::Elements, h, "node " + std::to_string(id) + " lies past the chunk's own node range");
+        }
+      }
+      elements_of(b, true, [&](Id gid, Id g0, const Id* off) {
+        elem_global_.push_back(gid);
+        elem_block_.push_back(b.block);
+        for (int q = 0; q < nc; ++q) {
+          const Id id = b.node_id[g0 + off[q]];
+          conn_.push_back(id >= own0 ? id - own0 : -1 - id);  // ghosts provisionally as -1 - id
+        }
+      });
+      if (!node_set_sorted.empty()) {
+        const ElementRow row = R.element(h);
+        for (size_t s = 0; s < node_set_sorted.size(); ++s) node_set_ranges(row, mode, node_set_sorted[s], node_set_ids[s]);
+      }
+      if (progress) progress(h - first + 1, span);
     }
-    for (auto* v : {&verts, &edges, &faces}) {
-      std::sort(v->begin(), v->end());
-      v->erase(std::unique(v->begin(), v->end()), v->end());
+    std::sort(ghosts.begin(), ghosts.end(), [](const Ghost& a, const Ghost& c) { return a.id < c.id; });
+    ghosts.erase(std::unique(ghosts.begin(), ghosts.end(), [](const Ghost& a, const Ghost& c) { return a.id == c.id; }),
+                 ghosts.end());
+    const Id ng = static_cast<Id>(ghosts.size());
+    node_global_.resize(static_cast<size_t>(ng + nown));
+    x_.resize(node_global_.size()), y_.resize(node_global_.size()), z_.resize(node_global_.size());
+    for (Id q = 0; q < ng; ++q)
+      node_global_[q] = ghosts[q].id, x_[q] = ghosts[q].x, y_[q] = ghosts[q].y, z_[q] = ghosts[q].z;
+    std::iota(node_global_.begin() + ng, node_global_.end(), own0);
+    std::copy(ox.begin(), ox.end(), x_.begin() + ng), std::copy(oy.begin(), oy.end(), y_.begin() + ng);
+    std::copy(oz.begin(), oz.end(), z_.begin() + ng);
+    for (Id& c : conn_) {
+      if (c >= 0) {
+        c += ng;
+      } else {
+        const Id id = -1 - c;
+        c = std::lower_bound(ghosts.begin(), ghosts.end(), id, [](const Ghost& a, Id v) { return a.id < v; }) - ghosts.begin();
+      }
     }
-    for (Id v : verts) ranges.push_back({v, 1, 0});
-    for (Id e : edges) {
-      const std::int64_t* r = t.edges.row(e, cur.edges);
-      ranges.push_back({r[kEdgeNodeOffset], r[kEdgeN] - 1, 0});
-    }
-    for (Id f : faces) {
-      const std::int64_t* r = t.faces.row(f, cur.faces);
-      const Id off = r[kFaceNodeOffset], e0 = r[kFaceE], e2 = r[kFaceE + 2];
-      const Id w0 = t.edges.row(e0, cur.edges)[kEdgeN] - 1, w1 = t.edges.row(e2, cur.edges)[kEdgeN] - 1;
-      ranges.push_back({off, w0 * w1, 0});
-    }
-    check_cancel();
   } else {
+    // Box: the kept elements' nodes, sorted and deduplicated, then a second
+    // pass for coordinates and connectivity.
     for (Id h = first; h < end; ++h) {
       check_cancel();
       if (coarse_box_misses(mesh_, h, *box_, cur)) {
@@ -197,172 +291,74 @@ void ExportChunk::prepare(const MeshSets& sets, const std::function<void(Id, Id)
       }
       mesh_.fill_block(h, b);
       bool any = false;
-      for (Id e = 0; e < b.num_elements(); ++e) {
-        double c[3];
-        centroid(b, e, nc, c);
-        if (!box_->contains(c[0], c[1], c[2])) continue;
+      elements_of(b, false, [&](Id, Id g0, const Id* off) {
         any = true;
-        node_global_.insert(node_global_.end(), b.conn.begin() + e * nc, b.conn.begin() + (e + 1) * nc);
-      }
+        for (int q = 0; q < nc; ++q) node_global_.push_back(b.node_id[g0 + off[q]]);
+      });
       if (!any) kept_coarse[h - first] = 0;
       if (progress) progress(h - first + 1, 2 * span);
     }
     std::sort(node_global_.begin(), node_global_.end());
     node_global_.erase(std::unique(node_global_.begin(), node_global_.end()), node_global_.end());
-    for (Id g : node_global_) ranges.push_back({g, 1, 0});
-  }
-  // Ranges in id order, adjacent ones merged (a whole mesh is one range per
-  // kind of entity), each with its first local id.
-  std::sort(ranges.begin(), ranges.end(), [](const NodeRange& a, const NodeRange& b) { return a.global < b.global; });
-  {
-    size_t w = 0;
-    Id local = 0;
-    for (const NodeRange& r : ranges) {
-      if (r.count == 0) continue;
-      if (r.global < 0 || r.count < 0 || r.global > mesh_.num_nodes() - r.count)
-        throw Error(ErrorKind::Corrupt, (t.origin.empty() ? std::string("in memory") : t.origin) +
-                                            ": inconsistent mesh tables: node id range " + std::to_string(r.global) +
-                                            " + " + std::to_string(r.count) + " outside the mesh");
-      if (w > 0 && ranges[w - 1].global + ranges[w - 1].count == r.global) {
-        ranges[w - 1].count += r.count;
-      } else {
-        if (w > 0 && ranges[w - 1].global + ranges[w - 1].count > r.global)
-          throw Error(ErrorKind::Corrupt, (t.origin.empty() ? std::string("in memory") : t.origin) +
-                                              ": inconsistent mesh tables: overlapping node id ranges at id " +
-                                              std::to_string(r.global));
-        ranges[w] = r;
-        ranges[w].local = local;
-        ++w;
-      }
-      local += r.count;
-    }
-    ranges.resize(w);
-    if (!box_) {
-      node_global_.resize(static_cast<size_t>(local));
-      for (const NodeRange& r : ranges) std::iota(&node_global_[r.local], &node_global_[r.local] + r.count, r.global);
-    }
-  }
-  node_global_.shrink_to_fit();
-
-  // Pass 2: each grid point mapped to its local id through the ranges (the
-  // range of the previous point first: runs of one entity need no search),
-  // then coordinates scattered and connectivity taken from grid offsets.
-  const Id nn = num_nodes();
-  x_.assign(static_cast<size_t>(nn), 0), y_.assign(static_cast<size_t>(nn), 0), z_.assign(static_cast<size_t>(nn), 0);
-  if (!box_) {  // every element of the chunk is kept: size the arrays once
-    const Id ne = std::clamp<Id>(range_.fine_elements, 0, mesh_.num_elements());
-    elem_global_.reserve(static_cast<size_t>(ne)), elem_block_.reserve(static_cast<size_t>(ne));
-    conn_.reserve(static_cast<size_t>(ne) * nc);
-  }
-  std::vector<Id> local;
-  const NodeRange* in = ranges.empty() ? nullptr : &ranges.front();
-  auto local_of = [&](Id id) -> Id {
-    if (in == nullptr) return -1;
-    if (id < in->global || id >= in->global + in->count) {
-      auto it = std::upper_bound(ranges.begin(), ranges.end(), id, [](Id g, const NodeRange& r) { return g < r.global; });
-      if (it == ranges.begin()) return -1;
-      --it;
-      if (id >= it->global + it->count) return -1;  // a point no kept element uses (box)
-      in = &*it;
-    }
-    return in->local + (id - in->global);
-  };
-  for (Id h = first; h < end; ++h) {
-    check_cancel();
-    if (kept_coarse[h - first]) {
-      mesh_.fill_block(h, b, true);
-      local.resize(static_cast<size_t>(b.num_points()));
-      for (Id g = 0; g < b.num_points(); ++g) {
-        const Id l = local_of(b.node_id[g]);
-        local[g] = l;
-        if (l < 0) continue;
-        x_[l] = b.x[g], y_[l] = b.y[g], z_[l] = b.z[g];
-      }
-      const auto n = b.n;
-      const Id sj = n[0] + 1, sk = (n[0] + 1) * (n[1] + 1);
-      const Id off[8] = {0, 1, 1 + sj, sj, sk, 1 + sk, 1 + sj + sk, sj + sk};
-      for (Id k = 0; k < n[2]; ++k)
-        for (Id j = 0; j < n[1]; ++j)
-          for (Id i = 0; i < n[0]; ++i) {
-            const Id g0 = b.point_index(i, j, k);
-            if (box_) {
-              double c[3] = {0, 0, 0};
-              for (int q = 0; q < nc; ++q) {
-                const Id g = g0 + off[q];
-                c[0] += b.x[g], c[1] += b.y[g], c[2] += b.z[g];
-              }
-              for (double& v : c) v /= nc;
-              if (!box_->contains(c[0], c[1], c[2])) continue;
-            }
-            elem_global_.push_back(b.first_element + i + n[0] * (j + n[1] * k));
-            elem_block_.push_back(b.block);
-            for (int q = 0; q < nc; ++q) conn_.push_back(local[g0 + off[q]]);
+    node_global_.shrink_to_fit();
+    const size_t nn = node_global_.size();
+    x_.assign(nn, 0), y_.assign(nn, 0), z_.assign(nn, 0);
+    auto local_of = [&](Id id) -> Id {
+      const auto it = std::lower_bound(node_global_.begin(), node_global_.end(), id);
+      return (it != node_global_.end() && *it == id) ? it - node_global_.begin() : -1;
+    };
+    for (Id h = first; h < end; ++h) {
+      check_cancel();
+      if (kept_coarse[h - first]) {
+        mesh_.fill_block(h, b, true);
+        elements_of(b, false, [&](Id gid, Id g0, const Id* off) {
+          elem_global_.push_back(gid);
+          elem_block_.push_back(b.block);
+          for (int q = 0; q < nc; ++q) {
+            const Id g = g0 + off[q], l = local_of(b.node_id[g]);
+            x_[l] = b.x[g], y_[l] = b.y[g], z_[l] = b.z[g];
+            conn_.push_back(l);
           }
+        });
+        if (!node_set_sorted.empty()) {
+          const ElementRow row = R.element(h);
+          for (size_t s = 0; s < node_set_sorted.size(); ++s) node_set_ranges(row, mode, node_set_sorted[s], node_set_ids[s]);
+        }
+      }
+      if (progress) progress(span + h - first + 1, 2 * span);
     }
-    if (progress) progress(span + h - first + 1, 2 * span);
   }
 
-  // Owners: the chunk of the lowest coarse element using the node's owning
-  // entity (chunks are contiguous in coarse order).
+  // Owners: the chunk whose own node range holds the id (owner order), so
+  // the lowest chunk holding the node.
+  const Id nn = num_nodes();
   owner_.assign(static_cast<size_t>(nn), static_cast<std::int32_t>(range_.index));
-  std::vector<ChunkRange> plan;
-  if (!box_ && range_.count > 1) plan = plan_chunks(mesh_, range_.count);
-  auto chunk_of = [&](Id h) {
-    Id c = range_.index;
-    while (c > 0 && plan[c].first_coarse > h) --c;
-    return static_cast<std::int32_t>(c);
-  };
-  const bool any_node_sets = !sets.node_sets.empty();
-  std::vector<std::vector<Id>> node_set_sorted;
-  for (const auto& ns : sets.node_sets) {
-    node_set_sorted.push_back(ns.vertex);
-    std::sort(node_set_sorted.back().begin(), node_set_sorted.back().end());
-    node_sets_.push_back({ns.id, ns.name, {}});
+  if (range_.count > 1) {
+    const std::vector<ChunkRange> plan = plan_chunks(mesh_, range_.count);
+    size_t c = 0;
+    for (Id l = 0; l < nn; ++l) {  // ids rise with l: the chunk index only moves forward
+      const Id g = node_global_[l];
+      while (c + 1 < plan.size() && plan[c + 1].node_begin <= g) ++c;
+      owner_[l] = static_cast<std::int32_t>(c);
+    }
   }
-  const auto& base = mesh_.info().kind_base;
-  for (Id l = 0; l < nn && (!plan.empty() || any_node_sets); ++l) {
-    const Id g = node_global_[l];
-    if (g >= base[3] && !any_node_sets) continue;  // hex interior: only this chunk holds it
-    const NodeRef r = mesh_.locate_node(g, cur);
-    Id verts[8];
-    int nv = 0;
-    Id min_elem = first;
-    switch (r.kind) {
-      case EntityKind::Vertex:
-        verts[nv++] = r.entity;
-        min_elem = t.vertex_elements.row(r.entity, cur.vertex_elements)[0];
-        break;
-      case EntityKind::Edge: {
-        const std::int64_t* e = t.edges.row(r.entity, cur.edges);
-        verts[nv++] = e[kEdgeLo], verts[nv++] = e[kEdgeHi];
-        min_elem = e[kEdgeMinElement];
-        break;
+
+  // Node sets: the id ranges found per element, as local indices.
+  for (size_t s = 0; s < node_set_ids.size(); ++s) {
+    auto& rs = node_set_ids[s];
+    std::sort(rs.begin(), rs.end());
+    auto& out = node_sets_[s].node;
+    for (const auto& r : rs)
+      for (Id id = r[0]; id < r[1]; ++id) {
+        const auto it = std::lower_bound(node_global_.begin(), node_global_.end(), id);
+        if (it != node_global_.end() && *it == id) out.push_back(it - node_global_.begin());
       }
-      case EntityKind::Face: {
-        const std::int64_t* f = t.faces.row(r.entity, cur.faces);
-        for (int q = 0; q < 4; ++q) verts[nv++] = f[kFaceV + q];
-        min_elem = f[kFaceMinElement];
-        break;
-      }
-      case EntityKind::Cell: {
-        const std::int64_t* row = t.elements.row(r.entity, cur.elements);
-        for (int q = 0; q < L.corners; ++q) verts[nv++] = row[L.conn() + q];
-        min_elem = r.entity;
-        break;
-      }
-    }
-    if (!plan.empty() && min_elem < first) owner_[l] = chunk_of(min_elem);
-    // Node sets: a fine node belongs to a set when every vertex of its
-    // owning entity does.
-    for (size_t s = 0; s < node_set_sorted.size(); ++s) {
-      const auto& vs = node_set_sorted[s];
-      bool all = nv > 0;
-      for (int q = 0; q < nv && all; ++q) all = std::binary_search(vs.begin(), vs.end(), verts[q]);
-      if (all) node_sets_[s].node.push_back(l);
-    }
+    std::sort(out.begin(), out.end());
+    out.erase(std::unique(out.begin(), out.end()), out.end());
   }
 
   // Side sets: the fine elements on each coarse side, with the same side number.
+  const bool vol = mode == Mode::Volume;
   for (const auto& ss : sets.side_sets) {
     SideMembers m{ss.id, ss.name, {}, {}};
     for (size_t q = 0; q < ss.element.size(); ++q) {
@@ -370,16 +366,15 @@ void ExportChunk::prepare(const MeshSets& sets, const std::function<void(Id, Id)
       if (h < first || h >= end || !kept_coarse[h - first]) continue;
       const int side = ss.side[q];
       if (side < 0 || side > 5) continue;
-      const std::int64_t* row = t.elements.row(h, cur.elements);
-      const Id off = row[L.elem_offset()];
-      const std::array<Id, 3> n = {row[L.n()], row[L.n() + 1], row[L.n() + 2]};
+      const ElementRow row = R.element(h);
+      const auto& n = row.n;
       const SidePlane plane = vol ? hex_side_plane(side) : shell_side_plane(side);
       for (Id k = 0; k < n[2]; ++k)
         for (Id j = 0; j < n[1]; ++j)
           for (Id i = 0; i < n[0]; ++i) {
             const Id p[3] = {i, j, k};
             if (plane.axis >= 0 && p[plane.axis] != (plane.high ? n[plane.axis] - 1 : 0)) continue;
-            const Id gid = off + i + n[0] * (j + n[1] * k);
+            const Id gid = ids::element(row.element_first, n, i, j, k);
             const auto it = std::lower_bound(elem_global_.begin(), elem_global_.end(), gid);
             if (it == elem_global_.end() || *it != gid) continue;  // outside the box
             m.element.push_back(static_cast<Id>(it - elem_global_.begin()));

@@ -11,6 +11,7 @@
 #include "dicer/error.hpp"
 #include "dicer/geometry.hpp"
 #include "dicer/quality.hpp"
+#include "dicer/rows.hpp"
 #include "dicer/tfi.hpp"
 
 namespace dicer {
@@ -142,9 +143,9 @@ class Conformer {
     const CoarseMesh* c = mesh_.coarse();
     return c && v < static_cast<Id>(c->vertex_file_id.size()) ? c->vertex_file_id[v] : v + 1;
   }
-  Vec3 vertex(Id v) { const double* r = T_.vertices.row(v, cur_.vertices); return {r[0], r[1], r[2]}; }
-  const std::int64_t* edge(Id e) { return T_.edges.row(e, cur_.edges); }
-  const std::int64_t* face(Id f) { return T_.faces.row(f, cur_.faces); }
+  Vec3 vertex(Id v) { return RowReader(T_, cur_).xyz(v); }
+  EdgeRow edge(Id e) { return RowReader(T_, cur_).edge(e); }
+  FaceRow face(Id f) { return RowReader(T_, cur_).face(f); }
   Vec3 node(EntityKind k, Id ent, Id a, Id b = 0) {
     NodeRef r;
     r.kind = k, r.entity = ent, r.local = {a, b, 0};
@@ -153,17 +154,17 @@ class Conformer {
 
   void find_candidate_faces() {
     const Id F = T_.faces.rows(), H = T_.elements.rows();
-    const ElementLayout L = T_.layout();
+    const RowReader R(T_, cur_);
     std::vector<int> count(static_cast<size_t>(F), 0);
     std::vector<std::int64_t> block(static_cast<size_t>(F), -1);
     std::vector<char> mixed(static_cast<size_t>(F), 0);
     for (Id h = 0; h < H; ++h) {
-      const std::int64_t* r = T_.elements.row(h, cur_.elements);
-      for (int k = 0; k < L.faces; ++k) {
-        const Id f = r[L.face() + k];
+      const ElementRow r = R.element(h);
+      for (int k = 0; k < R.faces(); ++k) {
+        const Id f = r.face[k];
         ++count[f];
-        if (block[f] >= 0 && block[f] != r[L.block()]) mixed[f] = 1;
-        block[f] = r[L.block()];
+        if (block[f] >= 0 && block[f] != r.block) mixed[f] = 1;
+        block[f] = r.block;
       }
     }
     const bool vol = mesh_.mode() == Mode::Volume;
@@ -172,18 +173,18 @@ class Conformer {
     need_vertex_.assign(static_cast<size_t>(T_.vertices.rows()), 0);
     boundary_vertex_.assign(static_cast<size_t>(T_.vertices.rows()), 0);
     for (Id f = 0; f < F; ++f) {
-      const std::int64_t* r = face(f);
+      const FaceRow r = face(f);
       bool classified = true;
       for (int k = 0; k < 4; ++k) {
-        const std::int32_t* o = T_.vertex_owner.row(r[kFaceV + k], cur_.vertex_owner);
-        classified &= o[0] >= 0 && o[0] <= 2 && cad_.find(o[0], o[1]) != nullptr;
+        const std::int64_t o = R.vertex_geo(r.v[k]);
+        classified &= owner_dim(o) >= 0 && owner_dim(o) <= 2 && cad_.find(owner_dim(o), owner_tag(o)) != nullptr;
       }
       boundary_face_[f] = !vol || count[f] == 1;
       cand_face_[f] = boundary_face_[f] || mixed[f] || classified;
       if (!cand_face_[f]) continue;
       for (int k = 0; k < 4; ++k) {
-        need_vertex_[r[kFaceV + k]] = 1;
-        if (boundary_face_[f]) boundary_vertex_[r[kFaceV + k]] = 1;
+        need_vertex_[r.v[k]] = 1;
+        if (boundary_face_[f]) boundary_vertex_[r.v[k]] = 1;
       }
     }
   }
@@ -199,8 +200,9 @@ class Conformer {
     Id classified = 0;
     for (Id v = 0; v < V; ++v) {
       if (!need_vertex_[v]) continue;
-      const std::int32_t* o = T_.vertex_owner.row(v, cur_.vertex_owner);
-      if (o[0] >= 0 && o[0] <= 2 && cad_.find(o[0], o[1])) by_tag[{o[0], o[1]}].push_back(v), ++classified;
+      const std::int64_t o = RowReader(T_, cur_).vertex_geo(v);
+      const int d = owner_dim(o), tag = owner_tag(o);
+      if (d >= 0 && d <= 2 && cad_.find(d, tag)) by_tag[{d, tag}].push_back(v), ++classified;
     }
     Id kept = 0;
     for (const auto& [o, vs] : by_tag) {
@@ -284,7 +286,7 @@ class Conformer {
     for (Id f = 0; f < F; ++f)
       if (cand_face_[f])
         for (int k = 0; k < 4; ++k) {
-          const Id e = face(f)[kFaceE + k];
+          const Id e = face(f).e[k];
           cand[e] = 1;
           on_boundary[e] |= boundary_face_[f];
         }
@@ -292,7 +294,8 @@ class Conformer {
       if (!cand[e]) continue;
       progress("matching edges", e, E);
       cand_edges_.push_back(e);
-      const Id lo = edge(e)[kEdgeLo], hi = edge(e)[kEdgeHi];
+      const EdgeRow er = edge(e);
+      const Id lo = er.lo, hi = er.hi;
       const Vec3 a = vertex(lo), b = vertex(hi);
       const Vec3 mid{0.5 * (a.x + b.x), 0.5 * (a.y + b.y), 0.5 * (a.z + b.z)};
       // A chord across a curved surface's corner must not be taken for the
@@ -315,8 +318,8 @@ class Conformer {
     for (Id f = 0; f < F; ++f) {
       if (!cand_face_[f]) continue;
       progress("matching faces", f, F);
-      const std::int64_t* r = face(f);
-      std::vector<Id> vs{r[kFaceV], r[kFaceV + 1], r[kFaceV + 2], r[kFaceV + 3]};
+      const FaceRow r = face(f);
+      std::vector<Id> vs{r.v[0], r.v[1], r.v[2], r.v[3]};
       Vec3 c{0, 0, 0};
       double diam = 0;
       for (Id v : vs) {
@@ -398,8 +401,8 @@ class Conformer {
       const Owner o = eowner_[e];
       const CadEntity* ent = o.dim >= 1 ? cad_.find(o.dim, o.tag) : nullptr;
       if (!ent || ent->flat) continue;
-      const std::int64_t* r = edge(e);
-      const Id n = r[kEdgeN], lo = r[kEdgeLo], hi = r[kEdgeHi];
+      const EdgeRow r = edge(e);
+      const Id n = r.n, lo = r.lo, hi = r.hi;
       if (n < 2) continue;
       std::vector<Vec3> pred;
       for (Id t = 1; t < n; ++t) pred.push_back(node(EntityKind::Edge, e, t));
@@ -434,8 +437,8 @@ class Conformer {
       const Owner o = fowner_[f];
       const CadEntity* ent = o.dim == 2 ? cad_.find(2, o.tag) : nullptr;
       if (!ent || ent->flat) continue;
-      const std::int64_t* r = face(f);
-      const Id nu = T_.edges.row(r[kFaceE], cur_.edges)[kEdgeN], nv = T_.edges.row(r[kFaceE + 2], cur_.edges)[kEdgeN];
+      const FaceRow r = face(f);
+      const Id nu = r.nu, nv = r.nv;
       if (nu < 2 || nv < 2) continue;
       std::vector<Vec3> pred;
       for (Id v = 1; v < nv; ++v)
@@ -475,13 +478,10 @@ class Conformer {
   }
 
   void check_inversion() {
-    const ElementLayout L = T_.layout();
+    MeshCursor c;
+    const RowReader R(T_, c);
     const QualityReport q = check_quality(
-        mesh_,
-        [&](Id h) {
-          MeshCursor c;
-          return ((static_cast<std::uint64_t>(T_.elements.row(h, c.elements)[L.flags()]) >> kElemCurvedBit) & 1) != 0;
-        },
+        mesh_, [&](Id h) { return R.element(h).curved(); },
         [&](Id d, Id t) { progress("checking elements", d, t); });
     rep_.min_scaled_jacobian = q.min_scaled_jacobian;
     rep_.elements_checked = q.elements_checked;
@@ -546,7 +546,7 @@ GeometryCheck check_geometry(const FineMesh& mesh, const std::string& cad_path, 
     if (progress && (e & 255) == 0) progress(V + e, total);
     const std::int64_t o = mesh.owner(EntityKind::Edge, e, cur);
     if (owner_dim(o) < 1 || owner_dim(o) > 2) continue;
-    const Id n = T.edges.row(e, cur.edges)[kEdgeN];
+    const Id n = RowReader(T, cur).edge(e).n;
     std::vector<Vec3> pts;
     std::vector<Id> ids;
     for (Id t = 1; t < n; ++t) {
@@ -560,9 +560,8 @@ GeometryCheck check_geometry(const FineMesh& mesh, const std::string& cad_path, 
     if (progress && (f & 255) == 0) progress(V + E + f, total);
     const std::int64_t o = mesh.owner(EntityKind::Face, f, cur);
     if (owner_dim(o) != 2) continue;
-    const std::int64_t* r = T.faces.row(f, cur.faces);
-    const Id e0 = r[kFaceE], e2 = r[kFaceE + 2];
-    const Id nu = T.edges.row(e0, cur.edges)[kEdgeN], nv = T.edges.row(e2, cur.edges)[kEdgeN];
+    const FaceRow r = RowReader(T, cur).face(f);
+    const Id nu = r.nu, nv = r.nv;
     std::vector<Vec3> pts;
     std::vector<Id> ids;
     for (Id v = 1; v < nv; ++v)

@@ -9,6 +9,8 @@
 #include <mutex>
 
 #include "dicer/error.hpp"
+#include "dicer/numbering.hpp"
+#include "dicer/rows.hpp"
 #include "hdf5_lock.hpp"
 #include "hdf5_file.hpp"
 #include "lz4_filter.hpp"
@@ -57,9 +59,12 @@ struct WriteProgress {
 thread_local WriteProgress* g_write_progress = nullptr;
 
 template <class T>
-void write_paged(const h5::File& f, const std::string& name, const T* data, std::int64_t rows, std::int64_t width,
-                 bool shuffle = false) {
+void write_paged(const h5::File& f, const std::string& name, const T* data, std::int64_t rows, std::int64_t width) {
   const int rank = 2;
+  // Ids, offsets and bounding codes are small numbers in 8-byte words: the
+  // byte shuffle groups their zero high bytes, which LZ4 then squeezes
+  // (the store shrinks by a third). Coordinates do not gain from it.
+  const bool shuffle = std::is_integral_v<T> && sizeof(T) == 8;
   // Small datasets get one page of their own size, not a padded 64 KiB one.
   const std::int64_t rpp = std::min(rows_per_page(width, sizeof(T)), std::max<std::int64_t>(rows, 1));
   hsize_t dims[2] = {static_cast<hsize_t>(rows), static_cast<hsize_t>(width)};
@@ -96,9 +101,8 @@ void write_paged(const h5::File& f, const std::string& name, const T* data, std:
 }
 
 template <class T>
-void write_paged(const h5::File& f, const std::string& name, const std::vector<T>& v, std::int64_t width = 1,
-                 bool shuffle = false) {
-  write_paged(f, name, v.data(), static_cast<std::int64_t>(v.size()) / width, width, shuffle);
+void write_paged(const h5::File& f, const std::string& name, const std::vector<T>& v, std::int64_t width = 1) {
+  write_paged(f, name, v.data(), static_cast<std::int64_t>(v.size()) / width, width);
 }
 
 void write_strings(h5::File& f, const std::string& base, const std::vector<std::string>& names) {
@@ -246,8 +250,8 @@ void write_store(const FineMesh& mesh, const std::string& path,
     const std::int64_t rpp = rows_per_page(tab.width(), sizeof(tab.memory()[0]));
     return (tab.rows() + rpp - 1) / rpp;
   };
-  wp.total = pages(t.vertices) + pages(t.vertex_elements) + pages(t.edges) + pages(t.faces) + pages(t.elements) +
-             pages(t.bounding) + pages(t.vertex_owner) + 40;
+  wp.total = pages(t.vertices) + pages(t.vertex_nodes) + pages(t.edges) + pages(t.faces) + pages(t.elements) +
+             pages(t.corners) + pages(t.bounding) + pages(t.vertex_owner) + 40;
   g_write_progress = &wp;
   struct Reset {
     ~Reset() { g_write_progress = nullptr; }
@@ -271,26 +275,25 @@ void write_store(const FineMesh& mesh, const std::string& path,
       for (const char* g : {"coarse", "topology", "sheets", "numbering", "geometry", "sets"}) f.group(g);
       write_paged(f, "coarse/vertices", t.vertices.memory(), 3);
       write_paged(f, "coarse/vertex_file_id", c->vertex_file_id);
-      write_paged(f, "topology/vertex_elements", t.vertex_elements.memory(), 1);
+      write_paged(f, row_dataset(RowTable::VertexNodes), t.vertex_nodes.memory(), t.vertex_nodes.width());
       write_paged(f, "geometry/vertex_owner", t.vertex_owner.memory(), 2);
-      write_paged(f, "geometry/bounding", t.bounding.memory(), 3, /*shuffle=*/true);
-      write_paged(f, "topology/edges", t.edges.memory(), kEdgeWidth);
-      write_paged(f, "topology/faces", t.faces.memory(), kFaceWidth);
-      write_paged(f, "topology/elements", t.elements.memory(), t.layout().width());
-      write_paged(f, "numbering/kind_base", std::vector<std::int64_t>(info.kind_base.begin(), info.kind_base.end()));
-      // Page indexes: the searched offset of the first row of every page.
-      auto index = [&](const Table<std::int64_t>& tab, int col, const char* name) {
-        const std::int64_t rpp = std::min(rows_per_page(tab.width(), 8), std::max<std::int64_t>(tab.rows(), 1));
-        std::vector<std::int64_t> first;
-        TableCursor cur;
-        for (std::int64_t r = 0; r < tab.rows(); r += rpp) first.push_back(tab.row(r, cur)[col]);
-        write_paged(f, name, first);
-      };
-      const ElementLayout L = t.layout();
-      index(t.edges, kEdgeNodeOffset, "numbering/edge_page_first");
-      index(t.faces, kFaceNodeOffset, "numbering/face_page_first");
-      index(t.elements, L.elem_offset(), "numbering/element_page_first");
-      index(t.elements, L.cell_offset(), "numbering/cell_page_first");
+      write_paged(f, "geometry/bounding", t.bounding.memory(), 3);
+      write_paged(f, row_dataset(RowTable::Edges), t.edges.memory(), t.edges.width());
+      write_paged(f, row_dataset(RowTable::Faces), t.faces.memory(), t.faces.width());
+      write_paged(f, row_dataset(RowTable::Elements), t.elements.memory(), t.elements.width());
+      write_paged(f, row_dataset(RowTable::Corners), t.corners.memory(), t.corners.width());
+      // Page index of the elements table: the first row's first owned node
+      // and first fine element on every page (id -> element reads one page).
+      {
+        const std::int64_t rpp = std::min(rows_per_page(t.elements.width(), 8), std::max<std::int64_t>(t.elements.rows(), 1));
+        std::vector<std::int64_t> node_first, element_first;
+        MeshCursor cur;
+        const RowReader R(t, cur);
+        for (std::int64_t r = 0; r < t.elements.rows(); r += rpp)
+          node_first.push_back(R.node_first(r)), element_first.push_back(R.element_first(r));
+        write_paged(f, "numbering/element_page_node", node_first);
+        write_paged(f, "numbering/element_page_element", element_first);
+      }
       write_paged(f, "sheets/sheet_interval", mesh.sheet_intervals());
       std::vector<std::int64_t> block_id;
       std::vector<std::string> block_name;
@@ -367,6 +370,7 @@ FineMesh read_store(const std::string& path, const StoreOptions& options) {
   tab.mode = info.mode;
   tab.cache = cache;
   tab.origin = path;
+  tab.fine_nodes = info.nodes, tab.fine_elements = info.elements, tab.sheets = info.sheets;
   auto paged = [&](auto tag, const std::string& name, std::int64_t width, std::int64_t rows) {
     using T = decltype(tag);
     const std::uint32_t id = open_paged<T>(*s, name, width, rows);
@@ -374,32 +378,28 @@ FineMesh read_store(const std::string& path, const StoreOptions& options) {
     cache->set_array_pages(id, static_cast<std::uint64_t>((a.rows + a.rows_per_page - 1) / a.rows_per_page));
     return Table<T>(width, a.rows, cache, id, a.rows_per_page);
   };
+  const Mode m = info.mode;
   tab.vertices = paged(double{}, "coarse/vertices", 3, info.coarse_vertices);
-  tab.vertex_elements = paged(std::int64_t{}, "topology/vertex_elements", 1, info.coarse_vertices);
-  tab.edges = paged(std::int64_t{}, "topology/edges", kEdgeWidth, info.coarse_edges);
-  tab.faces = paged(std::int64_t{}, "topology/faces", kFaceWidth, info.coarse_faces);
-  tab.elements = paged(std::int64_t{}, "topology/elements", tab.layout().width(), info.coarse_elements);
+  tab.vertex_nodes = paged(std::int64_t{}, row_dataset(RowTable::VertexNodes), row_width(RowTable::VertexNodes, m),
+                           info.coarse_vertices);
+  tab.edges = paged(std::int64_t{}, row_dataset(RowTable::Edges), row_width(RowTable::Edges, m), info.coarse_edges);
+  tab.faces = paged(std::int64_t{}, row_dataset(RowTable::Faces), row_width(RowTable::Faces, m), info.coarse_faces);
+  tab.elements = paged(std::int64_t{}, row_dataset(RowTable::Elements), row_width(RowTable::Elements, m),
+                       info.coarse_elements);
+  tab.corners = paged(double{}, row_dataset(RowTable::Corners), row_width(RowTable::Corners, m), info.coarse_elements);
   tab.bounding = paged(std::int64_t{}, "geometry/bounding", 3, bounding_nodes);
   tab.vertex_owner = paged(std::int32_t{}, "geometry/vertex_owner", 2, info.coarse_vertices);
-  // Small metadata, read whole now (O(blocks)); pages come through the cache
-  // so they are checked like every other page.
+  // Small metadata, read whole now (O(blocks + pages)); pages come through
+  // the cache so they are checked like every other page.
   lock.unlock();  // the loader takes the HDF5 lock itself
-  const auto base = read_small<std::int64_t>(*s, cache, "numbering/kind_base", 4);
-  auto index = [&](const Table<std::int64_t>& tab, const char* name) {
-    const std::int64_t pages = (tab.rows() + tab.rows_per_page() - 1) / tab.rows_per_page();
-    auto v = read_small<std::int64_t>(*s, cache, name, pages);
+  auto index = [&](const char* name) {
+    auto v = read_small<std::int64_t>(*s, cache, name, tab.elements.pages());
     for (size_t i = 1; i < v.size(); ++i)
       if (v[i] < v[i - 1]) throw Error(ErrorKind::Corrupt, path + ": " + name + " is not increasing");
     return v;
   };
-  tab.edge_index = index(tab.edges, "numbering/edge_page_first");
-  tab.face_index = index(tab.faces, "numbering/face_page_first");
-  tab.elem_index = index(tab.elements, "numbering/element_page_first");
-  tab.cell_index = index(tab.elements, "numbering/cell_page_first");
-  for (int k = 0; k < 4; ++k) info.kind_base[k] = base[k];
-  if (info.kind_base[0] != 0 || info.kind_base[1] != info.coarse_vertices || info.kind_base[1] > info.kind_base[2] ||
-      info.kind_base[2] > info.kind_base[3] || info.kind_base[3] > info.nodes)
-    throw Error(ErrorKind::Corrupt, path + ": numbering/kind_base is inconsistent with the counts");
+  tab.node_index = index("numbering/element_page_node");
+  tab.element_index = index("numbering/element_page_element");
   std::int64_t nblocks = 0;
   {
     std::lock_guard relock(hdf5_mutex());
@@ -410,6 +410,7 @@ FineMesh read_store(const std::string& path, const StoreOptions& options) {
       throw Error(ErrorKind::Corrupt, path + ": dataset coarse/block_id is missing or implausible");
     nblocks = static_cast<std::int64_t>(dims[0]);
   }
+  tab.blocks = nblocks;
   const auto block_id = read_small<std::int64_t>(*s, cache, "coarse/block_id", nblocks);
   const auto name_off = read_small<std::int64_t>(*s, cache, "coarse/block_name_offset", nblocks + 1);
   if (name_off.front() != 0 || name_off.back() < 0 || name_off.back() > (1 << 24))
@@ -421,7 +422,32 @@ FineMesh read_store(const std::string& path, const StoreOptions& options) {
     if (name_off[b] > name_off[b + 1]) throw Error(ErrorKind::Corrupt, path + ": coarse/block_name_offset is not increasing");
     info.blocks.push_back({block_id[b], std::string(chars.begin() + name_off[b], chars.begin() + name_off[b + 1])});
   }
+  // The counts the tables determine: the last element ends the node and
+  // element ids, the blocks add up to the elements (one page read).
+  {
+    __int128 coarse = 0, fine = 0;
+    for (std::int64_t b = 0; b < nblocks; ++b) coarse += info.block_coarse_elements[b], fine += info.block_fine_elements[b];
+    if (coarse != info.coarse_elements || fine != info.elements)
+      throw Error(ErrorKind::Corrupt, path + ": per-block element counts do not add up to coarse_elements / fine_elements");
+    MeshCursor cur;
+    const RowReader R(tab, cur);
+    Id nodes_end = 0, elements_end = 0;
+    if (info.coarse_elements > 0) {
+      const ElementRow last = R.element(info.coarse_elements - 1);
+      const bool vol = m == Mode::Volume;
+      nodes_end = vol ? last.cell_node + ids::cell_nodes(last.n) : last.cell_node + ids::face_nodes(last.n[0], last.n[1]);
+      elements_end = last.element_first + last.n[0] * last.n[1] * last.n[2];
+    }
+    if (nodes_end != info.nodes || elements_end != info.elements)
+      throw Error(ErrorKind::Corrupt, path + ": attributes fine_nodes / fine_elements (" + std::to_string(info.nodes) +
+                                          " / " + std::to_string(info.elements) + ") disagree with the tables (" +
+                                          std::to_string(nodes_end) + " / " + std::to_string(elements_end) + ")");
+  }
+  const auto sheet_interval = read_small<std::int64_t>(*s, cache, "sheets/sheet_interval", info.sheets);
+  for (Id n : sheet_interval)
+    if (n < 1 || n >= kMaxElementPoints) throw Error(ErrorKind::Corrupt, path + ": sheets/sheet_interval holds " + std::to_string(n));
   FineMesh mesh(std::move(info), std::move(tab));
+  mesh.set_sheet_intervals(sheet_interval);
   return mesh;
 }
 

@@ -82,11 +82,13 @@ CoarseMesh read_coarse_mesh(const std::string& path);
 CoarseMesh read_msh(const std::string& path);
 CoarseMesh read_exodus(const std::string& path);
 
-// The same mesh with elements along a Morton curve of their centroids and
-// vertices in order of first use (locality for paged storage). Optionally
-// returns, for each new vertex / element, its index in `mesh`.
+// The same mesh with elements along a Morton curve of their centroids (ties
+// in file order; `morton` = false keeps the file's element order) and
+// vertices in order of first use (locality for paged storage, and the owner
+// order of the numbering). Optionally returns, for each new vertex /
+// element, its index in `mesh`.
 CoarseMesh sfc_order(const CoarseMesh& mesh, std::vector<Id>* old_vertex_of_new = nullptr,
-                     std::vector<Id>* old_element_of_new = nullptr);
+                     std::vector<Id>* old_element_of_new = nullptr, bool morton = true);
 
 // Checks the invariants above, drops unused vertices, reorients a wholly
 // left-handed mesh (warning) and refuses mixed handedness or an inverted hex.

@@ -29,10 +29,11 @@ struct ChunkRange {
   Id index = 0, count = 1;         // chunk k of K
   Id first_coarse = 0, end_coarse = 0;  // coarse elements [first, end)
   Id fine_elements = 0;
+  Id node_begin = 0, node_end = 0;  // the fine nodes the chunk owns: one id range (owner order)
 };
 
 // Balanced split of the coarse elements into `count` chunks by fine element
-// count. Throws Error{Usage} for count < 1. O(coarse elements) rows read.
+// count. Throws Error{Usage} for count < 1. O(count log H) rows read.
 std::vector<ChunkRange> plan_chunks(const FineMesh& mesh, Id count);
 
 struct Box {
@@ -80,7 +81,8 @@ class ExportChunk {
   Id num_nodes() const { return static_cast<Id>(node_global_.size()); }
   Id num_elements() const { return static_cast<Id>(elem_global_.size()); }
 
-  // Nodes in local order (sorted by global id).
+  // Nodes in local order: sorted by global id. Without a box: the nodes
+  // other chunks own (lower ids), then the chunk's own id range.
   std::span<const Id> node_global() const { return node_global_; }
   std::span<const double> x() const { return x_; }
   std::span<const double> y() const { return y_; }

@@ -9,6 +9,8 @@
 //
 // Access paths, all bit-identical for the same node id (invariant 2):
 //  1. node(id) / element(id): random access, O(log n) lookup + O(1) TFI.
+//     Node ids are in owner order (numbering.hpp): coarse element by coarse
+//     element, what each owns.
 //  2. fill_block(h, block): every node and element of coarse element h, as
 //     contiguous arrays (ids, x, y, z, connectivity). O(block size); a
 //     reused FineBlock allocates nothing once warm.
@@ -48,6 +50,7 @@ struct FineBlock {
   Id coarse_element = -1;
   std::array<Id, 3> n{};         // intervals along local i, j, k (k = 1 in surface mode)
   Id first_element = 0;          // fine id of element (0, 0, plane0); elements are consecutive
+  Id node_first = 0;             // node ids >= this are the coarse element's own (owner order)
   std::int32_t block = -1;
   Id plane0 = 0;                 // grid planes [plane0, plane0 + planes) are held
   Id planes = 0;
@@ -61,7 +64,9 @@ struct FineBlock {
 
   // Work space of fill_block, kept here so a reused block allocates nothing.
   struct Scratch {
-    std::vector<double> face[3], bottom[3], top[3], left[3], right[3], s, t, u, U;
+    Vec3 corner[8];
+    std::vector<double> edge[12][3], face[6][3];  // the element's edges' and faces' points, canonical order
+    std::vector<double> bottom[3], top[3], left[3], right[3], s, t, u, U;
     // The boundary (corners, edges, faces) of the element filled last, so a
     // block produced slab by slab evaluates it once: planes k = 0 and k = n[2]
     // whole, then for each 0 < k < n[2] the ring of plane k (j = 0, j = n[1],
@@ -98,7 +103,6 @@ struct MeshInfo {
   std::string source;                    // the coarse mesh file it was diced from
   Id coarse_vertices = 0, coarse_edges = 0, coarse_faces = 0, coarse_elements = 0, sheets = 0;
   Id nodes = 0, elements = 0;            // fine counts
-  std::array<Id, 4> kind_base{};         // first fine node id of vertices, edges, faces, cells
   std::vector<Block> blocks;
   std::vector<Id> block_coarse_elements, block_fine_elements;
 };
@@ -129,7 +133,7 @@ class FineMesh {
   Id num_nodes() const { return info_.nodes; }
   Id num_elements() const { return info_.elements; }
   Id num_coarse_elements() const { return info_.coarse_elements; }
-  int corners() const { return tables_.layout().corners; }
+  int corners() const { return mode() == Mode::Volume ? 8 : 4; }
 
   // Throw Error{Usage} for an id out of range.
   Vec3 node(Id id) const;
@@ -139,6 +143,8 @@ class FineMesh {
   Vec3 node(const NodeRef& ref, MeshCursor& cur) const;
 
   // Numbering (DESIGN.md invariant 3), see numbering.hpp for the layout.
+  // The nodes coarse elements [first, end) own: one id range.
+  std::array<Id, 2> owned_nodes(Id first, Id end, MeshCursor& cur) const;
   NodeRef locate_node(Id id, MeshCursor& cur) const;
   Id node_id(const NodeRef& ref, MeshCursor& cur) const;
   Id locate_element(Id id, std::array<Id, 3>& ijk, MeshCursor& cur) const;
@@ -182,6 +188,7 @@ class FineMesh {
   std::shared_ptr<const CoarseMesh> coarse_;
   std::vector<Id> sheet_intervals_;
   bool faces_moved_ = false;
+  std::vector<Id> vertex_uses_, vertex_uses_offset_;  // set_vertex: vertex -> 8 * element + corner (CSR)
   // Identity of this mesh's content (a new value on every change), the key
   // of a FineBlock's cached boundary.
   std::uint64_t serial_ = next_serial();
@@ -193,8 +200,10 @@ class FineMesh {
 // one): 2^16 points are ~2 MiB of ids and coordinates at any interval.
 inline constexpr Id kCursorSlabPoints = Id{1} << 16;
 
-// Whole-mesh node iteration in id order [begin, end). Edges and faces are
-// filled whole on entry, cell interiors slab by slab: O(interval^2) memory.
+// Whole-mesh node iteration in id order [begin, end): coarse element by
+// coarse element (owner order), the nodes of the vertices, edges and faces
+// it owns computed whole on entry, its interior slab by slab:
+// O(interval^2) memory.
 class NodeCursor {
  public:
   NodeCursor(const FineMesh& mesh, Id begin, Id end, Id slab_points = kCursorSlabPoints);
@@ -207,14 +216,13 @@ class NodeCursor {
   const FineMesh& mesh_;
   Id next_, end_, slab_points_;
   MeshCursor cur_;
-  FineBlock block_;  // the slab of cell interior planes in use
-  std::vector<double> line_[3];  // the points of the edge or face in use, in id order
-  FineBlock::Scratch face_;
-  // The entity whose ids [range_first_, range_end_) the last lookup found:
-  // the next ids in it need no search.
-  NodeRef range_ref_;
-  Id range_first_ = 0, range_end_ = 0, range_w0_ = 1, range_w1_ = 1;
-  std::array<Id, 3> range_n_{};
+  FineBlock block_;                 // the slab of interior planes in use
+  FineBlock::Scratch scratch_;      // the element's boundary
+  std::vector<double> own_[3];      // its own boundary nodes, at id - own_first_
+  Id elem_ = -1;                    // the coarse element entered
+  Id own_first_ = 0, own_end_ = 0;  // ids held in own_
+  Id cell_first_ = 0, cell_end_ = 0;
+  std::array<Id, 3> n_{};
 };
 
 // Whole-mesh element iteration in id order [begin, end), slab by slab

@@ -1,22 +1,37 @@
 #pragma once
 // Numbering: fine node and element ids (DESIGN.md invariant 3). The only
-// place that knows how ids are laid out.
+// place that knows how ids are laid out; every id formula is below.
 //
-// Fine node ids: coarse vertices first (id = vertex index), then the interior
-// nodes of each coarse edge (edge order, t = 1..n-1), then of each face (face
-// order, u fastest: (u-1) + (v-1)(nu-1)), then of each hex interior (hex
-// order, (i-1) + (j-1)(n1-1) + (k-1)(n1-1)(n2-1)). Surface mode: vertices,
-// edges, quads. Fine element ids: coarse element order, then i fastest, then
-// j, then k, in the element's own local frame.
+// Owner order (store format 6 on). Every coarse vertex, edge and face is
+// owned by the lowest coarse element (store order) that contains it. Fine
+// node ids are given coarse element by coarse element, in store order; for
+// element h:
+//   1. the vertices h owns, in vertex id order;
+//   2. the interior nodes of the edges h owns, edge by edge in edge id
+//      order, each in its canonical direction: t = 1 .. n-1;
+//   3. the interior nodes of the faces h owns, face by face, each in its
+//      canonical frame: (u-1) + (v-1)(nu-1);
+//   4. h's interior: (i-1) + (j-1)(n1-1) + (k-1)(n1-1)(n2-1) (surface mode:
+//      the quad's own face is its interior, numbered as in 3).
+// Vertex, edge and face ids are themselves in owner order (to_owner_order),
+// so each kind's node ids rise with its entity ids. Consequences: the nodes
+// owned by a contiguous range of coarse elements are one contiguous id
+// range [node_first(first), node_first(end)); an entity's ids are >= its
+// user's node_first exactly when that user owns it; a sweep in id order
+// visits coarse elements in store order.
+// Fine element ids: coarse element order, then i fastest, then j, then k,
+// in the element's own local frame.
 //
-// Numbering (the builder) computes every entity's first id once, at dice
-// time, with overflow checks; the results are columns of the mesh tables.
-// The lookups below work on those tables: id -> entity is a binary search,
-// O(log n) rows touched; entity -> id is O(1).
+// Numbering (the builder) computes every first id once, at dice time, with
+// overflow checks; the results are columns of the mesh tables (rows.hpp).
+// The lookups below read those rows: id -> entity is a binary search over
+// element rows, O(log H) rows (one page with the store's page index);
+// entity -> id is O(1).
 #include <array>
 #include <cstdint>
 #include <vector>
 
+#include "dicer/rows.hpp"
 #include "dicer/tables.hpp"
 #include "dicer/topology.hpp"
 
@@ -33,40 +48,71 @@ struct NodeRef {
   friend bool operator==(const NodeRef&, const NodeRef&) = default;
 };
 
+// The id formulas. `first` is the entity's first id (a row column).
+namespace ids {
+inline Id edge_node(Id first, Id t) { return first + (t - 1); }
+inline Id face_node(Id first, Id nu, Id u, Id v) { return first + (u - 1) + (v - 1) * (nu - 1); }
+inline Id cell_node(Id first, const std::array<Id, 3>& n, Id i, Id j, Id k) {
+  return first + (i - 1) + (n[0] - 1) * ((j - 1) + (n[1] - 1) * (k - 1));
+}
+inline Id element(Id first, const std::array<Id, 3>& n, Id i, Id j, Id k) { return first + i + n[0] * (j + n[1] * k); }
+// Inverses: local index l (id - first) -> position.
+inline std::array<Id, 3> cell_local(Id l, const std::array<Id, 3>& n) {
+  const Id a = n[0] - 1, b = n[1] - 1;
+  return {l % a + 1, (l / a) % b + 1, l / (a * b) + 1};
+}
+inline std::array<Id, 2> face_local(Id l, Id nu) { return {l % (nu - 1) + 1, l / (nu - 1) + 1}; }
+inline std::array<Id, 3> element_local(Id l, const std::array<Id, 3>& n) {
+  return {l % n[0], (l / n[0]) % n[1], l / (n[0] * n[1])};
+}
+// Interior node counts.
+inline Id edge_nodes(Id n) { return n - 1; }
+inline Id face_nodes(Id nu, Id nv) { return (nu - 1) * (nv - 1); }
+inline Id cell_nodes(const std::array<Id, 3>& n) { return (n[0] - 1) * (n[1] - 1) * (n[2] - 1); }
+}  // namespace ids
+
 class Numbering {
  public:
   Numbering() = default;
-  // edge_n: interval of every edge. Throws Error{Overflow} (with the
-  // numbers) when a count does not fit in 63 bits, Error{BadInput} when two
-  // opposite edges of a face disagree.
+  // topo: in owner order (to_owner_order). edge_n: interval of every edge.
+  // Throws Error{Overflow} (with the numbers) when a count does not fit in
+  // 63 bits or a coarse element would have more than kMaxElementPoints grid
+  // points, Error{BadInput} when two opposite edges of a face disagree.
   Numbering(const Topology& topo, std::vector<Id> edge_n);
 
   Id num_nodes() const { return num_nodes_; }
-  Id num_elements() const { return elem_offset_.back(); }
+  Id num_elements() const { return element_first_.back(); }
   Id edge_n(Id e) const { return edge_n_[e]; }
   std::array<Id, 2> face_n(Id f) const { return face_n_[f]; }
   std::array<Id, 3> elem_n(Id h) const { return elem_n_[h]; }
-  // First node id of each kind: vertices, edges, faces, cells.
-  std::array<Id, 4> kind_base() const { return base_; }
-  Id edge_node_offset(Id e) const { return base_[1] + edge_off_[e]; }
-  Id face_node_offset(Id f) const { return base_[2] + face_off_[f]; }
-  Id cell_node_offset(Id h) const { return base_[3] + cell_off_[h]; }
-  Id elem_first_element(Id h) const { return elem_offset_[h]; }
+  Id vertex_node(Id v) const { return vertex_node_[v]; }
+  Id edge_node(Id e) const { return edge_node_[e]; }
+  Id face_node(Id f) const { return face_node_[f]; }
+  Id cell_node(Id h) const { return cell_node_[h]; }
+  Id node_first(Id h) const { return node_first_[h]; }
+  Id element_first(Id h) const { return element_first_[h]; }
 
  private:
   std::vector<Id> edge_n_;
   std::vector<std::array<Id, 2>> face_n_;
   std::vector<std::array<Id, 3>> elem_n_;
-  std::vector<Id> edge_off_, face_off_, cell_off_, elem_offset_;  // prefix sums, size n+1
-  std::array<Id, 4> base_{};
+  std::vector<Id> vertex_node_, edge_node_, face_node_, cell_node_, node_first_, element_first_;
   Id num_nodes_ = 0;
 };
 
-// Lookups over the tables. `base` is MeshInfo::kind_base, `nodes` the fine
-// node count; ids must be in range (callers check).
-NodeRef locate_node(const MeshTables& t, const std::array<Id, 4>& base, Id nodes, Id id, MeshCursor& cur);
-Id node_id(const MeshTables& t, const std::array<Id, 4>& base, const NodeRef& r, MeshCursor& cur);
+// Lookups over the tables; ids must be in range (callers check: FineMesh
+// does). A row that contradicts the numbering is Error{Corrupt}.
+NodeRef locate_node(const MeshTables& t, Id id, MeshCursor& cur);
+Id node_id(const MeshTables& t, const NodeRef& r, MeshCursor& cur);
 // Fine element id -> coarse element h and (i, j, k).
 Id locate_element(const MeshTables& t, Id id, std::array<Id, 3>& ijk, MeshCursor& cur);
+// The coarse element owning node `id` (the last with node_first <= id).
+Id owner_element(const MeshTables& t, Id id, MeshCursor& cur);
+
+// Canonical intervals (nu, nv) of local face k of an element row.
+inline std::array<Id, 2> face_intervals(const ElementRow& h, int k, Mode mode) {
+  const int a = mode == Mode::Volume ? kHexFaceAxes[k][0] : 0, b = mode == Mode::Volume ? kHexFaceAxes[k][1] : 1;
+  return code_swaps_axes(h.code(k)) ? std::array<Id, 2>{h.n[b], h.n[a]} : std::array<Id, 2>{h.n[a], h.n[b]};
+}
 
 }  // namespace dicer

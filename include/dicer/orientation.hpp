@@ -89,5 +89,8 @@ FaceMap face_map(FaceCode code, std::int64_t nu, std::int64_t nv);
 // face `face` under `code`; sides as in Topology::face_edge: 0 v0v1, 1 v3v2,
 // 2 v0v3, 3 v1v2. Table lookup.
 int hex_face_side_edge(int face, FaceCode code, int side);
+// The same for a quad (surface mode), whose one face is itself: the local
+// quad edge (kQuadEdge index) carrying canonical side `side`.
+int quad_side_edge(FaceCode code, int side);
 
 }  // namespace dicer

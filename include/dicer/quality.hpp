@@ -2,11 +2,15 @@
 // Element quality of the fine mesh: the scaled Jacobian, streamed block by
 // block so it never needs more than one coarse element's fine nodes.
 //
-// Scaled Jacobian of a hex: the minimum over its 8 corners of
-// det(e1, e2, e3) / (|e1| |e2| |e3|) with e1..e3 the corner's three edges in
-// right-handed order (1 for a cube, <= 0 when the element is inverted). Of a
-// quad (surface mode): the minimum over its 4 corners of the corner normal
-// (e1 x e2) / (|e1| |e2|) projected on the quad's mean normal.
+// The one definition of element quality (verify, dice --geometry and the
+// benchmarks call these). Scaled Jacobian of a hex: the minimum over its 8
+// corners of det(e1, e2, e3) / (|e1| |e2| |e3|) with e1..e3 the corner's
+// three edges in right-handed order (1 for a cube, <= 0 when the element
+// is inverted, 0 when an edge has collapsed). Of a quad (surface mode): the
+// minimum over its 4 corners of the corner normal (e1 x e2) / (|e1| |e2|)
+// projected on a reference unit normal: the coarse quad's (so a fine quad
+// folded over against its coarse element is <= 0), or, without one, the
+// quad's own mean normal.
 #include <functional>
 
 #include "dicer/fine_mesh.hpp"
@@ -15,6 +19,13 @@ namespace dicer {
 
 double hex_scaled_jacobian(const Vec3 (&p)[8]);  // VTK/Exodus HEX8 corner order
 double quad_scaled_jacobian(const Vec3 (&p)[4]);
+double quad_scaled_jacobian(const Vec3 (&p)[4], const Vec3& normal);
+// Normal of a coarse quad (the cross product of its diagonals, not unit)
+// from the corner points of a block (surface mode).
+Vec3 block_normal(const FineBlock& b);
+// Scaled Jacobian of fine element (i, j, k) of a filled block (surface
+// mode: against `normal`, block_normal(b)).
+double element_scaled_jacobian(const FineBlock& b, Id i, Id j, Id k, const Vec3& normal);
 
 struct QualityReport {
   double min_scaled_jacobian = 1.0;

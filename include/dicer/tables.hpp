@@ -1,30 +1,24 @@
 #pragma once
-// MeshTables: the coarse mesh compiled into the four row tables the fine
-// mesh is regenerated from. The same tables live in memory right after
-// `dice` and in the store's pages afterwards; FineMesh reads them through a
+// MeshTables: the coarse mesh compiled into the row tables the fine mesh is
+// regenerated from. The same tables live in memory right after `dice` and
+// in the store's pages afterwards; the fine mesh reads them through a
 // TableCursor either way, so there is one code path (DESIGN.md invariant 2).
 //
 // Rows never straddle a page: a table of width W is paged in chunks of
 // rows_per_page whole rows, so one pinned page serves a whole row.
 //
-// Layouts (int64 unless noted; ids 0-based; "offset" = first fine id):
-//   vertices  [V x 3] float64  x, y, z
-//   vertex_elements [V x 1]  lowest coarse element using the vertex
-//   edges     [E x 8]  lo, hi, n (interval), node offset, sheet, lowest
-//                      coarse element using the edge, geometric owner,
-//                      first bounding row (-1: the nodes are not moved)
-//   faces     [F x 12] v0..v3 (canonical corners), e0..e3 (sides: v0v1,
-//                      v3v2, v0v3, v1v2), node offset, lowest element,
-//                      geometric owner, first bounding row (-1: none)
-//   elements  [H x W]  corners (8|4), edges (12|4), faces (6|1), element
-//                      offset, cell node offset, block index, file id,
-//                      flags = edge reversal bits | face codes << 12 (3 bits
-//                      each) | kElemCurvedBit, n1, n2, n3
-//   bounding  [N x 3]  the bounding fine arrays: for every node moved onto
-//                      the CAD, tfi::bounding_code of x, y, z against its
-//                      TFI prediction (an edge's n-1 interior nodes in
-//                      canonical order, a face's (nu-1)(nv-1), u fastest)
-//   vertex_owner [V x 2] int32 geometric entity (dim, tag), -1 unknown
+// What a row holds is the business of the row layer (rows.hpp): read and
+// write table rows only through its typed, validated views. The tables
+// (ids 0-based, in the store's numbering, every entity in owner order):
+//   vertices        [V x 3] float64  coordinates
+//   vertex_nodes    [V x 2]  owner element, fine node id
+//   edges           [E x 8], faces [F x 14], elements [H x W]: rows.hpp
+//   corners         [H x 3c] float64  the element's c corner coordinates,
+//                   so that a sweep over straight elements reads nothing
+//                   but `elements` and `corners`, each page once
+//   bounding        [N x 3]  the bounding fine arrays (nodes moved onto the
+//                   CAD or a curved coarse element), tfi::bounding_code
+//   vertex_owner    [V x 2] int32 geometric entity (dim, tag), -1 unknown
 // Cost: a row lookup is a pointer computation in memory, and a page-index
 // compare plus (on a page change) one cache pin when paged.
 #include <cstdint>
@@ -37,17 +31,6 @@
 
 namespace dicer {
 
-// Column positions.
-enum EdgeCol : int {
-  kEdgeLo = 0, kEdgeHi, kEdgeN, kEdgeNodeOffset, kEdgeSheet, kEdgeMinElement, kEdgeOwner, kEdgeBound, kEdgeWidth
-};
-enum FaceCol : int {
-  kFaceV = 0, kFaceE = 4, kFaceNodeOffset = 8, kFaceMinElement = 9, kFaceOwner = 10, kFaceBound = 11, kFaceWidth = 12
-};
-// Element flag: some edge or face of the element has bounding nodes, so its
-// hex interior must read them (elements without it take the fast path).
-inline constexpr int kElemCurvedBit = 30;
-
 // Geometric owner of an edge or face: the lowest-dimensional CAD entity it
 // lies on, packed as dim << 32 | tag; -1 when none is known. dim 3 (a
 // volume) means "interior": nothing to move.
@@ -56,22 +39,6 @@ inline std::int64_t pack_owner(int dim, int tag) {
 }
 inline int owner_dim(std::int64_t o) { return o < 0 ? -1 : static_cast<int>(o >> 32); }
 inline int owner_tag(std::int64_t o) { return o < 0 ? -1 : static_cast<std::int32_t>(o & 0xffffffff); }
-
-// Element row layout, which depends on the mode.
-struct ElementLayout {
-  int corners, edges, faces;
-  int conn() const { return 0; }
-  int edge() const { return corners; }
-  int face() const { return corners + edges; }
-  int elem_offset() const { return corners + edges + faces; }
-  int cell_offset() const { return elem_offset() + 1; }
-  int block() const { return elem_offset() + 2; }
-  int file_id() const { return elem_offset() + 3; }
-  int flags() const { return elem_offset() + 4; }
-  int n() const { return elem_offset() + 5; }  // intervals along local i, j, k (k = 1 in surface mode)
-  int width() const { return elem_offset() + 8; }
-  static ElementLayout of(Mode m) { return m == Mode::Volume ? ElementLayout{8, 12, 6} : ElementLayout{4, 4, 1}; }
-};
 
 class TableCursor;
 
@@ -93,6 +60,7 @@ class Table {
   std::vector<T>& memory() { return mem_; }  // in-memory tables only (dicing)
   void reshape() { rows_ = width_ ? static_cast<std::int64_t>(mem_.size()) / width_ : 0; }  // after memory() grew
   std::int64_t rows_per_page() const { return rows_per_page_; }
+  std::int64_t pages() const { return rows_per_page_ > 0 ? (rows_ + rows_per_page_ - 1) / rows_per_page_ : 0; }
   std::uint32_t array() const { return array_; }
 
   // Pointer to row i (width() values), valid until cur moves to another page.
@@ -110,7 +78,7 @@ class Table {
 // either cost no lookup, and a query that alternates between two pages (a
 // hex's edges often straddle a page boundary) does not thrash. Move-only;
 // holds a pin on each cached page, so a cursor pins at most 2 pages per
-// table (8 for a MeshCursor).
+// table.
 class TableCursor {
  public:
   TableCursor() = default;
@@ -154,23 +122,25 @@ struct MeshTables {
   Mode mode = Mode::Volume;
   std::shared_ptr<PageCache> cache;  // the pages behind paged tables (nullptr in memory)
   std::string origin;                // the store's path, named in errors ("" in memory)
-  // Page indexes of paged tables (empty in memory): the searched column's
-  // value in the first row of every page, so an id -> entity lookup reads
-  // one page of the table. O(rows / rows_per_page) each.
-  std::vector<std::int64_t> edge_index, face_index, elem_index, cell_index;
+  // What rows are validated against (rows.hpp): fine counts, sheets, blocks.
+  Id fine_nodes = 0, fine_elements = 0, sheets = 0, blocks = 0;
+  // Page indexes of paged tables (empty in memory): the first element's
+  // first owned node id and first fine element id on every page of
+  // `elements`, so an id -> element search reads one page. O(pages).
+  std::vector<std::int64_t> node_index, element_index;
   Table<double> vertices;
-  Table<std::int64_t> vertex_elements, edges, faces, elements;
-  Table<std::int64_t> bounding;       // [N x 3], N = 0 without geometry
+  Table<std::int64_t> vertex_nodes, edges, faces, elements;
+  Table<double> corners;
+  Table<std::int64_t> bounding;       // [N x 3], N = 0 without moved nodes
   Table<std::int32_t> vertex_owner;   // [V x 2]
-  ElementLayout layout() const { return ElementLayout::of(mode); }
 };
 
 // One cursor per table: what a reader (a block, a query, a thread) carries.
 struct MeshCursor {
-  TableCursor vertices, vertex_elements, edges, faces, elements, bounding, vertex_owner;
+  TableCursor vertices, vertex_nodes, edges, faces, elements, corners, bounding, vertex_owner;
   void release() {
-    vertices.release(), vertex_elements.release(), edges.release(), faces.release(), elements.release();
-    bounding.release(), vertex_owner.release();
+    vertices.release(), vertex_nodes.release(), edges.release(), faces.release(), elements.release();
+    corners.release(), bounding.release(), vertex_owner.release();
   }
 };
 

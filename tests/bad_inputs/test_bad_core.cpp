@@ -139,11 +139,16 @@ TEST(BadCore, BadIntervalRequestsAreRefused) {
   IntervalRequest size;
   size.size = -1;
   EXPECT_NE(error_of([&] { dice(size); }, ErrorKind::Usage).find("--size"), std::string::npos);
-  // 2 hexes x (2^40 - 1)^3 interior nodes overflow 63 bits: refused with the numbers.
+  // (2^40 + 1)^3 grid points in one hex: more than any reader takes
+  // (rows.hpp, kMaxElementPoints), refused at dice time with the numbers.
   IntervalRequest huge;
   huge.global = Id{1} << 40;
   const std::string msg = error_of([&] { dice(huge); }, ErrorKind::Overflow);
-  EXPECT_NE(msg.find("1099511627775"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("1099511627776 x 1099511627776"), std::string::npos) << msg;
+  // The boundary itself: 10320 intervals give 10321^3 < 2^40 points, 10321 give 10322^3 > 2^40.
+  IntervalRequest edge;
+  edge.global = 10321;
+  EXPECT_NE(error_of([&] { dice(edge); }, ErrorKind::Overflow).find("2^40 grid points"), std::string::npos);
 }
 
 TEST(BadCore, IntervalConflictsAreReportedBySheetAndBlock) {

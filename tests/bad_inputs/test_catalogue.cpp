@@ -216,12 +216,13 @@ std::vector<Case> catalogue() {
                }, true);
              });
            },
-           {"query", "IN", "--element", "40"}, 8, "inconsistent mesh tables: element interval of row 5"},
+           {"query", "IN", "--element", "40"}, 8, "topology/elements row 5: interval 2199023255552 out of range"},
       Case{"store page with the Fletcher32 blind spot (0x0000 -> 0xFFFF)",
            [](const test::TempDir& d) {
              return edited_store(d, [](hid_t f) {
                // A zero 16-bit word turned into 0xFFFF keeps Fletcher32 valid; only the CRC-32 sees it.
-               test::forge_page(f, "coarse/vertices", 0, [](std::vector<std::uint8_t>& page) {
+               // (element corner coordinates: what a node query reads)
+               test::forge_page(f, "topology/element_corners", 0, [](std::vector<std::uint8_t>& page) {
                  for (size_t i = 0; i + 1 < page.size(); i += 2)
                    if (page[i] == 0 && page[i + 1] == 0) {
                      page[i] = page[i + 1] = 0xff;
@@ -230,7 +231,7 @@ std::vector<Case> catalogue() {
                }, false);
              });
            },
-           {"query", "IN", "--node", "0"}, 8, "coarse/vertices page 0: page checksum (CRC-32) mismatch"},
+           {"query", "IN", "--node", "0"}, 8, "topology/element_corners page 0: page checksum (CRC-32) mismatch"},
       Case{"HDF5 file that is not a dicer store",
            [](const test::TempDir& d) {
              const std::string p = d.path("other.h5");
@@ -245,8 +246,8 @@ std::vector<Case> catalogue() {
       Case{"negative interval", real, {"dice", "IN", "--interval", "-3", "-o", "OUT"}, 2, ">= 1"},
       Case{"interval beyond 64 bits", real, {"dice", "IN", "--interval", "123456789012345678901", "-o", "OUT"}, 6,
            "does not fit in 64 bits"},
-      Case{"counts overflow 64-bit ids", real, {"dice", "IN", "--interval", "2000000", "-o", "OUT"}, 6,
-           "overflows 64-bit ids"},
+      Case{"more grid points in a coarse element than any reader takes", real,
+           {"dice", "IN", "--interval", "10321", "-o", "OUT"}, 6, "more than 2^40 grid points in one coarse element"},
       Case{"negative size", real, {"dice", "IN", "--size", "-1", "-o", "OUT"}, 2, "--size"},
       Case{"unknown block", real, {"dice", "IN", "--block-interval", "inlet=3", "-o", "OUT"}, 2, "inlet"},
       Case{"unknown sheet", real, {"dice", "IN", "--sheet-interval", "999=3", "-o", "OUT"}, 2, "no sheet 999"},

@@ -139,7 +139,7 @@ void trace_store(const std::string& path, Trace& t) {
   put(t, i.source);
   for (Id v : {i.coarse_vertices, i.coarse_edges, i.coarse_faces, i.coarse_elements, i.sheets, i.nodes, i.elements})
     put(t, v);
-  for (Id v : i.kind_base) put(t, v);
+  for (Id v : m.sheet_intervals()) put(t, v);
   put(t, static_cast<Id>(i.blocks.size()));
   for (const Block& b : i.blocks) put(t, b.id), put(t, b.name);
   for (Id v : i.block_coarse_elements) put(t, v);

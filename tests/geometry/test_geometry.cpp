@@ -14,6 +14,7 @@
 #include "dicer/coarse_mesh.hpp"
 #include "dicer/error.hpp"
 #include "dicer/geometry.hpp"
+#include "dicer/rows.hpp"
 #include "dicer/quality.hpp"
 #include "dicer/store.hpp"
 #include "dicer/sweep.hpp"
@@ -91,13 +92,12 @@ void for_each_cad_node(const FineMesh& m, const std::function<void(Id, const Vec
   for (Id e = 0; e < T.edges.rows(); ++e) {
     const auto o = m.owner(EntityKind::Edge, e, cur);
     if (owner_dim(o) < 1 || owner_dim(o) > 2) continue;
-    for (Id t = 1; t < T.edges.row(e, cur.edges)[kEdgeN]; ++t) visit(EntityKind::Edge, e, t, 0);
+    for (Id t = 1; t < RowReader(T, cur).edge(e).n; ++t) visit(EntityKind::Edge, e, t, 0);
   }
   for (Id f = 0; f < T.faces.rows(); ++f) {
     if (owner_dim(m.owner(EntityKind::Face, f, cur)) != 2) continue;
-    const std::int64_t* r = T.faces.row(f, cur.faces);
-    const Id e0 = r[kFaceE], e2 = r[kFaceE + 2];
-    const Id nu = T.edges.row(e0, cur.edges)[kEdgeN], nv = T.edges.row(e2, cur.edges)[kEdgeN];
+    const FaceRow r = RowReader(T, cur).face(f);
+    const Id nu = r.nu, nv = r.nv;
     for (Id v = 1; v < nv; ++v)
       for (Id u = 1; u < nu; ++u) visit(EntityKind::Face, f, u, v);
   }

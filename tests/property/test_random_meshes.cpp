@@ -281,20 +281,48 @@ TEST(RandomMeshes, NumberingRoundTripsAndFollowsTheLayout) {
   req.global = 4;
   req.sheets = {{1, 2}, {3, 1}};
   const FineMesh f = FineMesh::dice(m, req);
-  const auto off = f.info().kind_base;
-  EXPECT_EQ(off[1], m.num_vertices());  // vertices first
-  EXPECT_TRUE(off[1] <= off[2] && off[2] <= off[3] && off[3] <= f.num_nodes());
   MeshCursor cur;
-  Id prev_entity = -1;
+  // The owner of every node, by brute force: the first coarse element (store
+  // order) whose block holds it.
+  std::vector<Id> owner(static_cast<size_t>(f.num_nodes()), -1);
+  {
+    FineBlock b;
+    for (Id h = 0; h < f.num_coarse_elements(); ++h) {
+      f.fill_block(h, b, true);
+      for (Id g = 0; g < b.num_points(); ++g)
+        if (owner[b.node_id[g]] < 0) owner[b.node_id[g]] = h;
+    }
+  }
+  // Owner order: ids run through the owners in store order; within an
+  // owner: vertices, edges, faces, interior; within a kind, entity ids rise;
+  // within an entity, the canonical position rises (first axis fastest).
+  Id prev_owner = 0, prev_entity = -1;
   int prev_kind = -1;
+  std::array<Id, 3> prev_local{};
   for (Id id = 0; id < f.num_nodes(); ++id) {
+    ASSERT_GE(owner[id], 0) << "node " << id << " is in no block";
     const NodeRef r = f.locate_node(id, cur);
     ASSERT_EQ(f.node_id(r, cur), id);
-    // Entities appear in order: kind, then entity id, never going back.
     const int kind = static_cast<int>(r.kind);
-    ASSERT_TRUE(kind > prev_kind || (kind == prev_kind && r.entity >= prev_entity));
-    prev_kind = kind, prev_entity = r.entity;
+    if (owner[id] != prev_owner) {
+      ASSERT_GT(owner[id], prev_owner) << "node " << id;
+      prev_kind = -1, prev_entity = -1;
+    }
+    ASSERT_TRUE(kind > prev_kind || (kind == prev_kind && r.entity >= prev_entity)) << "node " << id;
+    if (kind == prev_kind && r.entity == prev_entity) {
+      const std::array<Id, 3> a{r.local[2], r.local[1], r.local[0]}, b{prev_local[2], prev_local[1], prev_local[0]};
+      ASSERT_GT(a, b) << "node " << id;
+    }
+    prev_owner = owner[id], prev_kind = kind, prev_entity = r.entity, prev_local = r.local;
   }
+  // (a) what a contiguous range of coarse elements owns is one id range.
+  for (Id a = 0; a <= f.num_coarse_elements(); ++a)
+    for (Id e = a; e <= f.num_coarse_elements(); ++e) {
+      const auto [lo, hi] = f.owned_nodes(a, e, cur);
+      const Id count = std::count_if(owner.begin(), owner.end(), [&](Id h) { return h >= a && h < e; });
+      ASSERT_EQ(hi - lo, count);
+      for (Id id = lo; id < hi; ++id) ASSERT_TRUE(owner[id] >= a && owner[id] < e);
+    }
   // Element ids: coarse element order, then i fastest, then j, then k.
   FineBlock b;
   Id expected = 0;

@@ -120,7 +120,7 @@ TEST(Cli, RefusalsHaveDocumentedExitCodesAndLeaveNoOutput) {
       {{"dice", mesh, "--interval", "-4", "-o", out}, 2, "interval must be a whole number >= 1"},
       {{"dice", mesh, "--interval", "abc", "-o", out}, 2, "not a whole number"},
       {{"dice", mesh, "--interval", "99999999999999999999", "-o", out}, 6, "does not fit in 64 bits"},
-      {{"dice", mesh, "--interval", "1000000000", "-o", out}, 6, "overflows 64-bit ids"},
+      {{"dice", mesh, "--interval", "1000000000", "-o", out}, 6, "more than 2^40 grid points"},
       {{"dice", mesh, "--block-interval", "9=2", "-o", out}, 2, "no block with id or name \"9\""},
       {{"dice", mesh, "--sheet-interval", "500=2", "-o", out}, 2, "no sheet 500"},
       {{"dice", mesh, "--interval", "2"}, 2, "missing -o"},

@@ -20,8 +20,18 @@ void forge_page(hid_t file, const std::string& dataset, hsize_t page,
   std::uint32_t mask = 0;
   if (H5Dread_chunk(ds, H5P_DEFAULT, offset, &mask, raw.data()) < 0) throw std::runtime_error("forge_page: read");
   store::decode_page(raw, bytes, chunk[0] * (rank == 2 ? chunk[1] : 1) * elem, "forge");
+  // Shuffled datasets (every int64 table) are edited in their plain bytes.
+  const bool shuffled = H5Pget_nfilters(dcpl) > 0 &&
+                        H5Pget_filter2(dcpl, 0, nullptr, nullptr, nullptr, 0, nullptr, nullptr) == H5Z_FILTER_SHUFFLE;
+  if (shuffled) {
+    std::vector<std::uint8_t> plain;
+    store::unshuffle_bytes(bytes, elem, plain);
+    bytes.swap(plain);
+  }
   edit(bytes);
-  const std::vector<std::uint8_t> enc = store::encode_page(bytes);
+  std::vector<std::uint8_t> stored_bytes = bytes;
+  if (shuffled) store::shuffle_bytes(bytes, elem, stored_bytes);
+  const std::vector<std::uint8_t> enc = store::encode_page(stored_bytes);
   if (H5Dwrite_chunk(ds, H5P_DEFAULT, 0, offset, enc.size(), enc.data()) < 0) throw std::runtime_error("forge_page: write");
   H5Tclose(type), H5Pclose(dcpl), H5Dclose(ds);
   if (!keep_crc_valid) return;

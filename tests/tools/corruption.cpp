@@ -168,7 +168,6 @@ Fingerprint sweep(const std::string& path) {
     hi.add(in.source);
     for (Id v : {in.coarse_vertices, in.coarse_edges, in.coarse_faces, in.coarse_elements, in.sheets, in.nodes, in.elements})
       hi.add(v);
-    for (Id v : in.kind_base) hi.add(v);
     for (const Block& b : in.blocks) hi.add(b.id), hi.add(b.name);
     for (Id v : in.block_coarse_elements) hi.add(v);
     for (Id v : in.block_fine_elements) hi.add(v);
@@ -206,14 +205,13 @@ Fingerprint sweep(const std::string& path) {
 
     const MeshTables& t = m.tables();
     f.tables["coarse/vertices"] = hash_table(t.vertices);
-    f.tables["topology/vertex_elements"] = hash_table(t.vertex_elements);
+    f.tables["topology/vertex_nodes"] = hash_table(t.vertex_nodes);
     f.tables["topology/edges"] = hash_table(t.edges);
     f.tables["topology/faces"] = hash_table(t.faces);
     f.tables["topology/elements"] = hash_table(t.elements);
-    f.tables["numbering/edge_page_first"] = hash_vector(t.edge_index);
-    f.tables["numbering/face_page_first"] = hash_vector(t.face_index);
-    f.tables["numbering/element_page_first"] = hash_vector(t.elem_index);
-    f.tables["numbering/cell_page_first"] = hash_vector(t.cell_index);
+    f.tables["topology/element_corners"] = hash_table(t.corners);
+    f.tables["numbering/element_page_node"] = hash_vector(t.node_index);
+    f.tables["numbering/element_page_element"] = hash_vector(t.element_index);
     f.tables["sheets (in memory)"] = hash_vector(m.sheet_intervals());
   }  // the mesh (and its cache's file handle) is gone before the sets are read
 

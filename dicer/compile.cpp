@@ -1,0 +1,264 @@
+// Dicing: coarse mesh + intervals -> the mesh tables (tables.hpp), in
+// memory; and the edits geometry-conforming dicing makes to them.
+#include <algorithm>
+#include <atomic>
+
+#include "dicer/error.hpp"
+#include "dicer/fine_mesh.hpp"
+#include "dicer/orientation.hpp"
+#include "dicer/rows.hpp"
+#include "dicer/sheets.hpp"
+#include "dicer/tfi.hpp"
+#include "dicer/topology.hpp"
+#include "evaluate.hpp"
+
+namespace dicer {
+namespace {
+
+// Ordered coarse mesh + owner-order topology + numbering -> tables + info.
+FineMesh compile(std::shared_ptr<const CoarseMesh> cm, const Topology& t, const Numbering& num,
+                 const std::vector<Id>& edge_sheet, Id num_sheets) {
+  const CoarseMesh& m = *cm;
+  const Mode mode = m.mode;
+  const bool vol = mode == Mode::Volume;
+  MeshTables tab;
+  tab.mode = mode;
+  tab.fine_nodes = num.num_nodes();
+  tab.fine_elements = num.num_elements();
+  tab.sheets = num_sheets;
+  tab.blocks = static_cast<Id>(m.blocks.size());
+  const Id nv = m.num_vertices(), ne = t.num_edges(), nf = t.num_faces(), nh = m.num_elements();
+  auto make = [&](auto tag, RowTable kind, Id rows) {
+    using T = decltype(tag);
+    const std::int64_t w = row_width(kind, mode);
+    std::vector<T> v;
+    v.reserve(static_cast<size_t>(rows * w));
+    return Table<T>(w, std::move(v));
+  };
+  std::vector<double> verts(static_cast<size_t>(nv) * 3);
+  for (Id v = 0; v < nv; ++v) verts[3 * v] = m.x[v], verts[3 * v + 1] = m.y[v], verts[3 * v + 2] = m.z[v];
+  tab.vertices = Table<double>(3, std::move(verts));
+  tab.vertex_nodes = make(std::int64_t{}, RowTable::VertexNodes, nv);
+  tab.edges = make(std::int64_t{}, RowTable::Edges, ne);
+  tab.faces = make(std::int64_t{}, RowTable::Faces, nf);
+  tab.elements = make(std::int64_t{}, RowTable::Elements, nh);
+  tab.corners = make(double{}, RowTable::Corners, nh);
+  tab.bounding = Table<std::int64_t>(3, {});
+  std::vector<std::int32_t> vowner(static_cast<size_t>(nv) * 2, -1);
+  for (size_t v = 0; v < m.vertex_geo_dim.size() && v < m.vertex_geo_tag.size(); ++v)
+    vowner[2 * v] = m.vertex_geo_dim[v], vowner[2 * v + 1] = m.vertex_geo_tag[v];
+  tab.vertex_owner = Table<std::int32_t>(2, std::move(vowner));
+
+  for (Id v = 0; v < nv; ++v) write_row(tab, v, VertexRow{t.vertex_owner_elem[v], num.vertex_node(v)});
+  for (Id e = 0; e < ne; ++e)
+    write_row(tab, e, EdgeRow{t.edge_v[2 * e], t.edge_v[2 * e + 1], num.edge_n(e), num.edge_node(e), edge_sheet[e],
+                              t.edge_owner_elem[e], -1, -1});
+  for (Id f = 0; f < nf; ++f) {
+    FaceRow r;
+    for (int k = 0; k < 4; ++k) r.v[k] = t.face_v[4 * f + k], r.e[k] = t.face_edge[4 * f + k];
+    r.nu = num.face_n(f)[0], r.nv = num.face_n(f)[1];
+    r.node = num.face_node(f), r.owner_element = t.face_owner_elem[f];
+    write_row(tab, f, r);
+  }
+  MeshInfo info;
+  info.mode = mode;
+  info.source = m.source;
+  info.blocks = m.blocks;
+  info.block_coarse_elements.assign(m.blocks.size(), 0);
+  info.block_fine_elements.assign(m.blocks.size(), 0);
+  const int nc = m.corners_per_element(), epe = t.edges_per_element(), fpe = t.faces_per_element();
+  for (Id h = 0; h < nh; ++h) {
+    ElementRow r;
+    Vec3 xyz[8];
+    for (int k = 0; k < nc; ++k) {
+      const Id v = m.conn[static_cast<size_t>(h) * nc + k];
+      r.corner[k] = v, r.corner_node[k] = num.vertex_node(v);
+      xyz[k] = m.vertex(v);
+    }
+    for (int k = 0; k < epe; ++k) {
+      const Id e = t.elem_edge[static_cast<size_t>(h) * epe + k];
+      r.edge[k] = e, r.edge_node[k] = num.edge_node(e);
+      r.flags |= static_cast<std::uint64_t>(t.elem_edge_rev[static_cast<size_t>(h) * epe + k]) << k;
+    }
+    for (int k = 0; k < fpe; ++k) {
+      const Id f = t.elem_face[static_cast<size_t>(h) * fpe + k];
+      r.face[k] = f, r.face_node[k] = num.face_node(f);
+      r.flags |= static_cast<std::uint64_t>(t.elem_face_code[static_cast<size_t>(h) * fpe + k]) << (12 + 3 * k);
+    }
+    r.node_first = num.node_first(h);
+    r.element_first = num.element_first(h);
+    r.cell_node = num.cell_node(h);
+    r.block = m.element_block[h];
+    r.file_id = m.element_file_id[h];
+    r.n = num.elem_n(h);
+    if (!vol) r.n[2] = 1;
+    write_row(tab, h, r);
+    write_corners(tab, h, xyz);
+    ++info.block_coarse_elements[r.block];
+    info.block_fine_elements[r.block] += r.n[0] * r.n[1] * r.n[2];
+  }
+  info.coarse_vertices = nv;
+  info.coarse_edges = ne;
+  info.coarse_faces = nf;
+  info.coarse_elements = nh;
+  info.sheets = num_sheets;
+  info.nodes = num.num_nodes();
+  info.elements = num.num_elements();
+  return FineMesh(std::move(info), std::move(tab), std::move(cm));
+}
+
+}  // namespace
+
+FineMesh FineMesh::dice(CoarseMesh coarse, const IntervalRequest& request, std::vector<std::string>* notes,
+                        bool locality_order) {
+  // Sheets and intervals on the input numbering, so sheet ids are the input file's.
+  const Topology t0 = build_topology(coarse);
+  const Sheets s0 = find_sheets(coarse, t0);
+  IntervalPlan plan = resolve_intervals(coarse, t0, s0, request);
+  if (notes) *notes = plan.notes;
+  // Store order (Morton, or the file's), vertices in first use, then the
+  // owner-order topology the fine mesh is numbered by.
+  std::vector<Id> old_vertex;
+  auto ordered = std::make_shared<CoarseMesh>(sfc_order(coarse, &old_vertex, nullptr, locality_order));
+  Topology t = build_topology(*ordered);
+  to_owner_order(t, ordered->conn);
+  std::vector<Id> edge_sheet(static_cast<size_t>(t.num_edges())), edge_n(static_cast<size_t>(t.num_edges()));
+  for (Id e = 0; e < t.num_edges(); ++e) {
+    const Id old = find_edge(t0, old_vertex[t.edge_v[2 * e]], old_vertex[t.edge_v[2 * e + 1]]);
+    edge_sheet[e] = s0.edge_sheet[old];
+    edge_n[e] = plan.sheet_interval[edge_sheet[e]];
+  }
+  const Numbering num(t, std::move(edge_n));
+  FineMesh f = compile(ordered, t, num, edge_sheet, s0.num_sheets());
+  f.sheet_intervals_ = std::move(plan.sheet_interval);
+  return f;
+}
+
+// ---------------------------------------------------------------- geometry
+
+std::uint64_t FineMesh::next_serial() {
+  static std::atomic<std::uint64_t> last{0};
+  return ++last;
+}
+
+void FineMesh::require_memory(const char* what) const {
+  if (!tables_.edges.in_memory() || !tables_.bounding.in_memory())
+    throw Error(ErrorKind::Usage, std::string(what) + ": the mesh must be diced in this process (not opened from a store)");
+}
+
+void FineMesh::set_vertex(Id v, const Vec3& x, int dim, int tag) {
+  require_memory("set_vertex");
+  serial_ = next_serial();
+  if (tables_.bounding.rows() > 0) throw Error(ErrorKind::Usage, "set_vertex after nodes were moved");
+  if (v < 0 || v >= tables_.vertices.rows()) throw Error(ErrorKind::Usage, "set_vertex: no vertex " + std::to_string(v));
+  auto& m = tables_.vertices.memory();
+  m[3 * v] = x.x, m[3 * v + 1] = x.y, m[3 * v + 2] = x.z;
+  auto& o = tables_.vertex_owner.memory();
+  o[2 * v] = dim, o[2 * v + 1] = tag;
+  // The corners table holds copies of vertex coordinates (bit-identical by
+  // construction): every element using v is updated through a lazily built
+  // vertex -> (element, corner) index.
+  const int nc = corners();
+  const Id nh = tables_.elements.rows();
+  if (vertex_uses_.empty()) {
+    MeshCursor cur;
+    const RowReader R(tables_, cur);
+    vertex_uses_offset_.assign(static_cast<size_t>(tables_.vertices.rows()) + 1, 0);
+    for (Id h = 0; h < nh; ++h) {
+      const ElementRow r = R.element(h);
+      for (int k = 0; k < nc; ++k) ++vertex_uses_offset_[r.corner[k] + 1];
+    }
+    for (size_t i = 1; i < vertex_uses_offset_.size(); ++i) vertex_uses_offset_[i] += vertex_uses_offset_[i - 1];
+    vertex_uses_.resize(static_cast<size_t>(vertex_uses_offset_.back()));
+    std::vector<Id> fill(vertex_uses_offset_.begin(), vertex_uses_offset_.end() - 1);
+    for (Id h = 0; h < nh; ++h) {
+      const ElementRow r = R.element(h);
+      for (int k = 0; k < nc; ++k) vertex_uses_[fill[r.corner[k]]++] = h * 8 + k;
+    }
+  }
+  auto& c = tables_.corners.memory();
+  for (Id u = vertex_uses_offset_[v]; u < vertex_uses_offset_[v + 1]; ++u) {
+    const Id h = vertex_uses_[u] / 8, k = vertex_uses_[u] % 8;
+    double* p = &c[static_cast<size_t>(h * 3 * nc + 3 * k)];
+    p[0] = x.x, p[1] = x.y, p[2] = x.z;
+  }
+}
+
+void FineMesh::set_owner(EntityKind kind, Id entity, std::int64_t owner) {
+  require_memory("set_owner");
+  serial_ = next_serial();
+  MeshCursor cur;
+  const RowReader R(tables_, cur);
+  if (kind == EntityKind::Edge) {
+    EdgeRow r = R.edge(entity);
+    r.geo = owner;
+    write_row(tables_, entity, r);
+  } else if (kind == EntityKind::Face) {
+    FaceRow r = R.face(entity);
+    r.geo = owner;
+    write_row(tables_, entity, r);
+  } else {
+    throw Error(ErrorKind::Usage, "set_owner: only edges and faces carry owners");
+  }
+}
+
+std::int64_t FineMesh::owner(EntityKind kind, Id entity, MeshCursor& cur) const {
+  const RowReader R(tables_, cur);
+  if (kind == EntityKind::Edge) return R.edge(entity).geo;
+  if (kind == EntityKind::Face) return R.face(entity).geo;
+  if (kind == EntityKind::Vertex) return R.vertex_geo(entity);
+  return -1;
+}
+
+void FineMesh::move_nodes(EntityKind kind, Id entity, std::span<const Vec3> xyz) {
+  require_memory("move_nodes");
+  serial_ = next_serial();
+  MeshCursor cur;
+  const detail::Evaluator E(tables_, cur);
+  std::vector<Vec3> pred;
+  const Id first_row = tables_.bounding.rows();
+  if (kind == EntityKind::Edge) {
+    if (faces_moved_) throw Error(ErrorKind::Usage, "move_nodes: every edge must be moved before any face");
+    EdgeRow e = E.R.edge(entity);
+    if (e.bound >= 0) throw Error(ErrorKind::Usage, "move_nodes: edge " + std::to_string(entity) + " moved twice");
+    for (Id t = 1; t < e.n; ++t) pred.push_back(E.edge_point(e, t));
+    if (xyz.size() == pred.size() && !pred.empty()) e.bound = first_row, write_row(tables_, entity, e);
+  } else if (kind == EntityKind::Face) {
+    faces_moved_ = true;
+    FaceRow f = E.R.face(entity);
+    if (f.bound >= 0) throw Error(ErrorKind::Usage, "move_nodes: face " + std::to_string(entity) + " moved twice");
+    for (Id v = 1; v < f.nv; ++v)
+      for (Id u = 1; u < f.nu; ++u) pred.push_back(E.face_point(f, u, v));  // Coons of the moved sides
+    if (xyz.size() == pred.size() && !pred.empty()) f.bound = first_row, write_row(tables_, entity, f);
+  } else {
+    throw Error(ErrorKind::Usage, "move_nodes: only edge and face nodes are moved");
+  }
+  if (xyz.size() != pred.size())
+    throw Error(ErrorKind::Usage, "move_nodes: " + std::to_string(xyz.size()) + " points given for " +
+                                      std::to_string(pred.size()) + " nodes");
+  auto& b = tables_.bounding.memory();
+  for (size_t q = 0; q < pred.size(); ++q) {
+    b.push_back(tfi::bounding_code(pred[q].x, xyz[q].x));
+    b.push_back(tfi::bounding_code(pred[q].y, xyz[q].y));
+    b.push_back(tfi::bounding_code(pred[q].z, xyz[q].z));
+  }
+  tables_.bounding.reshape();
+}
+
+void FineMesh::finish_moves() {
+  require_memory("finish_moves");
+  serial_ = next_serial();
+  MeshCursor cur;
+  const RowReader R(tables_, cur);
+  for (Id h = 0; h < tables_.elements.rows(); ++h) {
+    ElementRow r = R.element(h);
+    bool curved = false;
+    for (int k = 0; k < R.edges(); ++k) curved |= R.edge(r.edge[k]).bound >= 0;
+    for (int k = 0; k < R.faces(); ++k) curved |= R.face(r.face[k]).bound >= 0;
+    r.flags = (r.flags & ~(std::uint64_t{1} << ElementRow::kCurvedBit)) |
+              (static_cast<std::uint64_t>(curved) << ElementRow::kCurvedBit);
+    write_row(tables_, h, r);
+  }
+}
+
+}  // namespace dicer

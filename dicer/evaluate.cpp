@@ -1,0 +1,301 @@
+// Evaluation of the recipe at one point, in the owning entity's canonical
+// frame, from validated rows (see evaluate.hpp).
+#include "evaluate.hpp"
+
+#include <cmath>
+
+#include "dicer/error.hpp"
+#include "dicer/orientation.hpp"
+#include "dicer/tfi.hpp"
+
+namespace dicer::detail {
+namespace {
+
+Vec3 lerp(const Vec3& a, const Vec3& b, double s) {
+  return {tfi::edge(a.x, b.x, s), tfi::edge(a.y, b.y, s), tfi::edge(a.z, b.z, s)};
+}
+
+// Coons interior point at (u, v) from the four sides' values there
+// (bottom, top, left, right) and the canonical corners p[0..3].
+Vec3 coons_point(Id nu, Id nv, Id u, Id v, const Vec3* s, const Vec3* p) {
+  const double a = tfi::weight(u, nu), b = tfi::weight(v, nv);
+  return {tfi::coons(a, b, s[0].x, s[1].x, s[2].x, s[3].x, p[0].x, p[1].x, p[2].x, p[3].x),
+          tfi::coons(a, b, s[0].y, s[1].y, s[2].y, s[3].y, p[0].y, p[1].y, p[2].y, p[3].y),
+          tfi::coons(a, b, s[0].z, s[1].z, s[2].z, s[3].z, p[0].z, p[1].z, p[2].z, p[3].z)};
+}
+
+}  // namespace
+
+std::array<int, 4> face_canonical_corners(Mode mode, int lf, FaceCode code) {
+  std::array<int, 4> out{};
+  for (int m = 0; m < 4; ++m) out[code_corner(code, m)] = mode == Mode::Volume ? kHexFace[lf][m] : m;
+  return out;
+}
+
+int face_side_edge(Mode mode, int lf, FaceCode code, int side) {
+  return mode == Mode::Volume ? hex_face_side_edge(lf, code, side) : quad_side_edge(code, side);
+}
+
+Vec3 Evaluator::moved(const Vec3& p, Id row) const {
+  const auto c = R.bounding(row);
+  const Vec3 x{tfi::bounding_apply(p.x, c[0]), tfi::bounding_apply(p.y, c[1]), tfi::bounding_apply(p.z, c[2])};
+  if (!std::isfinite(x.x) || !std::isfinite(x.y) || !std::isfinite(x.z))
+    throw Error(ErrorKind::Corrupt, (R.tables().origin.empty() ? std::string("in memory") : R.tables().origin) +
+                                        ": geometry/bounding row " + std::to_string(row) +
+                                        ": the corrected coordinate is not finite");
+  return x;
+}
+
+Vec3 Evaluator::edge_point(const EdgeRow& e, Id t) const {
+  if (t == 0) return R.xyz(e.lo);
+  if (t == e.n) return R.xyz(e.hi);
+  const Vec3 p = lerp(R.xyz(e.lo), R.xyz(e.hi), tfi::weight(t, e.n));
+  return e.bound < 0 ? p : moved(p, e.bound + t - 1);
+}
+
+Vec3 Evaluator::face_side(const FaceRow& f, int k, Id s) const {
+  const EdgeRow e = R.edge(f.e[k]);
+  if (e.n != (k < 2 ? f.nu : f.nv)) R.corrupt(RowTable::Faces, f.e[k], "side interval disagrees with its face");
+  const bool rev = f.v[kQuadEdge[k][0]] > f.v[kQuadEdge[k][1]];
+  return edge_point(e, rev ? e.n - s : s);
+}
+
+Vec3 Evaluator::face_point(const FaceRow& f, Id u, Id v) const {
+  if (v == 0) return face_side(f, 0, u);
+  if (v == f.nv) return face_side(f, 1, u);
+  if (u == 0) return face_side(f, 2, v);
+  if (u == f.nu) return face_side(f, 3, v);
+  const Vec3 sides[4] = {face_side(f, 0, u), face_side(f, 1, u), face_side(f, 2, v), face_side(f, 3, v)};
+  const Vec3 p[4] = {R.xyz(f.v[0]), R.xyz(f.v[1]), R.xyz(f.v[2]), R.xyz(f.v[3])};
+  const Vec3 x = coons_point(f.nu, f.nv, u, v, sides, p);
+  return f.bound < 0 ? x : moved(x, ids::face_node(f.bound, f.nu, u, v));
+}
+
+// The 12 edge points and 6 face points of the hex at the point's
+// parameters, then tfi::hex_row + tfi::hex_point as the block fill does.
+// A straight element takes every input from its row and its corners (an
+// edge's ends and a face's corners are hex corners, every interval the
+// hex's own along that axis); a curved one from the owners' rows. The
+// values, and so the bits, are those the owners compute.
+Vec3 Evaluator::cell_point(const ElementRow& h, Id hid, Id i, Id j, Id k) const {
+  const Id t[3] = {i, j, k};
+  Vec3 corner[8];
+  R.corner_xyz(hid, corner);
+  double f[3][6], e[3][12], c[3][8];
+  Vec3 ep[12];
+  for (int q = 0; q < 12; ++q) {
+    const Id n = h.n[q / 4], tc = h.rev(q) ? n - t[q / 4] : t[q / 4];
+    if (h.curved()) {
+      const EdgeRow er = R.edge(h.edge[q]);
+      if (er.n != n) R.corrupt(RowTable::Edges, h.edge[q], "interval disagrees with an element using the edge");
+      ep[q] = edge_point(er, tc);
+    } else {
+      // Canonical direction: lo -> hi vertex id; rev means local end 1 is lo.
+      const bool rev = h.rev(q);
+      ep[q] = lerp(corner[kHexEdge[q][rev ? 1 : 0]], corner[kHexEdge[q][rev ? 0 : 1]], tfi::weight(tc, n));
+    }
+    e[0][q] = ep[q].x, e[1][q] = ep[q].y, e[2][q] = ep[q].z;
+  }
+  for (int q = 0; q < 6; ++q) {
+    const FaceCode code = h.code(q);
+    const auto [nu, nv] = face_intervals(h, q, Mode::Volume);
+    const FaceMap fm = face_map(code, nu, nv);
+    const Id a = t[kHexFaceAxes[q][0]], b = t[kHexFaceAxes[q][1]];
+    Vec3 x;
+    if (h.curved()) {
+      x = face_point(R.face(h.face[q]), fm.u(a, b), fm.v(a, b));
+    } else {
+      const auto cc = face_canonical_corners(Mode::Volume, q, code);
+      Vec3 sides[4];
+      for (int side = 0; side < 4; ++side) sides[side] = ep[hex_face_side_edge(q, code, side)];
+      const Vec3 pc[4] = {corner[cc[0]], corner[cc[1]], corner[cc[2]], corner[cc[3]]};
+      x = coons_point(nu, nv, fm.u(a, b), fm.v(a, b), sides, pc);
+    }
+    f[0][q] = x.x, f[1][q] = x.y, f[2][q] = x.z;
+  }
+  for (int q = 0; q < 8; ++q) c[0][q] = corner[q].x, c[1][q] = corner[q].y, c[2][q] = corner[q].z;
+  const double u = tfi::weight(i, h.n[0]), v = tfi::weight(j, h.n[1]), w = tfi::weight(k, h.n[2]);
+  double out[3];
+  for (int d = 0; d < 3; ++d) {
+    const tfi::HexRow row = tfi::hex_row(v, w, f[d][0], f[d][1], e[d], c[d]);
+    out[d] = tfi::hex_point(row, u, 1.0 - u, f[d][2], f[d][3], f[d][4], f[d][5], e[d][0], e[d][1], e[d][2], e[d][3]);
+  }
+  return {out[0], out[1], out[2]};
+}
+
+namespace {
+
+// Which local entity of an element holds grid point (i, j, k), and the
+// point's canonical coordinates in it.
+struct GridEntity {
+  EntityKind kind;
+  int slot;                   // local corner, edge or face index (cell: -1)
+  std::array<Id, 3> local;    // canonical t / (u, v) / (i, j, k)
+};
+
+GridEntity grid_entity(const ElementRow& h, Mode mode, Id i, Id j, Id k) {
+  const auto& n = h.n;
+  if (mode == Mode::Surface) {
+    const int ex = (i == 0 || i == n[0]) + (j == 0 || j == n[1]);
+    if (ex == 2) {
+      static constexpr int kCorner[2][2] = {{0, 3}, {1, 2}};  // [i>0][j>0]
+      return {EntityKind::Vertex, kCorner[i > 0][j > 0], {0, 0, 0}};
+    }
+    if (ex == 1) {
+      const int le = j == 0 ? 0 : j == n[1] ? 1 : i == 0 ? 2 : 3;
+      const Id tt = le < 2 ? i : j, ne = n[le / 2];
+      return {EntityKind::Edge, le, {h.rev(le) ? ne - tt : tt, 0, 0}};
+    }
+    const auto [nu, nv] = face_intervals(h, 0, mode);
+    const FaceMap fm = face_map(h.code(0), nu, nv);
+    return {EntityKind::Face, 0, {fm.u(i, j), fm.v(i, j), 0}};
+  }
+  const Id p[3] = {i, j, k};
+  int ext[3];  // -1 interior, 0 low side, 1 high side
+  int count = 0;
+  for (int a = 0; a < 3; ++a) {
+    ext[a] = p[a] == 0 ? 0 : p[a] == n[a] ? 1 : -1;
+    count += ext[a] >= 0;
+  }
+  if (count == 3) {
+    static constexpr int kCorner[2][2][2] = {{{0, 4}, {3, 7}}, {{1, 5}, {2, 6}}};  // [i][j][k]
+    return {EntityKind::Vertex, kCorner[ext[0]][ext[1]][ext[2]], {0, 0, 0}};
+  }
+  if (count == 2) {
+    const int axis = ext[0] < 0 ? 0 : ext[1] < 0 ? 1 : 2;
+    int le;
+    if (axis == 0) le = ext[1] + 2 * ext[2];
+    else if (axis == 1) le = 4 + ext[0] + 2 * ext[2];
+    else le = 8 + (ext[1] ? 3 - ext[0] : ext[0]);  // (0,0)->8 (1,0)->9 (1,1)->10 (0,1)->11
+    return {EntityKind::Edge, le, {h.rev(le) ? n[axis] - p[axis] : p[axis], 0, 0}};
+  }
+  if (count == 1) {
+    const int axis = ext[0] >= 0 ? 0 : ext[1] >= 0 ? 1 : 2;
+    const int lf = 2 * axis + ext[axis];
+    const auto [nu, nv] = face_intervals(h, lf, mode);
+    const FaceMap fm = face_map(h.code(lf), nu, nv);
+    const Id a = p[kHexFaceAxes[lf][0]], b = p[kHexFaceAxes[lf][1]];
+    return {EntityKind::Face, lf, {fm.u(a, b), fm.v(a, b), 0}};
+  }
+  return {EntityKind::Cell, -1, {i, j, k}};
+}
+
+}  // namespace
+
+NodeRef Evaluator::grid_node(const ElementRow& h, Id hid, Id i, Id j, Id k) const {
+  const GridEntity g = grid_entity(h, mode(), i, j, k);
+  switch (g.kind) {
+    case EntityKind::Vertex: return {g.kind, h.corner[g.slot], g.local};
+    case EntityKind::Edge: return {g.kind, h.edge[g.slot], g.local};
+    case EntityKind::Face: return {g.kind, h.face[g.slot], g.local};
+    case EntityKind::Cell: break;
+  }
+  return {EntityKind::Cell, hid, g.local};
+}
+
+Id Evaluator::grid_node_id(const ElementRow& h, Id i, Id j, Id k) const {
+  const GridEntity g = grid_entity(h, mode(), i, j, k);
+  switch (g.kind) {
+    case EntityKind::Vertex: return h.corner_node[g.slot];
+    case EntityKind::Edge: return ids::edge_node(h.edge_node[g.slot], g.local[0]);
+    case EntityKind::Face:
+      return ids::face_node(h.face_node[g.slot], face_intervals(h, g.slot, mode())[0], g.local[0], g.local[1]);
+    case EntityKind::Cell: break;
+  }
+  return ids::cell_node(h.cell_node, h.n, i, j, k);
+}
+
+Vec3 Evaluator::node(const NodeRef& r) const {
+  switch (r.kind) {
+    case EntityKind::Vertex: return R.xyz(r.entity);
+    case EntityKind::Edge: return edge_point(R.edge(r.entity), r.local[0]);
+    case EntityKind::Face: return face_point(R.face(r.entity), r.local[0], r.local[1]);
+    case EntityKind::Cell: return cell_point(R.element(r.entity), r.entity, r.local[0], r.local[1], r.local[2]);
+  }
+  return {};
+}
+
+void element_boundary(const Evaluator& E, const ElementRow& h, Id hid, FineBlock::Scratch& out, const bool* want_edge,
+                      const bool* want_face) {
+  const Mode mode = E.mode();
+  const bool vol = mode == Mode::Volume, curved = h.curved();
+  const int ne = vol ? 12 : 4, nf = vol ? 6 : 1;
+  E.R.corner_xyz(hid, out.corner);
+  // Faces need the edges along their sides.
+  bool need_edge[12] = {};
+  for (int k = 0; k < ne; ++k) need_edge[k] = !want_edge || want_edge[k];
+  for (int lf = 0; lf < nf; ++lf)
+    if (!want_face || want_face[lf])
+      for (int side = 0; side < 4; ++side) need_edge[face_side_edge(mode, lf, h.code(lf), side)] = true;
+
+  for (int k = 0; k < ne; ++k) {
+    if (!need_edge[k]) continue;
+    const Id n = h.n[vol ? k / 4 : k / 2];
+    auto& pts = out.edge[k];
+    for (auto& a : pts) a.resize(static_cast<size_t>(std::max<Id>(n - 1, 0)));
+    if (curved) {
+      const EdgeRow er = E.R.edge(h.edge[k]);
+      if (er.n != n) E.R.corrupt(RowTable::Edges, h.edge[k], "interval disagrees with an element using the edge");
+      for (Id t = 1; t < n; ++t) {
+        const Vec3 x = E.edge_point(er, t);
+        pts[0][t - 1] = x.x, pts[1][t - 1] = x.y, pts[2][t - 1] = x.z;
+      }
+    } else {
+      const int a = vol ? kHexEdge[k][0] : kQuadEdge[k][0], b = vol ? kHexEdge[k][1] : kQuadEdge[k][1];
+      const Vec3& lo = out.corner[h.rev(k) ? b : a];
+      const Vec3& hi = out.corner[h.rev(k) ? a : b];
+      for (Id t = 1; t < n; ++t) {
+        const Vec3 x = lerp(lo, hi, tfi::weight(t, n));
+        pts[0][t - 1] = x.x, pts[1][t - 1] = x.y, pts[2][t - 1] = x.z;
+      }
+    }
+  }
+
+  auto& s = out;
+  for (int lf = 0; lf < nf; ++lf) {
+    if (want_face && !want_face[lf]) continue;
+    const FaceCode code = h.code(lf);
+    const auto [nu, nv] = face_intervals(h, lf, mode);
+    const auto cc = face_canonical_corners(mode, lf, code);
+    // Sides in the face's canonical frame, at parameters 1..len-1.
+    std::vector<double>* side_out[4] = {s.bottom, s.top, s.left, s.right};
+    for (int side = 0; side < 4; ++side) {
+      const int le = face_side_edge(mode, lf, code, side);
+      const Id len = side < 2 ? nu : nv;
+      const bool forward = h.corner[cc[kQuadEdge[side][0]]] < h.corner[cc[kQuadEdge[side][1]]];
+      for (int d = 0; d < 3; ++d) {
+        side_out[side][d].resize(static_cast<size_t>(len + 1));
+        const double* src = out.edge[le][d].data();
+        for (Id q = 1; q < len; ++q) side_out[side][d][q] = src[(forward ? q : len - q) - 1];
+      }
+    }
+    s.s.resize(static_cast<size_t>(nu)), s.t.resize(static_cast<size_t>(nv));
+    for (Id u = 1; u < nu; ++u) s.s[u] = tfi::weight(u, nu);
+    for (Id v = 1; v < nv; ++v) s.t[v] = tfi::weight(v, nv);
+    const size_t m = static_cast<size_t>(ids::face_nodes(nu, nv));
+    for (int d = 0; d < 3; ++d) {
+      auto comp = [&](const Vec3& p) { return d == 0 ? p.x : d == 1 ? p.y : p.z; };
+      const double p0 = comp(out.corner[cc[0]]), p1 = comp(out.corner[cc[1]]), p2 = comp(out.corner[cc[2]]),
+                   p3 = comp(out.corner[cc[3]]);
+      auto& face = out.face[lf][d];
+      face.resize(m);
+      double* o = face.data();
+      const double *B = s.bottom[d].data(), *T = s.top[d].data(), *L = s.left[d].data(), *Rt = s.right[d].data();
+      for (Id v = 1; v < nv; ++v) {
+        const double tv = s.t[v];
+        for (Id u = 1; u < nu; ++u) *o++ = tfi::coons(s.s[u], tv, B[u], T[u], L[v], Rt[v], p0, p1, p2, p3);
+      }
+    }
+    if (curved && m > 0) {
+      const FaceRow fr = E.R.face(h.face[lf]);
+      if (fr.nu != nu || fr.nv != nv) E.R.corrupt(RowTable::Faces, h.face[lf], "intervals disagree with an element using the face");
+      if (fr.bound >= 0)  // the stored corrections, as face_point applies them
+        for (size_t q = 0; q < m; ++q) {
+          const Vec3 x = E.moved({out.face[lf][0][q], out.face[lf][1][q], out.face[lf][2][q]}, fr.bound + static_cast<Id>(q));
+          out.face[lf][0][q] = x.x, out.face[lf][1][q] = x.y, out.face[lf][2][q] = x.z;
+        }
+    }
+  }
+}
+
+}  // namespace dicer::detail

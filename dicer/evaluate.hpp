@@ -1,0 +1,58 @@
+#pragma once
+// Private to dicer/: evaluation of the TFI recipe (tfi.hpp) at one point of
+// one entity, in that entity's canonical frame, from validated rows
+// (rows.hpp). Shared by node(id), the block fill and the cursors, so every
+// path computes the same function with the same inputs (invariant 2).
+#include <array>
+#include <vector>
+
+#include "dicer/fine_mesh.hpp"
+#include "dicer/numbering.hpp"
+#include "dicer/rows.hpp"
+
+namespace dicer::detail {
+
+struct Evaluator {
+  RowReader R;
+
+  Evaluator(const MeshTables& t, MeshCursor& c) : R(t, c) {}
+  Mode mode() const { return R.mode(); }
+
+  // A predicted point corrected by bounding row `row` (a moved node).
+  Vec3 moved(const Vec3& p, Id row) const;
+  // Edge point at canonical t in [0, n]: equal spacing from lo to hi, moved
+  // when the edge has bounding rows.
+  Vec3 edge_point(const EdgeRow& e, Id t) const;
+  // Side k of a face (0 v0v1, 1 v3v2, 2 v0v3, 3 v1v2) at face parameter s.
+  Vec3 face_side(const FaceRow& f, int k, Id s) const;
+  // Face point at canonical (u, v), moved when bounded.
+  Vec3 face_point(const FaceRow& f, Id u, Id v) const;
+  // Interior point (i, j, k) of element h, row hid (0 < i < n1 ...).
+  Vec3 cell_point(const ElementRow& h, Id hid, Id i, Id j, Id k) const;
+  // The owner's view of grid point (i, j, k) of element h.
+  NodeRef grid_node(const ElementRow& h, Id hid, Id i, Id j, Id k) const;
+  // Its node id, from the element row alone.
+  Id grid_node_id(const ElementRow& h, Id i, Id j, Id k) const;
+  Vec3 node(const NodeRef& r) const;
+};
+
+// The boundary points of one coarse element, each computed by its owning
+// entity's function in that entity's canonical frame: edges (canonical
+// t = 1..n-1) and faces ((nu-1)(nv-1), u fastest), from the element's
+// corners alone when it is straight, from the edge and face rows (moved
+// nodes included) when curved. One definition for the block fill and the
+// node cursor.
+// Results in out.corner (from the corners table), out.edge[k][d] (edge
+// k's interior points, canonical order, index t - 1) and out.face[k][d]
+// (face k's, canonical order). Fills what `want_edge`/`want_face` ask for
+// (all when null): edges first (faces need them), then faces.
+void element_boundary(const Evaluator& E, const ElementRow& h, Id hid, FineBlock::Scratch& out,
+                      const bool* want_edge = nullptr, const bool* want_face = nullptr);
+
+// Canonical corners of local face lf of a coarse element: the element's
+// corner indices (kHexCorner numbering; surface: the quad's) of v0..v3.
+std::array<int, 4> face_canonical_corners(Mode mode, int lf, FaceCode code);
+// Local edge of the element carrying canonical side `side` of local face lf.
+int face_side_edge(Mode mode, int lf, FaceCode code, int side);
+
+}  // namespace dicer::detail

@@ -1,0 +1,208 @@
+// Block filling: every grid point of one coarse element (or a slab of its
+// planes), ids and coordinates, as contiguous arrays. The boundary comes
+// from element_boundary (each entity's own function, evaluate.hpp), the
+// interior from the hex TFI a plane at a time.
+#include <algorithm>
+
+#include "dicer/error.hpp"
+#include "dicer/fine_mesh.hpp"
+#include "dicer/numbering.hpp"
+#include "dicer/orientation.hpp"
+#include "dicer/tfi.hpp"
+#include "evaluate.hpp"
+
+namespace dicer {
+namespace {
+
+// The boundary of coarse element hid (corners, edges, faces) into b's
+// scratch (Boundary::index): ids from the element row alone, coordinates
+// (if asked) from element_boundary.
+void fill_boundary(const detail::Evaluator& E, std::uint64_t mesh, const ElementRow& h, Id hid, FineBlock& b,
+                   bool coords) {
+  const auto n = h.n;
+  const Mode mode = E.mode();
+  const bool vol = mode == Mode::Volume;
+  auto& B = b.scratch.boundary;
+  B.mesh = mesh, B.h = hid, B.coords = coords, B.n = n, B.volume = vol;
+  const size_t nb = static_cast<size_t>(B.size());
+  B.id.resize(nb);
+  for (int d = 0; d < 3; ++d) coords ? B.x[d].resize(nb) : B.x[d].clear();
+  auto& s = b.scratch;
+  if (coords) detail::element_boundary(E, h, hid, s);
+  Id* ids = B.id.data();
+  double* X[3] = {B.x[0].data(), B.x[1].data(), B.x[2].data()};
+  auto grid = [&](const int* c, int axis, Id t) {  // boundary slot of corner c, moved to t along axis
+    Id p[3] = {c[0] * n[0], c[1] * n[1], vol ? c[2] * n[2] : 0};
+    if (axis >= 0) p[axis] = t;
+    return B.index(p[0], p[1], p[2]);
+  };
+  const int nc = vol ? 8 : 4, ne = vol ? 12 : 4, nf = vol ? 6 : 1;
+  for (int q = 0; q < nc; ++q) {
+    const Id g = grid(kHexCorner[q], -1, 0);
+    ids[g] = h.corner_node[q];
+    if (coords) X[0][g] = s.corner[q].x, X[1][g] = s.corner[q].y, X[2][g] = s.corner[q].z;
+  }
+  // Edges: canonical point tc of local edge le sits at local t.
+  for (int le = 0; le < ne; ++le) {
+    const int a = vol ? kHexEdge[le][0] : kQuadEdge[le][0];
+    const int axis = vol ? le / 4 : le / 2;
+    const Id en = n[axis];
+    for (Id t = 1; t < en; ++t) {
+      const Id tc = h.rev(le) ? en - t : t;
+      const Id g = grid(kHexCorner[a], axis, t);
+      ids[g] = ids::edge_node(h.edge_node[le], tc);
+      if (coords)
+        for (int d = 0; d < 3; ++d) X[d][g] = s.edge[le][d][tc - 1];
+    }
+  }
+  // Faces: the canonical fill scattered through the face map.
+  for (int lf = 0; lf < nf; ++lf) {
+    const auto [nu, nv] = face_intervals(h, lf, mode);
+    if (nu < 2 || nv < 2) continue;
+    const FaceMap fm = face_map(h.code(lf), nu, nv);
+    const int ax = vol ? kHexFaceAxes[lf][0] : 0, bx = vol ? kHexFaceAxes[lf][1] : 1;
+    Id p[3] = {0, 0, 0};
+    if (vol) p[lf / 2] = (lf % 2) ? n[lf / 2] : 0;
+    for (Id q = 1; q < n[bx]; ++q)
+      for (Id pp = 1; pp < n[ax]; ++pp) {
+        p[ax] = pp, p[bx] = q;
+        const Id u = fm.u(pp, q), v = fm.v(pp, q);
+        const Id g = B.index(p[0], p[1], p[2]);
+        ids[g] = ids::face_node(h.face_node[lf], nu, u, v);
+        if (coords) {
+          const Id c = ids::face_node(0, nu, u, v);  // canonical index
+          for (int d = 0; d < 3; ++d) X[d][g] = s.face[lf][d][c];
+        }
+      }
+  }
+}
+
+// Hex interior, one coordinate, from the block's boundary values:
+// tfi::hex_row once per (j, k), tfi::hex_point along i, the same two calls
+// Evaluator::cell_point() makes, fed the same boundary values. Built twice
+// (AVX2 and baseline x86-64): both are plain IEEE mul/add/sub in the same
+// order with contraction off, so both give the same bits.
+// (ThreadSanitizer builds: GCC 12's ifunc resolver for target_clones runs
+// before the TSan runtime is up and crashes the binary at start-up.)
+#if defined(__SANITIZE_THREAD__)
+#define DICER_CLONES
+#else
+#define DICER_CLONES __attribute__((target_clones("avx2", "default")))
+#endif
+// One interior plane k (0 < k < n[2]) of one coordinate: a0 and aN are the
+// planes k = 0 and k = n[2], ak plane k with its ring (i or j at 0 or n)
+// filled; all three with row stride n[0] + 1. A plane at a time, so a block
+// can be produced in slabs (cursors hold O(n^2), not O(n^3)).
+DICER_CLONES void hex_interior_plane(const double* a0, const double* aN, double* ak, std::array<Id, 3> n, Id k,
+                                     const double* u, const double* U) {
+  const Id sj = n[0] + 1;
+  const Id n1 = n[1] * sj;
+  double c[8];
+  for (int q = 0; q < 8; ++q) c[q] = (kHexCorner[q][2] ? aN : a0)[kHexCorner[q][0] * n[0] + kHexCorner[q][1] * n1];
+  const double* e0 = a0;       // (i, 0, 0)
+  const double* e1 = a0 + n1;  // (i, n1, 0)
+  const double* e2 = aN;       // (i, 0, n2)
+  const double* e3 = aN + n1;  // (i, n1, n2)
+  const double w = tfi::weight(k, n[2]);
+  const double* f2 = ak;       // (i, 0, k)
+  const double* f3 = ak + n1;  // (i, n1, k)
+  for (Id j = 1; j < n[1]; ++j) {
+    const double v = tfi::weight(j, n[1]);
+    const double* f4 = a0 + j * sj;  // (i, j, 0)
+    const double* f5 = aN + j * sj;  // (i, j, n2)
+    const double e[12] = {0, 0, 0, 0, a0[j * sj], a0[n[0] + j * sj], aN[j * sj], aN[n[0] + j * sj],
+                          ak[0], ak[n[0]], ak[n[0] + n1], ak[n1]};
+    const tfi::HexRow row = tfi::hex_row(v, w, ak[j * sj], ak[n[0] + j * sj], e, c);
+    double* out = ak + j * sj;
+    for (Id i = 1; i < n[0]; ++i)
+      out[i] = tfi::hex_point(row, u[i], U[i], f2[i], f3[i], f4[i], f5[i], e0[i], e1[i], e2[i], e3[i]);
+  }
+}
+
+}  // namespace
+
+void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool conn) const {
+  const detail::Evaluator E(tables_, b.cursor);
+  const ElementRow h = E.R.element(hid);
+  const auto n = h.n;
+  const bool vol = mode() == Mode::Volume;
+  if (k1 < 0) k1 = vol ? n[2] : 0;
+  if (k0 < 0 || k0 > k1 || k1 > (vol ? n[2] : 0) || (conn && vol && k0 == k1))
+    throw Error(ErrorKind::Usage, "fill_slab: planes " + std::to_string(k0) + ".." + std::to_string(k1) +
+                                      " of coarse element " + std::to_string(hid) + " (it has " +
+                                      std::to_string(vol ? n[2] : 0) + ")");
+  auto& B = b.scratch.boundary;
+  if (B.mesh != serial_ || B.h != hid || (coords && !B.coords)) fill_boundary(E, serial_, h, hid, b, coords);
+  b.coarse_element = hid;
+  b.n = n;
+  b.block = h.block;
+  b.plane0 = k0;
+  b.planes = k1 - k0 + 1;
+  b.layers = vol ? k1 - k0 : 1;
+  b.first_element = ids::element(h.element_first, n, 0, 0, k0);
+  b.node_first = h.node_first;
+  const Id ni = n[0] + 1, nj = n[1] + 1, pp = ni * nj;
+  const size_t np = static_cast<size_t>(pp * b.planes);
+  b.node_id.resize(np);
+  for (auto* x : {&b.x, &b.y, &b.z}) coords ? x->resize(np) : x->clear();
+  auto& s = b.scratch;
+  if (coords && vol) {
+    s.u.resize(static_cast<size_t>(n[0])), s.U.resize(static_cast<size_t>(n[0]));
+    for (Id i = 1; i < n[0]; ++i) s.u[i] = tfi::weight(i, n[0]), s.U[i] = 1.0 - s.u[i];
+  }
+  for (Id k = k0; k <= k1; ++k) {
+    const size_t at = static_cast<size_t>((k - k0) * pp);
+    Id* ids = b.node_id.data() + at;
+    double* X[3] = {nullptr, nullptr, nullptr};
+    if (coords) X[0] = b.x.data() + at, X[1] = b.y.data() + at, X[2] = b.z.data() + at;
+    if (!vol || k == 0 || k == n[2]) {  // a face plane: all boundary
+      const size_t from = static_cast<size_t>(B.index(0, 0, k));
+      std::copy_n(B.id.data() + from, pp, ids);
+      for (int d = 0; d < 3 && coords; ++d) std::copy_n(B.x[d].data() + from, pp, X[d]);
+      continue;
+    }
+    // The ring of plane k from the side faces and edges, the rest hex interior.
+    const size_t ring = static_cast<size_t>(B.index(0, 0, k));
+    auto ring_copy = [&](const auto* src, auto* dst) {
+      for (Id i = 0; i < ni; ++i) dst[i] = src[i], dst[i + n[1] * ni] = src[ni + i];
+      for (Id j = 1; j < n[1]; ++j) dst[j * ni] = src[2 * ni + j - 1], dst[n[0] + j * ni] = src[2 * ni + n[1] - 1 + j - 1];
+    };
+    ring_copy(B.id.data() + ring, ids);
+    for (Id j = 1; j < n[1]; ++j)
+      for (Id i = 1; i < n[0]; ++i) ids[i + ni * j] = ids::cell_node(h.cell_node, n, i, j, k);
+    for (int d = 0; d < 3 && coords; ++d) {
+      ring_copy(B.x[d].data() + ring, X[d]);
+      hex_interior_plane(B.x[d].data(), B.x[d].data() + pp, X[d], n, k, s.u.data(), s.U.data());
+    }
+  }
+
+  if (!conn) {
+    b.conn.clear();
+    return;
+  }
+  const int nc = corners();
+  b.conn.resize(static_cast<size_t>(b.num_elements()) * nc);
+  Id* out = b.conn.data();
+  const Id* ids = b.node_id.data();
+  if (vol) {
+    const Id sj = ni, sk = pp;
+    const Id off[8] = {0, 1, 1 + sj, sj, sk, 1 + sk, 1 + sj + sk, sj + sk};
+    for (Id k = k0; k < k1; ++k)
+      for (Id j = 0; j < n[1]; ++j)
+        for (Id i = 0; i < n[0]; ++i) {
+          const Id g = b.point_index(i, j, k);
+          for (int q = 0; q < 8; ++q) *out++ = ids[g + off[q]];
+        }
+  } else {
+    const Id off[4] = {0, 1, 1 + ni, ni};
+    for (Id j = 0; j < n[1]; ++j)
+      for (Id i = 0; i < n[0]; ++i) {
+        const Id g = b.point_index(i, j, 0);
+        for (int q = 0; q < 4; ++q) *out++ = ids[g + off[q]];
+      }
+  }
+}
+
+void FineMesh::fill_block(Id hid, FineBlock& b, bool nodes_only) const { fill_slab(hid, 0, -1, b, true, !nodes_only); }
+
+}  // namespace dicer

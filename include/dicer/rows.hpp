@@ -1,0 +1,143 @@
+#pragma once
+// Rows: the typed, validated view of every table row (tables.hpp). The only
+// code that knows where a column sits; everything else (the fine mesh,
+// cursors, chunks, export, verify, geometry, benchmarks) reads rows here.
+//
+// Rows are data, not trust: a store can be crafted with valid checksums.
+// RowReader checks every id against its table, every interval against the
+// limits the writer obeys (numbering.hpp: kMaxElementPoints), and every id
+// range a row names against the fine counts, with 128-bit products, before
+// a caller sizes or indexes anything by it. A row that fails is
+// Error{Corrupt} naming the store, the dataset, the row and the field.
+//
+// Node ids of an entity (numbering.hpp): a vertex has one (`node`); an edge
+// with interval n has n - 1 interior nodes from `node` on, canonical t = 1
+// first; a face with intervals (nu, nv) has (nu-1)(nv-1) from `node`, u
+// fastest; an element's interior (n1-1)(n2-1)(n3-1) from `cell_node`
+// (surface mode: its face's nodes).
+//
+// Cost: a read is one row pointer (TableCursor) and a copy of the row.
+#include <array>
+#include <cstdint>
+#include <string>
+
+#include "dicer/orientation.hpp"
+#include "dicer/tables.hpp"
+
+namespace dicer {
+
+// Upper bound of grid points ((n1+1)(n2+1)(n3+1)) of one coarse element,
+// shared by the writer (numbering refuses more: Error{Overflow}) and the
+// readers (a row claiming more is Corrupt). 2^40 points could never be
+// held anyway; it keeps every product of a row's intervals within 64 bits.
+inline constexpr Id kMaxElementPoints = Id{1} << 40;
+
+// topology/vertex_nodes: who owns vertex v and its fine node id.
+struct VertexRow {
+  Id owner_element = -1;
+  Id node = -1;
+};
+
+// topology/edges: lo < hi are vertex ids (the canonical direction).
+struct EdgeRow {
+  Id lo = 0, hi = 0;
+  Id n = 1;                  // the sheet's interval
+  Id node = 0;               // first interior node id
+  Id sheet = 0;              // as `dicer sheets` numbers them for the input file
+  Id owner_element = 0;      // lowest coarse element containing the edge
+  std::int64_t geo = -1;     // geometric owner, pack_owner(dim, tag), -1 unknown
+  Id bound = -1;             // first row of `bounding` for its n-1 nodes, -1: not moved
+};
+
+// topology/faces: canonical corners v (v0 lowest id, v1 its lower
+// neighbour), sides e (v0v1, v3v2, v0v3, v1v2), intervals along u (v0->v1)
+// and v (v0->v3).
+struct FaceRow {
+  std::array<Id, 4> v{}, e{};
+  Id nu = 1, nv = 1;
+  Id node = 0;
+  Id owner_element = 0;
+  std::int64_t geo = -1;
+  Id bound = -1;             // first row of `bounding` for its (nu-1)(nv-1) nodes
+};
+
+// topology/elements. Local numbering of corners, edges and faces:
+// orientation.hpp (HEX8 / QUAD4 corner order; kHexEdge, kHexFace; surface
+// mode: kQuadEdge and one face, the quad itself). Entries past the mode's
+// counts (4 corners, 4 edges, 1 face in surface mode) are unused.
+struct ElementRow {
+  std::array<Id, 8> corner{}, corner_node{};  // vertex ids and their node ids
+  std::array<Id, 12> edge{}, edge_node{};     // edge ids and their first interior node ids
+  std::array<Id, 6> face{}, face_node{};
+  Id node_first = 0;     // first node id the element owns: its entities' and interior ids are >= this
+  Id element_first = 0;  // fine id of element (0, 0, 0); then i fastest, j, k
+  Id cell_node = 0;      // first interior node id
+  Id file_id = 0;        // element id in the input file
+  std::int32_t block = 0;  // index into MeshInfo::blocks
+  // bit k: local edge k runs hi -> lo; bits 12 + 3k..14 + 3k: face code of
+  // local face k; bit kCurvedBit: some edge or face has bounding rows.
+  std::uint64_t flags = 0;
+  std::array<Id, 3> n{1, 1, 1};  // intervals along local i, j, k (k = 1 in surface mode)
+
+  static constexpr int kCurvedBit = 30;
+  bool rev(int k) const { return (flags >> k) & 1; }
+  FaceCode code(int k) const { return static_cast<FaceCode>((flags >> (12 + 3 * k)) & 7); }
+  bool curved() const { return (flags >> kCurvedBit) & 1; }
+  // Whether this element owns the node id (entities owned by earlier
+  // elements have lower ids: owner order).
+  bool owns(Id node) const { return node >= node_first; }
+};
+
+// Which table a row comes from (errors, widths, dataset names).
+enum class RowTable : std::uint8_t { VertexNodes, Edges, Faces, Elements, Corners };
+// Values per row (int64, or float64 for Corners) in `mode`.
+std::int64_t row_width(RowTable table, Mode mode);
+// The table's dataset in the store (store/FORMAT.md), e.g. "topology/edges".
+const char* row_dataset(RowTable table);
+
+// Reads and validates rows through one MeshCursor. Cheap to construct; not
+// thread-safe (one per thread, like the cursor).
+class RowReader {
+ public:
+  RowReader(const MeshTables& t, MeshCursor& c) : t_(t), c_(c) {}
+
+  const MeshTables& tables() const { return t_; }
+  Mode mode() const { return t_.mode; }
+  int corners() const { return t_.mode == Mode::Volume ? 8 : 4; }
+  int edges() const { return t_.mode == Mode::Volume ? 12 : 4; }
+  int faces() const { return t_.mode == Mode::Volume ? 6 : 1; }
+
+  Vec3 xyz(Id v) const;                       // coarse/vertices; v checked
+  VertexRow vertex(Id v) const;
+  EdgeRow edge(Id e) const;
+  FaceRow face(Id f) const;
+  ElementRow element(Id h) const;
+  // The element's corner coordinates (corners() of them), as `corners`
+  // stores them: bit-identical to xyz() of its corner vertices.
+  void corner_xyz(Id h, Vec3* out) const;
+  // Row `row` of the bounding arrays: the three codes of one moved node.
+  std::array<std::int64_t, 3> bounding(Id row) const;
+  // Geometric owner of vertex v (pack_owner), -1 unknown.
+  std::int64_t vertex_geo(Id v) const;
+  // One column of an element row, for searches (no full validation: the
+  // row found is read with element() afterwards).
+  Id node_first(Id h) const;
+  Id element_first(Id h) const;
+
+  // Error{Corrupt}: "<store>: <dataset> row <row>: <what>".
+  [[noreturn]] void corrupt(RowTable table, Id row, const std::string& what) const;
+
+ private:
+  const MeshTables& t_;
+  MeshCursor& c_;
+};
+
+// Writers, for in-memory tables only (dicing, geometry-conforming moves):
+// row i of the table, which grows by one row when i == rows().
+void write_row(MeshTables& t, Id v, const VertexRow& r);
+void write_row(MeshTables& t, Id e, const EdgeRow& r);
+void write_row(MeshTables& t, Id f, const FaceRow& r);
+void write_row(MeshTables& t, Id h, const ElementRow& r);
+void write_corners(MeshTables& t, Id h, const Vec3* xyz);
+
+}  // namespace dicer

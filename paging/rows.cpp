@@ -1,0 +1,268 @@
+// The row layer: where every column of every table sits (private to this
+// file), and the checks a row passes before anyone uses it.
+#include "dicer/rows.hpp"
+
+#include <cmath>
+
+#include "dicer/error.hpp"
+
+namespace dicer {
+namespace {
+
+// ---------------------------------------------------------------- columns
+
+enum VertexCol : int { kVertexOwner = 0, kVertexNode, kVertexWidth };
+enum EdgeCol : int { kEdgeLo = 0, kEdgeHi, kEdgeN, kEdgeNode, kEdgeSheet, kEdgeOwner, kEdgeGeo, kEdgeBound, kEdgeWidth };
+enum FaceCol : int {
+  kFaceV = 0, kFaceE = 4, kFaceNu = 8, kFaceNv, kFaceNode, kFaceOwner, kFaceGeo, kFaceBound, kFaceWidth
+};
+
+// Element row: corners, their node ids, edges, their first node ids, faces,
+// their first node ids (c, c, e, e, f, f columns for c corners, e edges, f
+// faces), then the scalars below.
+struct ElementCols {
+  int c, e, f;
+  int corner() const { return 0; }
+  int corner_node() const { return c; }
+  int edge() const { return 2 * c; }
+  int edge_node() const { return 2 * c + e; }
+  int face() const { return 2 * c + 2 * e; }
+  int face_node() const { return 2 * c + 2 * e + f; }
+  int node_first() const { return 2 * (c + e + f); }
+  int element_first() const { return node_first() + 1; }
+  int cell_node() const { return node_first() + 2; }
+  int file_id() const { return node_first() + 3; }
+  int block() const { return node_first() + 4; }
+  int flags() const { return node_first() + 5; }
+  int n() const { return node_first() + 6; }
+  int width() const { return node_first() + 9; }
+  static ElementCols of(Mode m) { return m == Mode::Volume ? ElementCols{8, 12, 6} : ElementCols{4, 4, 1}; }
+};
+
+using i128 = __int128;
+
+}  // namespace
+
+std::int64_t row_width(RowTable table, Mode mode) {
+  switch (table) {
+    case RowTable::VertexNodes: return kVertexWidth;
+    case RowTable::Edges: return kEdgeWidth;
+    case RowTable::Faces: return kFaceWidth;
+    case RowTable::Elements: return ElementCols::of(mode).width();
+    case RowTable::Corners: return 3 * ElementCols::of(mode).c;
+  }
+  return 0;
+}
+
+const char* row_dataset(RowTable table) {
+  switch (table) {
+    case RowTable::VertexNodes: return "topology/vertex_nodes";
+    case RowTable::Edges: return "topology/edges";
+    case RowTable::Faces: return "topology/faces";
+    case RowTable::Elements: return "topology/elements";
+    case RowTable::Corners: return "topology/element_corners";
+  }
+  return "?";
+}
+
+void RowReader::corrupt(RowTable table, Id row, const std::string& what) const {
+  throw Error(ErrorKind::Corrupt, (t_.origin.empty() ? std::string("in memory") : t_.origin) + ": " +
+                                      row_dataset(table) + " row " + std::to_string(row) + ": " + what);
+}
+
+namespace {
+// An id range [first, first + count) inside [0, total).
+bool range_ok(Id first, i128 count, Id total) { return first >= 0 && count >= 0 && first + count <= i128{total}; }
+bool interval_ok(Id n) { return n >= 1 && n < kMaxElementPoints; }
+}  // namespace
+
+Vec3 RowReader::xyz(Id v) const {
+  if (v < 0 || v >= t_.vertices.rows())
+    throw Error(ErrorKind::Corrupt, (t_.origin.empty() ? std::string("in memory") : t_.origin) +
+                                        ": coarse/vertices: vertex id " + std::to_string(v) + " out of range");
+  const double* r = t_.vertices.row(v, c_.vertices);
+  if (!std::isfinite(r[0]) || !std::isfinite(r[1]) || !std::isfinite(r[2]))
+    throw Error(ErrorKind::Corrupt, (t_.origin.empty() ? std::string("in memory") : t_.origin) +
+                                        ": coarse/vertices row " + std::to_string(v) + ": coordinate is not finite");
+  return {r[0], r[1], r[2]};
+}
+
+VertexRow RowReader::vertex(Id v) const {
+  if (v < 0 || v >= t_.vertex_nodes.rows()) corrupt(RowTable::VertexNodes, v, "vertex id out of range");
+  const std::int64_t* r = t_.vertex_nodes.row(v, c_.vertex_nodes);
+  const VertexRow out{r[kVertexOwner], r[kVertexNode]};
+  if (out.owner_element < 0 || out.owner_element >= t_.elements.rows())
+    corrupt(RowTable::VertexNodes, v, "owner element " + std::to_string(out.owner_element) + " out of range");
+  if (out.node < 0 || out.node >= t_.fine_nodes) corrupt(RowTable::VertexNodes, v, "node id " + std::to_string(out.node) + " out of range");
+  return out;
+}
+
+EdgeRow RowReader::edge(Id e) const {
+  if (e < 0 || e >= t_.edges.rows()) corrupt(RowTable::Edges, e, "edge id out of range");
+  const std::int64_t* r = t_.edges.row(e, c_.edges);
+  EdgeRow o;
+  o.lo = r[kEdgeLo], o.hi = r[kEdgeHi], o.n = r[kEdgeN], o.node = r[kEdgeNode], o.sheet = r[kEdgeSheet];
+  o.owner_element = r[kEdgeOwner], o.geo = r[kEdgeGeo], o.bound = r[kEdgeBound];
+  const Id V = t_.vertices.rows();
+  if (o.lo < 0 || o.hi >= V || o.lo >= o.hi) corrupt(RowTable::Edges, e, "vertex ids out of range or not ascending");
+  if (!interval_ok(o.n)) corrupt(RowTable::Edges, e, "interval " + std::to_string(o.n) + " out of range");
+  if (!range_ok(o.node, o.n - 1, t_.fine_nodes)) corrupt(RowTable::Edges, e, "node ids outside the mesh");
+  if (o.sheet < 0 || (t_.sheets > 0 && o.sheet >= t_.sheets)) corrupt(RowTable::Edges, e, "sheet id out of range");
+  if (o.owner_element < 0 || o.owner_element >= t_.elements.rows()) corrupt(RowTable::Edges, e, "owner element out of range");
+  if (o.bound != -1 && !range_ok(o.bound, o.n - 1, t_.bounding.rows()))
+    corrupt(RowTable::Edges, e, "bounding rows outside geometry/bounding");
+  return o;
+}
+
+FaceRow RowReader::face(Id f) const {
+  if (f < 0 || f >= t_.faces.rows()) corrupt(RowTable::Faces, f, "face id out of range");
+  const std::int64_t* r = t_.faces.row(f, c_.faces);
+  FaceRow o;
+  for (int k = 0; k < 4; ++k) o.v[k] = r[kFaceV + k], o.e[k] = r[kFaceE + k];
+  o.nu = r[kFaceNu], o.nv = r[kFaceNv], o.node = r[kFaceNode], o.owner_element = r[kFaceOwner];
+  o.geo = r[kFaceGeo], o.bound = r[kFaceBound];
+  for (int k = 0; k < 4; ++k) {
+    if (o.v[k] < 0 || o.v[k] >= t_.vertices.rows()) corrupt(RowTable::Faces, f, "corner vertex id out of range");
+    if (o.e[k] < 0 || o.e[k] >= t_.edges.rows()) corrupt(RowTable::Faces, f, "side edge id out of range");
+  }
+  if (!interval_ok(o.nu) || !interval_ok(o.nv) || i128{o.nu + 1} * (o.nv + 1) > kMaxElementPoints)
+    corrupt(RowTable::Faces, f, "intervals out of range");
+  const i128 interior = i128{o.nu - 1} * (o.nv - 1);
+  if (!range_ok(o.node, interior, t_.fine_nodes)) corrupt(RowTable::Faces, f, "node ids outside the mesh");
+  if (o.owner_element < 0 || o.owner_element >= t_.elements.rows()) corrupt(RowTable::Faces, f, "owner element out of range");
+  if (o.bound != -1 && !range_ok(o.bound, interior, t_.bounding.rows()))
+    corrupt(RowTable::Faces, f, "bounding rows outside geometry/bounding");
+  return o;
+}
+
+ElementRow RowReader::element(Id h) const {
+  if (h < 0 || h >= t_.elements.rows()) corrupt(RowTable::Elements, h, "element id out of range");
+  const ElementCols L = ElementCols::of(t_.mode);
+  const std::int64_t* r = t_.elements.row(h, c_.elements);
+  ElementRow o;
+  for (int k = 0; k < L.c; ++k) o.corner[k] = r[L.corner() + k], o.corner_node[k] = r[L.corner_node() + k];
+  for (int k = 0; k < L.e; ++k) o.edge[k] = r[L.edge() + k], o.edge_node[k] = r[L.edge_node() + k];
+  for (int k = 0; k < L.f; ++k) o.face[k] = r[L.face() + k], o.face_node[k] = r[L.face_node() + k];
+  o.node_first = r[L.node_first()], o.element_first = r[L.element_first()], o.cell_node = r[L.cell_node()];
+  o.file_id = r[L.file_id()];
+  const std::int64_t block = r[L.block()];
+  o.flags = static_cast<std::uint64_t>(r[L.flags()]);
+  o.n = {r[L.n()], r[L.n() + 1], r[L.n() + 2]};
+
+  const bool vol = t_.mode == Mode::Volume;
+  const auto RT = RowTable::Elements;
+  i128 points = 1;
+  for (int k = 0; k < 3; ++k) {
+    if (!interval_ok(o.n[k])) corrupt(RT, h, "interval " + std::to_string(o.n[k]) + " out of range");
+    points *= o.n[k] + 1;
+  }
+  if (points > kMaxElementPoints || (!vol && o.n[2] != 1)) corrupt(RT, h, "intervals out of range");
+  if (block < 0 || block >= t_.blocks) corrupt(RT, h, "block index " + std::to_string(block) + " out of range");
+  o.block = static_cast<std::int32_t>(block);
+  if (o.flags >= (std::uint64_t{1} << (ElementRow::kCurvedBit + 1))) corrupt(RT, h, "unknown flag bits");
+  for (int k = 0; k < L.c; ++k)
+    if (o.corner[k] < 0 || o.corner[k] >= t_.vertices.rows() || o.corner_node[k] < 0 || o.corner_node[k] >= t_.fine_nodes)
+      corrupt(RT, h, "corner " + std::to_string(k) + " out of range");
+  for (int k = 0; k < L.e; ++k) {
+    const Id n = o.n[vol ? k / 4 : k / 2];
+    if (o.edge[k] < 0 || o.edge[k] >= t_.edges.rows() || !range_ok(o.edge_node[k], n - 1, t_.fine_nodes))
+      corrupt(RT, h, "edge " + std::to_string(k) + " out of range");
+  }
+  for (int k = 0; k < L.f; ++k) {
+    const i128 a = o.n[vol ? kHexFaceAxes[k][0] : 0] - 1, b = o.n[vol ? kHexFaceAxes[k][1] : 1] - 1;
+    if (o.face[k] < 0 || o.face[k] >= t_.faces.rows() || !range_ok(o.face_node[k], a * b, t_.fine_nodes))
+      corrupt(RT, h, "face " + std::to_string(k) + " out of range");
+  }
+  const i128 interior = vol ? i128{o.n[0] - 1} * (o.n[1] - 1) * (o.n[2] - 1) : i128{o.n[0] - 1} * (o.n[1] - 1);
+  if (!range_ok(o.cell_node, interior, t_.fine_nodes) || o.node_first < 0 || o.node_first > o.cell_node)
+    corrupt(RT, h, "owned node ids out of range");
+  if (!range_ok(o.element_first, i128{o.n[0]} * o.n[1] * o.n[2], t_.fine_elements))
+    corrupt(RT, h, "fine element ids outside the mesh");
+  return o;
+}
+
+void RowReader::corner_xyz(Id h, Vec3* out) const {
+  if (h < 0 || h >= t_.corners.rows()) corrupt(RowTable::Corners, h, "element id out of range");
+  const double* r = t_.corners.row(h, c_.corners);
+  for (int k = 0; k < corners(); ++k) {
+    out[k] = {r[3 * k], r[3 * k + 1], r[3 * k + 2]};
+    if (!std::isfinite(out[k].x) || !std::isfinite(out[k].y) || !std::isfinite(out[k].z))
+      corrupt(RowTable::Corners, h, "coordinate is not finite");
+  }
+}
+
+std::array<std::int64_t, 3> RowReader::bounding(Id row) const {
+  if (row < 0 || row >= t_.bounding.rows())
+    throw Error(ErrorKind::Corrupt, (t_.origin.empty() ? std::string("in memory") : t_.origin) +
+                                        ": geometry/bounding: row " + std::to_string(row) + " out of range");
+  const std::int64_t* r = t_.bounding.row(row, c_.bounding);
+  return {r[0], r[1], r[2]};
+}
+
+std::int64_t RowReader::vertex_geo(Id v) const {
+  if (v < 0 || v >= t_.vertex_owner.rows())
+    throw Error(ErrorKind::Corrupt, (t_.origin.empty() ? std::string("in memory") : t_.origin) +
+                                        ": geometry/vertex_owner: row " + std::to_string(v) + " out of range");
+  const std::int32_t* r = t_.vertex_owner.row(v, c_.vertex_owner);
+  return r[0] < 0 ? -1 : pack_owner(r[0], r[1]);
+}
+
+Id RowReader::node_first(Id h) const {
+  return t_.elements.row(h, c_.elements)[ElementCols::of(t_.mode).node_first()];
+}
+Id RowReader::element_first(Id h) const {
+  return t_.elements.row(h, c_.elements)[ElementCols::of(t_.mode).element_first()];
+}
+
+// ---------------------------------------------------------------- writers
+
+namespace {
+template <class T>
+T* row_for_write(Table<T>& t, Id i) {
+  if (!t.in_memory()) throw Error(ErrorKind::Usage, "write_row: tables opened from a store are read-only");
+  auto& m = t.memory();
+  const size_t w = static_cast<size_t>(t.width());
+  if (static_cast<size_t>(i) * w >= m.size()) {
+    m.resize((static_cast<size_t>(i) + 1) * w);
+    t.reshape();
+  }
+  return m.data() + static_cast<size_t>(i) * w;
+}
+}  // namespace
+
+void write_row(MeshTables& t, Id v, const VertexRow& r) {
+  std::int64_t* o = row_for_write(t.vertex_nodes, v);
+  o[kVertexOwner] = r.owner_element, o[kVertexNode] = r.node;
+}
+
+void write_row(MeshTables& t, Id e, const EdgeRow& r) {
+  std::int64_t* o = row_for_write(t.edges, e);
+  o[kEdgeLo] = r.lo, o[kEdgeHi] = r.hi, o[kEdgeN] = r.n, o[kEdgeNode] = r.node, o[kEdgeSheet] = r.sheet;
+  o[kEdgeOwner] = r.owner_element, o[kEdgeGeo] = r.geo, o[kEdgeBound] = r.bound;
+}
+
+void write_row(MeshTables& t, Id f, const FaceRow& r) {
+  std::int64_t* o = row_for_write(t.faces, f);
+  for (int k = 0; k < 4; ++k) o[kFaceV + k] = r.v[k], o[kFaceE + k] = r.e[k];
+  o[kFaceNu] = r.nu, o[kFaceNv] = r.nv, o[kFaceNode] = r.node, o[kFaceOwner] = r.owner_element;
+  o[kFaceGeo] = r.geo, o[kFaceBound] = r.bound;
+}
+
+void write_row(MeshTables& t, Id h, const ElementRow& r) {
+  const ElementCols L = ElementCols::of(t.mode);
+  std::int64_t* o = row_for_write(t.elements, h);
+  for (int k = 0; k < L.c; ++k) o[L.corner() + k] = r.corner[k], o[L.corner_node() + k] = r.corner_node[k];
+  for (int k = 0; k < L.e; ++k) o[L.edge() + k] = r.edge[k], o[L.edge_node() + k] = r.edge_node[k];
+  for (int k = 0; k < L.f; ++k) o[L.face() + k] = r.face[k], o[L.face_node() + k] = r.face_node[k];
+  o[L.node_first()] = r.node_first, o[L.element_first()] = r.element_first, o[L.cell_node()] = r.cell_node;
+  o[L.file_id()] = r.file_id, o[L.block()] = r.block, o[L.flags()] = static_cast<std::int64_t>(r.flags);
+  for (int k = 0; k < 3; ++k) o[L.n() + k] = r.n[k];
+}
+
+void write_corners(MeshTables& t, Id h, const Vec3* xyz) {
+  double* o = row_for_write(t.corners, h);
+  const int c = ElementCols::of(t.mode).c;
+  for (int k = 0; k < c; ++k) o[3 * k] = xyz[k].x, o[3 * k + 1] = xyz[k].y, o[3 * k + 2] = xyz[k].z;
+}
+
+}  // namespace dicer
