@@ -38,16 +38,13 @@ int hex_handedness(const CoarseMesh& m, const Id* c) {
   return pos == 8 ? 1 : neg == 8 ? -1 : 0;
 }
 
-// Mirror i <-> j: turns a left-handed hex right-handed, corner 0 fixed.
-constexpr int kMirror[8] = {0, 3, 2, 1, 4, 7, 6, 5};
-
 void reorient_left_handed(CoarseMesh& m) {
   const Id ne = m.num_elements();
   for (Id e = 0; e < ne; ++e) {
     Id* c = &m.conn[static_cast<size_t>(e) * 8];
     Id old[8];
     std::copy(c, c + 8, old);
-    for (int k = 0; k < 8; ++k) c[k] = old[kMirror[k]];
+    for (int k = 0; k < 8; ++k) c[k] = old[kHexMirror[k]];
   }
   // Side s of the old numbering has the corners old[kHexSideCorners[s]];
   // find the new side with the same corner set.
@@ -58,7 +55,7 @@ void reorient_left_handed(CoarseMesh& m) {
     std::sort(want.begin(), want.end());
     for (int t = 0; t < 6; ++t) {
       std::array<int, 4> have;
-      for (int q = 0; q < 4; ++q) have[q] = kMirror[kHexSideCorners[t][q]];
+      for (int q = 0; q < 4; ++q) have[q] = kHexMirror[kHexSideCorners[t][q]];
       std::sort(have.begin(), have.end());
       if (have == want) side_map[s] = t;
     }

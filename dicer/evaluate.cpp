@@ -137,13 +137,11 @@ GridEntity grid_entity(const ElementRow& h, Mode mode, Id i, Id j, Id k) {
   const auto& n = h.n;
   if (mode == Mode::Surface) {
     const int ex = (i == 0 || i == n[0]) + (j == 0 || j == n[1]);
-    if (ex == 2) {
-      static constexpr int kCorner[2][2] = {{0, 3}, {1, 2}};  // [i>0][j>0]
-      return {EntityKind::Vertex, kCorner[i > 0][j > 0], {0, 0, 0}};
-    }
+    if (ex == 2) return {EntityKind::Vertex, quad_corner_at(i > 0, j > 0), {0, 0, 0}};
     if (ex == 1) {
-      const int le = j == 0 ? 0 : j == n[1] ? 1 : i == 0 ? 2 : 3;
-      const Id tt = le < 2 ? i : j, ne = n[le / 2];
+      const int axis = (j == 0 || j == n[1]) ? 0 : 1;
+      const int le = axis == 0 ? quad_edge_at(0, j > 0) : quad_edge_at(1, i > 0);
+      const Id tt = axis == 0 ? i : j, ne = n[axis];
       return {EntityKind::Edge, le, {h.rev(le) ? ne - tt : tt, 0, 0}};
     }
     const auto [nu, nv] = face_intervals(h, 0, mode);
@@ -157,16 +155,10 @@ GridEntity grid_entity(const ElementRow& h, Mode mode, Id i, Id j, Id k) {
     ext[a] = p[a] == 0 ? 0 : p[a] == n[a] ? 1 : -1;
     count += ext[a] >= 0;
   }
-  if (count == 3) {
-    static constexpr int kCorner[2][2][2] = {{{0, 4}, {3, 7}}, {{1, 5}, {2, 6}}};  // [i][j][k]
-    return {EntityKind::Vertex, kCorner[ext[0]][ext[1]][ext[2]], {0, 0, 0}};
-  }
+  if (count == 3) return {EntityKind::Vertex, hex_corner_at(ext[0], ext[1], ext[2]), {0, 0, 0}};
   if (count == 2) {
     const int axis = ext[0] < 0 ? 0 : ext[1] < 0 ? 1 : 2;
-    int le;
-    if (axis == 0) le = ext[1] + 2 * ext[2];
-    else if (axis == 1) le = 4 + ext[0] + 2 * ext[2];
-    else le = 8 + (ext[1] ? 3 - ext[0] : ext[0]);  // (0,0)->8 (1,0)->9 (1,1)->10 (0,1)->11
+    const int le = hex_edge_at(axis, ext[axis == 0 ? 1 : 0], ext[axis == 2 ? 1 : 2]);
     return {EntityKind::Edge, le, {h.rev(le) ? n[axis] - p[axis] : p[axis], 0, 0}};
   }
   if (count == 1) {

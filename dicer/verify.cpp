@@ -152,7 +152,6 @@ VerifyReport verify(const FineMesh& mesh, const std::function<void(Id, Id)>& pro
     faces.clear();
     const Id ne = b.num_elements();
     const Vec3 normal = vol ? Vec3{} : block_normal(b);
-    static constexpr int kQuadSides[4][2] = {{0, 1}, {1, 2}, {2, 3}, {3, 0}};
     for (Id e = 0; e < ne; ++e) {
       const Id i = e % n[0], j = (e / n[0]) % n[1], k = e / (n[0] * n[1]);
       const Id* c = &b.conn[static_cast<size_t>(e) * nc];
@@ -168,12 +167,12 @@ VerifyReport verify(const FineMesh& mesh, const std::function<void(Id, Id)>& pro
         }
       } else {
         for (int s = 0; s < 4; ++s) {
-          std::array<Id, 4> key{std::min(c[kQuadSides[s][0]], c[kQuadSides[s][1]]),
-                                std::max(c[kQuadSides[s][0]], c[kQuadSides[s][1]]), -1, -1};
-          // side s: 0 j=0, 1 i=n, 2 j=n, 3 i=0 -> quad local edge 0, 3, 1, 2
-          static constexpr int kEdgeOfSide[4] = {0, 3, 1, 2};
-          const bool on = s == 0 ? j == 0 : s == 1 ? i == n[0] - 1 : s == 2 ? j == n[1] - 1 : i == 0;
-          faces.emplace_back(key, on ? kEdgeOfSide[s] : -1);
+          const Id a = c[kShellSideCorners[s][0]], bb = c[kShellSideCorners[s][1]];
+          const std::array<Id, 4> key{std::min(a, bb), std::max(a, bb), -1, -1};
+          const SidePlane plane = exodus_side_plane(Mode::Surface, s + 2);
+          const Id p = plane.axis == 0 ? i : j;
+          const bool on = p == (plane.high ? n[plane.axis] - 1 : 0);
+          faces.emplace_back(key, on ? s : -1);
         }
       }
       const double sj = element_scaled_jacobian(b, i, j, k, normal);

@@ -14,21 +14,6 @@
 namespace dicer {
 namespace {
 
-// Exodus side (0-based) of a hex -> (axis, high side); of a shell -> the
-// same for its edge sides 2..5 (axis 0 = i, 1 = j), faces 0/1 -> (-1, _).
-struct SidePlane {
-  int axis;
-  bool high;
-};
-SidePlane hex_side_plane(int side) {
-  static constexpr SidePlane k[6] = {{1, false}, {0, true}, {1, true}, {0, false}, {2, false}, {2, true}};
-  return k[side];
-}
-SidePlane shell_side_plane(int side) {
-  static constexpr SidePlane k[6] = {{-1, false}, {-1, true}, {1, false}, {0, true}, {1, true}, {0, false}};
-  return k[side];
-}
-
 bool coarse_box_misses(const FineMesh& mesh, Id h, const Box& box, MeshCursor& cur) {
   Vec3 c[8];
   const RowReader R(mesh.tables(), cur);
@@ -199,6 +184,43 @@ void ExportChunk::prepare(const MeshSets& sets, const std::function<void(Id, Id)
     std::sort(node_set_sorted.back().begin(), node_set_sorted.back().end());
     node_sets_.push_back({ns.id, ns.name, {}});
   }
+  // Side-set members of the chunk's elements, in element order, so the pass
+  // below handles them as it meets each element (no second read of rows).
+  struct SideRef {
+    Id h;
+    std::int32_t set;
+    std::int8_t side;
+  };
+  std::vector<SideRef> side_refs;
+  for (size_t s = 0; s < sets.side_sets.size(); ++s) {
+    const auto& ss = sets.side_sets[s];
+    side_sets_.push_back({ss.id, ss.name, {}, {}});
+    for (size_t q = 0; q < ss.element.size() && q < ss.side.size(); ++q)
+      if (ss.element[q] >= first && ss.element[q] < end && ss.side[q] >= 0 && ss.side[q] <= 5)
+        side_refs.push_back({ss.element[q], static_cast<std::int32_t>(s), ss.side[q]});
+  }
+  std::sort(side_refs.begin(), side_refs.end(), [](const SideRef& a, const SideRef& c) { return a.h < c.h; });
+  size_t next_side = 0;
+  // The fine elements of block b on each coarse side of b's element that a
+  // side set names, as (global element id, side) for now.
+  auto sides_of = [&](const FineBlock& blk) {
+    for (; next_side < side_refs.size() && side_refs[next_side].h < blk.coarse_element; ++next_side) {
+    }
+    for (; next_side < side_refs.size() && side_refs[next_side].h == blk.coarse_element; ++next_side) {
+      const SideRef& ref = side_refs[next_side];
+      const auto& n = blk.n;
+      const SidePlane plane = exodus_side_plane(mode, ref.side);
+      auto& out = side_sets_[ref.set];
+      for (Id k = 0; k < n[2]; ++k)
+        for (Id j = 0; j < n[1]; ++j)
+          for (Id i = 0; i < n[0]; ++i) {
+            const Id p[3] = {i, j, k};
+            if (plane.axis >= 0 && p[plane.axis] != (plane.high ? n[plane.axis] - 1 : 0)) continue;
+            out.element.push_back(ids::element(blk.first_element, n, i, j, k));
+            out.side.push_back(ref.side);
+          }
+    }
+  };
   auto elements_of = [&](const FineBlock& blk, bool keep_all, auto&& on_element) {
     const auto n = blk.n;
     const Id sj = n[0] + 1, sk = (n[0] + 1) * (n[1] + 1);
@@ -258,6 +280,7 @@ void ExportChunk::prepare(const MeshSets& sets, const std::function<void(Id, Id)
         const ElementRow row = R.element(h);
         for (size_t s = 0; s < node_set_sorted.size(); ++s) node_set_ranges(row, mode, node_set_sorted[s], node_set_ids[s]);
       }
+      sides_of(b);
       if (progress) progress(h - first + 1, span);
     }
     std::sort(ghosts.begin(), ghosts.end(), [](const Ghost& a, const Ghost& c) { return a.id < c.id; });
@@ -324,6 +347,7 @@ void ExportChunk::prepare(const MeshSets& sets, const std::function<void(Id, Id)
           const ElementRow row = R.element(h);
           for (size_t s = 0; s < node_set_sorted.size(); ++s) node_set_ranges(row, mode, node_set_sorted[s], node_set_ids[s]);
         }
+        sides_of(b);
       }
       if (progress) progress(span + h - first + 1, 2 * span);
     }
@@ -334,7 +358,7 @@ void ExportChunk::prepare(const MeshSets& sets, const std::function<void(Id, Id)
   const Id nn = num_nodes();
   owner_.assign(static_cast<size_t>(nn), static_cast<std::int32_t>(range_.index));
   if (range_.count > 1) {
-    const std::vector<ChunkRange> plan = plan_chunks(mesh_, range_.count);
+    const std::vector<ChunkRange> plan = plan_.empty() ? plan_chunks(mesh_, range_.count) : plan_;
     size_t c = 0;
     for (Id l = 0; l < nn; ++l) {  // ids rise with l: the chunk index only moves forward
       const Id g = node_global_[l];
@@ -357,31 +381,18 @@ void ExportChunk::prepare(const MeshSets& sets, const std::function<void(Id, Id)
     out.erase(std::unique(out.begin(), out.end()), out.end());
   }
 
-  // Side sets: the fine elements on each coarse side, with the same side number.
-  const bool vol = mode == Mode::Volume;
-  for (const auto& ss : sets.side_sets) {
-    SideMembers m{ss.id, ss.name, {}, {}};
-    for (size_t q = 0; q < ss.element.size(); ++q) {
-      const Id h = ss.element[q];
-      if (h < first || h >= end || !kept_coarse[h - first]) continue;
-      const int side = ss.side[q];
-      if (side < 0 || side > 5) continue;
-      const ElementRow row = R.element(h);
-      const auto& n = row.n;
-      const SidePlane plane = vol ? hex_side_plane(side) : shell_side_plane(side);
-      for (Id k = 0; k < n[2]; ++k)
-        for (Id j = 0; j < n[1]; ++j)
-          for (Id i = 0; i < n[0]; ++i) {
-            const Id p[3] = {i, j, k};
-            if (plane.axis >= 0 && p[plane.axis] != (plane.high ? n[plane.axis] - 1 : 0)) continue;
-            const Id gid = ids::element(row.element_first, n, i, j, k);
-            const auto it = std::lower_bound(elem_global_.begin(), elem_global_.end(), gid);
-            if (it == elem_global_.end() || *it != gid) continue;  // outside the box
-            m.element.push_back(static_cast<Id>(it - elem_global_.begin()));
-            m.side.push_back(static_cast<std::int8_t>(side));
-          }
+  // Side sets: global element ids to local indices (elements outside a box
+  // drop out), sorted by element then side.
+  for (auto& m : side_sets_) {
+    std::vector<std::pair<Id, std::int8_t>> fs;
+    for (size_t q = 0; q < m.element.size(); ++q) {
+      const auto it = std::lower_bound(elem_global_.begin(), elem_global_.end(), m.element[q]);
+      if (it != elem_global_.end() && *it == m.element[q]) fs.emplace_back(it - elem_global_.begin(), m.side[q]);
     }
-    side_sets_.push_back(std::move(m));
+    std::sort(fs.begin(), fs.end());
+    fs.erase(std::unique(fs.begin(), fs.end()), fs.end());
+    m.element.clear(), m.side.clear();
+    for (const auto& [e, side] : fs) m.element.push_back(e), m.side.push_back(side);
   }
 }
 

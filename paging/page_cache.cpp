@@ -44,6 +44,7 @@
 #include <string>
 #include <thread>
 #include <unordered_map>
+#include <unordered_set>
 #include <utility>
 
 #include "dicer/error.hpp"
@@ -62,6 +63,7 @@ struct ArrayInfo {
   bool has_last = false;             // last_pin is meaningful
   std::uint64_t ra_next = 0;         // first page the current read-ahead window has not scheduled yet
   std::uint64_t max_page_bytes = 0;  // largest decoded page admitted so far (read-ahead's size estimate)
+  std::vector<bool> read;            // pages loaded since the last reset_stats (1 bit each)
 };
 
 // Fixed-capacity FIFO of keys to read ahead: scheduling never allocates
@@ -119,6 +121,21 @@ struct PageCache::Impl {
   std::vector<Entry*> free_slots;
   std::size_t hand = 0;
   std::unordered_map<std::uint32_t, ArrayInfo> arrays;
+  std::unordered_set<std::uint64_t> read_undeclared;  // the same for arrays without a page count (rare)
+  // Counts a load: pages_read, and distinct_pages_read the first time this
+  // page is loaded since the last reset (a bitmap per declared array).
+  void count_load(PageKey key) {
+    ++st.pages_read;
+    ArrayInfo* ai = array_info(key.array);
+    bool fresh;
+    if (ai && key.page < ai->read.size()) {
+      fresh = !ai->read[key.page];
+      ai->read[key.page] = true;
+    } else {
+      fresh = read_undeclared.insert((std::uint64_t{key.array} << 40) ^ key.page).second;
+    }
+    st.distinct_pages_read += fresh;
+  }
   std::uint64_t streams = 0;         // arrays pinned at least once: possible sequential streams
   std::uint64_t max_page_bytes = 0;  // largest decoded page admitted, any array
   KeyRing queue;
@@ -305,7 +322,7 @@ struct PageCache::Impl {
       }
       lock.lock();
       if (err) return fail(e, err);
-      ++st.pages_read;
+      count_load(key);
       st.bytes_read += nread;
       st.bytes_decompressed += buf.size();
       const std::uint64_t size = buf.size();
@@ -409,7 +426,7 @@ PageCache::Handle PageCache::pin(PageKey key) {
     throw;
   }
   lock.lock();
-  ++m.st.pages_read;
+  m.count_load(key);
   m.st.bytes_read += nread;
   m.st.bytes_decompressed += buf.size();
   const std::uint64_t size = buf.size();
@@ -428,6 +445,7 @@ void PageCache::set_array_pages(std::uint32_t array, std::uint64_t pages) {
   ArrayInfo& ai = impl_->arrays[array];
   ai.pages = pages;
   ai.ra_next = 0;
+  ai.read.assign(static_cast<std::size_t>(pages), false);
 }
 
 CacheStats PageCache::stats() const {
@@ -440,6 +458,8 @@ void PageCache::reset_stats() {
   const std::uint64_t resident = impl_->st.resident_bytes;
   impl_->st = CacheStats{};
   impl_->st.resident_bytes = resident;
+  for (auto& [a, ai] : impl_->arrays) std::fill(ai.read.begin(), ai.read.end(), false);
+  impl_->read_undeclared.clear();
   impl_->st.peak_resident_bytes = resident;
 }
 

@@ -88,6 +88,7 @@ struct PageKeyHash {
 
 struct CacheStats {
   std::uint64_t pages_read = 0;          // loader calls that succeeded (pins and read-ahead)
+  std::uint64_t distinct_pages_read = 0; // different pages among them: pages_read / this = read amplification
   std::uint64_t bytes_read = 0;          // bytes read from the file, as the loader reports (compressed size)
   std::uint64_t bytes_decompressed = 0;  // decoded bytes the loader produced
   std::uint64_t hits = 0;                // pin() calls that found the page resident or already being loaded
@@ -168,7 +169,8 @@ class PageCache {
 
   CacheStats stats() const;
   // All counters to 0, except resident_bytes (kept) and peak_resident_bytes
-  // (set to the current resident_bytes).
+  // (set to the current resident_bytes); distinct pages count afresh.
+  // Memory: one bit per page of each declared array.
   void reset_stats();
   std::uint64_t budget() const noexcept { return budget_; }
   // Resident pages with at least one handle on them now (O(resident pages); diagnostics and tests).

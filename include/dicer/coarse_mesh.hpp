@@ -21,6 +21,7 @@
 #include <string>
 #include <vector>
 
+#include "dicer/orientation.hpp"
 #include "dicer/types.hpp"
 
 namespace dicer {
@@ -30,9 +31,9 @@ struct Block {
   std::string name;      // may be empty
 };
 
-// Sides in Exodus numbering, 0-based: hex side s of element e is the face
-// with local corners kHexSideCorners[s]; shell sides 0,1 are the two faces of
-// the quad, 2..5 its edges.
+// Sides in Exodus numbering, 0-based (orientation.hpp): hex side s of
+// element e is the face with local corners kHexSideCorners[s]; shell sides
+// 0,1 are the two faces of the quad, 2..5 its edges (kShellSideCorners).
 struct SideSet {
   std::int64_t id = 0;
   std::string name;
@@ -45,10 +46,6 @@ struct NodeSet {
   std::string name;
   std::vector<Id> vertex;           // 0-based vertex index
 };
-
-// Exodus HEX8 side -> local corners (outward normal, right-handed hex).
-inline constexpr int kHexSideCorners[6][4] = {
-    {0, 1, 5, 4}, {1, 2, 6, 5}, {2, 3, 7, 6}, {0, 4, 7, 3}, {0, 3, 2, 1}, {4, 5, 6, 7}};
 
 struct CoarseMesh {
   std::string source;                 // path of the file it came from (messages)

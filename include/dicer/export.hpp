@@ -74,6 +74,11 @@ class ExportChunk {
   void prepare(const MeshSets& sets, const std::function<void(Id, Id)>& progress = {},
                const std::function<bool()>& cancel = {});
 
+  // The whole plan this chunk belongs to (plan_chunks(mesh, range.count)),
+  // when the caller has it: prepare() then needs no search of its own to
+  // name the owners of shared nodes.
+  void set_plan(std::vector<ChunkRange> plan) { plan_ = std::move(plan); }
+
   const FineMesh& mesh() const { return mesh_; }
   const ChunkRange& range() const { return range_; }
   Mode mode() const { return mesh_.mode(); }
@@ -114,6 +119,7 @@ class ExportChunk {
   const FineMesh& mesh_;
   ChunkRange range_;
   std::optional<Box> box_;
+  std::vector<ChunkRange> plan_;
   std::vector<Id> node_global_, elem_global_, conn_;
   std::vector<double> x_, y_, z_;
   std::vector<std::int32_t> owner_, elem_block_;

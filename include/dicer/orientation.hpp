@@ -42,6 +42,61 @@ inline constexpr int kHexFaceAxes[6][2] = {{1, 2}, {1, 2}, {0, 2}, {0, 2}, {0, 1
 // Quad (and surface-mode element) local edges: 0,1 along i; 2,3 along j.
 inline constexpr int kQuadEdge[4][2] = {{0, 1}, {3, 2}, {0, 3}, {1, 2}};
 
+// Exodus sides (0-based). HEX8 side s is the face with local corners
+// kHexSideCorners[s] (outward normal for a right-handed hex); SHELL4/QUAD4
+// sides 0 and 1 are the two faces of the quad, sides 2..5 its edges
+// kShellSideCorners[s - 2] (corners k, k+1 mod 4).
+inline constexpr int kHexSideCorners[6][4] = {
+    {0, 1, 5, 4}, {1, 2, 6, 5}, {2, 3, 7, 6}, {0, 4, 7, 3}, {0, 3, 2, 1}, {4, 5, 6, 7}};
+inline constexpr int kShellSideCorners[4][2] = {{0, 1}, {1, 2}, {2, 3}, {3, 0}};
+
+// Mirror i <-> j (corner 0 fixed): turns a left-handed hex right-handed.
+inline constexpr int kHexMirror[8] = {0, 3, 2, 1, 4, 7, 6, 5};
+
+// The grid plane an Exodus side lies in: local axis (0 i, 1 j, 2 k) and
+// whether it is the high end; axis -1 for a shell's two faces. Derived
+// from the corner tables above and kHexCorner.
+struct SidePlane {
+  int axis;
+  bool high;
+};
+constexpr SidePlane exodus_side_plane(Mode mode, int side) {
+  const int* c = mode == Mode::Volume ? kHexSideCorners[side] : side >= 2 ? kShellSideCorners[side - 2] : nullptr;
+  const int n = mode == Mode::Volume ? 4 : 2;
+  if (!c) return {-1, side == 1};
+  for (int a = 0; a < (mode == Mode::Volume ? 3 : 2); ++a) {
+    bool same = true;
+    for (int q = 1; q < n; ++q) same = same && kHexCorner[c[q]][a] == kHexCorner[c[0]][a];
+    if (same) return {a, kHexCorner[c[0]][a] == 1};
+  }
+  return {-1, false};
+}
+
+// The local corner at grid extremes (each 0 or 1) and the local edge along
+// `axis` at the extremes (a, b) of the two other axes (in increasing axis
+// order): inverses of kHexCorner / kHexEdge / kQuadEdge by search.
+constexpr int hex_corner_at(int i, int j, int k) {
+  for (int c = 0; c < 8; ++c)
+    if (kHexCorner[c][0] == i && kHexCorner[c][1] == j && kHexCorner[c][2] == k) return c;
+  return -1;
+}
+constexpr int quad_corner_at(int i, int j) { return hex_corner_at(i, j, 0); }
+constexpr int hex_edge_at(int axis, int a, int b) {
+  const int o1 = axis == 0 ? 1 : 0, o2 = axis == 2 ? 1 : 2;
+  for (int e = 0; e < 12; ++e) {
+    const int* c = kHexCorner[kHexEdge[e][0]];
+    if (kHexCorner[kHexEdge[e][1]][axis] != c[axis] && c[o1] == a && c[o2] == b) return e;
+  }
+  return -1;
+}
+constexpr int quad_edge_at(int axis, int other) {
+  for (int e = 0; e < 4; ++e) {
+    const int* c = kHexCorner[kQuadEdge[e][0]];
+    if (kHexCorner[kQuadEdge[e][1]][axis] != c[axis] && c[1 - axis] == other) return e;
+  }
+  return -1;
+}
+
 // Corner neighbours along +i, +j, +k as seen from each hex corner, ordered so
 // that det(n0 - c, n1 - c, n2 - c) > 0 for a right-handed hex (Verdict's table).
 inline constexpr int kHexCornerNbr[8][3] = {{1, 3, 4}, {2, 0, 5}, {3, 1, 6}, {0, 2, 7},

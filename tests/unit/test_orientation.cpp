@@ -127,3 +127,96 @@ TEST(Orientation, HexFaceSideEdgesJoinTheRightCorners) {
       EXPECT_EQ(edges.size(), 4u);  // the four edges of the face, each once
     }
 }
+
+// The local tables, each enumerated against what it must mean geometrically
+// (corner positions of the unit cube), not against another table.
+TEST(Orientation, LocalTablesMeanWhatTheySay) {
+  // Corners: distinct positions of the unit cube.
+  std::set<std::array<int, 3>> seen;
+  for (int c = 0; c < 8; ++c) seen.insert({kHexCorner[c][0], kHexCorner[c][1], kHexCorner[c][2]});
+  EXPECT_EQ(seen.size(), 8u);
+  for (int i = 0; i < 2; ++i)
+    for (int j = 0; j < 2; ++j) {
+      for (int k = 0; k < 2; ++k) {
+        const int c = hex_corner_at(i, j, k);
+        ASSERT_GE(c, 0);
+        EXPECT_EQ((std::array<int, 3>{kHexCorner[c][0], kHexCorner[c][1], kHexCorner[c][2]}), (std::array<int, 3>{i, j, k}));
+      }
+      EXPECT_EQ(quad_corner_at(i, j), hex_corner_at(i, j, 0));
+      EXPECT_LT(quad_corner_at(i, j), 4);
+    }
+  // Edges: each joins two corners differing along exactly its axis, from
+  // low to high; hex_edge_at finds it from the other two coordinates.
+  for (int e = 0; e < 12; ++e) {
+    const int axis = e / 4;
+    const int* a = kHexCorner[kHexEdge[e][0]];
+    const int* b = kHexCorner[kHexEdge[e][1]];
+    for (int d = 0; d < 3; ++d) EXPECT_EQ(b[d] - a[d], d == axis ? 1 : 0) << "edge " << e;
+    const int o1 = axis == 0 ? 1 : 0, o2 = axis == 2 ? 1 : 2;
+    EXPECT_EQ(hex_edge_at(axis, a[o1], a[o2]), e);
+  }
+  for (int e = 0; e < 4; ++e) {
+    const int axis = e / 2;
+    const int* a = kHexCorner[kQuadEdge[e][0]];
+    const int* b = kHexCorner[kQuadEdge[e][1]];
+    EXPECT_EQ(b[axis] - a[axis], 1);
+    EXPECT_EQ(b[1 - axis], a[1 - axis]);
+    EXPECT_EQ(a[2], 0);
+    EXPECT_EQ(quad_edge_at(axis, a[1 - axis]), e);
+  }
+  // Faces: four corners on one side of the cube, in cyclic order, the first
+  // free axis (kHexFaceAxes) from h0 to h1 and the second from h0 to h3.
+  for (int f = 0; f < 6; ++f) {
+    const int axis = f / 2, side = f % 2;
+    for (int m = 0; m < 4; ++m) EXPECT_EQ(kHexCorner[kHexFace[f][m]][axis], side) << "face " << f;
+    const int* h0 = kHexCorner[kHexFace[f][0]];
+    const int* h1 = kHexCorner[kHexFace[f][1]];
+    const int* h3 = kHexCorner[kHexFace[f][3]];
+    EXPECT_EQ(h1[kHexFaceAxes[f][0]] - h0[kHexFaceAxes[f][0]], 1);
+    EXPECT_EQ(h3[kHexFaceAxes[f][1]] - h0[kHexFaceAxes[f][1]], 1);
+  }
+  // Exodus sides: each hex side's corners share one coordinate, its normal
+  // (right-hand rule over the listed order) points out of the cube, and
+  // exodus_side_plane names that plane.
+  for (int s = 0; s < 6; ++s) {
+    const int* c[4];
+    for (int q = 0; q < 4; ++q) c[q] = kHexCorner[kHexSideCorners[s][q]];
+    const SidePlane p = exodus_side_plane(Mode::Volume, s);
+    ASSERT_GE(p.axis, 0);
+    for (int q = 0; q < 4; ++q) EXPECT_EQ(c[q][p.axis], p.high ? 1 : 0) << "side " << s;
+    const int u[3] = {c[1][0] - c[0][0], c[1][1] - c[0][1], c[1][2] - c[0][2]};
+    const int v[3] = {c[3][0] - c[0][0], c[3][1] - c[0][1], c[3][2] - c[0][2]};
+    const int n[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+    EXPECT_EQ(n[p.axis], p.high ? 1 : -1) << "side " << s << " must face outwards";
+  }
+  for (int s = 2; s < 6; ++s) {
+    const int* a = kHexCorner[kShellSideCorners[s - 2][0]];
+    const int* b = kHexCorner[kShellSideCorners[s - 2][1]];
+    const SidePlane p = exodus_side_plane(Mode::Surface, s);
+    ASSERT_GE(p.axis, 0);
+    EXPECT_EQ(a[p.axis], p.high ? 1 : 0);
+    EXPECT_EQ(b[p.axis], p.high ? 1 : 0);
+  }
+  EXPECT_EQ(exodus_side_plane(Mode::Surface, 0).axis, -1);
+  EXPECT_EQ(exodus_side_plane(Mode::Surface, 1).axis, -1);
+  // The mirror swaps i and j and keeps the cube.
+  for (int c = 0; c < 8; ++c) {
+    const int* a = kHexCorner[c];
+    const int* b = kHexCorner[kHexMirror[c]];
+    EXPECT_EQ(a[0], b[1]);
+    EXPECT_EQ(a[1], b[0]);
+    EXPECT_EQ(a[2], b[2]);
+  }
+  // quad_side_edge: canonical side k of a quad under every code is the local
+  // edge joining the local corners that hold its canonical ends.
+  for (int code = 0; code < 8; ++code)
+    for (int side = 0; side < 4; ++side) {
+      const int e = quad_side_edge(static_cast<FaceCode>(code), side);
+      ASSERT_GE(e, 0);
+      std::set<int> want, have{kQuadEdge[e][0], kQuadEdge[e][1]};
+      for (int m = 0; m < 4; ++m)
+        for (int end = 0; end < 2; ++end)
+          if (code_corner(static_cast<FaceCode>(code), m) == kQuadEdge[side][end]) want.insert(m);
+      EXPECT_EQ(have, want) << "code " << code << " side " << side;
+    }
+}
