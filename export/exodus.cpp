@@ -30,8 +30,8 @@
 //    block-ordered element list, 1-based Exodus sides (hex 1..6; shell 1,2
 //    faces, 3..6 edges). Node sets: 1-based local node ids.
 //
-// The file is written under ".<name>.tmp-<pid>" in the destination folder
-// and renamed when closed; on any failure the temporary is closed and
+// The file is written through AtomicOutput (a temporary in the destination
+// folder, fsync, rename); on any failure the temporary is closed and
 // removed and Error{Io, "<path>: <call> failed (<reason>)"} is thrown.
 //
 // Memory beyond the chunk: coordinates are passed straight from the chunk's
@@ -50,6 +50,7 @@
 #include <system_error>
 #include <vector>
 
+#include "dicer/atomic_output.hpp"
 #include "dicer/error.hpp"
 #include "dicer/export.hpp"
 #include "hdf5_lock.hpp"
@@ -62,17 +63,12 @@ constexpr std::int64_t kSlice = std::int64_t{1} << 16;  // id map entries per li
 constexpr std::size_t kMaxName = 255;                   // longest name kept (netCDF-4: NC_MAX_NAME = 256)
 
 
-// The temporary file: closed and removed unless committed.
+// The temporary file (AtomicOutput): closed, and removed unless committed.
 class TempExodus {
  public:
-  TempExodus(std::string final_path, std::filesystem::path temp_path)
-      : final_(std::move(final_path)), temp_(std::move(temp_path)) {}
+  explicit TempExodus(const std::string& final_path) : final_(final_path), out_(final_path) {}
   ~TempExodus() {
     if (exoid_ >= 0) ex_close(exoid_);
-    if (!committed_) {
-      std::error_code ec;
-      std::filesystem::remove(temp_, ec);
-    }
   }
   TempExodus(const TempExodus&) = delete;
   TempExodus& operator=(const TempExodus&) = delete;
@@ -90,7 +86,9 @@ class TempExodus {
     int cpu_word_size = 8, io_word_size = 8;
     const int mode = EX_CLOBBER | EX_NETCDF4 | EX_IDS_INT64_DB | EX_MAPS_INT64_DB | EX_ALL_INT64_API;
     exodus::clear_error();
-    const int id = ex_create(temp_.c_str(), mode, &cpu_word_size, &io_word_size);
+    // Exodus 6.02 formats the path into fixed buffers: hand it the short
+    // /proc/self/fd name of the temporary, never the user's long path.
+    const int id = ex_create(out_.short_path().c_str(), mode, &cpu_word_size, &io_word_size);
     if (id < 0) fail("ex_create", exodus::reason(id));
     exoid_ = id;
   }
@@ -101,17 +99,13 @@ class TempExodus {
     exoid_ = -1;
     exodus::clear_error();
     check(ex_close(id), "ex_close");
-    std::error_code ec;
-    std::filesystem::rename(temp_, final_, ec);
-    if (ec) fail("rename", ec.message());
-    committed_ = true;
+    out_.commit();
   }
 
  private:
   std::string final_;
-  std::filesystem::path temp_;
+  AtomicOutput out_;
   int exoid_ = -1;
-  bool committed_ = false;
 };
 
 // char* array for the name functions (they take non-const char**).
@@ -131,13 +125,7 @@ void write_exodus(const ExportChunk& chunk, const std::string& path) {
   // netCDF-4 is HDF5 underneath: take the process-wide HDF5 lock (the
   // store's read-ahead thread may be loading pages meanwhile).
   std::lock_guard hdf5_guard(hdf5_lock());
-  namespace fs = std::filesystem;
-  const fs::path final_path(path);
-  if (final_path.filename().empty() || path.back() == '/')
-    throw Error(ErrorKind::Usage, path + ": not a file name");
-  const fs::path dir = final_path.has_parent_path() ? final_path.parent_path() : fs::path(".");
-  const fs::path temp_path =
-      dir / ("." + final_path.filename().string() + ".tmp-" + std::to_string(static_cast<long>(::getpid())));
+  if (path.empty() || path.back() == '/') throw Error(ErrorKind::Usage, path + ": not a file name");
 
   const MeshInfo& info = chunk.mesh().info();
   const int corners = chunk.corners();
@@ -178,7 +166,7 @@ void write_exodus(const ExportChunk& chunk, const std::string& path) {
     if (block_start[b + 1] > block_start[b]) present.push_back(b);
 
   ex_opts(0);  // no chatter on stderr, never abort; errors become dicer::Error
-  TempExodus file(path, temp_path);
+  TempExodus file(path);
   file.create();
   const int exoid = file.id();
 
@@ -204,7 +192,7 @@ void write_exodus(const ExportChunk& chunk, const std::string& path) {
   // ---- header ----
   ex_init_params init{};
   {
-    std::string source = fs::path(info.source).filename().string();
+    std::string source = std::filesystem::path(info.source).filename().string();
     std::string title = "dicer: chunk " + std::to_string(chunk.range().index + 1) + " of " +
                         std::to_string(chunk.range().count) + (source.empty() ? "" : " from " + source);
     title.resize(std::min<std::size_t>(title.size(), MAX_LINE_LENGTH));

@@ -52,6 +52,7 @@
 #include <string_view>
 #include <vector>
 
+#include "dicer/atomic_output.hpp"
 #include "dicer/error.hpp"
 #include "dicer/export.hpp"
 
@@ -468,25 +469,17 @@ void write_msh(const ExportChunk& chunk, const std::string& path, bool binary) {
   if (E + 6 * (S * E + E) + 7 > static_cast<unsigned __int128>(std::numeric_limits<std::int64_t>::max()))
     throw Error(ErrorKind::Overflow, path + ": MSH boundary element tags do not fit 64 bits");
 
-  const fs::path final_path(path);
-  const fs::path dir = final_path.has_parent_path() ? final_path.parent_path() : fs::path(".");
-  const fs::path tmp = dir / ("." + final_path.filename().string() + ".tmp-" + std::to_string(::getpid()));
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) throw Error(ErrorKind::Io, path + ": cannot create " + tmp.string() + ": " + std::strerror(errno));
+  AtomicOutput out(path);
+  const int fd = ::open(out.temp_path().c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) throw Error(ErrorKind::Io, path + ": cannot create " + out.temp_path() + ": " + std::strerror(errno));
   try {
     Out o(fd, path, binary);
     write_body(chunk, o);
     o.close();
-    std::error_code ec;
-    fs::rename(tmp, final_path, ec);
-    if (ec) o.fail("cannot rename " + tmp.string() + ": " + ec.message());
+    out.commit();
   } catch (const Error&) {
-    std::error_code ec;
-    fs::remove(tmp, ec);
     throw;
   } catch (const std::exception& e) {
-    std::error_code ec;
-    fs::remove(tmp, ec);
     throw Error(ErrorKind::Io, path + ": " + e.what());
   }
 }

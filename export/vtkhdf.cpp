@@ -22,11 +22,13 @@
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
+#include <memory>
 #include <mutex>
 #include <string>
 #include <type_traits>
 #include <vector>
 
+#include "dicer/atomic_output.hpp"
 #include "dicer/error.hpp"
 #include "dicer/export.hpp"
 #include "hdf5_lock.hpp"
@@ -91,6 +93,7 @@ hid_t file_type() {
 
 struct VtkHdfWriter::Impl {
   std::string path, tmp;
+  std::unique_ptr<AtomicOutput> out;
   Id partitions = 0, written = 0;
   bool finished = false, broken = false;
   Hid file, root;
@@ -198,8 +201,7 @@ struct VtkHdfWriter::Impl {
   void remove_tmp() {
     close_all();
     file.reset();
-    std::error_code ec;
-    std::filesystem::remove(tmp, ec);
+    out.reset();  // removes the uncommitted temporary
   }
 
   void write(const ExportChunk& c) {
@@ -260,13 +262,11 @@ VtkHdfWriter::VtkHdfWriter(const std::string& path, Id partitions) : impl_(new I
       throw Error(ErrorKind::Usage, path + ": VTKHDF needs at least one partition, got " + std::to_string(partitions));
     const fs::path final_path(path);
     if (!final_path.has_filename()) throw Error(ErrorKind::Usage, path + ": not a file name");
-    const fs::path dir = final_path.has_parent_path() ? final_path.parent_path() : fs::path(".");
-    std::error_code ec;
-    if (!fs::is_directory(dir, ec)) throw Error(ErrorKind::Io, path + ": folder " + dir.string() + " does not exist");
-    impl_->tmp = (dir / ("." + final_path.filename().string() + ".tmp-" + std::to_string(::getpid()))).string();
+    impl_->out = std::make_unique<AtomicOutput>(path);
+    impl_->tmp = impl_->out->temp_path();
     impl_->open();
   } catch (...) {
-    if (!impl_->tmp.empty()) impl_->remove_tmp();
+    impl_->remove_tmp();
     delete impl_;
     throw;
   }
@@ -314,11 +314,11 @@ void VtkHdfWriter::finish() {
     m.broken = true;
     m.io("closing " + m.tmp + " failed");
   }
-  std::error_code ec;
-  std::filesystem::rename(m.tmp, m.path, ec);
-  if (ec) {
+  try {
+    m.out->commit();
+  } catch (...) {
     m.broken = true;
-    m.io("cannot rename " + m.tmp + ": " + ec.message());
+    throw;
   }
   m.finished = true;
 }

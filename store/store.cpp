@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <mutex>
 
+#include "dicer/atomic_output.hpp"
 #include "dicer/error.hpp"
 #include "dicer/numbering.hpp"
 #include "dicer/rows.hpp"
@@ -234,14 +235,12 @@ std::vector<T> read_small(OpenStore& s, const std::shared_ptr<PageCache>& cache,
 
 void write_store(const FineMesh& mesh, const std::string& path,
                  const std::function<void(std::int64_t, std::int64_t)>& progress) {
-  namespace fs = std::filesystem;
   const CoarseMesh* c = mesh.coarse();
   if (!c) throw Error(ErrorKind::Usage, path + ": write_store needs a mesh diced in this process");
   const MeshInfo& info = mesh.info();
   const MeshTables& t = mesh.tables();
-  const fs::path final_path(path);
-  const fs::path dir = final_path.has_parent_path() ? final_path.parent_path() : fs::path(".");
-  const fs::path tmp = dir / ("." + final_path.filename().string() + ".tmp-" + std::to_string(::getpid()));
+  AtomicOutput out(path);
+  const std::string& tmp = out.temp_path();
   std::lock_guard lock(hdf5_mutex());
   store::register_lz4_filter();
   WriteProgress wp;
@@ -256,9 +255,9 @@ void write_store(const FineMesh& mesh, const std::string& path,
   struct Reset {
     ~Reset() { g_write_progress = nullptr; }
   } reset_progress;
-  try {
+  {
     {
-      h5::File f = h5::File::create(tmp.string());
+      h5::File f = h5::File::create(tmp);
       f.write_attr("format", std::string(kStoreFormatName));
       f.write_attr("format_version", kStoreFormatVersion);
       f.write_attr("mode", std::string(mode_name(info.mode)));
@@ -321,13 +320,9 @@ void write_store(const FineMesh& mesh, const std::string& path,
       write_paged(f, "sets/node_set_id", ns_id), write_paged(f, "sets/node_set_offset", ns_off);
       write_paged(f, "sets/node_set_vertex", ns_vert);
       write_strings(f, "sets/node_set_name", ns_name);
-      if (H5Fflush(f.id(), H5F_SCOPE_GLOBAL) < 0) throw Error(ErrorKind::Io, tmp.string() + ": flush failed");
-    }
-    fs::rename(tmp, final_path);
-  } catch (...) {
-    std::error_code ec;
-    fs::remove(tmp, ec);
-    throw;
+      if (H5Fflush(f.id(), H5F_SCOPE_GLOBAL) < 0) throw Error(ErrorKind::Io, tmp + ": flush failed");
+    }  // closed here, before the commit
+    out.commit();  // an exception before this leaves the temporary to `out`, which removes it
   }
 }
 

@@ -579,18 +579,18 @@ TEST(ExportExodus, FailureIsAnIoErrorAndLeavesNothing) {
     FAIL() << "no error";
   } catch (const Error& e) {
     EXPECT_EQ(e.kind(), ErrorKind::Io);
-    EXPECT_NE(std::string(e.what()).find(missing + ": ex_create failed"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find(missing + ": cannot open the output folder"), std::string::npos) << e.what();
   }
-  // The destination is a directory: the file is written, the rename fails,
-  // and the temporary is removed.
+  // The destination is a directory: refused before anything is written
+  // (a usage error: the user named a folder, not a file).
   const std::string dir = tmp.path("taken");
   std::filesystem::create_directories(dir + "/inside");
   try {
     write_exodus(c, dir);
     FAIL() << "no error";
   } catch (const Error& e) {
-    EXPECT_EQ(e.kind(), ErrorKind::Io);
-    EXPECT_NE(std::string(e.what()).find(dir + ": rename failed"), std::string::npos) << e.what();
+    EXPECT_EQ(e.kind(), ErrorKind::Usage);
+    EXPECT_NE(std::string(e.what()).find(dir + ": is a directory"), std::string::npos) << e.what();
   }
   EXPECT_EQ(leftovers(tmp.dir()), (std::vector<std::string>{"taken"}));
 }

@@ -1,0 +1,140 @@
+// Write-to-temporary, fsync, rename, fsync-the-folder (atomic_output.hpp).
+#include "dicer/atomic_output.hpp"
+
+#include <dirent.h>
+#include <fcntl.h>
+#include <limits.h>
+#include <signal.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <functional>
+
+#include "dicer/error.hpp"
+
+namespace dicer {
+namespace {
+
+// Live temporaries, for remove_uncommitted(): fixed slots of absolute
+// paths, claimed and released with atomics so a signal handler can read
+// them without locks.
+constexpr int kSlots = 64;
+struct Slot {
+  std::atomic<int> state{0};  // 0 free, 1 being filled, 2 live
+  char path[PATH_MAX + 1];
+};
+Slot g_slots[kSlots];
+
+int claim_slot(const std::string& path) {
+  if (path.size() > PATH_MAX) return -1;
+  for (int i = 0; i < kSlots; ++i) {
+    int expected = 0;
+    if (g_slots[i].state.compare_exchange_strong(expected, 1)) {
+      std::memcpy(g_slots[i].path, path.c_str(), path.size() + 1);
+      g_slots[i].state.store(2);
+      return i;
+    }
+  }
+  return -1;  // more than kSlots outputs at once: only signal cleanup misses them
+}
+
+void release_slot(int i) {
+  if (i >= 0) g_slots[i].state.store(0);
+}
+
+std::string errno_text() { return std::strerror(errno); }
+
+// ".NAME.tmp-PID", within NAME_MAX: a long NAME is cut and tagged with a
+// hash of the whole name so two long names do not share a temporary.
+std::string temp_name_for(const std::string& name, long pid) {
+  const std::string suffix = ".tmp-" + std::to_string(pid);
+  std::string t = "." + name + suffix;
+  if (t.size() <= NAME_MAX) return t;
+  char hash[17];
+  std::snprintf(hash, sizeof hash, "%016zx", std::hash<std::string>{}(name));
+  const size_t keep = NAME_MAX - 1 - 1 - 16 - suffix.size();
+  return "." + name.substr(0, keep) + "~" + hash + suffix;
+}
+
+// Stale temporaries of `name` whose process is gone.
+void remove_stale(int dir_fd, const std::string& name) {
+  const int fd = ::dup(dir_fd);
+  if (fd < 0) return;
+  DIR* d = ::fdopendir(fd);
+  if (!d) {
+    ::close(fd);
+    return;
+  }
+  const std::string exact = "." + name + ".tmp-";
+  while (const dirent* e = ::readdir(d)) {
+    const std::string n = e->d_name;
+    if (n.rfind(exact, 0) != 0) continue;
+    const std::string digits = n.substr(exact.size());
+    if (digits.empty() || digits.find_first_not_of("0123456789") != std::string::npos || digits.size() > 9) continue;
+    const long pid = std::stol(digits);
+    if (pid <= 0 || pid == ::getpid()) continue;
+    if (::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH) ::unlinkat(dir_fd, n.c_str(), 0);
+  }
+  ::closedir(d);
+}
+
+}  // namespace
+
+AtomicOutput::AtomicOutput(const std::string& final_path) : final_(final_path) {
+  namespace fs = std::filesystem;
+  const fs::path p(final_path);
+  name_ = p.filename().string();
+  std::error_code ec;
+  if (name_.empty() || name_ == "." || name_ == ".." || fs::is_directory(p, ec))
+    throw Error(ErrorKind::Usage, final_path + ": is a directory; give a file name to write");
+  const std::string dir = p.has_parent_path() ? p.parent_path().string() : std::string(".");
+  dir_fd_ = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (dir_fd_ < 0) throw Error(ErrorKind::Io, final_path + ": cannot open the output folder " + dir + ": " + errno_text());
+  remove_stale(dir_fd_, name_);
+  temp_name_ = temp_name_for(name_, static_cast<long>(::getpid()));
+  temp_ = (fs::path(dir) / temp_name_).string();
+  short_ = "/proc/self/fd/" + std::to_string(dir_fd_) + "/" + temp_name_;
+  // A temporary of ours from an earlier failed attempt in this process.
+  ::unlinkat(dir_fd_, temp_name_.c_str(), 0);
+  std::string absolute = temp_;
+  if (!fs::path(absolute).is_absolute()) absolute = (fs::current_path(ec) / temp_).string();
+  slot_ = claim_slot(absolute);
+}
+
+AtomicOutput::~AtomicOutput() {
+  if (!committed_ && dir_fd_ >= 0) ::unlinkat(dir_fd_, temp_name_.c_str(), 0);
+  release_slot(slot_);
+  if (dir_fd_ >= 0) ::close(dir_fd_);
+}
+
+void AtomicOutput::commit() {
+  if (committed_) return;
+  const int fd = ::openat(dir_fd_, temp_name_.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) throw Error(ErrorKind::Io, temp_ + ": the written file is gone: " + errno_text());
+  const int rc = ::fsync(fd);
+  const int err = errno;
+  ::close(fd);
+  if (rc != 0) throw Error(ErrorKind::Io, temp_ + ": cannot flush to disk: " + std::strerror(err));
+  struct stat st;
+  if (::fstatat(dir_fd_, name_.c_str(), &st, 0) == 0 && S_ISDIR(st.st_mode))
+    throw Error(ErrorKind::Usage, final_ + ": is a directory; give a file name to write");
+  if (::renameat(dir_fd_, temp_name_.c_str(), dir_fd_, name_.c_str()) != 0)
+    throw Error(ErrorKind::Io, final_ + ": cannot move the finished file into place: " + errno_text());
+  committed_ = true;
+  release_slot(slot_);
+  slot_ = -1;
+  // The rename itself is durable only once the folder is flushed; the file
+  // is complete either way, so a failure here is not worth an error.
+  ::fsync(dir_fd_);
+}
+
+void AtomicOutput::remove_uncommitted() noexcept {
+  for (Slot& s : g_slots)
+    if (s.state.load() == 2) ::unlink(s.path);
+}
+
+}  // namespace dicer
