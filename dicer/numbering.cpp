@@ -168,7 +168,7 @@ Id locate_element(const MeshTables& t, Id id, std::array<Id, 3>& ijk, MeshCursor
   if (h < 0) R.corrupt(RowTable::Elements, 0, "no coarse element holds fine element " + std::to_string(id));
   const ElementRow row = R.element(h);
   const Id l = id - row.element_first;
-  if (l >= row.n[0] * row.n[1] * row.n[2])
+  if (l < 0 || l >= row.n[0] * row.n[1] * row.n[2])
     R.corrupt(RowTable::Elements, h, "fine element " + std::to_string(id) + " lies past the element's own");
   ijk = ids::element_local(l, row.n);
   return h;

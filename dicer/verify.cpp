@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "dicer/error.hpp"
 #include "dicer/orientation.hpp"
 #include "dicer/quality.hpp"
 #include "dicer/rows.hpp"
@@ -73,6 +74,19 @@ VerifyReport verify(const FineMesh& mesh, const std::function<void(Id, Id)>& pro
                   std::to_string(r.nodes_formula) + ", elements " + std::to_string(r.elements) + " vs " +
                   std::to_string(r.elements_formula));
     }
+  }
+
+  // The page index of a store (the searches for ids rely on it): the first
+  // row of every page of the elements, as the index says.
+  if (!t.node_index.empty() || !t.element_index.empty()) {
+    const Id rpp = t.elements.rows_per_page(), pages = t.elements.pages();
+    const std::string store = t.origin.empty() ? std::string("in memory") : t.origin;
+    if (static_cast<Id>(t.node_index.size()) != pages || static_cast<Id>(t.element_index.size()) != pages)
+      throw Error(ErrorKind::Corrupt, store + ": numbering/element_page_node: not one entry per page of topology/elements");
+    for (Id p = 0; p < pages; ++p)
+      if (t.node_index[p] != R.node_first(p * rpp) || t.element_index[p] != R.element_first(p * rpp))
+        throw Error(ErrorKind::Corrupt, store + ": numbering/element_page_node or element_page_element entry " +
+                                            std::to_string(p) + " disagrees with the first row of its page");
   }
 
   // Coincident coarse vertices (the only nodes two blocks can share by position alone).

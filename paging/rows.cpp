@@ -74,6 +74,8 @@ namespace {
 // An id range [first, first + count) inside [0, total).
 bool range_ok(Id first, i128 count, Id total) { return first >= 0 && count >= 0 && first + count <= i128{total}; }
 bool interval_ok(Id n) { return n >= 1 && n < kMaxElementPoints; }
+// -1 (unknown) or a CAD entity of dimension 0..3 (pack_owner).
+bool geo_ok(std::int64_t g) { return g == -1 || (g >= 0 && owner_dim(g) <= 3); }
 }  // namespace
 
 Vec3 RowReader::xyz(Id v) const {
@@ -109,6 +111,7 @@ EdgeRow RowReader::edge(Id e) const {
   if (!range_ok(o.node, o.n - 1, t_.fine_nodes)) corrupt(RowTable::Edges, e, "node ids outside the mesh");
   if (o.sheet < 0 || (t_.sheets > 0 && o.sheet >= t_.sheets)) corrupt(RowTable::Edges, e, "sheet id out of range");
   if (o.owner_element < 0 || o.owner_element >= t_.elements.rows()) corrupt(RowTable::Edges, e, "owner element out of range");
+  if (!geo_ok(o.geo)) corrupt(RowTable::Edges, e, "geometric owner " + std::to_string(o.geo) + " is not a CAD entity");
   if (o.bound != -1 && !range_ok(o.bound, o.n - 1, t_.bounding.rows()))
     corrupt(RowTable::Edges, e, "bounding rows outside geometry/bounding");
   return o;
@@ -130,6 +133,7 @@ FaceRow RowReader::face(Id f) const {
   const i128 interior = i128{o.nu - 1} * (o.nv - 1);
   if (!range_ok(o.node, interior, t_.fine_nodes)) corrupt(RowTable::Faces, f, "node ids outside the mesh");
   if (o.owner_element < 0 || o.owner_element >= t_.elements.rows()) corrupt(RowTable::Faces, f, "owner element out of range");
+  if (!geo_ok(o.geo)) corrupt(RowTable::Faces, f, "geometric owner " + std::to_string(o.geo) + " is not a CAD entity");
   if (o.bound != -1 && !range_ok(o.bound, interior, t_.bounding.rows()))
     corrupt(RowTable::Faces, f, "bounding rows outside geometry/bounding");
   return o;
