@@ -290,4 +290,55 @@ void element_boundary(const Evaluator& E, const ElementRow& h, Id hid, FineBlock
   }
 }
 
+void facet_points(const Evaluator& E, const ElementRow& h, Id hid, int slot, FineBlock::Scratch& s,
+                  std::vector<Id>& ids, std::vector<Vec3>& xyz) {
+  const Mode mode = E.mode();
+  const bool vol = mode == Mode::Volume;
+  bool want_edge[12] = {}, want_face[6] = {};
+  if (vol) want_face[slot] = true;
+  else want_edge[slot] = true;
+  element_boundary(E, h, hid, s, want_edge, want_face);
+  ids.clear(), xyz.clear();
+  auto put = [&](Id i, Id j, Id k) {
+    const GridEntity g = grid_entity(h, mode, i, j, k);
+    ids.push_back(E.grid_node_id(h, i, j, k));
+    switch (g.kind) {
+      case EntityKind::Vertex: xyz.push_back(s.corner[g.slot]); return;
+      case EntityKind::Edge: {
+        const auto& a = s.edge[g.slot];
+        const size_t q = static_cast<size_t>(g.local[0] - 1);
+        xyz.push_back({a[0][q], a[1][q], a[2][q]});
+        return;
+      }
+      case EntityKind::Face: {
+        const auto& a = s.face[g.slot];
+        const auto nu = face_intervals(h, g.slot, mode)[0];
+        const size_t q = static_cast<size_t>(ids::face_node(0, nu, g.local[0], g.local[1]));
+        xyz.push_back({a[0][q], a[1][q], a[2][q]});
+        return;
+      }
+      case EntityKind::Cell: break;
+    }
+    E.R.corrupt(RowTable::Elements, hid, "a facet point lies inside its element");
+  };
+  const auto& n = h.n;
+  if (vol) {
+    const int axis = slot / 2, a = kHexFaceAxes[slot][0], b = kHexFaceAxes[slot][1];
+    Id p[3] = {0, 0, 0};
+    p[axis] = slot % 2 ? n[axis] : 0;
+    for (Id q = 0; q <= n[b]; ++q)
+      for (Id r = 0; r <= n[a]; ++r) {
+        p[a] = r, p[b] = q;
+        put(p[0], p[1], p[2]);
+      }
+  } else {
+    const int axis = slot / 2, c = kQuadEdge[slot][0];
+    Id p[2] = {kHexCorner[c][0] * n[0], kHexCorner[c][1] * n[1]};
+    for (Id t = 0; t <= n[axis]; ++t) {
+      p[axis] = t;
+      put(p[0], p[1], 0);
+    }
+  }
+}
+
 }  // namespace dicer::detail

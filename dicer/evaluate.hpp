@@ -49,6 +49,12 @@ struct Evaluator {
 void element_boundary(const Evaluator& E, const ElementRow& h, Id hid, FineBlock::Scratch& out,
                       const bool* want_edge = nullptr, const bool* want_face = nullptr);
 
+// Every grid point of one facet of element h: local face `slot` (volume)
+// or local edge `slot` (surface), with its node id and coordinates, each
+// computed by its owner as everywhere else. O(facet points); uses `s`.
+void facet_points(const Evaluator& E, const ElementRow& h, Id hid, int slot, FineBlock::Scratch& s,
+                  std::vector<Id>& ids, std::vector<Vec3>& xyz);
+
 // Canonical corners of local face lf of a coarse element: the element's
 // corner indices (kHexCorner numbering; surface: the quad's) of v0..v3.
 std::array<int, 4> face_canonical_corners(Mode mode, int lf, FaceCode code);

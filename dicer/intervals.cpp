@@ -120,10 +120,4 @@ IntervalPlan resolve_intervals(const CoarseMesh& mesh, const Topology& topo, con
   return plan;
 }
 
-std::vector<Id> edge_intervals(const Sheets& sheets, const IntervalPlan& plan) {
-  std::vector<Id> n(sheets.edge_sheet.size());
-  for (size_t e = 0; e < n.size(); ++e) n[e] = plan.sheet_interval[sheets.edge_sheet[e]];
-  return n;
-}
-
 }  // namespace dicer

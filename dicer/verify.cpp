@@ -10,6 +10,8 @@
 #include "dicer/orientation.hpp"
 #include "dicer/quality.hpp"
 #include "dicer/rows.hpp"
+#include "evaluate.hpp"
+#include "verify_coincident.hpp"
 
 namespace dicer {
 namespace {
@@ -98,15 +100,17 @@ VerifyReport verify(const FineMesh& mesh, const std::function<void(Id, Id)>& pro
     }
     std::sort(pts.begin(), pts.end());
     for (size_t i = 1; i < pts.size(); ++i)
-      if (pts[i] == pts[i - 1]) {
-        ++r.coincident_nodes;
-        note(r, "two coarse vertices share coordinates");
-      }
+      if (pts[i] == pts[i - 1]) r.coincident_coarse_vertices += (i == 1 || pts[i - 1] != pts[i - 2]) ? 2 : 1;
   }
 
   std::vector<FaceSide> side(static_cast<size_t>(t.faces.rows()) * 2);
   std::vector<std::uint64_t> edge_hash(static_cast<size_t>(t.edges.rows()), 0);
   std::vector<std::uint8_t> edge_seen(static_cast<size_t>(t.edges.rows()), 0);
+  // Surface mode: quads using each coarse edge, and the sum of their
+  // traversal directions (+1 lo -> hi in the quad's cyclic order).
+  std::vector<std::uint8_t> edge_uses;
+  std::vector<std::int8_t> edge_dir;
+  if (!vol) edge_uses.assign(static_cast<size_t>(t.edges.rows()), 0), edge_dir.assign(edge_uses.size(), 0);
 
   FineBlock b;
   std::vector<std::pair<Id, Id>> ids;          // (id, point)
@@ -239,6 +243,15 @@ VerifyReport verify(const FineMesh& mesh, const std::function<void(Id, Id)>& pro
       }
     }
     const int epe = R.edges();
+    if (!vol)
+      for (int s = 0; s < 4; ++s) {  // cyclic side s runs corner s -> s+1
+        const Id a = row.corner[kShellSideCorners[s][0]], bb = row.corner[kShellSideCorners[s][1]];
+        const int le = quad_edge_at(exodus_side_plane(Mode::Surface, s + 2).axis == 0 ? 1 : 0,
+                                    exodus_side_plane(Mode::Surface, s + 2).high);
+        const Id e = row.edge[le];
+        if (edge_uses[e] < 255) ++edge_uses[e];
+        edge_dir[e] = static_cast<std::int8_t>(edge_dir[e] + (a < bb ? 1 : -1));
+      }
     for (int le = 0; le < epe; ++le) {
       const Id e = row.edge[le];
       const int axis = vol ? le / 4 : le / 2;
@@ -277,6 +290,67 @@ VerifyReport verify(const FineMesh& mesh, const std::function<void(Id, Id)>& pro
       }
       if (!interior) r.boundary_fine_faces += a.count;
     }
+  }
+
+  // Surface mode: the boundary is the edges of one quad; an edge of two
+  // quads is traversed both ways (orientable, consistently oriented); an
+  // edge of more is non-manifold.
+  std::vector<detail::Facet> facets;
+  if (!vol) {
+    for (Id e = 0; e < t.edges.rows(); ++e) {
+      const EdgeRow er = R.edge(e);
+      if (edge_uses[e] == 1) {
+        r.boundary_fine_faces += er.n;
+      } else if (edge_uses[e] == 2 && edge_dir[e] != 0) {
+        ++r.misoriented;
+        note(r, "coarse edge " + std::to_string(e) + " is traversed the same way by both its quads (inconsistent orientation)");
+      } else if (edge_uses[e] > 2) {
+        r.conformity_errors += er.n;
+        note(r, "coarse edge " + std::to_string(e) + " is shared by " + std::to_string(edge_uses[e]) + " quads (non-manifold)");
+      }
+    }
+  }
+  // The coarse boundary facets, where alone distinct fine nodes can meet.
+  {
+    if (vol) {
+      for (Id f = 0; f < t.faces.rows(); ++f)
+        if (!side[2 * f + 1].seen) {
+          const FaceRow fr = R.face(f);
+          const ElementRow h = R.element(fr.owner_element);
+          for (int k = 0; k < 6; ++k)
+            if (h.face[k] == f) facets.push_back({fr.owner_element, k});
+        }
+    } else {
+      for (Id e = 0; e < t.edges.rows(); ++e)
+        if (edge_uses[e] == 1) {
+          const EdgeRow er = R.edge(e);
+          const ElementRow h = R.element(er.owner_element);
+          for (int k = 0; k < 4; ++k)
+            if (h.edge[k] == e) facets.push_back({er.owner_element, k});
+        }
+    }
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (Id v = 0; v < t.vertices.rows(); ++v) {
+      const Vec3 p = R.xyz(v);
+      const double c[3] = {p.x, p.y, p.z};
+      for (int d = 0; d < 3; ++d) lo[d] = std::min(lo[d], c[d]), hi[d] = std::max(hi[d], c[d]);
+    }
+    double diag = 0;
+    for (int d = 0; d < 3 && t.vertices.rows() > 0; ++d) diag += (hi[d] - lo[d]) * (hi[d] - lo[d]);
+    const Id before = r.coincident_nodes;
+    detail::find_coincident_nodes(mesh, facets, 1e-9 * std::sqrt(diag), r, [&](const std::string& s) {
+      (r.coincident_nodes > r.coincident_interface ? r.problems : r.warnings).push_back(s);
+    });
+    if (r.coincident_nodes > before) {
+      const Id bad = r.coincident_nodes - r.coincident_interface;
+      if (r.coincident_interface > 0)
+        r.warnings.push_back(std::to_string(r.coincident_interface) + " fine nodes coincide on an interface of " +
+                             std::to_string(r.coincident_coarse_vertices) + " coincident coarse vertices (kept apart on purpose?)");
+      if (bad > 0)
+        note(r, std::to_string(bad) + " fine nodes coincide where the coarse mesh does not conform (hanging vertices?)");
+    }
+    if (r.near_coincident > 0)
+      r.warnings.push_back(std::to_string(r.near_coincident) + " fine nodes lie within 1e-9 of the diagonal of another node");
   }
   return r;
 }

@@ -50,7 +50,4 @@ struct IntervalPlan {
 IntervalPlan resolve_intervals(const CoarseMesh& mesh, const Topology& topo, const Sheets& sheets,
                                const IntervalRequest& request);
 
-// Interval of every edge under a plan (edge_sheet gathered).
-std::vector<Id> edge_intervals(const Sheets& sheets, const IntervalPlan& plan);
-
 }  // namespace dicer

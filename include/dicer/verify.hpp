@@ -16,6 +16,15 @@
 //    coordinates, order-independent hash), each coarse face is covered by
 //    nu*nv fine faces exactly, boundary ones included;
 //  - every hex around a coarse edge sees the same fine nodes on it;
+//  - surface mode: every coarse edge is used by one (the boundary) or two
+//    quads, which traverse it in opposite directions (consistent
+//    orientation); fine boundary edges are counted;
+//  - coincident fine nodes, exactly (bit-identical coordinates, distinct
+//    ids), on the coarse boundary facets where alone they can occur, in
+//    bounded memory; those on coincident coarse entities (an interface made
+//    of duplicated vertices, e.g. a contact surface) are a warning, the
+//    others (a non-conforming coarse mesh: hanging vertices) a failure;
+//    nodes closer than 1e-9 of the diagonal but not identical, apart;
 //  - node and element counts equal the closed formula of invariant 3;
 //  - minimum scaled Jacobian and the number of inverted fine elements
 //    (scaled Jacobian <= 0 at some corner).
@@ -31,20 +40,25 @@ namespace dicer {
 struct VerifyReport {
   Id nodes = 0, nodes_formula = 0;
   Id elements = 0, elements_formula = 0;
-  Id fine_faces_checked = 0;
-  Id boundary_fine_faces = 0;
+  Id fine_faces_checked = 0;   // fine faces (volume) or fine edges (surface) of every element
+  Id boundary_fine_faces = 0;  // of them on the boundary: faces (volume), edges (surface)
   Id id_errors = 0;            // out of range or not round-tripping
   Id bit_identity_errors = 0;  // node(id) differs from the block's value
-  Id coincident_nodes = 0;     // distinct ids at identical coordinates
+  Id coincident_nodes = 0;     // fine nodes sharing bit-identical coordinates with another id
+  Id coincident_interface = 0; // of those, on coincident coarse entities (an interface): a warning
+  Id near_coincident = 0;      // fine nodes within 1e-9 of the diagonal of another, not identical
+  Id coincident_coarse_vertices = 0;  // coarse vertices sharing coordinates with another
+  Id misoriented = 0;          // surface: coarse edges two quads traverse the same way
   Id conformity_errors = 0;    // fine faces/edges that do not match up
   Id inverted = 0;
   double min_scaled_jacobian = 1.0;
   std::vector<std::string> problems;  // the first few, human readable
+  std::vector<std::string> warnings;  // what is reported but not a failure (interfaces, near nodes)
 
   bool counts_ok() const { return nodes == nodes_formula && elements == elements_formula; }
   bool ok() const {
-    return counts_ok() && id_errors == 0 && bit_identity_errors == 0 && coincident_nodes == 0 &&
-           conformity_errors == 0 && inverted == 0;
+    return counts_ok() && id_errors == 0 && bit_identity_errors == 0 && coincident_nodes == coincident_interface &&
+           conformity_errors == 0 && misoriented == 0 && inverted == 0;
   }
 };
 

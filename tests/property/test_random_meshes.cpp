@@ -11,6 +11,7 @@
 #include <map>
 #include <numeric>
 #include <random>
+#include <set>
 
 #include "dicer/error.hpp"
 #include "dicer/fine_mesh.hpp"
@@ -358,22 +359,111 @@ TEST(RandomMeshes, SurfaceSheetCountsAndConformity) {
   }
 }
 
-TEST(RandomMeshes, VerifyCatchesABrokenMesh) {
-  // A mesh with a crack: two hexes side by side whose shared face uses
-  // duplicated vertices at the same coordinates. Dicing works, verify fails
-  // on coincident nodes.
+namespace {
+
+// Fine nodes (distinct ids) that share bit-identical coordinates with
+// another, and those within `tol` of another without being identical: by
+// brute force over every node (small meshes only).
+std::pair<Id, Id> brute_coincident(const FineMesh& f, double tol) {
+  std::vector<std::pair<std::array<double, 3>, Id>> pts;
+  NodeCursor c(f);
+  Id id;
+  Vec3 p;
+  while (c.next(id, p)) pts.push_back({{p.x, p.y, p.z}, id});
+  std::sort(pts.begin(), pts.end());
+  std::set<Id> same, near;
+  for (size_t i = 0; i < pts.size(); ++i)
+    for (size_t j = i + 1; j < pts.size() && pts[j].first[0] - pts[i].first[0] <= tol; ++j) {
+      const auto& a = pts[i].first;
+      const auto& b = pts[j].first;
+      if (a == b) {
+        same.insert(pts[i].second), same.insert(pts[j].second);
+      } else if (std::hypot(a[0] - b[0], a[1] - b[1], a[2] - b[2]) <= tol) {
+        near.insert(pts[i].second), near.insert(pts[j].second);
+      }
+    }
+  return {static_cast<Id>(same.size()), static_cast<Id>(near.size())};
+}
+
+CoarseMesh two_hexes_with_a_crack(double shift) {
+  // Two hexes side by side whose shared face uses duplicated vertices (an
+  // interface, as in contact meshes); `shift` moves the duplicates along y.
   CoarseMesh m;
   m.source = "crack";
   const double pts[12][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 1}, {1, 0, 1},
                              {1, 1, 1}, {0, 1, 1}, {2, 0, 0}, {2, 1, 0}, {2, 0, 1}, {2, 1, 1}};
   for (auto& p : pts) m.x.push_back(p[0]), m.y.push_back(p[1]), m.z.push_back(p[2]);
-  // duplicates of 1,2,5,6
-  for (int v : {1, 2, 5, 6}) m.x.push_back(pts[v][0]), m.y.push_back(pts[v][1]), m.z.push_back(pts[v][2]);
+  for (int v : {1, 2, 5, 6}) m.x.push_back(pts[v][0]), m.y.push_back(pts[v][1] + shift), m.z.push_back(pts[v][2]);
   m.conn = {0, 1, 2, 3, 4, 5, 6, 7, 12, 8, 9, 13, 14, 10, 11, 15};
   validate_coarse_mesh(m);
+  return m;
+}
+
+}  // namespace
+
+TEST(RandomMeshes, VerifyCountsCoincidentNodesExactlyAndTellsInterfacesFromNonConformity) {
   IntervalRequest req;
   req.global = 2;
-  const VerifyReport r = verify(FineMesh::dice(m, req));
-  EXPECT_FALSE(r.ok());
-  EXPECT_GT(r.coincident_nodes, 0);
+  {  // An interface of coincident coarse vertices: a warning, every fine node on it counted.
+    const FineMesh f = FineMesh::dice(two_hexes_with_a_crack(0), req);
+    const VerifyReport r = verify(f);
+    const auto [same, near] = brute_coincident(f, 1e-9 * std::sqrt(4.0 + 1 + 1));
+    EXPECT_EQ(same, 18);  // 3 x 3 fine nodes on each side of the shared face
+    EXPECT_EQ(r.coincident_nodes, same);
+    EXPECT_EQ(r.coincident_interface, same);
+    EXPECT_EQ(r.coincident_coarse_vertices, 8);
+    EXPECT_EQ(near, 0);
+    EXPECT_TRUE(r.ok()) << (r.problems.empty() ? "" : r.problems[0]);
+    EXPECT_FALSE(r.warnings.empty());
+  }
+  {  // The same, apart by 1e-11: nothing identical, every node near.
+    const FineMesh f = FineMesh::dice(two_hexes_with_a_crack(1e-11), req);
+    const VerifyReport r = verify(f);
+    const auto [same, near] = brute_coincident(f, 1e-9 * std::sqrt(4.0 + 1 + 1));
+    EXPECT_EQ(same, 0);
+    EXPECT_EQ(near, 18);
+    EXPECT_EQ(r.coincident_nodes, 0);
+    EXPECT_EQ(r.near_coincident, near);
+    EXPECT_TRUE(r.ok());
+  }
+  {  // A hanging vertex: hex A against two hexes B1, B2 that split its face.
+    CoarseMesh m;
+    m.source = "hanging";
+    const double pts[14][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 1},   {1, 0, 1},   {1, 1, 1},
+                               {0, 1, 1}, {2, 0, 0}, {2, 1, 0}, {2, 0, 1}, {2, 1, 1}, {1, .5, 0}, {1, .5, 1}};
+    for (auto& p : pts) m.x.push_back(p[0]), m.y.push_back(p[1]), m.z.push_back(p[2]);
+    const double mid[2][3] = {{2, .5, 0}, {2, .5, 1}};
+    for (auto& p : mid) m.x.push_back(p[0]), m.y.push_back(p[1]), m.z.push_back(p[2]);
+    // A; B1 = [1,2] x [0,.5]; B2 = [1,2] x [.5,1]
+    m.conn = {0, 1, 2, 3, 4, 5, 6, 7, 1, 8, 14, 12, 5, 10, 15, 13, 12, 14, 9, 2, 13, 15, 11, 6};
+    validate_coarse_mesh(m);
+    const FineMesh f = FineMesh::dice(m, req);
+    const VerifyReport r = verify(f);
+    const auto [same, near] = brute_coincident(f, 1e-9 * std::sqrt(6.0));
+    EXPECT_EQ(same, 6);  // on the line y = .5 of the x = 1 face: 3 nodes of A, 3 of B1/B2
+    EXPECT_EQ(r.coincident_nodes, same);
+    EXPECT_EQ(r.coincident_interface, 0);
+    EXPECT_FALSE(r.ok()) << "a non-conforming coarse mesh must fail";
+  }
+}
+
+TEST(RandomMeshes, SurfaceVerifySeesTheBoundaryAndTheOrientation) {
+  std::mt19937_64 rng(8);
+  for (int trial = 0; trial < 4; ++trial) {
+    const int a = 2 + trial, b = 1 + trial % 2;
+    CoarseMesh m = test::random_quad_sheet(a, b, trial % 2 == 1, rng);
+    IntervalRequest req;
+    req.global = 3;
+    const Id n = 3;
+    const VerifyReport r = verify(FineMesh::dice(m, req));
+    EXPECT_TRUE(r.ok()) << (r.problems.empty() ? "" : r.problems[0]);
+    EXPECT_EQ(r.boundary_fine_faces, 2 * (a + b) * n) << "the fine edges around an a x b sheet";
+    // One quad wound the other way: its shared edges are traversed the same
+    // way as by its neighbours.
+    std::reverse(m.conn.begin(), m.conn.begin() + 4);
+    validate_coarse_mesh(m);
+    const VerifyReport flipped = verify(FineMesh::dice(m, req));
+    EXPECT_FALSE(flipped.ok());
+    EXPECT_GT(flipped.misoriented, 0);
+  }
 }
