@@ -44,7 +44,9 @@ Geometry (fine nodes on the CAD instead of the coarse facets):
                           bounding-box diagonal of its entity (default 1e-4)
 Other options:
   -o, --output STORE      the store to write (written to a temporary name in
-                          the same folder, renamed when complete)
+                          the same folder, renamed when complete; Ctrl-C,
+                          SIGTERM and SIGHUP (exit 130, 143, 129) leave
+                          nothing behind)
   --quiet                 no summary on stdout
 
 Examples:
@@ -71,20 +73,28 @@ int cmd_dice(const std::vector<std::string>& argv) {
   ConformOptions copt;
   if (auto t = args.value("--geometry-tol")) copt.tolerance = parse_double("--geometry-tol", *t);
   if (args.value("--geometry-tol") && !cad) throw Error(ErrorKind::Usage, "--geometry-tol needs --geometry CAD");
+  const CancelOnSignals cancel_on_signals;
+  const std::string nothing_written = "nothing written to " + *out;
   CoarseMesh mesh = read_coarse_mesh(in);
   for (const auto& w : mesh.warnings) std::fprintf(stderr, "dicer dice: warning: %s: %s\n", in.c_str(), w.c_str());
   std::vector<std::string> notes;
   FineMesh fine = FineMesh::dice(std::move(mesh), req, &notes);
   for (const auto& n : notes) std::fprintf(stderr, "dicer dice: note: %s\n", n.c_str());
+  throw_if_cancelled(nothing_written);
   ConformReport geo;
   if (cad) {
     Progress bar("dice: geometry", 1, args.has("--quiet"));
     copt.progress = [&](const char*, Id done, Id total) { bar.update(done, total); };
     geo = conform_to_geometry(fine, *cad, copt);
+    throw_if_cancelled(nothing_written);
   }
   {
     Progress bar("dice: writing", 1, args.has("--quiet"));
-    write_store(fine, *out, [&](std::int64_t done, std::int64_t total) { bar.update(done, total); });
+    // Thrown from the page callback: write_store removes its temporary file.
+    write_store(fine, *out, [&](std::int64_t done, std::int64_t total) {
+      throw_if_cancelled(nothing_written);
+      bar.update(done, total);
+    });
   }
   if (!args.has("--quiet"))
     std::printf("diced %s: %lld coarse %s -> %s fine nodes, %s fine elements (%lld sheets); wrote %s\n", in.c_str(),

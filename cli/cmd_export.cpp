@@ -1,5 +1,4 @@
 // dicer export: a chunk, a box or the whole mesh to VTKHDF, MSH 4.1 or Exodus II.
-#include <csignal>
 #include <cstdio>
 
 #include "common.hpp"
@@ -29,18 +28,14 @@ store; memory is bounded by the chunk, not the mesh.
                        about 4M fine elements per partition)
   --box x0,y0,z0,x1,y1,z1   only the elements whose centroid is in the box
   -o OUT               output file (written to a temporary name in the same
-                       folder and renamed when complete; Ctrl-C leaves nothing)
+                       folder and renamed when complete; Ctrl-C, SIGTERM and
+                       SIGHUP (exit 130, 143, 129) leave nothing)
 
 Examples:
   dicer export fine.dice.h5 --format vtkhdf -o fine.vtkhdf
   dicer export fine.dice.h5 --format exodus --chunk 3/16 -o part3.exo
   dicer export fine.dice.h5 --format msh --box 0,0,0,1,1,0.5 -o cut.msh
 )";
-
-namespace {
-volatile std::sig_atomic_t g_interrupted = 0;
-extern "C" void on_sigint(int) { g_interrupted = 1; }
-}  // namespace
 
 int cmd_export(const std::vector<std::string>& argv) {
   for (const auto& a : argv)
@@ -89,12 +84,8 @@ int cmd_export(const std::vector<std::string>& argv) {
     ranges.push_back(ChunkRange{0, 1, 0, m.num_coarse_elements(), m.num_elements()});
   }
 
-  g_interrupted = 0;
-  auto previous = std::signal(SIGINT, on_sigint);
-  struct Restore {
-    decltype(previous) p;
-    ~Restore() { std::signal(SIGINT, p); }
-  } restore{previous};
+  const CancelOnSignals cancel_on_signals;
+  const std::string nothing_written = "nothing written to " + *out;
   const bool quiet = args.has("--quiet");
   Id total_coarse = 0;
   for (const auto& r : ranges) total_coarse += r.end_coarse - r.first_coarse;
@@ -103,7 +94,8 @@ int cmd_export(const std::vector<std::string>& argv) {
   Id written_elements = 0, written_nodes = 0;
   try {
     auto prepare = [&](ExportChunk& c) {
-      c.prepare(sets, [&](Id done, Id) { bar.update(done_before + done); }, [] { return g_interrupted != 0; });
+      c.prepare(sets, [&](Id done, Id) { bar.update(done_before + done); }, cancel_requested);
+      throw_if_cancelled(nothing_written);
       done_before += 2 * (c.range().end_coarse - c.range().first_coarse);
       written_elements += c.num_elements(), written_nodes += c.num_nodes();
     };
@@ -112,22 +104,20 @@ int cmd_export(const std::vector<std::string>& argv) {
       for (const auto& r : ranges) {
         ExportChunk c(m, r, box);
         prepare(c);
-        if (g_interrupted) throw Error(ErrorKind::Usage, "interrupted");
         w.write_partition(c);
       }
+      throw_if_cancelled(nothing_written);
       w.finish();
     } else {
       ExportChunk c(m, ranges[0], box);
       prepare(c);
-      if (g_interrupted) throw Error(ErrorKind::Usage, "interrupted");
       if (*format == "exodus") write_exodus(c, *out);
       else write_msh(c, *out, *format == "msh");
     }
-  } catch (const Error& e) {
-    if (g_interrupted) {
-      std::fprintf(stderr, "\ndicer export: interrupted; nothing written to %s\n", out->c_str());
-      return 130;
-    }
+  } catch (const Error&) {
+    // The library stops prepare() with an error of its own when the cancel
+    // callback says so; the user's signal is the reason to report.
+    throw_if_cancelled(nothing_written);
     throw;
   }
   if (!quiet)

@@ -2,6 +2,7 @@
 #include <cstdio>
 
 #include "common.hpp"
+#include "exit_codes.hpp"
 #include "dicer/geometry.hpp"
 #include "dicer/store.hpp"
 #include "dicer/verify.hpp"

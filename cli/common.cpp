@@ -2,9 +2,12 @@
 
 #include <unistd.h>
 
+#include <atomic>
 #include <chrono>
 #include <cmath>
+#include <csignal>
 #include <cstdlib>
+#include <iterator>
 
 #include "dicer/error.hpp"
 #include "dicer/fine_mesh.hpp"
@@ -128,6 +131,58 @@ StoreOptions store_options(const Args& args) {
     o.read_ahead_pages = static_cast<unsigned>(n);
   }
   return o;
+}
+
+namespace {
+
+// Atomic, not volatile sig_atomic_t: the library polls it from its worker
+// threads too; lock-free makes the store async-signal-safe.
+std::atomic<int> g_signal{0};
+static_assert(std::atomic<int>::is_always_lock_free);
+extern "C" void record_signal(int sig) { g_signal.store(sig); }
+constexpr int kCancelSignals[] = {SIGINT, SIGTERM, SIGHUP};
+struct sigaction g_previous[std::size(kCancelSignals)];
+bool g_installed[std::size(kCancelSignals)] = {};
+
+const char* signal_name(int sig) {
+  switch (sig) {
+    case SIGINT: return "SIGINT (Ctrl-C)";
+    case SIGTERM: return "SIGTERM";
+    case SIGHUP: return "SIGHUP";
+    default: return "a signal";
+  }
+}
+
+}  // namespace
+
+CancelOnSignals::CancelOnSignals() {
+  g_signal.store(0);
+  struct sigaction sa {};
+  sa.sa_handler = record_signal;
+  sigemptyset(&sa.sa_mask);
+  // SA_RESETHAND: a second Ctrl-C gets the default action and ends the
+  // process at once, should the work not reach a polling point.
+  sa.sa_flags = SA_RESTART | SA_RESETHAND;
+  for (size_t i = 0; i < std::size(kCancelSignals); ++i) {
+    struct sigaction old {};
+    ::sigaction(kCancelSignals[i], nullptr, &old);
+    // Under nohup (SIGHUP ignored) a hang-up must not stop the work either.
+    if (old.sa_handler == SIG_IGN) continue;
+    g_installed[i] = ::sigaction(kCancelSignals[i], &sa, &g_previous[i]) == 0;
+  }
+}
+
+CancelOnSignals::~CancelOnSignals() {
+  for (size_t i = 0; i < std::size(kCancelSignals); ++i)
+    if (g_installed[i]) ::sigaction(kCancelSignals[i], &g_previous[i], nullptr), g_installed[i] = false;
+}
+
+bool cancel_requested() { return g_signal.load() != 0; }
+int received_signal() { return g_signal.load(); }
+
+void throw_if_cancelled(const std::string& outcome) {
+  if (const int sig = g_signal.load(); sig != 0)
+    throw Error(ErrorKind::Cancelled, std::string("interrupted by ") + signal_name(sig) + "; " + outcome);
 }
 
 void print_cache_stats(const FineMesh& mesh, const std::string& command) {

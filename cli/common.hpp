@@ -15,12 +15,6 @@
 
 namespace dicer::cli {
 
-// Exit codes (documented in `dicer --help` and README): 0 success, 1 verify
-// found a defect, then int(ErrorKind): 2 usage, 3 bad input, 4 unsupported,
-// 5 I/O, 6 overflow, 7 geometry, 8 corrupt store; 70 internal error.
-inline constexpr int kExitDefect = 1;
-inline constexpr int kExitInternal = 70;
-
 // In `dicer` (built without Gmsh): when args (command first) need a CAD
 // model, replaces this process by `dicer-cad` with the same argv (beside
 // this executable, or $DICER_CAD); throws Error{Io} when it cannot. In
@@ -61,6 +55,23 @@ inline const std::vector<std::string> kStoreFlags = {"--cache-mb", "--read-ahead
 StoreOptions store_options(const Args& args);
 // --stats: the page cache counters on stderr, one line, human readable.
 void print_cache_stats(const FineMesh& mesh, const std::string& command);
+
+// SIGINT, SIGTERM and SIGHUP while a command writes a file: the handler only
+// records the signal; the command polls cancel_requested() through the
+// library's progress and cancel callbacks and throws Error{Cancelled}, so
+// temporary files are removed on the way out, and main exits 128 + signal.
+// A second signal kills at once (the handler resets itself).
+class CancelOnSignals {
+ public:
+  CancelOnSignals();
+  ~CancelOnSignals();
+  CancelOnSignals(const CancelOnSignals&) = delete;
+  CancelOnSignals& operator=(const CancelOnSignals&) = delete;
+};
+bool cancel_requested();
+int received_signal();  // 0 when none arrived
+// Throws Error{Cancelled, "interrupted by SIGINT; <outcome>"} when a signal arrived.
+void throw_if_cancelled(const std::string& outcome);
 
 std::string json_string(const std::string& s);
 std::string json_double(double d);  // 17 significant digits: round-trips exactly
