@@ -1,9 +1,11 @@
 // dicer footprint: store bytes vs an explicit mesh of the same fine mesh.
+#include <algorithm>
 #include <cstdio>
 
 #include "common.hpp"
 #include "dicer/footprint.hpp"
 #include "dicer/store.hpp"
+#include "json_out.hpp"
 
 namespace dicer::cli {
 
@@ -38,17 +40,20 @@ int cmd_footprint(const std::vector<std::string>& argv) {
   fp.bounding_bytes = s.bounding_bytes;
   const double rr = static_cast<double>(fp.explicit_raw_bytes) / static_cast<double>(fp.store_bytes);
   const double rl = static_cast<double>(fp.explicit_lz4_bytes) / static_cast<double>(fp.store_bytes);
-  auto u = [](std::uint64_t v) { return static_cast<unsigned long long>(v); };
   if (args.has("--json")) {
-    std::printf("{\"store_bytes\":%llu,\"open_resident_bytes\":%llu,\"query_resident_bytes\":%llu,\"bounding_bytes\":%llu,"
-                "\"explicit_raw_bytes\":%llu,\"explicit_lz4_bytes\":%llu,\"lz4_sampled_fraction\":%s,\"ratio_raw\":%s,"
-                "\"ratio_lz4\":%s,\"fine_nodes\":%lld,\"fine_elements\":%lld,\"bounding_nodes\":%lld,"
-                "\"rest_bytes\":%llu}\n",
-                u(fp.store_bytes), u(fp.open_resident_bytes), u(fp.query_resident_bytes), u(fp.bounding_bytes),
-                u(fp.explicit_raw_bytes), u(fp.explicit_lz4_bytes), json_double(fp.lz4_sampled_fraction).c_str(),
-                json_double(rr).c_str(), json_double(rl).c_str(), static_cast<long long>(m.num_nodes()),
-                static_cast<long long>(m.num_elements()), static_cast<long long>(s.bounding_nodes),
-                u(fp.store_bytes - std::min(fp.store_bytes, fp.bounding_bytes)));
+    print_json({{"store_bytes", fp.store_bytes},
+                {"open_resident_bytes", fp.open_resident_bytes},
+                {"query_resident_bytes", fp.query_resident_bytes},
+                {"bounding_bytes", fp.bounding_bytes},
+                {"explicit_raw_bytes", fp.explicit_raw_bytes},
+                {"explicit_lz4_bytes", fp.explicit_lz4_bytes},
+                {"lz4_sampled_fraction", fp.lz4_sampled_fraction},
+                {"ratio_raw", rr},
+                {"ratio_lz4", rl},
+                {"fine_nodes", m.num_nodes()},
+                {"fine_elements", m.num_elements()},
+                {"bounding_nodes", s.bounding_nodes},
+                {"rest_bytes", fp.store_bytes - std::min(fp.store_bytes, fp.bounding_bytes)}});
     return 0;
   }
   const double ne = static_cast<double>(m.num_elements());

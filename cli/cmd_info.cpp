@@ -2,6 +2,7 @@
 #include <cstdio>
 
 #include "common.hpp"
+#include "json_out.hpp"
 #include "dicer/store.hpp"
 
 namespace dicer::cli {
@@ -32,16 +33,24 @@ int cmd_info(const std::vector<std::string>& argv) {
   const std::vector<Id>& fine_per_block = c.block_fine_elements;
   auto ll = [](Id v) { return static_cast<long long>(v); };
   if (args.has("--json")) {
-    std::printf("{\"mode\":\"%s\",\"source\":%s,\"format_version\":%d,\"store_bytes\":%llu,", mode_name(m.mode()),
-                json_string(c.source).c_str(), s.format_version, static_cast<unsigned long long>(s.file_bytes));
-    std::printf("\"coarse_vertices\":%lld,\"coarse_edges\":%lld,\"coarse_faces\":%lld,\"coarse_elements\":%lld,",
-                ll(c.coarse_vertices), ll(c.coarse_edges), ll(c.coarse_faces), ll(c.coarse_elements));
-    std::printf("\"sheets\":%lld,\"fine_nodes\":%lld,\"fine_elements\":%lld,\"blocks\":[", ll(c.sheets),
-                ll(m.num_nodes()), ll(m.num_elements()));
+    Json blocks = Json::array();
     for (size_t b = 0; b < c.blocks.size(); ++b)
-      std::printf("%s{\"id\":%lld,\"name\":%s,\"coarse_elements\":%lld,\"fine_elements\":%lld}", b ? "," : "",
-                  ll(c.blocks[b].id), json_string(c.blocks[b].name).c_str(), ll(coarse_per_block[b]), ll(fine_per_block[b]));
-    std::printf("]}\n");
+      blocks.push_back({{"id", c.blocks[b].id},
+                        {"name", c.blocks[b].name},
+                        {"coarse_elements", coarse_per_block[b]},
+                        {"fine_elements", fine_per_block[b]}});
+    print_json({{"mode", mode_name(m.mode())},
+                {"source", c.source},
+                {"format_version", s.format_version},
+                {"store_bytes", s.file_bytes},
+                {"coarse_vertices", c.coarse_vertices},
+                {"coarse_edges", c.coarse_edges},
+                {"coarse_faces", c.coarse_faces},
+                {"coarse_elements", c.coarse_elements},
+                {"sheets", c.sheets},
+                {"fine_nodes", m.num_nodes()},
+                {"fine_elements", m.num_elements()},
+                {"blocks", blocks}});
     return 0;
   }
   std::printf("store      %s (%s, format version %d)\n", path.c_str(), human_bytes(s.file_bytes).c_str(), s.format_version);

@@ -5,6 +5,7 @@
 #include "dicer/error.hpp"
 #include "dicer/export.hpp"
 #include "dicer/store.hpp"
+#include "json_out.hpp"
 
 namespace dicer::cli {
 
@@ -19,7 +20,7 @@ Node ids: coarse vertices first, then the interior nodes of each coarse
 edge, face and hex. Element ids: coarse element order, then i, j, k.
 
   --json   one JSON object per line:
-           node:    {"id":…, "xyz":[x,y,z]}   (17 significant digits, exact)
+           node:    {"id":…, "xyz":[x,y,z]}   (shortest exact form)
            element: {"id":…, "nodes":[8 ids], "block":…, "coarse_element":…,
                      "ijk":[i,j,k]}   (VTK/Exodus HEX8 node order; surface
                      meshes: 4 node ids and [i,j]); block is the block id
@@ -49,11 +50,11 @@ int cmd_query(const std::vector<std::string>& argv) {
     const Id n = for_each_in_box(m, box, [&](const FineBlock& b, Id e) {
       if (count_only) return;
       const long long id = static_cast<long long>(b.first_element + e);
-      if (json) std::printf("{\"id\":%lld}\n", id);
+      if (json) print_json({{"id", id}});
       else std::printf("%lld\n", id);
     });
     if (count_only) {
-      if (json) std::printf("{\"count\":%lld}\n", static_cast<long long>(n));
+      if (json) print_json({{"count", n}});
       else std::printf("%lld\n", static_cast<long long>(n));
     }
     if (args.has("--stats")) print_cache_stats(m, "query");
@@ -73,8 +74,7 @@ int cmd_query(const std::vector<std::string>& argv) {
     Vec3 p;
     while (cur.next(id, p)) {
       if (json)
-        std::printf("{\"id\":%lld,\"xyz\":[%s,%s,%s]}\n", ll(id), json_double(p.x).c_str(), json_double(p.y).c_str(),
-                    json_double(p.z).c_str());
+        print_json({{"id", id}, {"xyz", {p.x, p.y, p.z}}});
       else
         std::printf("node %lld  %.17g %.17g %.17g\n", ll(id), p.x, p.y, p.z);
     }
@@ -91,17 +91,20 @@ int cmd_query(const std::vector<std::string>& argv) {
   FineElement el;
   const bool vol = m.mode() == Mode::Volume;
   while (cur.next(el)) {
-    std::string nodes;
-    for (int q = 0; q < el.num_nodes; ++q) nodes += (q ? "," : "") + std::to_string(el.nodes[q]);
-    const std::string ijk = std::to_string(el.ijk[0]) + "," + std::to_string(el.ijk[1]) +
-                            (vol ? "," + std::to_string(el.ijk[2]) : "");
-    const long long block = m.info().blocks.at(static_cast<size_t>(el.block)).id;
-    if (json)
-      std::printf("{\"id\":%lld,\"nodes\":[%s],\"block\":%lld,\"coarse_element\":%lld,\"ijk\":[%s]}\n", ll(el.id),
-                  nodes.c_str(), block, ll(el.coarse_element), ijk.c_str());
-    else
-      std::printf("element %lld  nodes %s  block %lld  coarse element %lld  ijk %s\n", ll(el.id), nodes.c_str(), block,
-                  ll(el.coarse_element), ijk.c_str());
+    const Id block = m.info().blocks.at(static_cast<size_t>(el.block)).id;
+    if (json) {
+      Json nodes_json = Json::array(), ijk = Json::array();
+      for (int q = 0; q < el.num_nodes; ++q) nodes_json.push_back(el.nodes[q]);
+      for (int d = 0; d < (vol ? 3 : 2); ++d) ijk.push_back(el.ijk[d]);
+      print_json({{"id", el.id}, {"nodes", nodes_json}, {"block", block}, {"coarse_element", el.coarse_element}, {"ijk", ijk}});
+    } else {
+      std::string nodes_text;
+      for (int q = 0; q < el.num_nodes; ++q) nodes_text += (q ? "," : "") + std::to_string(el.nodes[q]);
+      std::string ijk = std::to_string(el.ijk[0]) + "," + std::to_string(el.ijk[1]);
+      if (vol) ijk += "," + std::to_string(el.ijk[2]);
+      std::printf("element %lld  nodes %s  block %lld  coarse element %lld  ijk %s\n", ll(el.id), nodes_text.c_str(),
+                  ll(block), ll(el.coarse_element), ijk.c_str());
+    }
   }
   if (args.has("--stats")) print_cache_stats(m, "query");
   return 0;

@@ -6,6 +6,7 @@
 #include "dicer/error.hpp"
 #include "dicer/store.hpp"
 #include "dicer/sweep.hpp"
+#include "json_out.hpp"
 
 namespace dicer::cli {
 
@@ -39,16 +40,19 @@ int cmd_sweep(const std::vector<std::string>& argv) {
     r = sweep(m, static_cast<unsigned>(threads), [&](Id done, Id) { bar.update(done); });
   }
   const double rate = r.seconds > 0 ? static_cast<double>(r.nodes) / r.seconds : 0;
+  char checksum[24];
+  std::snprintf(checksum, sizeof checksum, "%016llx", static_cast<unsigned long long>(r.checksum));
   if (args.has("--json"))
-    std::printf("{\"nodes\":%lld,\"elements\":%lld,\"seconds\":%s,\"nodes_per_s\":%s,\"checksum\":\"%016llx\","
-                "\"threads\":%u}\n",
-                static_cast<long long>(r.nodes), static_cast<long long>(r.elements), json_double(r.seconds).c_str(),
-                json_double(rate).c_str(), static_cast<unsigned long long>(r.checksum), r.threads);
+    print_json({{"nodes", r.nodes},
+                {"elements", r.elements},
+                {"seconds", r.seconds},
+                {"nodes_per_s", rate},
+                {"checksum", checksum},
+                {"threads", r.threads}});
   else
-    std::printf("swept %s nodes and %s elements in %.3f s (%s nodes/s, %lld threads), checksum %016llx\n",
+    std::printf("swept %s nodes and %s elements in %.3f s (%s nodes/s, %lld threads), checksum %s\n",
                 human_count(r.nodes).c_str(), human_count(r.elements).c_str(), r.seconds,
-                human_count(static_cast<Id>(rate)).c_str(), static_cast<long long>(r.threads),
-                static_cast<unsigned long long>(r.checksum));
+                human_count(static_cast<Id>(rate)).c_str(), static_cast<long long>(r.threads), checksum);
   if (args.has("--stats")) print_cache_stats(m, "sweep");
   return 0;
 }

@@ -3,6 +3,7 @@
 
 #include "common.hpp"
 #include "exit_codes.hpp"
+#include "json_out.hpp"
 #include "dicer/geometry.hpp"
 #include "dicer/store.hpp"
 #include "dicer/verify.hpp"
@@ -59,21 +60,24 @@ int cmd_verify(const std::vector<std::string>& argv) {
   const bool ok = r.ok() && geo_ok;
   auto ll = [](Id v) { return static_cast<long long>(v); };
   if (args.has("--json")) {
-    std::printf("{\"ok\":%s,\"nodes\":%lld,\"nodes_formula\":%lld,\"elements\":%lld,\"elements_formula\":%lld,"
-                "\"fine_faces_checked\":%lld,\"boundary_fine_faces\":%lld,\"id_errors\":%lld,\"bit_identity_errors\":%lld,"
-                "\"coincident_nodes\":%lld,\"conformity_errors\":%lld,\"inverted\":%lld,\"min_scaled_jacobian\":%s,"
-                "\"problems\":[",
-                ok ? "true" : "false", ll(r.nodes), ll(r.nodes_formula), ll(r.elements), ll(r.elements_formula),
-                ll(r.fine_faces_checked), ll(r.boundary_fine_faces), ll(r.id_errors), ll(r.bit_identity_errors),
-                ll(r.coincident_nodes), ll(r.conformity_errors), ll(r.inverted), json_double(r.min_scaled_jacobian).c_str());
-    for (size_t i = 0; i < r.problems.size(); ++i) std::printf("%s%s", i ? "," : "", json_string(r.problems[i]).c_str());
-    std::printf("]");
+    Json j = {{"ok", ok},
+              {"nodes", r.nodes},
+              {"nodes_formula", r.nodes_formula},
+              {"elements", r.elements},
+              {"elements_formula", r.elements_formula},
+              {"fine_faces_checked", r.fine_faces_checked},
+              {"boundary_fine_faces", r.boundary_fine_faces},
+              {"id_errors", r.id_errors},
+              {"bit_identity_errors", r.bit_identity_errors},
+              {"coincident_nodes", r.coincident_nodes},
+              {"conformity_errors", r.conformity_errors},
+              {"inverted", r.inverted},
+              {"min_scaled_jacobian", r.min_scaled_jacobian},
+              {"problems", r.problems}};
     if (cad)
-      std::printf(",\"geometry\":{\"max_distance\":%s,\"tolerance\":%s,\"diagonal\":%s,\"worst_node\":%lld,"
-                  "\"worst_entity\":%s,\"nodes_checked\":%lld}",
-                  json_double(g.max_distance).c_str(), json_double(g.tolerance).c_str(), json_double(g.diagonal).c_str(),
-                  ll(g.worst_node), json_string(g.worst_entity).c_str(), ll(g.nodes_checked));
-    std::printf("}\n");
+      j["geometry"] = {{"max_distance", g.max_distance}, {"tolerance", g.tolerance}, {"diagonal", g.diagonal},
+                       {"worst_node", g.worst_node},     {"worst_entity", g.worst_entity}, {"nodes_checked", g.nodes_checked}};
+    print_json(j);
   } else {
     auto mark = [](bool ok) { return ok ? "ok  " : "FAIL"; };
     std::printf("verify %s\n", path.c_str());

@@ -1,6 +1,6 @@
 #pragma once
-// Shared plumbing of the dicer command: argument parsing, JSON helpers,
-// human-readable sizes, progress bars. Subcommands stay thin.
+// Shared plumbing of the dicer command: argument parsing, human-readable
+// sizes, progress bars (JSON output: json_out.hpp). Subcommands stay thin.
 #include <cstdint>
 #include <cstdio>
 #include <functional>
@@ -73,8 +73,6 @@ int received_signal();  // 0 when none arrived
 // Throws Error{Cancelled, "interrupted by SIGINT; <outcome>"} when a signal arrived.
 void throw_if_cancelled(const std::string& outcome);
 
-std::string json_string(const std::string& s);
-std::string json_double(double d);  // 17 significant digits: round-trips exactly
 std::string human_bytes(std::uint64_t bytes);
 std::string human_count(std::int64_t n);
 

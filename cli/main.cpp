@@ -61,6 +61,11 @@ MESH is an Exodus II file (.e .exo .ex2 .g) or a Gmsh MSH 2.2/4.1 file
 (ASCII or binary) holding hexahedra (volume dicing) or quadrilaterals
 (surface dicing). STORE is the HDF5 file `dice` writes (.dice.h5).
 
+JSON (--json): one line per document, UTF-8. Bytes of a string that are
+not valid UTF-8 (a file or block name) become U+FFFD; a number that is not
+finite (NaN, Inf) is written as null; doubles are written in the shortest
+form that reads back to the same bits (at most 17 significant digits).
+
 Examples:
   dicer sheets examples/cardinal_sphere.e
   dicer dice examples/cardinal_sphere.e --interval 8 -o sphere.dice.h5
