@@ -1,38 +1,43 @@
 // dicer info: counts, blocks and settings of a store.
 #include <cstdio>
 
+#include "command.hpp"
 #include "common.hpp"
 #include "json_out.hpp"
-#include "dicer/store.hpp"
 
 namespace dicer::cli {
 
-static const char* kHelp = R"(Usage: dicer info STORE [--json] [--stats] [--cache-mb N]
-
-Prints what a store holds: mode (volume or surface), coarse counts
+static const CommandDoc kDoc = {
+    "info", "info STORE [--json] [store options]",
+    R"(Prints what a store holds: mode (volume or surface), coarse counts
 (vertices, edges, faces, elements), number of sheets, fine node and element
-counts, and per block its id, name, coarse and fine element counts.
-
-  --json   one JSON object with keys mode, coarse_vertices, coarse_edges,
-           coarse_faces, coarse_elements, sheets, fine_nodes, fine_elements,
-           blocks [{id, name, coarse_elements, fine_elements}],
-           format_version, store_bytes, source
-  --cache-mb N   page cache budget in MiB (default 64)
-  --stats        print the page cache counters to stderr
-)";
+counts, and per block its id, name, coarse and fine element counts. Only a
+few hundred bytes of metadata are read.
+)",
+    R"(dicer info sphere.dice.h5
+dicer info sphere.dice.h5 --json --stats
+)"};
 
 int cmd_info(const std::vector<std::string>& argv) {
-  for (const auto& a : argv)
-    if (a == "--help" || a == "-h") return std::fputs(kHelp, stdout), 0;
-  Args args("info", argv, kStoreFlags, {"--json", "--stats"}, 1);
-  const std::string path = args.need_positional(0, "STORE");
-  const FineMesh m = read_store(path, store_options(args));
+  Command cmd(kDoc);
+  std::string path;
+  bool json = false;
+  cmd.input("STORE", path, "the store to describe (.dice.h5, written by dicer dice)");
+  cmd.flag("--json", json,
+           "one JSON object with keys mode, source, format_version, "
+           "store_bytes, coarse_vertices, coarse_edges, coarse_faces, "
+           "coarse_elements, sheets, fine_nodes, fine_elements, "
+           "blocks [{id, name, coarse_elements, fine_elements}]");
+  StoreFlags store(cmd);
+  if (!cmd.parse(argv)) return 0;
+
+  const FineMesh m = read_store(path, store.options());
   const StoreSummary s = store_summary(path);
   const MeshInfo& c = m.info();
   const std::vector<Id>& coarse_per_block = c.block_coarse_elements;
   const std::vector<Id>& fine_per_block = c.block_fine_elements;
   auto ll = [](Id v) { return static_cast<long long>(v); };
-  if (args.has("--json")) {
+  if (json) {
     Json blocks = Json::array();
     for (size_t b = 0; b < c.blocks.size(); ++b)
       blocks.push_back({{"id", c.blocks[b].id},
@@ -51,20 +56,20 @@ int cmd_info(const std::vector<std::string>& argv) {
                 {"fine_nodes", m.num_nodes()},
                 {"fine_elements", m.num_elements()},
                 {"blocks", blocks}});
-    return 0;
+  } else {
+    std::printf("store      %s (%s, format version %d)\n", path.c_str(), human_bytes(s.file_bytes).c_str(), s.format_version);
+    std::printf("source     %s\nmode       %s\n", c.source.c_str(), mode_name(m.mode()));
+    std::printf("coarse     %lld vertices, %lld edges, %lld faces, %lld %s\n", ll(c.coarse_vertices), ll(c.coarse_edges),
+                ll(c.coarse_faces), ll(c.coarse_elements), m.mode() == Mode::Volume ? "hexes" : "quads");
+    std::printf("sheets     %lld\n", ll(c.sheets));
+    std::printf("fine       %lld nodes (%s), %lld elements (%s)\n", ll(m.num_nodes()), human_count(m.num_nodes()).c_str(),
+                ll(m.num_elements()), human_count(m.num_elements()).c_str());
+    std::printf("blocks     %8s %-20s %12s %16s\n", "id", "name", "coarse", "fine");
+    for (size_t b = 0; b < c.blocks.size(); ++b)
+      std::printf("           %8lld %-20s %12lld %16lld\n", ll(c.blocks[b].id), c.blocks[b].name.c_str(),
+                  ll(coarse_per_block[b]), ll(fine_per_block[b]));
   }
-  std::printf("store      %s (%s, format version %d)\n", path.c_str(), human_bytes(s.file_bytes).c_str(), s.format_version);
-  std::printf("source     %s\nmode       %s\n", c.source.c_str(), mode_name(m.mode()));
-  std::printf("coarse     %lld vertices, %lld edges, %lld faces, %lld %s\n", ll(c.coarse_vertices), ll(c.coarse_edges),
-              ll(c.coarse_faces), ll(c.coarse_elements), m.mode() == Mode::Volume ? "hexes" : "quads");
-  std::printf("sheets     %lld\n", ll(c.sheets));
-  std::printf("fine       %lld nodes (%s), %lld elements (%s)\n", ll(m.num_nodes()), human_count(m.num_nodes()).c_str(),
-              ll(m.num_elements()), human_count(m.num_elements()).c_str());
-  std::printf("blocks     %8s %-20s %12s %16s\n", "id", "name", "coarse", "fine");
-  for (size_t b = 0; b < c.blocks.size(); ++b)
-    std::printf("           %8lld %-20s %12lld %16lld\n", ll(c.blocks[b].id), c.blocks[b].name.c_str(), ll(coarse_per_block[b]),
-                ll(fine_per_block[b]));
-  if (args.has("--stats")) print_cache_stats(m, "info");
+  store.report(m);
   return 0;
 }
 

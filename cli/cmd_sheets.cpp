@@ -1,6 +1,7 @@
 // dicer sheets: the dicer sheets of a coarse mesh and the interval each would get.
 #include <cstdio>
 
+#include "command.hpp"
 #include "common.hpp"
 #include "dicer/coarse_mesh.hpp"
 #include "dicer/intervals.hpp"
@@ -10,35 +11,38 @@
 
 namespace dicer::cli {
 
-static const char* kHelp = R"(Usage: dicer sheets MESH [--json] [--edges] [interval options]
-
-A dicer sheet is a set of coarse edges that must all be cut into the same
+static const CommandDoc kDoc = {
+    "sheets", "sheets MESH [--json] [--edges] [interval options]",
+    R"(A dicer sheet is a set of coarse edges that must all be cut into the same
 number of intervals, so that the fine mesh stays conforming: opposite edges
 of every quad face are in the same sheet. A structured a x b x c box has
 a+b+c sheets. Sheet ids depend only on the input file, so you can name them
 in --sheet-interval or an intervals file.
 
 Prints per sheet: id, number of edges, blocks it touches and the interval it
-gets under the interval options (same as `dice`; default 1).
-
-Options:
-  --json          one JSON object: {"mode", "sheets": [{"id", "edge_count",
-                  "blocks", "interval", "edges"?}], "notes"}
-  --edges         also list each sheet's edges as node-id pairs, numbered as
-                  in the input file
-  --interval N, --block-interval B=N, --sheet-interval S=N, --size H,
-  --intervals-file FILE      see `dicer dice --help`
-)";
+gets under the interval options (the same as `dice`'s).
+)",
+    R"(dicer sheets part.exo
+dicer sheets part.exo --block-interval 2=4 --json --edges
+)"};
 
 int cmd_sheets(const std::vector<std::string>& argv) {
-  for (const auto& a : argv)
-    if (a == "--help" || a == "-h") return std::fputs(kHelp, stdout), 0;
-  Args args("sheets", argv, kIntervalFlags, {"--json", "--edges"}, 1);
-  const CoarseMesh mesh = read_coarse_mesh(args.need_positional(0, "MESH"));
+  Command cmd(kDoc);
+  std::string path;
+  bool json = false, edges = false;
+  cmd.input("MESH", path, "the coarse mesh (Exodus II or Gmsh MSH)");
+  cmd.flag("--json", json,
+           "one JSON object: {\"mode\", \"sheets\": [{\"id\", \"edge_count\", "
+           "\"blocks\", \"interval\", \"edges\"?}], \"notes\"}");
+  cmd.flag("--edges", edges,
+           "also list each sheet's edges as node-id pairs, numbered "
+           "as in the input file");
+  IntervalFlags intervals(cmd);
+  if (!cmd.parse(argv)) return 0;
+  const CoarseMesh mesh = read_coarse_mesh(path);
   const Topology topo = build_topology(mesh);
   const Sheets sheets = find_sheets(mesh, topo);
-  const IntervalPlan plan = resolve_intervals(mesh, topo, sheets, interval_request(args));
-  const bool json = args.has("--json"), edges = args.has("--edges");
+  const IntervalPlan plan = resolve_intervals(mesh, topo, sheets, intervals.request());
   for (const auto& w : mesh.warnings) std::fprintf(stderr, "dicer sheets: warning: %s: %s\n", mesh.source.c_str(), w.c_str());
   for (const auto& n : plan.notes) std::fprintf(stderr, "dicer sheets: note: %s\n", n.c_str());
 

@@ -18,10 +18,11 @@ struct Row {
 constexpr Row kTable[] = {
     {kExitSuccess, std::nullopt, 0, "success"},
     {kExitDefect, std::nullopt, 0, "verify found a defect"},
-    {2, ErrorKind::Usage, 0, "bad command-line usage"},
+    {2, ErrorKind::Usage, 0, "bad command-line usage: an unknown option, a bad value, a\n"
+     "directory or FIFO given as a file, an output that is an input"},
     {3, ErrorKind::BadInput, 0, "bad input file"},
     {4, ErrorKind::Unsupported, 0, "unsupported content (element types, store version)"},
-    {5, ErrorKind::Io, 0, "I/O error"},
+    {5, ErrorKind::Io, 0, "I/O error (a missing file among them)"},
     {6, ErrorKind::Overflow, 0, "counts would overflow 64-bit ids"},
     {7, ErrorKind::Geometry, 0, "mesh and CAD do not fit, or an element would invert"},
     {8, ErrorKind::Corrupt, 0, "corrupt or unknown store"},

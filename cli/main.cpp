@@ -59,7 +59,13 @@ installed beside dicer; DICER_CAD=PATH overrides where it is found.
 
 MESH is an Exodus II file (.e .exo .ex2 .g) or a Gmsh MSH 2.2/4.1 file
 (ASCII or binary) holding hexahedra (volume dicing) or quadrilaterals
-(surface dicing). STORE is the HDF5 file `dice` writes (.dice.h5).
+(surface dicing). STORE is the HDF5 file `dice` writes (.dice.h5). Every
+file argument must be a regular file (not a directory or a FIFO), and an
+output may not be the same file as an input.
+
+Options are written --name VALUE or --name=VALUE; when an option that
+takes one value is given twice, the last one counts. Options marked
+"repeatable" keep every value.
 
 JSON (--json): one line per document, UTF-8. Bytes of a string that are
 not valid UTF-8 (a file or block name) become U+FFFD; a number that is not
