@@ -1,7 +1,9 @@
 // dicer export: a chunk, a box or the whole mesh to VTKHDF, MSH 4.1 or Exodus II.
-#include <csignal>
+#include <algorithm>
 #include <cstdio>
+#include <optional>
 
+#include "command.hpp"
 #include "common.hpp"
 #include "dicer/error.hpp"
 #include "dicer/export.hpp"
@@ -9,59 +11,57 @@
 
 namespace dicer::cli {
 
-static const char* kHelp = R"(Usage: dicer export STORE --format FMT -o OUT [--chunk K/N | --chunks N] [--box x0,y0,z0,x1,y1,z1]
-                    [--quiet] [--cache-mb N]
-
-Writes fine elements for a solver or viewer, generated on the fly from the
+static const CommandDoc kDoc = {
+    "export",
+    R"(export STORE --format FMT -o OUT [--chunk K/N | --chunks N]
+                    [--box x0,y0,z0,x1,y1,z1] [--quiet] [store options])",
+    R"(Writes fine elements for a solver or viewer, generated on the fly from the
 store; memory is bounded by the chunk, not the mesh.
 
-  --format vtkhdf      VTKHDF UnstructuredGrid 1.0 (ParaView 5.10+, no plugin),
-                       one partition per chunk; point data GlobalNodeId, cell
-                       data GlobalElementId and BlockId
-  --format msh         Gmsh MSH 4.1 binary (msh-ascii: ASCII); an entity and a
-                       physical group per block, boundary elements per side set
-  --format exodus      Exodus II: element blocks with names, side and node sets
-                       carried to the fine mesh, global id maps (1-based)
-  --chunk K/N          chunk K (0-based) of N: a contiguous range of coarse
-                       elements holding ~1/N of the fine elements; nodes shared
-                       with other chunks keep their global ids
-  --chunks N           vtkhdf only: the whole mesh as N partitions (default:
-                       about 4M fine elements per partition)
-  --box x0,y0,z0,x1,y1,z1   only the elements whose centroid is in the box
-  -o OUT               output file (written to a temporary name in the same
-                       folder and renamed when complete; Ctrl-C leaves nothing)
+Formats:
+  vtkhdf      VTKHDF UnstructuredGrid 1.0 (ParaView 5.10+, no plugin), one
+              partition per chunk; point data GlobalNodeId, cell data
+              GlobalElementId and BlockId
+  msh         Gmsh MSH 4.1 binary (msh-ascii: ASCII); an entity and a
+              physical group per block, boundary elements per side set
+  exodus      Exodus II: element blocks with names, side and node sets
+              carried to the fine mesh, global id maps (1-based)
 
-Examples:
-  dicer export fine.dice.h5 --format vtkhdf -o fine.vtkhdf
-  dicer export fine.dice.h5 --format exodus --chunk 3/16 -o part3.exo
-  dicer export fine.dice.h5 --format msh --box 0,0,0,1,1,0.5 -o cut.msh
-)";
-
-namespace {
-volatile std::sig_atomic_t g_interrupted = 0;
-extern "C" void on_sigint(int) { g_interrupted = 1; }
-}  // namespace
+A chunk K of N is a contiguous range of coarse elements (in the store's
+order) holding ~1/N of the fine elements; nodes shared with other chunks
+keep their global ids and identical coordinates. OUT is written under a
+temporary name in its folder and renamed when complete: Ctrl-C, SIGTERM
+and SIGHUP (exit 130, 143, 129) leave nothing behind.
+)",
+    R"(dicer export fine.dice.h5 --format vtkhdf -o fine.vtkhdf
+dicer export fine.dice.h5 --format exodus --chunk 3/16 -o part3.exo
+dicer export fine.dice.h5 --format msh --box 0,0,0,1,1,0.5 -o cut.msh --stats
+)"};
 
 int cmd_export(const std::vector<std::string>& argv) {
-  for (const auto& a : argv)
-    if (a == "--help" || a == "-h") return std::fputs(kHelp, stdout), 0;
-  std::vector<std::string> vflags = {"--format", "-o", "--output", "--chunk", "--chunks", "--box"};
-  vflags.insert(vflags.end(), kStoreFlags.begin(), kStoreFlags.end());
-  Args args("export", argv, vflags, {"--quiet"}, 1);
-  const std::string path = args.need_positional(0, "STORE");
-  const auto format = args.value("--format");
-  if (!format) throw Error(ErrorKind::Usage, "missing --format (vtkhdf, msh, msh-ascii or exodus)");
-  if (*format != "vtkhdf" && *format != "msh" && *format != "msh-ascii" && *format != "exodus")
-    throw Error(ErrorKind::Usage, "--format: \"" + *format + "\" is not one of vtkhdf, msh, msh-ascii, exodus");
-  auto out = args.value("-o");
-  if (!out) out = args.value("--output");
-  if (!out) throw Error(ErrorKind::Usage, "missing -o OUT (the output file)");
+  Command cmd(kDoc);
+  std::string path, out, format, chunk, chunks, box_text;
+  bool quiet = false;
+  cmd.input("STORE", path, "the store to export");
+  cmd.output(out, "OUT", "the file to write");
+  auto* o_format = cmd.value("--format", format, "FMT", "vtkhdf, msh, msh-ascii or exodus (see Formats above)");
+  cmd.require(o_format, "vtkhdf, msh, msh-ascii or exodus");
+  auto* o_chunk = cmd.value("--chunk", chunk, "K/N", "chunk K (0-based) of N", "Options", "the whole mesh");
+  auto* o_chunks = cmd.value("--chunks", chunks, "N",
+                             "vtkhdf only: the whole mesh as N partitions", "Options",
+                             "about 4M fine elements per partition");
+  auto* o_box = cmd.value("--box", box_text, "x0,y0,z0,x1,y1,z1", "only the elements whose centroid is in the box");
+  cmd.flag("--quiet", quiet, "no progress bar, no summary on stdout");
+  StoreFlags store(cmd);
+  if (!cmd.parse(argv)) return 0;
+  if (format != "vtkhdf" && format != "msh" && format != "msh-ascii" && format != "exodus")
+    throw Error(ErrorKind::Usage, "--format: \"" + format + "\" is not one of vtkhdf, msh, msh-ascii, exodus");
   std::optional<Box> box;
-  if (auto b = args.value("--box")) box = parse_box(*b);
-  if (args.has("--chunk") && args.has("--chunks")) throw Error(ErrorKind::Usage, "give --chunk K/N or --chunks N, not both");
-  if (args.has("--chunks") && *format != "vtkhdf") throw Error(ErrorKind::Usage, "--chunks N is for --format vtkhdf");
+  if (cmd.given(o_box)) box = parse_box(box_text);
+  if (cmd.given(o_chunk) && cmd.given(o_chunks)) throw Error(ErrorKind::Usage, "give --chunk K/N or --chunks N, not both");
+  if (cmd.given(o_chunks) && format != "vtkhdf") throw Error(ErrorKind::Usage, "--chunks N is for --format vtkhdf");
 
-  const FineMesh m = read_store(path, store_options(args));
+  const FineMesh m = read_store(path, store.options());
   MeshSets sets;
   {
     StoreSets s = read_store_sets(path);
@@ -69,19 +69,19 @@ int cmd_export(const std::vector<std::string>& argv) {
     sets.node_sets = std::move(s.node_sets);
   }
   std::vector<ChunkRange> ranges;
-  if (auto c = args.value("--chunk")) {
-    const auto slash = c->find('/');
-    if (slash == std::string::npos) throw Error(ErrorKind::Usage, "--chunk: \"" + *c + "\" is not K/N");
-    const Id k = parse_int("--chunk", c->substr(0, slash)), n = parse_int("--chunk", c->substr(slash + 1));
+  if (cmd.given(o_chunk)) {
+    const auto slash = chunk.find('/');
+    if (slash == std::string::npos) throw Error(ErrorKind::Usage, "--chunk: \"" + chunk + "\" is not K/N");
+    const Id k = parse_int("--chunk", chunk.substr(0, slash)), n = parse_int("--chunk", chunk.substr(slash + 1));
     if (n < 1 || k < 0 || k >= n)
-      throw Error(ErrorKind::Usage, "--chunk " + *c + ": need 0 <= K < N (chunks are numbered from 0)");
+      throw Error(ErrorKind::Usage, "--chunk " + chunk + ": need 0 <= K < N (chunks are numbered from 0)");
     if (n > m.num_coarse_elements())
-      throw Error(ErrorKind::Usage, "--chunk " + *c + ": the mesh has only " + std::to_string(m.num_coarse_elements()) +
+      throw Error(ErrorKind::Usage, "--chunk " + chunk + ": the mesh has only " + std::to_string(m.num_coarse_elements()) +
                                         " coarse elements, so at most that many chunks");
     ranges.push_back(plan_chunks(m, n)[static_cast<size_t>(k)]);
-  } else if (*format == "vtkhdf" && !box) {
-    Id n = args.has("--chunks") ? parse_int("--chunks", *args.value("--chunks"))
-                                : std::max<Id>(1, (m.num_elements() + (Id{1} << 22) - 1) >> 22);
+  } else if (format == "vtkhdf" && !box) {
+    Id n = cmd.given(o_chunks) ? parse_int("--chunks", chunks)
+                               : std::max<Id>(1, (m.num_elements() + (Id{1} << 22) - 1) >> 22);
     if (n < 1) throw Error(ErrorKind::Usage, "--chunks must be at least 1");
     n = std::min(n, std::max<Id>(1, m.num_coarse_elements()));
     ranges = plan_chunks(m, n);
@@ -89,13 +89,8 @@ int cmd_export(const std::vector<std::string>& argv) {
     ranges.push_back(ChunkRange{0, 1, 0, m.num_coarse_elements(), m.num_elements()});
   }
 
-  g_interrupted = 0;
-  auto previous = std::signal(SIGINT, on_sigint);
-  struct Restore {
-    decltype(previous) p;
-    ~Restore() { std::signal(SIGINT, p); }
-  } restore{previous};
-  const bool quiet = args.has("--quiet");
+  const CancelOnSignals cancel_on_signals;
+  const std::string nothing_written = "nothing written to " + out;
   Id total_coarse = 0;
   for (const auto& r : ranges) total_coarse += r.end_coarse - r.first_coarse;
   Progress bar("export", 2 * total_coarse, quiet);
@@ -103,37 +98,37 @@ int cmd_export(const std::vector<std::string>& argv) {
   Id written_elements = 0, written_nodes = 0;
   try {
     auto prepare = [&](ExportChunk& c) {
-      c.prepare(sets, [&](Id done, Id) { bar.update(done_before + done); }, [] { return g_interrupted != 0; });
+      c.prepare(sets, [&](Id done, Id) { bar.update(done_before + done); }, cancel_requested);
+      throw_if_cancelled(nothing_written);
       done_before += 2 * (c.range().end_coarse - c.range().first_coarse);
       written_elements += c.num_elements(), written_nodes += c.num_nodes();
     };
-    if (*format == "vtkhdf") {
-      VtkHdfWriter w(*out, static_cast<Id>(ranges.size()));
+    if (format == "vtkhdf") {
+      VtkHdfWriter w(out, static_cast<Id>(ranges.size()));
       for (const auto& r : ranges) {
         ExportChunk c(m, r, box);
         prepare(c);
-        if (g_interrupted) throw Error(ErrorKind::Usage, "interrupted");
         w.write_partition(c);
       }
+      throw_if_cancelled(nothing_written);
       w.finish();
     } else {
       ExportChunk c(m, ranges[0], box);
       prepare(c);
-      if (g_interrupted) throw Error(ErrorKind::Usage, "interrupted");
-      if (*format == "exodus") write_exodus(c, *out);
-      else write_msh(c, *out, *format == "msh");
+      if (format == "exodus") write_exodus(c, out);
+      else write_msh(c, out, format == "msh");
     }
-  } catch (const Error& e) {
-    if (g_interrupted) {
-      std::fprintf(stderr, "\ndicer export: interrupted; nothing written to %s\n", out->c_str());
-      return 130;
-    }
+  } catch (const Error&) {
+    // The library stops prepare() with an error of its own when the cancel
+    // callback says so; the user's signal is the reason to report.
+    throw_if_cancelled(nothing_written);
     throw;
   }
   if (!quiet)
     std::printf("exported %s: %lld fine elements, %lld nodes in %zu %s to %s\n", path.c_str(),
                 static_cast<long long>(written_elements), static_cast<long long>(written_nodes), ranges.size(),
-                ranges.size() == 1 ? "chunk" : "chunks", out->c_str());
+                ranges.size() == 1 ? "chunk" : "chunks", out.c_str());
+  store.report(m);
   return 0;
 }
 

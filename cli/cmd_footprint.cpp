@@ -1,19 +1,23 @@
 // dicer footprint: store bytes vs an explicit mesh of the same fine mesh.
+#include <algorithm>
 #include <cstdio>
 
+#include "command.hpp"
 #include "common.hpp"
 #include "dicer/footprint.hpp"
 #include "dicer/store.hpp"
+#include "json_out.hpp"
 
 namespace dicer::cli {
 
-static const char* kHelp = R"(Usage: dicer footprint STORE [--json] [--exact] [--cache-mb N]
-
-What the diced mesh costs, side by side with the same fine mesh stored
+static const CommandDoc kDoc = {
+    "footprint", "footprint STORE [--json] [--exact] [store options]",
+    R"(What the diced mesh costs, side by side with the same fine mesh stored
 explicitly (float64 x,y,z per node + int64 node ids per element, as an
 explicit HDF5 or Exodus file holds it):
 
-  store on disk        bytes of STORE
+  store on disk        bytes of STORE (bounding arrays: the moved nodes of
+                       a store diced against CAD; everything else)
   resident to open     metadata + pages read when opening
   resident to query    plus one pinned page per table (what a block fill needs)
   explicit, raw        24 B per node + 8 B per element corner
@@ -21,34 +25,49 @@ explicit HDF5 or Exodus file holds it):
                        measured on at most 2048 evenly spaced pages of each
                        kind and extrapolated (--exact: every page)
 and the ratios explicit / store.
-
-  --json    one JSON object: store_bytes, open_resident_bytes,
-            query_resident_bytes, bounding_bytes, explicit_raw_bytes,
-            explicit_lz4_bytes, lz4_sampled_fraction, ratio_raw, ratio_lz4
-)";
+)",
+    R"(dicer footprint sphere.dice.h5
+dicer footprint sphere.dice.h5 --exact --json
+)"};
 
 int cmd_footprint(const std::vector<std::string>& argv) {
-  for (const auto& a : argv)
-    if (a == "--help" || a == "-h") return std::fputs(kHelp, stdout), 0;
-  Args args("footprint", argv, kStoreFlags, {"--json", "--exact", "--quiet"}, 1);
-  const std::string path = args.need_positional(0, "STORE");
-  const FineMesh m = read_store(path, store_options(args));
+  Command cmd(kDoc);
+  std::string path;
+  bool json = false, exact = false, quiet = false;
+  cmd.input("STORE", path, "the store to measure");
+  cmd.flag("--json", json,
+           "one JSON object: store_bytes, open_resident_bytes, "
+           "query_resident_bytes, bounding_bytes, explicit_raw_bytes, "
+           "explicit_lz4_bytes, lz4_sampled_fraction, ratio_raw, "
+           "ratio_lz4, fine_nodes, fine_elements, bounding_nodes, "
+           "rest_bytes");
+  cmd.flag("--exact", exact, "compress every page of the explicit mesh, not a sample");
+  cmd.flag("--quiet", quiet,
+           "accepted for scripts that pass it to every command; "
+           "footprint draws no progress bar");
+  StoreFlags store(cmd);
+  if (!cmd.parse(argv)) return 0;
+  const FineMesh m = read_store(path, store.options());
   const StoreSummary s = store_summary(path);
-  Footprint fp = measure_footprint(m, s.file_bytes, args.has("--exact") ? 0 : 2048);
+  Footprint fp = measure_footprint(m, s.file_bytes, exact ? 0 : 2048);
   fp.bounding_bytes = s.bounding_bytes;
   const double rr = static_cast<double>(fp.explicit_raw_bytes) / static_cast<double>(fp.store_bytes);
   const double rl = static_cast<double>(fp.explicit_lz4_bytes) / static_cast<double>(fp.store_bytes);
-  auto u = [](std::uint64_t v) { return static_cast<unsigned long long>(v); };
-  if (args.has("--json")) {
-    std::printf("{\"store_bytes\":%llu,\"open_resident_bytes\":%llu,\"query_resident_bytes\":%llu,\"bounding_bytes\":%llu,"
-                "\"explicit_raw_bytes\":%llu,\"explicit_lz4_bytes\":%llu,\"lz4_sampled_fraction\":%s,\"ratio_raw\":%s,"
-                "\"ratio_lz4\":%s,\"fine_nodes\":%lld,\"fine_elements\":%lld,\"bounding_nodes\":%lld,"
-                "\"rest_bytes\":%llu}\n",
-                u(fp.store_bytes), u(fp.open_resident_bytes), u(fp.query_resident_bytes), u(fp.bounding_bytes),
-                u(fp.explicit_raw_bytes), u(fp.explicit_lz4_bytes), json_double(fp.lz4_sampled_fraction).c_str(),
-                json_double(rr).c_str(), json_double(rl).c_str(), static_cast<long long>(m.num_nodes()),
-                static_cast<long long>(m.num_elements()), static_cast<long long>(s.bounding_nodes),
-                u(fp.store_bytes - std::min(fp.store_bytes, fp.bounding_bytes)));
+  if (json) {
+    print_json({{"store_bytes", fp.store_bytes},
+                {"open_resident_bytes", fp.open_resident_bytes},
+                {"query_resident_bytes", fp.query_resident_bytes},
+                {"bounding_bytes", fp.bounding_bytes},
+                {"explicit_raw_bytes", fp.explicit_raw_bytes},
+                {"explicit_lz4_bytes", fp.explicit_lz4_bytes},
+                {"lz4_sampled_fraction", fp.lz4_sampled_fraction},
+                {"ratio_raw", rr},
+                {"ratio_lz4", rl},
+                {"fine_nodes", m.num_nodes()},
+                {"fine_elements", m.num_elements()},
+                {"bounding_nodes", s.bounding_nodes},
+                {"rest_bytes", fp.store_bytes - std::min(fp.store_bytes, fp.bounding_bytes)}});
+    store.report(m);
     return 0;
   }
   const double ne = static_cast<double>(m.num_elements());
@@ -70,6 +89,7 @@ int cmd_footprint(const std::vector<std::string>& argv) {
   row("explicit, LZ4", fp.explicit_lz4_bytes);
   std::printf("  explicit raw / store = %.1fx, explicit LZ4 / store = %.1fx%s\n", rr, rl,
               fp.lz4_sampled_fraction < 1 ? " (LZ4 size extrapolated from a sample; --exact to measure all)" : "");
+  store.report(m);
   return 0;
 }
 

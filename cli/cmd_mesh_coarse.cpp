@@ -1,56 +1,53 @@
 // dicer mesh-coarse: CAD -> coarse all-hex (or all-quad) mesh via Gmsh.
 #include <cstdio>
 
+#include "command.hpp"
 #include "common.hpp"
 #include "dicer/error.hpp"
 #include "dicer/geometry.hpp"
 
 namespace dicer::cli {
 
-static const char* kHelp = R"(Usage: dicer mesh-coarse CAD --size H -o MESH [--surface] [--subdivide] [--quiet]
-
-Meshes the STEP (.step/.stp) or BREP (.brep/.brp) model CAD with Gmsh into a
+static const CommandDoc kDoc = {
+    "mesh-coarse", "mesh-coarse CAD --size H -o MESH [--surface] [--subdivide]\n                         [--quiet]",
+    R"(Meshes the STEP (.step/.stp) or BREP (.brep/.brp) model CAD with Gmsh into a
 coarse all-hex mesh (with --surface: an all-quad mesh of its surfaces) and
 writes it as MSH 4.1, with one physical group per volume (the blocks; in
 surface mode per surface) and per surface (side sets), and every node
 classified on its CAD entity. Dicing it with the same CAD then puts the fine
-boundary nodes on the model:
-
-  dicer mesh-coarse part.step --size 4 -o coarse.msh
-  dicer dice coarse.msh --geometry part.step --interval 10 -o part.dice.h5
+boundary nodes on the model.
 
 Gmsh meshes transfinitely where every surface is a 4-sided patch and every
 volume 6-sided (a box, a swept block); otherwise it meshes with tetrahedra
 (triangles) and subdivides each into hexahedra (quads): valid, all-hex,
-but with more and less regular elements.
-
-  --size H      target coarse element size (in the model's units; required)
-  --surface     all-quad surface mesh of the model's surfaces
-  --subdivide   skip the transfinite attempt
-  -o, --output MESH   the MSH file to write (temporary name, then renamed)
-  --quiet       no summary
-)";
+but with more and less regular elements. Runs in dicer-cad (with Gmsh).
+)",
+    R"(dicer mesh-coarse part.step --size 4 -o coarse.msh
+dicer dice coarse.msh --geometry part.step --interval 10 -o part.dice.h5
+)"};
 
 int cmd_mesh_coarse(const std::vector<std::string>& argv) {
-  for (const auto& a : argv)
-    if (a == "--help" || a == "-h") return std::fputs(kHelp, stdout), 0;
-  Args args("mesh-coarse", argv, {"--size", "-o", "--output"}, {"--surface", "--subdivide", "--quiet"}, 1);
-  const std::string cad = args.need_positional(0, "CAD");
-  auto out = args.value("-o");
-  if (!out) out = args.value("--output");
-  if (!out) throw Error(ErrorKind::Usage, "missing -o MESH (the coarse mesh to write)");
-  const auto size = args.value("--size");
-  if (!size) throw Error(ErrorKind::Usage, "missing --size H (the coarse element size)");
+  Command cmd(kDoc);
+  std::string cad, out, size;
+  bool surface = false, subdivide = false, quiet = false;
+  cmd.input("CAD", cad, "the STEP or BREP model");
+  cmd.output(out, "MESH", "the MSH 4.1 file to write (temporary name, then renamed)");
+  auto* o_size = cmd.value("--size", size, "H", "target coarse element size, in the model's units");
+  cmd.require(o_size, "the coarse element size");
+  cmd.flag("--surface", surface, "all-quad surface mesh of the model's surfaces");
+  cmd.flag("--subdivide", subdivide, "skip the transfinite attempt");
+  cmd.flag("--quiet", quiet, "no summary on stdout");
+  if (!cmd.parse(argv)) return 0;
   CoarseMeshOptions opt;
-  opt.size = parse_double("--size", *size);
-  opt.surface = args.has("--surface");
-  opt.subdivide = args.has("--subdivide");
-  const CoarseMeshReport r = mesh_coarse(cad, *out, opt);
-  if (!args.has("--quiet"))
+  opt.size = parse_double("--size", size);
+  opt.surface = surface;
+  opt.subdivide = subdivide;
+  const CoarseMeshReport r = mesh_coarse(cad, out, opt);
+  if (!quiet)
     std::printf("meshed %s (%lld volumes, %lld surfaces) by %s: %lld coarse %s, %lld vertices; wrote %s\n", cad.c_str(),
                 static_cast<long long>(r.volumes), static_cast<long long>(r.surfaces), r.method.c_str(),
                 static_cast<long long>(r.elements), opt.surface ? "quads" : "hexes", static_cast<long long>(r.vertices),
-                out->c_str());
+                out.c_str());
   return 0;
 }
 

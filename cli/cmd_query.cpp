@@ -1,69 +1,83 @@
 // dicer query: fine nodes and elements by id.
 #include <cstdio>
 
+#include "command.hpp"
 #include "common.hpp"
 #include "dicer/error.hpp"
 #include "dicer/export.hpp"
-#include "dicer/store.hpp"
+#include "dicer/fine_mesh.hpp"
+#include "json_out.hpp"
 
 namespace dicer::cli {
 
-static const char* kHelp = R"(Usage: dicer query STORE (--node ID | --nodes FIRST:END |
-                           --element ID | --elements FIRST:END |
-                           --box x0,y0,z0,x1,y1,z1 [--count]) [--json]
-
-Regenerates fine nodes or elements by id; ids start at 0. Ranges are
-half-open: --nodes 1000:2000 prints ids 1000..1999, one line each.
+static const CommandDoc kDoc = {
+    "query",
+    R"(query STORE (--node ID | --nodes FIRST:END | --element ID |
+                   --elements FIRST:END | --box x0,y0,z0,x1,y1,z1 [--count])
+                   [--json] [store options])",
+    R"(Regenerates fine nodes or elements by id; ids start at 0. Ranges are
+half-open: --nodes 1000:2000 prints ids 1000..1999, one line each. Give
+exactly one of --node, --nodes, --element, --elements, --box.
 
 Node ids: coarse vertices first, then the interior nodes of each coarse
 edge, face and hex. Element ids: coarse element order, then i, j, k.
-
-  --json   one JSON object per line:
-           node:    {"id":…, "xyz":[x,y,z]}   (17 significant digits, exact)
-           element: {"id":…, "nodes":[8 ids], "block":…, "coarse_element":…,
-                     "ijk":[i,j,k]}   (VTK/Exodus HEX8 node order; surface
-                     meshes: 4 node ids and [i,j]); block is the block id
-  --box B        the ids of the fine elements whose centroid lies in the
-                 axis-aligned box B (one per line, or {"id":…}); coarse
-                 elements whose bounding box misses B are skipped unread
-  --count        with --box: only the number of such elements
-  --cache-mb N   page cache budget in MiB (default 64)
-  --stats        print the page cache counters to stderr
-)";
+Coordinates are printed with 17 significant digits (text) or in the
+shortest form that reads back exactly (JSON): both give the same bits.
+)",
+    R"(dicer query sphere.dice.h5 --node 123456 --json
+dicer query sphere.dice.h5 --elements 0:500 --json
+dicer query sphere.dice.h5 --box 0,0,0,1,1,0.5 --count
+)"};
 
 int cmd_query(const std::vector<std::string>& argv) {
-  for (const auto& a : argv)
-    if (a == "--help" || a == "-h") return std::fputs(kHelp, stdout), 0;
-  std::vector<std::string> vflags = {"--node", "--nodes", "--element", "--elements", "--box"};
-  vflags.insert(vflags.end(), kStoreFlags.begin(), kStoreFlags.end());
-  Args args("query", argv, vflags, {"--json", "--stats", "--count"}, 1);
-  const std::string path = args.need_positional(0, "STORE");
-  int chosen = args.has("--node") + args.has("--nodes") + args.has("--element") + args.has("--elements") + args.has("--box");
-  if (chosen != 1)
-    throw Error(ErrorKind::Usage, "give exactly one of --node, --nodes, --element, --elements, --box");
-  if (args.has("--count") && !args.has("--box")) throw Error(ErrorKind::Usage, "--count goes with --box");
-  const FineMesh m = read_store(path, store_options(args));
-  if (args.has("--box")) {
-    const Box box = parse_box(*args.value("--box"));
-    const bool count_only = args.has("--count"), json = args.has("--json");
+  Command cmd(kDoc);
+  std::string path, node, nodes, element, elements, box_text;
+  bool json = false, count_only = false;
+  cmd.input("STORE", path, "the store to read");
+  auto* o_node = cmd.value("--node", node, "ID", "the fine node ID: its coordinates");
+  auto* o_nodes = cmd.value("--nodes", nodes, "FIRST:END", "the fine nodes FIRST..END-1, one per line");
+  auto* o_element = cmd.value("--element", element, "ID",
+                              "the fine element ID: its nodes (VTK/Exodus HEX8 "
+                              "order; surface meshes: QUAD4), block id, coarse "
+                              "element and ijk in it");
+  auto* o_elements = cmd.value("--elements", elements, "FIRST:END", "the fine elements FIRST..END-1, one per line");
+  auto* o_box = cmd.value("--box", box_text, "x0,y0,z0,x1,y1,z1",
+                          "the ids of the fine elements whose centroid lies in the "
+                          "axis-aligned box (one per line); coarse elements "
+                          "whose bounding box misses it are skipped unread");
+  auto* o_count = cmd.flag("--count", count_only, "with --box: only the number of such elements");
+  cmd.flag("--json", json,
+           "one JSON object per line:\n"
+           "node:    {\"id\":..., \"xyz\":[x,y,z]}\n"
+           "element: {\"id\":..., \"nodes\":[8 ids], \"block\":...,\n"
+           "          \"coarse_element\":..., \"ijk\":[i,j,k]}\n"
+           "          (surface meshes: 4 node ids and [i,j])\n"
+           "box:     {\"id\":...} per element, or {\"count\":...}");
+  StoreFlags store(cmd);
+  if (!cmd.parse(argv)) return 0;
+  const int chosen = cmd.given(o_node) + cmd.given(o_nodes) + cmd.given(o_element) + cmd.given(o_elements) + cmd.given(o_box);
+  if (chosen != 1) throw Error(ErrorKind::Usage, "give exactly one of --node, --nodes, --element, --elements, --box");
+  if (cmd.given(o_count) && !cmd.given(o_box)) throw Error(ErrorKind::Usage, "--count goes with --box");
+
+  const FineMesh m = read_store(path, store.options());
+  if (cmd.given(o_box)) {
+    const Box box = parse_box(box_text);
     const Id n = for_each_in_box(m, box, [&](const FineBlock& b, Id e) {
       if (count_only) return;
-      const long long id = static_cast<long long>(b.first_element + e);
-      if (json) std::printf("{\"id\":%lld}\n", id);
-      else std::printf("%lld\n", id);
+      const Id id = b.first_element + e;
+      if (json) print_json({{"id", id}});
+      else std::printf("%lld\n", static_cast<long long>(id));
     });
     if (count_only) {
-      if (json) std::printf("{\"count\":%lld}\n", static_cast<long long>(n));
+      if (json) print_json({{"count", n}});
       else std::printf("%lld\n", static_cast<long long>(n));
     }
-    if (args.has("--stats")) print_cache_stats(m, "query");
+    store.report(m);
     return 0;
   }
-  const bool json = args.has("--json");
   auto ll = [](Id v) { return static_cast<long long>(v); };
-  if (args.has("--node") || args.has("--nodes")) {
-    const auto [a, b] = args.has("--node") ? parse_range("--node", *args.value("--node"))
-                                           : parse_range("--nodes", *args.value("--nodes"));
+  if (cmd.given(o_node) || cmd.given(o_nodes)) {
+    const auto [a, b] = cmd.given(o_node) ? parse_range("--node", node) : parse_range("--nodes", nodes);
     if (a < 0 || b > m.num_nodes())
       throw Error(ErrorKind::Usage, "node ids " + std::to_string(a) + ".." + std::to_string(b - 1) +
                                         " out of range (the mesh has " + std::to_string(m.num_nodes()) + " nodes, ids 0.." +
@@ -72,17 +86,13 @@ int cmd_query(const std::vector<std::string>& argv) {
     Id id;
     Vec3 p;
     while (cur.next(id, p)) {
-      if (json)
-        std::printf("{\"id\":%lld,\"xyz\":[%s,%s,%s]}\n", ll(id), json_double(p.x).c_str(), json_double(p.y).c_str(),
-                    json_double(p.z).c_str());
-      else
-        std::printf("node %lld  %.17g %.17g %.17g\n", ll(id), p.x, p.y, p.z);
+      if (json) print_json({{"id", id}, {"xyz", {p.x, p.y, p.z}}});
+      else std::printf("node %lld  %.17g %.17g %.17g\n", ll(id), p.x, p.y, p.z);
     }
-    if (args.has("--stats")) print_cache_stats(m, "query");
+    store.report(m);
     return 0;
   }
-  const auto [a, b] = args.has("--element") ? parse_range("--element", *args.value("--element"))
-                                            : parse_range("--elements", *args.value("--elements"));
+  const auto [a, b] = cmd.given(o_element) ? parse_range("--element", element) : parse_range("--elements", elements);
   if (a < 0 || b > m.num_elements())
     throw Error(ErrorKind::Usage, "element ids " + std::to_string(a) + ".." + std::to_string(b - 1) +
                                       " out of range (the mesh has " + std::to_string(m.num_elements()) +
@@ -91,19 +101,22 @@ int cmd_query(const std::vector<std::string>& argv) {
   FineElement el;
   const bool vol = m.mode() == Mode::Volume;
   while (cur.next(el)) {
-    std::string nodes;
-    for (int q = 0; q < el.num_nodes; ++q) nodes += (q ? "," : "") + std::to_string(el.nodes[q]);
-    const std::string ijk = std::to_string(el.ijk[0]) + "," + std::to_string(el.ijk[1]) +
-                            (vol ? "," + std::to_string(el.ijk[2]) : "");
-    const long long block = m.info().blocks.at(static_cast<size_t>(el.block)).id;
-    if (json)
-      std::printf("{\"id\":%lld,\"nodes\":[%s],\"block\":%lld,\"coarse_element\":%lld,\"ijk\":[%s]}\n", ll(el.id),
-                  nodes.c_str(), block, ll(el.coarse_element), ijk.c_str());
-    else
-      std::printf("element %lld  nodes %s  block %lld  coarse element %lld  ijk %s\n", ll(el.id), nodes.c_str(), block,
-                  ll(el.coarse_element), ijk.c_str());
+    const Id block = m.info().blocks.at(static_cast<size_t>(el.block)).id;
+    if (json) {
+      Json nodes_json = Json::array(), ijk = Json::array();
+      for (int q = 0; q < el.num_nodes; ++q) nodes_json.push_back(el.nodes[q]);
+      for (int d = 0; d < (vol ? 3 : 2); ++d) ijk.push_back(el.ijk[d]);
+      print_json({{"id", el.id}, {"nodes", nodes_json}, {"block", block}, {"coarse_element", el.coarse_element}, {"ijk", ijk}});
+    } else {
+      std::string nodes_text;
+      for (int q = 0; q < el.num_nodes; ++q) nodes_text += (q ? "," : "") + std::to_string(el.nodes[q]);
+      std::string ijk = std::to_string(el.ijk[0]) + "," + std::to_string(el.ijk[1]);
+      if (vol) ijk += "," + std::to_string(el.ijk[2]);
+      std::printf("element %lld  nodes %s  block %lld  coarse element %lld  ijk %s\n", ll(el.id), nodes_text.c_str(),
+                  ll(block), ll(el.coarse_element), ijk.c_str());
+    }
   }
-  if (args.has("--stats")) print_cache_stats(m, "query");
+  store.report(m);
   return 0;
 }
 

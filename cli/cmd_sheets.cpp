@@ -1,43 +1,48 @@
 // dicer sheets: the dicer sheets of a coarse mesh and the interval each would get.
 #include <cstdio>
 
+#include "command.hpp"
 #include "common.hpp"
 #include "dicer/coarse_mesh.hpp"
 #include "dicer/intervals.hpp"
 #include "dicer/sheets.hpp"
 #include "dicer/topology.hpp"
+#include "json_out.hpp"
 
 namespace dicer::cli {
 
-static const char* kHelp = R"(Usage: dicer sheets MESH [--json] [--edges] [interval options]
-
-A dicer sheet is a set of coarse edges that must all be cut into the same
+static const CommandDoc kDoc = {
+    "sheets", "sheets MESH [--json] [--edges] [interval options]",
+    R"(A dicer sheet is a set of coarse edges that must all be cut into the same
 number of intervals, so that the fine mesh stays conforming: opposite edges
 of every quad face are in the same sheet. A structured a x b x c box has
 a+b+c sheets. Sheet ids depend only on the input file, so you can name them
 in --sheet-interval or an intervals file.
 
 Prints per sheet: id, number of edges, blocks it touches and the interval it
-gets under the interval options (same as `dice`; default 1).
-
-Options:
-  --json          one JSON object: {"mode", "sheets": [{"id", "edge_count",
-                  "blocks", "interval", "edges"?}], "notes"}
-  --edges         also list each sheet's edges as node-id pairs, numbered as
-                  in the input file
-  --interval N, --block-interval B=N, --sheet-interval S=N, --size H,
-  --intervals-file FILE      see `dicer dice --help`
-)";
+gets under the interval options (the same as `dice`'s).
+)",
+    R"(dicer sheets part.exo
+dicer sheets part.exo --block-interval 2=4 --json --edges
+)"};
 
 int cmd_sheets(const std::vector<std::string>& argv) {
-  for (const auto& a : argv)
-    if (a == "--help" || a == "-h") return std::fputs(kHelp, stdout), 0;
-  Args args("sheets", argv, kIntervalFlags, {"--json", "--edges"}, 1);
-  const CoarseMesh mesh = read_coarse_mesh(args.need_positional(0, "MESH"));
+  Command cmd(kDoc);
+  std::string path;
+  bool json = false, edges = false;
+  cmd.input("MESH", path, "the coarse mesh (Exodus II or Gmsh MSH)");
+  cmd.flag("--json", json,
+           "one JSON object: {\"mode\", \"sheets\": [{\"id\", \"edge_count\", "
+           "\"blocks\", \"interval\", \"edges\"?}], \"notes\"}");
+  cmd.flag("--edges", edges,
+           "also list each sheet's edges as node-id pairs, numbered "
+           "as in the input file");
+  IntervalFlags intervals(cmd);
+  if (!cmd.parse(argv)) return 0;
+  const CoarseMesh mesh = read_coarse_mesh(path);
   const Topology topo = build_topology(mesh);
   const Sheets sheets = find_sheets(mesh, topo);
-  const IntervalPlan plan = resolve_intervals(mesh, topo, sheets, interval_request(args));
-  const bool json = args.has("--json"), edges = args.has("--edges");
+  const IntervalPlan plan = resolve_intervals(mesh, topo, sheets, intervals.request());
   for (const auto& w : mesh.warnings) std::fprintf(stderr, "dicer sheets: warning: %s: %s\n", mesh.source.c_str(), w.c_str());
   for (const auto& n : plan.notes) std::fprintf(stderr, "dicer sheets: note: %s\n", n.c_str());
 
@@ -46,43 +51,40 @@ int cmd_sheets(const std::vector<std::string>& argv) {
     sheet_edges.resize(static_cast<size_t>(sheets.num_sheets()));
     for (Id e = 0; e < topo.num_edges(); ++e) sheet_edges[sheets.edge_sheet[e]].push_back(e);
   }
-  if (json) std::printf("{\"mode\":\"%s\",\"sheets\":[", mode_name(mesh.mode));
-  else std::printf("%lld sheets in %s\n%8s %8s %8s  %s\n", static_cast<long long>(sheets.num_sheets()), mesh.source.c_str(),
-                   "sheet", "edges", "interval", "blocks");
+  auto file_id = [&](Id e, int end) { return mesh.vertex_file_id[topo.edge_v[2 * e + end]]; };
+  auto blocks_of = [&](Id s) {
+    std::vector<Id> ids;
+    for (Id i = sheets.block_offset[s]; i < sheets.block_offset[s + 1]; ++i) ids.push_back(mesh.blocks[sheets.block_index[i]].id);
+    return ids;
+  };
+  if (json) {
+    // One sheet at a time: the edges of a big mesh as one JSON tree would
+    // cost ~100 B each.
+    std::printf("{\"mode\":%s,\"sheets\":[", json_text(mode_name(mesh.mode)).c_str());
+    for (Id s = 0; s < sheets.num_sheets(); ++s) {
+      Json j = {{"id", s}, {"edge_count", sheets.edge_count[s]}, {"blocks", blocks_of(s)}, {"interval", plan.sheet_interval[s]}};
+      if (edges) {
+        Json list = Json::array();
+        for (Id e : sheet_edges[s]) list.push_back({file_id(e, 0), file_id(e, 1)});
+        j["edges"] = std::move(list);
+      }
+      std::printf("%s%s", s ? "," : "", json_text(j).c_str());
+    }
+    std::printf("],\"notes\":%s}\n", json_text(plan.notes).c_str());
+    return 0;
+  }
+  std::printf("%lld sheets in %s\n%8s %8s %8s  %s\n", static_cast<long long>(sheets.num_sheets()), mesh.source.c_str(),
+              "sheet", "edges", "interval", "blocks");
   for (Id s = 0; s < sheets.num_sheets(); ++s) {
     std::string blocks;
-    for (Id i = sheets.block_offset[s]; i < sheets.block_offset[s + 1]; ++i)
-      blocks += (blocks.empty() ? "" : json ? "," : " ") + std::to_string(mesh.blocks[sheets.block_index[i]].id);
-    if (json) {
-      std::printf("%s{\"id\":%lld,\"edge_count\":%lld,\"blocks\":[%s],\"interval\":%lld", s ? "," : "",
-                  static_cast<long long>(s), static_cast<long long>(sheets.edge_count[s]), blocks.c_str(),
-                  static_cast<long long>(plan.sheet_interval[s]));
-      if (edges) {
-        std::printf(",\"edges\":[");
-        for (size_t q = 0; q < sheet_edges[s].size(); ++q) {
-          const Id e = sheet_edges[s][q];
-          std::printf("%s[%lld,%lld]", q ? "," : "", static_cast<long long>(mesh.vertex_file_id[topo.edge_v[2 * e]]),
-                      static_cast<long long>(mesh.vertex_file_id[topo.edge_v[2 * e + 1]]));
-        }
-        std::printf("]");
-      }
-      std::printf("}");
-    } else {
-      std::printf("%8lld %8lld %8lld  %s\n", static_cast<long long>(s), static_cast<long long>(sheets.edge_count[s]),
-                  static_cast<long long>(plan.sheet_interval[s]), blocks.c_str());
-      if (edges) {
-        std::printf("         edges:");
-        for (Id e : sheet_edges[s])
-          std::printf(" %lld-%lld", static_cast<long long>(mesh.vertex_file_id[topo.edge_v[2 * e]]),
-                      static_cast<long long>(mesh.vertex_file_id[topo.edge_v[2 * e + 1]]));
-        std::printf("\n");
-      }
+    for (Id b : blocks_of(s)) blocks += (blocks.empty() ? "" : " ") + std::to_string(b);
+    std::printf("%8lld %8lld %8lld  %s\n", static_cast<long long>(s), static_cast<long long>(sheets.edge_count[s]),
+                static_cast<long long>(plan.sheet_interval[s]), blocks.c_str());
+    if (edges) {
+      std::printf("         edges:");
+      for (Id e : sheet_edges[s]) std::printf(" %lld-%lld", static_cast<long long>(file_id(e, 0)), static_cast<long long>(file_id(e, 1)));
+      std::printf("\n");
     }
-  }
-  if (json) {
-    std::printf("],\"notes\":[");
-    for (size_t i = 0; i < plan.notes.size(); ++i) std::printf("%s%s", i ? "," : "", json_string(plan.notes[i]).c_str());
-    std::printf("]}\n");
   }
   return 0;
 }

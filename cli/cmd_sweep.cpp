@@ -1,55 +1,68 @@
 // dicer sweep: every fine node and element, with a checksum.
+#include <algorithm>
 #include <cstdio>
 #include <thread>
 
+#include "command.hpp"
 #include "common.hpp"
 #include "dicer/error.hpp"
 #include "dicer/store.hpp"
 #include "dicer/sweep.hpp"
+#include "json_out.hpp"
 
 namespace dicer::cli {
 
-static const char* kHelp = R"(Usage: dicer sweep STORE [--threads N] [--json] [--quiet] [--cache-mb N] [--stats]
-
-Regenerates every fine node and element through the public iterators, in
-N threads (default: all cores), each on a contiguous range of ids, and prints
-the counts, the time, the rate and an order-independent checksum of all
-coordinates (bit patterns) and connectivity. The checksum does not depend on
-the thread count or the cache budget: compare it across machines or stores.
-
-  --threads N  threads to use; no more than the cache budget can keep
-               pinned (about 2.5 MiB each) are used, and the output says
-               how many ran
-  --json   {"nodes", "elements", "seconds", "nodes_per_s", "checksum", "threads"}
-)";
+static const CommandDoc kDoc = {
+    "sweep", "sweep STORE [--threads N] [--json] [--quiet] [store options]",
+    R"(Regenerates every fine node and element through the public iterators, in
+N threads, each on a contiguous range of ids, and prints the counts, the
+time, the rate and an order-independent checksum of all coordinates (bit
+patterns) and connectivity. The checksum does not depend on the thread
+count or the cache budget: compare it across machines or stores.
+)",
+    R"(dicer sweep sphere.dice.h5
+dicer sweep big.dice.h5 --threads 2 --cache-mb 32 --json --stats
+)"};
 
 int cmd_sweep(const std::vector<std::string>& argv) {
-  for (const auto& a : argv)
-    if (a == "--help" || a == "-h") return std::fputs(kHelp, stdout), 0;
-  std::vector<std::string> vflags = {"--threads"};
-  vflags.insert(vflags.end(), kStoreFlags.begin(), kStoreFlags.end());
-  Args args("sweep", argv, vflags, {"--json", "--quiet", "--stats"}, 1);
-  const std::string path = args.need_positional(0, "STORE");
-  const Id threads = args.int_value("--threads", std::max(1u, std::thread::hardware_concurrency()));
+  Command cmd(kDoc);
+  std::string path, threads_text = std::to_string(std::max(1u, std::thread::hardware_concurrency()));
+  bool json = false, quiet = false;
+  cmd.input("STORE", path, "the store to sweep");
+  cmd.value("--threads", threads_text, "N",
+            "threads to use (1 to 1024); no more than the cache budget "
+            "can keep pinned (about 2.5 MiB each) are used, and the "
+            "output says how many ran",
+            "Options", "all cores, here " + threads_text);
+  cmd.flag("--json", json,
+           "one JSON object: nodes, elements, seconds, nodes_per_s, "
+           "checksum (16 hex digits), threads");
+  cmd.flag("--quiet", quiet, "no progress bar (--json draws none either)");
+  StoreFlags store(cmd);
+  if (!cmd.parse(argv)) return 0;
+  const Id threads = parse_int("--threads", threads_text);
   if (threads < 1 || threads > 1024) throw Error(ErrorKind::Usage, "--threads: must be between 1 and 1024");
-  const FineMesh m = read_store(path, store_options(args));
+  const FineMesh m = read_store(path, store.options());
   SweepResult r;
   {
-    Progress bar("sweep", m.num_nodes() + m.num_elements(), args.has("--quiet") || args.has("--json"));
+    Progress bar("sweep", m.num_nodes() + m.num_elements(), quiet || json);
     r = sweep(m, static_cast<unsigned>(threads), [&](Id done, Id) { bar.update(done); });
   }
   const double rate = r.seconds > 0 ? static_cast<double>(r.nodes) / r.seconds : 0;
-  if (args.has("--json"))
-    std::printf("{\"nodes\":%lld,\"elements\":%lld,\"seconds\":%s,\"nodes_per_s\":%s,\"checksum\":\"%016llx\","
-                "\"threads\":%u}\n",
-                static_cast<long long>(r.nodes), static_cast<long long>(r.elements), json_double(r.seconds).c_str(),
-                json_double(rate).c_str(), static_cast<unsigned long long>(r.checksum), r.threads);
+  char checksum[24];
+  std::snprintf(checksum, sizeof checksum, "%016llx", static_cast<unsigned long long>(r.checksum));
+  if (json)
+    print_json({{"nodes", r.nodes},
+                {"elements", r.elements},
+                {"seconds", r.seconds},
+                {"nodes_per_s", rate},
+                {"checksum", checksum},
+                {"threads", r.threads}});
   else
-    std::printf("swept %s nodes and %s elements in %.3f s (%s nodes/s, %lld threads), checksum %016llx\n",
+    std::printf("swept %s nodes and %s elements in %.3f s (%s nodes/s, %lld threads), checksum %s\n",
                 human_count(r.nodes).c_str(), human_count(r.elements).c_str(), r.seconds,
-                human_count(static_cast<Id>(rate)).c_str(), static_cast<long long>(r.threads),
-                static_cast<unsigned long long>(r.checksum));
-  if (args.has("--stats")) print_cache_stats(m, "sweep");
+                human_count(static_cast<Id>(rate)).c_str(), static_cast<long long>(r.threads), checksum);
+  store.report(m);
   return 0;
 }
 

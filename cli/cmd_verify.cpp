@@ -1,16 +1,19 @@
 // dicer verify: the streaming conformity, count and quality check.
 #include <cstdio>
 
+#include "command.hpp"
 #include "common.hpp"
+#include "exit_codes.hpp"
+#include "json_out.hpp"
 #include "dicer/geometry.hpp"
 #include "dicer/store.hpp"
 #include "dicer/verify.hpp"
 
 namespace dicer::cli {
 
-static const char* kHelp = R"(Usage: dicer verify STORE [--geometry CAD] [--json] [--quiet]
-
-Regenerates every fine element, one coarse element at a time (memory stays
+static const CommandDoc kDoc = {
+    "verify", "verify STORE [--geometry CAD] [--json] [--quiet] [store options]",
+    R"(Regenerates every fine element, one coarse element at a time (memory stays
 proportional to the coarse mesh), and checks:
   - node and element counts against the closed formula;
   - every node id round-trips id -> owning coarse entity -> id, and node(id)
@@ -26,53 +29,65 @@ With --geometry CAD (the STEP/BREP file the store was diced against), also:
     max(1e-9 x the model's bounding-box diagonal, 1e-7), 1e-7 being
     OpenCASCADE's own point-confusion tolerance (Precision::Confusion).
 Exit status 0 only if everything holds, 1 if a check fails.
-
-  --geometry CAD  distance-to-CAD check (needs Gmsh; plain verify does not)
-  --json    the report as one JSON object
-  --quiet   no progress bar
-  --cache-mb N   page cache budget in MiB (default 64)
-  --stats        print the page cache counters to stderr
-)";
+)",
+    R"(dicer verify sphere.dice.h5
+dicer verify part.dice.h5 --geometry part.step --json
+)"};
 
 int cmd_verify(const std::vector<std::string>& argv) {
-  for (const auto& a : argv)
-    if (a == "--help" || a == "-h") return std::fputs(kHelp, stdout), 0;
-  std::vector<std::string> vflags = kStoreFlags;
-  vflags.push_back("--geometry");
-  Args args("verify", argv, vflags, {"--json", "--quiet", "--stats"}, 1);
-  const std::string path = args.need_positional(0, "STORE");
-  const FineMesh m = read_store(path, store_options(args));
+  Command cmd(kDoc);
+  std::string path, cad;
+  bool json = false, quiet = false;
+  cmd.input("STORE", path, "the store to check");
+  auto* o_cad = cmd.input_value("--geometry", cad, "CAD",
+                                "distance-to-CAD check (runs in dicer-cad, with Gmsh; "
+                                "plain verify does not need it)");
+  cmd.flag("--json", json,
+           "the report as one JSON object: ok, nodes, nodes_formula, "
+           "elements, elements_formula, fine_faces_checked, "
+           "boundary_fine_faces, id_errors, bit_identity_errors, "
+           "coincident_nodes, conformity_errors, inverted, "
+           "min_scaled_jacobian, problems [text], and with --geometry "
+           "geometry {max_distance, tolerance, diagonal, worst_node, "
+           "worst_entity, nodes_checked}");
+  cmd.flag("--quiet", quiet, "no progress bar");
+  StoreFlags store(cmd);
+  if (!cmd.parse(argv)) return 0;
+  const FineMesh m = read_store(path, store.options());
   VerifyReport r;
   {
-    Progress bar("verify", m.num_coarse_elements(), args.has("--quiet"));
+    Progress bar("verify", m.num_coarse_elements(), quiet);
     r = verify(m, [&](Id done, Id) { bar.update(done); });
   }
-  const auto cad = args.value("--geometry");
+  const bool with_cad = cmd.given(o_cad);
   GeometryCheck g;
   bool geo_ok = true;
-  if (cad) {
-    Progress bar("verify: geometry", 1, args.has("--quiet"));
-    g = check_geometry(m, *cad, [&](Id done, Id total) { bar.update(done, total); });
+  if (with_cad) {
+    Progress bar("verify: geometry", 1, quiet);
+    g = check_geometry(m, cad, [&](Id done, Id total) { bar.update(done, total); });
     geo_ok = g.max_distance <= g.tolerance;
   }
   const bool ok = r.ok() && geo_ok;
   auto ll = [](Id v) { return static_cast<long long>(v); };
-  if (args.has("--json")) {
-    std::printf("{\"ok\":%s,\"nodes\":%lld,\"nodes_formula\":%lld,\"elements\":%lld,\"elements_formula\":%lld,"
-                "\"fine_faces_checked\":%lld,\"boundary_fine_faces\":%lld,\"id_errors\":%lld,\"bit_identity_errors\":%lld,"
-                "\"coincident_nodes\":%lld,\"conformity_errors\":%lld,\"inverted\":%lld,\"min_scaled_jacobian\":%s,"
-                "\"problems\":[",
-                ok ? "true" : "false", ll(r.nodes), ll(r.nodes_formula), ll(r.elements), ll(r.elements_formula),
-                ll(r.fine_faces_checked), ll(r.boundary_fine_faces), ll(r.id_errors), ll(r.bit_identity_errors),
-                ll(r.coincident_nodes), ll(r.conformity_errors), ll(r.inverted), json_double(r.min_scaled_jacobian).c_str());
-    for (size_t i = 0; i < r.problems.size(); ++i) std::printf("%s%s", i ? "," : "", json_string(r.problems[i]).c_str());
-    std::printf("]");
-    if (cad)
-      std::printf(",\"geometry\":{\"max_distance\":%s,\"tolerance\":%s,\"diagonal\":%s,\"worst_node\":%lld,"
-                  "\"worst_entity\":%s,\"nodes_checked\":%lld}",
-                  json_double(g.max_distance).c_str(), json_double(g.tolerance).c_str(), json_double(g.diagonal).c_str(),
-                  ll(g.worst_node), json_string(g.worst_entity).c_str(), ll(g.nodes_checked));
-    std::printf("}\n");
+  if (json) {
+    Json j = {{"ok", ok},
+              {"nodes", r.nodes},
+              {"nodes_formula", r.nodes_formula},
+              {"elements", r.elements},
+              {"elements_formula", r.elements_formula},
+              {"fine_faces_checked", r.fine_faces_checked},
+              {"boundary_fine_faces", r.boundary_fine_faces},
+              {"id_errors", r.id_errors},
+              {"bit_identity_errors", r.bit_identity_errors},
+              {"coincident_nodes", r.coincident_nodes},
+              {"conformity_errors", r.conformity_errors},
+              {"inverted", r.inverted},
+              {"min_scaled_jacobian", r.min_scaled_jacobian},
+              {"problems", r.problems}};
+    if (with_cad)
+      j["geometry"] = {{"max_distance", g.max_distance}, {"tolerance", g.tolerance}, {"diagonal", g.diagonal},
+                       {"worst_node", g.worst_node},     {"worst_entity", g.worst_entity}, {"nodes_checked", g.nodes_checked}};
+    print_json(j);
   } else {
     auto mark = [](bool ok) { return ok ? "ok  " : "FAIL"; };
     std::printf("verify %s\n", path.c_str());
@@ -85,7 +100,7 @@ int cmd_verify(const std::vector<std::string>& argv) {
     std::printf("  %s distinct nodes %lld coincident\n", mark(r.coincident_nodes == 0), ll(r.coincident_nodes));
     std::printf("  %s quality        min scaled Jacobian %.4f, %lld inverted\n", mark(r.inverted == 0), r.min_scaled_jacobian,
                 ll(r.inverted));
-    if (cad)
+    if (with_cad)
       std::printf("  %s geometry       max distance to the CAD %.3g (node %lld on %s; limit %.3g, %.3g of the diagonal), "
                   "%lld nodes checked\n",
                   mark(geo_ok), g.max_distance, ll(g.worst_node), g.worst_entity.empty() ? "-" : g.worst_entity.c_str(),
@@ -93,7 +108,7 @@ int cmd_verify(const std::vector<std::string>& argv) {
     for (const auto& p : r.problems) std::printf("    %s\n", p.c_str());
     std::printf("%s\n", ok ? "all checks passed" : "VERIFY FAILED");
   }
-  if (args.has("--stats")) print_cache_stats(m, "verify");
+  store.report(m);
   return ok ? 0 : kExitDefect;
 }
 

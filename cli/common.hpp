@@ -1,25 +1,17 @@
 #pragma once
-// Shared plumbing of the dicer command: argument parsing, JSON helpers,
-// human-readable sizes, progress bars. Subcommands stay thin.
+// Shared plumbing of the dicer command that needs no option parser: number
+// arguments, file-argument checks, signals, human-readable sizes, progress
+// bars. The parser and the option sets shared by several commands are in
+// command.hpp, JSON output in json_out.hpp, exit codes in exit_codes.hpp.
 #include <cstdint>
-#include <cstdio>
-#include <functional>
-#include <map>
-#include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
-#include "dicer/intervals.hpp"
+#include "dicer/error.hpp"
 #include "dicer/store.hpp"
-#include "dicer/types.hpp"
 
 namespace dicer::cli {
-
-// Exit codes (documented in `dicer --help` and README): 0 success, 1 verify
-// found a defect, then int(ErrorKind): 2 usage, 3 bad input, 4 unsupported,
-// 5 I/O, 6 overflow, 7 geometry, 8 corrupt store; 70 internal error.
-inline constexpr int kExitDefect = 1;
-inline constexpr int kExitInternal = 70;
 
 // In `dicer` (built without Gmsh): when args (command first) need a CAD
 // model, replaces this process by `dicer-cad` with the same argv (beside
@@ -27,43 +19,42 @@ inline constexpr int kExitInternal = 70;
 // `dicer-cad`: does nothing (cli/cad/with.cpp).
 void hand_over_if_cad(char** argv, const std::vector<std::string>& args);
 
-// Flags: "--name value", "--name=value", boolean "--name". Unknown flags,
-// missing values and stray positionals are usage errors naming the flag.
-class Args {
- public:
-  Args(std::string command, std::vector<std::string> argv, std::vector<std::string> value_flags,
-       std::vector<std::string> bool_flags, int max_positional);
-  bool has(const std::string& flag) const { return values_.count(flag) > 0; }
-  std::optional<std::string> value(const std::string& flag) const;
-  std::vector<std::string> values(const std::string& flag) const;
-  const std::vector<std::string>& positional() const { return positional_; }
-  std::string need_positional(size_t i, const std::string& what) const;
-  std::int64_t int_value(const std::string& flag, std::int64_t fallback) const;
-
- private:
-  std::string command_;
-  std::map<std::string, std::vector<std::string>> values_;
-  std::vector<std::string> positional_;
-};
-
 std::int64_t parse_int(const std::string& what, const std::string& text);
 double parse_double(const std::string& what, const std::string& text);
 // "a:b" -> [a, b); "a" -> [a, a+1).
 std::pair<std::int64_t, std::int64_t> parse_range(const std::string& what, const std::string& text);
 
-// Interval flags shared by `sheets` and `dice`.
-IntervalRequest interval_request(const Args& args);
-inline const std::vector<std::string> kIntervalFlags = {"--interval", "--block-interval", "--sheet-interval", "--size",
-                                                        "--intervals-file"};
+// A file the command reads: refused before any library opens it when it is
+// missing (Error{Io}), a directory or anything but a regular file (a FIFO
+// would block the open; Error{Usage}). `role` names the argument ("STORE",
+// "--intervals-file").
+void check_input_file(const std::string& path, const std::string& role);
+// The file the command writes (`role`: "-o"): refused (Error{Usage}) when it
+// exists and is a directory or not a regular file, or is the same file
+// (device and inode, so links and "./" spellings count) as one of `inputs`.
+void check_output_file(const std::string& path, const std::string& role,
+                       const std::vector<std::pair<std::string, std::string>>& inputs);
 
-// --cache-mb N (default 64) and --read-ahead N for commands that open a store.
-inline const std::vector<std::string> kStoreFlags = {"--cache-mb", "--read-ahead"};
-StoreOptions store_options(const Args& args);
+// SIGINT, SIGTERM and SIGHUP while a command writes a file: the handler only
+// records the signal; the command polls cancel_requested() through the
+// library's progress and cancel callbacks and throws Error{Cancelled}, so
+// temporary files are removed on the way out, and main exits 128 + signal.
+// A second signal kills at once (the handler resets itself).
+class CancelOnSignals {
+ public:
+  CancelOnSignals();
+  ~CancelOnSignals();
+  CancelOnSignals(const CancelOnSignals&) = delete;
+  CancelOnSignals& operator=(const CancelOnSignals&) = delete;
+};
+bool cancel_requested();
+int received_signal();  // 0 when none arrived
+// Throws Error{Cancelled, "interrupted by SIGINT; <outcome>"} when a signal arrived.
+void throw_if_cancelled(const std::string& outcome);
+
 // --stats: the page cache counters on stderr, one line, human readable.
 void print_cache_stats(const FineMesh& mesh, const std::string& command);
 
-std::string json_string(const std::string& s);
-std::string json_double(double d);  // 17 significant digits: round-trips exactly
 std::string human_bytes(std::uint64_t bytes);
 std::string human_count(std::int64_t n);
 
@@ -86,7 +77,7 @@ class Progress {
   double start_, last_ = -1;
 };
 
-using Command = std::function<int(const std::vector<std::string>&)>;
+// The subcommands: argv without the command's name; the exit status.
 int cmd_sheets(const std::vector<std::string>& argv);
 int cmd_dice(const std::vector<std::string>& argv);
 int cmd_info(const std::vector<std::string>& argv);

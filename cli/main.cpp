@@ -1,43 +1,78 @@
 // dicer: the command-line tool. One file per subcommand; this one dispatches
-// and turns dicer::Error into a one-line message and a documented exit code.
+// and turns dicer::Error into a one-line message and an exit code (the one
+// mapping is exit_code(), cli/exit_codes.cpp).
 #include <cstdio>
-#include <cstring>
 #include <exception>
-#include <map>
+#include <new>
 #include <string>
 #include <vector>
 
 #include "common.hpp"
 #include "dicer/error.hpp"
+#include "exit_codes.hpp"
 
 namespace {
 
-const char* kUsage = R"(dicer - refine coarse all-hex (or all-quad) meshes into huge conforming
+struct CommandEntry {
+  const char* name;
+  const char* args;     // shown after the name in `dicer --help`
+  const char* summary;  // lines after the first are indented under it
+  int (*run)(const std::vector<std::string>&);
+};
+
+// In the order you use them.
+const CommandEntry kCommands[] = {
+    {"mesh-coarse", "CAD -o MESH",
+     "coarse all-hex (--surface: all-quad) mesh of a STEP\nor BREP model with Gmsh, for dice --geometry CAD",
+     dicer::cli::cmd_mesh_coarse},
+    {"sheets", "MESH", "list the dicer sheets (edges that must share one\ninterval)", dicer::cli::cmd_sheets},
+    {"dice", "MESH -o STORE", "choose intervals and write the implicit fine mesh", dicer::cli::cmd_dice},
+    {"info", "STORE", "counts, blocks and settings of a store", dicer::cli::cmd_info},
+    {"query", "STORE", "fine nodes and elements by id, or in a box", dicer::cli::cmd_query},
+    {"verify", "STORE",
+     "stream through every fine element and check\nconformity, counts, coincident nodes and quality",
+     dicer::cli::cmd_verify},
+    {"footprint", "STORE", "bytes on disk and in memory vs an explicit mesh", dicer::cli::cmd_footprint},
+    {"export", "STORE", "a chunk, a box or the whole mesh to VTKHDF, MSH 4.1\nor Exodus II", dicer::cli::cmd_export},
+    {"sweep", "STORE", "every fine node and element in N threads, rate and\nchecksum", dicer::cli::cmd_sweep},
+};
+
+std::string usage() {
+  std::string s = R"(dicer - refine coarse all-hex (or all-quad) meshes into huge conforming
 fine meshes that are stored implicitly: coarse mesh + intervals + recipe.
 
 Usage: dicer <command> [options]      dicer <command> --help for details
 
 Commands (in the order you use them):
-  mesh-coarse CAD -o MESH  coarse all-hex (--surface: all-quad) mesh of a STEP
-                   or BREP model with Gmsh, ready for dice --geometry CAD
-  sheets  MESH     list the dicer sheets (edges that must share one interval)
-  dice    MESH -o STORE   choose intervals and write the implicit fine mesh
-  info    STORE    counts, blocks and settings of a store
-  query   STORE    fine nodes and elements by id (--node, --nodes, --element, --elements)
-  verify  STORE    stream through every fine element and check conformity,
-                   counts, coincident nodes and element quality
-  footprint STORE  bytes on disk and in memory vs an explicit mesh
-  export  STORE    a chunk, a box or the whole mesh to VTKHDF, MSH 4.1 or Exodus II
-  sweep   STORE    every fine node and element in N threads, rate and checksum
-
+)";
+  for (const auto& c : kCommands) {
+    std::string head = std::string("  ") + c.name + " " + c.args;
+    head += head.size() < 27 ? std::string(27 - head.size(), ' ') : "\n" + std::string(27, ' ');
+    std::string summary = c.summary;
+    for (size_t p = summary.find('\n'); p != std::string::npos; p = summary.find('\n', p + 1))
+      summary.insert(p + 1, std::string(27, ' '));
+    s += head + summary + "\n";
+  }
+  s += R"(
 mesh-coarse and --geometry run dicer-cad (the same commands built with Gmsh),
 installed beside dicer; DICER_CAD=PATH overrides where it is found.
 
 MESH is an Exodus II file (.e .exo .ex2 .g) or a Gmsh MSH 2.2/4.1 file
 (ASCII or binary) holding hexahedra (volume dicing) or quadrilaterals
-(surface dicing). STORE is the HDF5 file `dice` writes (.dice.h5).
+(surface dicing). STORE is the HDF5 file `dice` writes (.dice.h5). Every
+file argument must be a regular file (not a directory or a FIFO), and an
+output may not be the same file as an input.
 
-Example:
+Options are written --name VALUE or --name=VALUE; when an option that
+takes one value is given twice, the last one counts. Options marked
+"repeatable" keep every value.
+
+JSON (--json): one line per document, UTF-8. Bytes of a string that are
+not valid UTF-8 (a file or block name) become U+FFFD; a number that is not
+finite (NaN, Inf) is written as null; doubles are written in the shortest
+form that reads back to the same bits (at most 17 significant digits).
+
+Examples:
   dicer sheets examples/cardinal_sphere.e
   dicer dice examples/cardinal_sphere.e --interval 8 -o sphere.dice.h5
   dicer mesh-coarse part.step --size 4 -o coarse.msh
@@ -46,48 +81,46 @@ Example:
   dicer query sphere.dice.h5 --element 1000 --json
   dicer verify sphere.dice.h5
 
-Exit codes:
-  0 success            1 verify found a defect     2 bad command-line usage
-  3 bad input file     4 unsupported content       5 I/O error
-  6 counts overflow 64-bit ids                     7 mesh and CAD do not fit,
-                                                     or an element would invert
-  8 corrupt or unknown store                       70 internal error
-  130 interrupted (Ctrl-C): no output file was left behind
 )";
+  return s + dicer::cli::exit_code_help();
+}
 
 }  // namespace
 
 int main(int argc, char** argv) {
   using namespace dicer::cli;
+  using dicer::ErrorKind;
   std::vector<std::string> args(argv + 1, argv + argc);
   if (args.empty() || args[0] == "--help" || args[0] == "-h" || args[0] == "help") {
-    std::fputs(kUsage, args.empty() ? stderr : stdout);
-    return args.empty() ? 2 : 0;
+    std::fputs(usage().c_str(), args.empty() ? stderr : stdout);
+    return args.empty() ? exit_code(ErrorKind::Usage, 0) : kExitSuccess;
   }
   if (args[0] == "--version") {
     std::puts("dicer 0.1.0");
-    return 0;
+    return kExitSuccess;
   }
-  const std::map<std::string, Command> commands = {
-      {"sheets", cmd_sheets}, {"dice", cmd_dice}, {"info", cmd_info}, {"query", cmd_query}, {"verify", cmd_verify},
-      {"footprint", cmd_footprint}, {"export", cmd_export}, {"sweep", cmd_sweep}, {"mesh-coarse", cmd_mesh_coarse}};
-  auto it = commands.find(args[0]);
-  if (it == commands.end()) {
-    std::fprintf(stderr, "dicer: error: unknown command \"%s\" (commands: mesh-coarse, sheets, dice, info, query, verify, footprint, export, sweep; see dicer --help)\n",
-                 args[0].c_str());
-    return 2;
+  const CommandEntry* command = nullptr;
+  std::string names;
+  for (const auto& c : kCommands) {
+    if (args[0] == c.name) command = &c;
+    names += (names.empty() ? "" : ", ") + std::string(c.name);
+  }
+  if (!command) {
+    std::fprintf(stderr, "dicer: error: unknown command \"%s\" (commands: %s; see dicer --help)\n", args[0].c_str(),
+                 names.c_str());
+    return exit_code(ErrorKind::Usage, 0);
   }
   try {
     hand_over_if_cad(argv, args);
-    return it->second(std::vector<std::string>(args.begin() + 1, args.end()));
+    return command->run(std::vector<std::string>(args.begin() + 1, args.end()));
   } catch (const dicer::Error& e) {
-    std::fprintf(stderr, "dicer %s: error: %s\n", args[0].c_str(), e.what());
-    return static_cast<int>(e.kind());
+    std::fprintf(stderr, "dicer %s: error: %s\n", command->name, e.what());
+    return exit_code(e.kind(), received_signal());
   } catch (const std::bad_alloc&) {
-    std::fprintf(stderr, "dicer %s: error: out of memory\n", args[0].c_str());
+    std::fprintf(stderr, "dicer %s: error: out of memory\n", command->name);
     return kExitInternal;
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "dicer %s: internal error: %s\n", args[0].c_str(), e.what());
+    std::fprintf(stderr, "dicer %s: internal error: %s\n", command->name, e.what());
     return kExitInternal;
   }
 }

@@ -5,7 +5,7 @@
 # vtkHDFReader, meshio (with netCDF4 for Exodus) and Gmsh's Python API.
 set -euo pipefail
 pkgs=(cmake g++ make pkg-config libhdf5-dev liblz4-dev libexodusii-dev libnetcdf-dev libgmsh-dev
-      libgtest-dev libbenchmark-dev nlohmann-json3-dev
+      libgtest-dev libbenchmark-dev nlohmann-json3-dev libcli11-dev
       hdf5-tools hdf5-filter-plugin python3-h5py python3-hdf5plugin
       python3-vtk9 python3-meshio python3-netcdf4 python3-gmsh)
 missing=()

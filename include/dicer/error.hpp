@@ -18,10 +18,12 @@ enum class ErrorKind {
   Overflow = 6,     // requested fine counts do not fit 64-bit ids
   Geometry = 7,     // mesh and CAD do not match, or projection would invert an element
   Corrupt = 8,      // store page checksum or structure mismatch
+  Cancelled = 9,    // the caller asked to stop (a cancel callback, Ctrl-C); nothing was written
 };
 
 // Message convention: "<file>: <entity>: <what is wrong>". The CLI prints
-// what() on one line and exits with int(kind()).
+// what() on one line and maps kind() to its exit status through one table
+// (cli/exit_codes.cpp), not through the enum's values.
 class Error : public std::runtime_error {
  public:
   Error(ErrorKind kind, const std::string& message)

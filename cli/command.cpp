@@ -1,0 +1,282 @@
+#include "command.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <cstdio>
+#include <sstream>
+
+#include "common.hpp"
+#include "dicer/error.hpp"
+#include "dicer/fine_mesh.hpp"
+
+namespace dicer::cli {
+namespace {
+
+constexpr size_t kNameColumn = 26;  // where option descriptions start
+constexpr size_t kLineWidth = 80;
+
+bool looks_like_option(const std::string& a) {
+  // "-5" and "-.5" are values (negative numbers), "-" alone is a file name.
+  return a.size() > 1 && a[0] == '-' && !std::isdigit(static_cast<unsigned char>(a[1])) && a[1] != '.';
+}
+
+std::string indent_lines(const std::string& text, const std::string& pad) {
+  std::string out;
+  size_t start = 0;
+  while (start < text.size()) {
+    size_t end = text.find('\n', start);
+    if (end == std::string::npos) end = text.size();
+    if (end > start) out += pad + text.substr(start, end - start);
+    out += '\n';
+    start = end + 1;
+  }
+  return out;
+}
+
+// Word-wraps each line of `text` ('\n' is a forced break) that is wider
+// than `width`, keeping its indentation; narrower lines stay as written
+// (aligned JSON shapes).
+std::string wrap(const std::string& text, size_t width) {
+  std::string out;
+  std::istringstream lines(text);
+  bool first = true;
+  for (std::string line; std::getline(lines, line); first = false) {
+    if (!first) out += '\n';
+    if (line.size() <= width) {
+      out += line;
+      continue;
+    }
+    const size_t lead = std::min(line.find_first_not_of(' '), line.size());
+    std::istringstream words(line.substr(lead));
+    std::string cur(lead, ' ');
+    for (std::string w; words >> w;) {
+      if (cur.size() > lead && cur.size() + 1 + w.size() > width) out += cur + '\n', cur.assign(lead, ' ');
+      cur += (cur.size() > lead ? " " : "") + w;
+    }
+    out += cur;
+  }
+  return out;
+}
+
+}  // namespace
+
+Command::Command(const CommandDoc& doc) : doc_(doc), name_(doc.name), app_("", std::string("dicer ") + doc.name) {
+  // Unknown options and stray arguments come back in remaining(), so that
+  // parse() words the refusal ("unknown option --x (see dicer info --help)").
+  app_.allow_extras();
+  app_.set_help_flag("-h,--help", "this help");
+  app_.option_defaults()->multi_option_policy(CLI::MultiOptionPolicy::TakeLast);
+}
+
+void Command::input(const char* name, std::string& into, const char* description) {
+  inputs_.push_back(app_.add_option(name, into, description)->type_name("")->group("Arguments"));
+}
+
+CLI::Option* Command::value(const std::string& names, std::string& into, const char* value_name,
+                            const char* description, const std::string& group, const std::string& shown_default) {
+  CLI::Option* o = app_.add_option(names, into, description)->type_name(value_name)->group(group);
+  if (!shown_default.empty()) o->default_str(shown_default);
+  else if (!into.empty()) o->default_str(into);
+  return o;
+}
+
+CLI::Option* Command::values(const std::string& names, std::vector<std::string>& into, const char* value_name,
+                             const char* description, const std::string& group) {
+  // One value per occurrence: "--block-interval 2=4 MESH" must leave MESH alone.
+  return app_.add_option(names, into, description)
+      ->type_name(value_name)
+      ->group(group)
+      ->expected(1)
+      ->allow_extra_args(false)
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+}
+
+CLI::Option* Command::flag(const std::string& names, bool& into, const char* description, const std::string& group) {
+  return app_.add_flag(names, into, description)->group(group);
+}
+
+CLI::Option* Command::input_value(const std::string& names, std::string& into, const char* value_name,
+                                  const char* description, const std::string& group) {
+  CLI::Option* o = value(names, into, value_name, description, group);
+  inputs_.push_back(o);
+  return o;
+}
+
+void Command::output(std::string& into, const char* value_name, const char* description) {
+  output_ = value("-o,--output", into, value_name, description);
+  require(output_, "the output file");
+}
+
+void Command::require(CLI::Option* o, const std::string& what) { required_.emplace_back(o, what); }
+
+std::string Command::display_name(const CLI::Option* o) const {
+  if (o->get_positional()) return o->get_name(true);
+  const std::string flag = o->get_snames().empty() ? "--" + o->get_lnames().front() : "-" + o->get_snames().front();
+  return o->get_type_name().empty() ? flag : flag + " " + o->get_type_name();
+}
+
+void Command::usage_error(const std::string& message) const {
+  throw Error(ErrorKind::Usage, message + " (see dicer " + name_ + " --help)");
+}
+
+bool Command::parse(const std::vector<std::string>& argv) {
+  std::vector<std::string> args;
+  for (const auto& a : argv) {
+    // "-o=FILE" means "-o FILE" (CLI11 would keep the "=" in the value).
+    if (a.size() > 2 && a[0] == '-' && a[1] != '-' && a[2] == '=' && app_.get_option_no_throw(a.substr(0, 2))) {
+      args.push_back(a.substr(0, 2)), args.push_back(a.substr(3));
+    } else {
+      args.push_back(a);
+    }
+  }
+  // A value option that ends the command line: say so by its name (CLI11's
+  // own words would be "1 required N missing").
+  if (!args.empty()) {
+    const CLI::Option* last = looks_like_option(args.back()) ? app_.get_option_no_throw(args.back()) : nullptr;
+    if (last && last->get_items_expected_max() > 0) usage_error(args.back() + " needs a value");
+  }
+  std::reverse(args.begin(), args.end());  // CLI11 takes them last first
+  try {
+    app_.parse(args);
+  } catch (const CLI::CallForHelp&) {
+    std::fputs(help().c_str(), stdout);
+    return false;
+  } catch (const CLI::ParseError& e) {
+    usage_error(e.what());
+  }
+  const std::vector<std::string> extra = app_.remaining();
+  for (const auto& a : extra)
+    if (looks_like_option(a)) usage_error("unknown option " + a.substr(0, a.find('=')));
+  if (!extra.empty()) usage_error("unexpected argument \"" + extra.front() + "\"");
+  for (const CLI::Option* in : inputs_)
+    if (in->get_positional() && !given(in)) usage_error("missing " + display_name(in));
+  for (const auto& [o, what] : required_)
+    if (!given(o)) throw Error(ErrorKind::Usage, "missing " + display_name(o) + " (" + what + ")");
+  std::vector<std::pair<std::string, std::string>> files;
+  for (const CLI::Option* in : inputs_) {
+    if (!given(in)) continue;
+    const std::string path = in->as<std::string>(), role = in->get_positional() ? in->get_name(true) : display_name(in);
+    check_input_file(path, role);
+    files.emplace_back(path, role);
+  }
+  if (output_ && given(output_)) check_output_file(output_->as<std::string>(), "-o", files);
+  return true;
+}
+
+std::string Command::help() const {
+  std::string s = std::string("Usage: dicer ") + doc_.synopsis + "\n\n" + doc_.about;
+  // The argument first, then the groups in the order of their first
+  // option; the help flag closes "Options".
+  const auto options = app_.get_options();
+  std::vector<std::string> groups = {"Arguments", "Options"};
+  for (const CLI::Option* o : options)
+    if (std::find(groups.begin(), groups.end(), o->get_group()) == groups.end()) groups.push_back(o->get_group());
+  auto entry = [&](const CLI::Option* o) {
+    std::string names;
+    if (o->get_positional()) names = o->get_name(true);
+    for (const auto& n : o->get_snames()) names += (names.empty() ? "-" : ", -") + n;
+    for (const auto& n : o->get_lnames()) names += (names.empty() ? "--" : ", --") + n;
+    if (!o->get_type_name().empty()) names += " " + o->get_type_name();
+    std::string head = "  " + names;
+    head += head.size() + 2 <= kNameColumn ? std::string(kNameColumn - head.size(), ' ') : "\n" + std::string(kNameColumn, ' ');
+    std::vector<std::string> notes;
+    if (std::any_of(required_.begin(), required_.end(), [&](const auto& r) { return r.first == o; })) notes.push_back("required");
+    if (o->get_multi_option_policy() == CLI::MultiOptionPolicy::TakeAll) notes.push_back("repeatable");
+    if (!o->get_default_str().empty()) notes.push_back("default: " + o->get_default_str());
+    std::string desc = o->get_description();
+    if (!notes.empty()) {
+      desc += " (";
+      for (size_t i = 0; i < notes.size(); ++i) desc += (i ? "; " : "") + notes[i];
+      desc += ")";
+    }
+    return head + indent_lines(wrap(desc, kLineWidth - kNameColumn), std::string(kNameColumn, ' ')).substr(kNameColumn);
+  };
+  for (const auto& g : groups) {
+    std::string block;
+    for (const CLI::Option* o : options)
+      if (o->get_group() == g && o != app_.get_help_ptr()) block += entry(o);
+    if (g == "Options") block += entry(app_.get_help_ptr());
+    if (!block.empty()) s += "\n" + g + ":\n" + block;
+  }
+  s += "\nExamples:\n" + indent_lines(doc_.examples, "  ");
+  return s;
+}
+
+// ---- the option sets shared by several commands
+
+StoreFlags::StoreFlags(Command& cmd)
+    : command_(cmd.name()),
+      cache_mb_(std::to_string(StoreOptions{}.cache_bytes >> 20)),
+      read_ahead_(std::to_string(StoreOptions{}.read_ahead_pages)) {
+  const std::string group = "Store options (every command that opens a store)";
+  cmd.value("--cache-mb", cache_mb_, "N",
+            "page cache budget in MiB: decoded pages resident at once; "
+            "memory stays under it plus a small constant",
+            group);
+  cmd.value("--read-ahead", read_ahead_, "N",
+            "pages read ahead when rows are read in order, 0 to 1024", group);
+  cmd.flag("--stats", stats_,
+           "print the page cache counters to stderr when done: pages "
+           "and bytes read, bytes decompressed, hits, misses, "
+           "evictions, peak resident bytes",
+           group);
+}
+
+StoreOptions StoreFlags::options() const {
+  StoreOptions o;
+  const auto mb = parse_int("--cache-mb", cache_mb_);
+  if (mb < 1 || mb > (1ll << 30)) throw Error(ErrorKind::Usage, "--cache-mb: must be between 1 and 2^30 (MiB)");
+  o.cache_bytes = static_cast<std::uint64_t>(mb) << 20;
+  const auto n = parse_int("--read-ahead", read_ahead_);
+  if (n < 0 || n > 1024) throw Error(ErrorKind::Usage, "--read-ahead: must be between 0 and 1024 pages");
+  o.read_ahead_pages = static_cast<unsigned>(n);
+  return o;
+}
+
+void StoreFlags::report(const FineMesh& mesh) const {
+  if (stats_) print_cache_stats(mesh, command_);
+}
+
+IntervalFlags::IntervalFlags(Command& cmd) {
+  const std::string group = "Interval options (precedence: sheet > block > size > global > 1)";
+  interval_opt_ = cmd.value("--interval", interval_, "N", "every sheet gets N", group, "1");
+  size_opt_ = cmd.value("--size", size_, "H",
+            "each sheet gets the smallest N that makes all its edges no "
+            "longer than H",
+            group);
+  cmd.values("--block-interval", blocks_, "B=N",
+             "sheets touching block B (id or name) get N; a sheet "
+             "touching several such blocks gets the LARGEST, and the "
+             "conflict is reported",
+             group);
+  cmd.values("--sheet-interval", sheets_, "S=N", "sheet S gets N, whatever its blocks ask", group);
+  file_opt_ = cmd.input_value("--intervals-file", file_, "FILE",
+                  "JSON with any of these keys:\n"
+                  "{\"global\": 4, \"size\": 0.05, \"blocks\": {\"2\": 6,\n"
+                  "\"inlet\": 3}, \"sheets\": {\"17\": 12}}\n"
+                  "flags on the command line override the file",
+                  group);
+}
+
+IntervalRequest IntervalFlags::request() const {
+  IntervalRequest file;
+  if (file_opt_->count()) file = read_interval_file(file_);
+  IntervalRequest flags;
+  if (interval_opt_->count()) flags.global = parse_int("--interval", interval_);
+  if (size_opt_->count()) flags.size = parse_double("--size", size_);
+  for (const auto& kv : blocks_) {
+    const auto eq = kv.rfind('=');
+    if (eq == std::string::npos || eq == 0)
+      throw Error(ErrorKind::Usage, "--block-interval: \"" + kv + "\" is not BLOCK=N");
+    flags.blocks.emplace_back(kv.substr(0, eq), parse_int("--block-interval " + kv, kv.substr(eq + 1)));
+  }
+  for (const auto& kv : sheets_) {
+    const auto eq = kv.find('=');
+    if (eq == std::string::npos) throw Error(ErrorKind::Usage, "--sheet-interval: \"" + kv + "\" is not SHEET=N");
+    flags.sheets.emplace_back(parse_int("--sheet-interval " + kv, kv.substr(0, eq)),
+                              parse_int("--sheet-interval " + kv, kv.substr(eq + 1)));
+  }
+  return merge(file, flags);
+}
+
+}  // namespace dicer::cli
