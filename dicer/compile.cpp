@@ -35,9 +35,6 @@ FineMesh compile(std::shared_ptr<const CoarseMesh> cm, const Topology& t, const 
     v.reserve(static_cast<size_t>(rows * w));
     return Table<T>(w, std::move(v));
   };
-  std::vector<double> verts(static_cast<size_t>(nv) * 3);
-  for (Id v = 0; v < nv; ++v) verts[3 * v] = m.x[v], verts[3 * v + 1] = m.y[v], verts[3 * v + 2] = m.z[v];
-  tab.vertices = Table<double>(3, std::move(verts));
   tab.vertex_nodes = make(std::int64_t{}, RowTable::VertexNodes, nv);
   tab.edges = make(std::int64_t{}, RowTable::Edges, ne);
   tab.faces = make(std::int64_t{}, RowTable::Faces, nf);
@@ -49,7 +46,13 @@ FineMesh compile(std::shared_ptr<const CoarseMesh> cm, const Topology& t, const 
     vowner[2 * v] = m.vertex_geo_dim[v], vowner[2 * v + 1] = m.vertex_geo_tag[v];
   tab.vertex_owner = Table<std::int32_t>(2, std::move(vowner));
 
-  for (Id v = 0; v < nv; ++v) write_row(tab, v, VertexRow{t.vertex_owner_elem[v], num.vertex_node(v)});
+  const int nc = m.corners_per_element();
+  for (Id v = 0; v < nv; ++v) {
+    const Id h = t.vertex_owner_elem[v];
+    int slot = 0;
+    while (slot < nc && m.conn[static_cast<size_t>(h) * nc + slot] != v) ++slot;
+    write_row(tab, v, VertexRow{h, slot, num.vertex_node(v)});
+  }
   for (Id e = 0; e < ne; ++e)
     write_row(tab, e, EdgeRow{t.edge_v[2 * e], t.edge_v[2 * e + 1], num.edge_n(e), num.edge_node(e), edge_sheet[e],
                               t.edge_owner_elem[e], -1, -1});
@@ -66,7 +69,7 @@ FineMesh compile(std::shared_ptr<const CoarseMesh> cm, const Topology& t, const 
   info.blocks = m.blocks;
   info.block_coarse_elements.assign(m.blocks.size(), 0);
   info.block_fine_elements.assign(m.blocks.size(), 0);
-  const int nc = m.corners_per_element(), epe = t.edges_per_element(), fpe = t.faces_per_element();
+  const int epe = t.edges_per_element(), fpe = t.faces_per_element();
   for (Id h = 0; h < nh; ++h) {
     ElementRow r;
     Vec3 xyz[8];
@@ -150,20 +153,18 @@ void FineMesh::set_vertex(Id v, const Vec3& x, int dim, int tag) {
   require_memory("set_vertex");
   serial_ = next_serial();
   if (tables_.bounding.rows() > 0) throw Error(ErrorKind::Usage, "set_vertex after nodes were moved");
-  if (v < 0 || v >= tables_.vertices.rows()) throw Error(ErrorKind::Usage, "set_vertex: no vertex " + std::to_string(v));
-  auto& m = tables_.vertices.memory();
-  m[3 * v] = x.x, m[3 * v + 1] = x.y, m[3 * v + 2] = x.z;
+  if (v < 0 || v >= tables_.num_vertices()) throw Error(ErrorKind::Usage, "set_vertex: no vertex " + std::to_string(v));
   auto& o = tables_.vertex_owner.memory();
   o[2 * v] = dim, o[2 * v + 1] = tag;
-  // The corners table holds copies of vertex coordinates (bit-identical by
-  // construction): every element using v is updated through a lazily built
-  // vertex -> (element, corner) index.
+  // The corners table holds the vertex coordinates, one copy per element
+  // using the vertex (bit-identical by construction): all are updated,
+  // through a lazily built vertex -> (element, corner) index.
   const int nc = corners();
   const Id nh = tables_.elements.rows();
   if (vertex_uses_.empty()) {
     MeshCursor cur;
     const RowReader R(tables_, cur);
-    vertex_uses_offset_.assign(static_cast<size_t>(tables_.vertices.rows()) + 1, 0);
+    vertex_uses_offset_.assign(static_cast<size_t>(tables_.num_vertices()) + 1, 0);
     for (Id h = 0; h < nh; ++h) {
       const ElementRow r = R.element(h);
       for (int k = 0; k < nc; ++k) ++vertex_uses_offset_[r.corner[k] + 1];

@@ -93,8 +93,8 @@ VerifyReport verify(const FineMesh& mesh, const std::function<void(Id, Id)>& pro
 
   // Coincident coarse vertices (the only nodes two blocks can share by position alone).
   {
-    std::vector<std::array<double, 3>> pts(static_cast<size_t>(t.vertices.rows()));
-    for (Id v = 0; v < t.vertices.rows(); ++v) {
+    std::vector<std::array<double, 3>> pts(static_cast<size_t>(t.num_vertices()));
+    for (Id v = 0; v < t.num_vertices(); ++v) {
       const Vec3 p = R.xyz(v);
       pts[v] = {p.x, p.y, p.z};
     }
@@ -330,13 +330,13 @@ VerifyReport verify(const FineMesh& mesh, const std::function<void(Id, Id)>& pro
         }
     }
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (Id v = 0; v < t.vertices.rows(); ++v) {
+    for (Id v = 0; v < t.num_vertices(); ++v) {
       const Vec3 p = R.xyz(v);
       const double c[3] = {p.x, p.y, p.z};
       for (int d = 0; d < 3; ++d) lo[d] = std::min(lo[d], c[d]), hi[d] = std::max(hi[d], c[d]);
     }
     double diag = 0;
-    for (int d = 0; d < 3 && t.vertices.rows() > 0; ++d) diag += (hi[d] - lo[d]) * (hi[d] - lo[d]);
+    for (int d = 0; d < 3 && t.num_vertices() > 0; ++d) diag += (hi[d] - lo[d]) * (hi[d] - lo[d]);
     const Id before = r.coincident_nodes;
     detail::find_coincident_nodes(mesh, facets, 1e-9 * std::sqrt(diag), r, [&](const std::string& s) {
       (r.coincident_nodes > r.coincident_interface ? r.problems : r.warnings).push_back(s);

@@ -170,8 +170,8 @@ class Conformer {
     const bool vol = mesh_.mode() == Mode::Volume;
     cand_face_.assign(static_cast<size_t>(F), 0);
     boundary_face_.assign(static_cast<size_t>(F), 0);
-    need_vertex_.assign(static_cast<size_t>(T_.vertices.rows()), 0);
-    boundary_vertex_.assign(static_cast<size_t>(T_.vertices.rows()), 0);
+    need_vertex_.assign(static_cast<size_t>(T_.num_vertices()), 0);
+    boundary_vertex_.assign(static_cast<size_t>(T_.num_vertices()), 0);
     for (Id f = 0; f < F; ++f) {
       const FaceRow r = face(f);
       bool classified = true;
@@ -190,7 +190,7 @@ class Conformer {
   }
 
   void assign_vertices() {
-    const Id V = T_.vertices.rows();
+    const Id V = T_.num_vertices();
     vowner_.assign(static_cast<size_t>(V), Owner{});
     snap_.assign(static_cast<size_t>(V), Vec3{});
     std::vector<double> best(static_cast<size_t>(V), INFINITY);
@@ -351,7 +351,7 @@ class Conformer {
   }
 
   void snap_vertices() {
-    for (Id v = 0; v < T_.vertices.rows(); ++v) {
+    for (Id v = 0; v < T_.num_vertices(); ++v) {
       if (vowner_[v].dim < 0 || vowner_[v].dim > 2) continue;
       rep_.max_vertex_snap = std::max(rep_.max_vertex_snap, dist(vertex(v), snap_[v]));
       mesh_.set_vertex(v, snap_[v], vowner_[v].dim, vowner_[v].tag);
@@ -528,7 +528,7 @@ GeometryCheck check_geometry(const FineMesh& mesh, const std::string& cad_path, 
         g.worst_entity = std::string(dim_name(dim)) + " " + std::to_string(tag);
     }
   };
-  const Id V = T.vertices.rows(), E = T.edges.rows(), F = T.faces.rows();
+  const Id V = T.num_vertices(), E = T.edges.rows(), F = T.faces.rows();
   const Id total = V + E + F;
   // Vertices, grouped per entity for batched projections.
   std::map<std::pair<int, int>, std::pair<std::vector<Vec3>, std::vector<Id>>> groups;

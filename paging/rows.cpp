@@ -11,7 +11,7 @@ namespace {
 
 // ---------------------------------------------------------------- columns
 
-enum VertexCol : int { kVertexOwner = 0, kVertexNode, kVertexWidth };
+enum VertexCol : int { kVertexOwner = 0, kVertexCorner, kVertexNode, kVertexWidth };
 enum EdgeCol : int { kEdgeLo = 0, kEdgeHi, kEdgeN, kEdgeNode, kEdgeSheet, kEdgeOwner, kEdgeGeo, kEdgeBound, kEdgeWidth };
 enum FaceCol : int {
   kFaceV = 0, kFaceE = 4, kFaceNu = 8, kFaceNv, kFaceNode, kFaceOwner, kFaceGeo, kFaceBound, kFaceWidth
@@ -79,20 +79,18 @@ bool geo_ok(std::int64_t g) { return g == -1 || (g >= 0 && owner_dim(g) <= 3); }
 }  // namespace
 
 Vec3 RowReader::xyz(Id v) const {
-  if (v < 0 || v >= t_.vertices.rows())
-    throw Error(ErrorKind::Corrupt, (t_.origin.empty() ? std::string("in memory") : t_.origin) +
-                                        ": coarse/vertices: vertex id " + std::to_string(v) + " out of range");
-  const double* r = t_.vertices.row(v, c_.vertices);
-  if (!std::isfinite(r[0]) || !std::isfinite(r[1]) || !std::isfinite(r[2]))
-    throw Error(ErrorKind::Corrupt, (t_.origin.empty() ? std::string("in memory") : t_.origin) +
-                                        ": coarse/vertices row " + std::to_string(v) + ": coordinate is not finite");
-  return {r[0], r[1], r[2]};
+  const VertexRow o = vertex(v);
+  Vec3 c[8];
+  corner_xyz(o.owner_element, c);
+  return c[o.corner];
 }
 
 VertexRow RowReader::vertex(Id v) const {
   if (v < 0 || v >= t_.vertex_nodes.rows()) corrupt(RowTable::VertexNodes, v, "vertex id out of range");
   const std::int64_t* r = t_.vertex_nodes.row(v, c_.vertex_nodes);
-  const VertexRow out{r[kVertexOwner], r[kVertexNode]};
+  if (r[kVertexCorner] < 0 || r[kVertexCorner] >= corners())
+    corrupt(RowTable::VertexNodes, v, "corner slot " + std::to_string(r[kVertexCorner]) + " out of range");
+  const VertexRow out{r[kVertexOwner], static_cast<int>(r[kVertexCorner]), r[kVertexNode]};
   if (out.owner_element < 0 || out.owner_element >= t_.elements.rows())
     corrupt(RowTable::VertexNodes, v, "owner element " + std::to_string(out.owner_element) + " out of range");
   if (out.node < 0 || out.node >= t_.fine_nodes) corrupt(RowTable::VertexNodes, v, "node id " + std::to_string(out.node) + " out of range");
@@ -105,7 +103,7 @@ EdgeRow RowReader::edge(Id e) const {
   EdgeRow o;
   o.lo = r[kEdgeLo], o.hi = r[kEdgeHi], o.n = r[kEdgeN], o.node = r[kEdgeNode], o.sheet = r[kEdgeSheet];
   o.owner_element = r[kEdgeOwner], o.geo = r[kEdgeGeo], o.bound = r[kEdgeBound];
-  const Id V = t_.vertices.rows();
+  const Id V = t_.num_vertices();
   if (o.lo < 0 || o.hi >= V || o.lo >= o.hi) corrupt(RowTable::Edges, e, "vertex ids out of range or not ascending");
   if (!interval_ok(o.n)) corrupt(RowTable::Edges, e, "interval " + std::to_string(o.n) + " out of range");
   if (!range_ok(o.node, o.n - 1, t_.fine_nodes)) corrupt(RowTable::Edges, e, "node ids outside the mesh");
@@ -125,7 +123,7 @@ FaceRow RowReader::face(Id f) const {
   o.nu = r[kFaceNu], o.nv = r[kFaceNv], o.node = r[kFaceNode], o.owner_element = r[kFaceOwner];
   o.geo = r[kFaceGeo], o.bound = r[kFaceBound];
   for (int k = 0; k < 4; ++k) {
-    if (o.v[k] < 0 || o.v[k] >= t_.vertices.rows()) corrupt(RowTable::Faces, f, "corner vertex id out of range");
+    if (o.v[k] < 0 || o.v[k] >= t_.num_vertices()) corrupt(RowTable::Faces, f, "corner vertex id out of range");
     if (o.e[k] < 0 || o.e[k] >= t_.edges.rows()) corrupt(RowTable::Faces, f, "side edge id out of range");
   }
   if (!interval_ok(o.nu) || !interval_ok(o.nv) || i128{o.nu + 1} * (o.nv + 1) > kMaxElementPoints)
@@ -165,7 +163,7 @@ ElementRow RowReader::element(Id h) const {
   o.block = static_cast<std::int32_t>(block);
   if (o.flags >= (std::uint64_t{1} << (ElementRow::kCurvedBit + 1))) corrupt(RT, h, "unknown flag bits");
   for (int k = 0; k < L.c; ++k)
-    if (o.corner[k] < 0 || o.corner[k] >= t_.vertices.rows() || o.corner_node[k] < 0 || o.corner_node[k] >= t_.fine_nodes)
+    if (o.corner[k] < 0 || o.corner[k] >= t_.num_vertices() || o.corner_node[k] < 0 || o.corner_node[k] >= t_.fine_nodes)
       corrupt(RT, h, "corner " + std::to_string(k) + " out of range");
   for (int k = 0; k < L.e; ++k) {
     const Id n = o.n[vol ? k / 4 : k / 2];
@@ -236,7 +234,7 @@ T* row_for_write(Table<T>& t, Id i) {
 
 void write_row(MeshTables& t, Id v, const VertexRow& r) {
   std::int64_t* o = row_for_write(t.vertex_nodes, v);
-  o[kVertexOwner] = r.owner_element, o[kVertexNode] = r.node;
+  o[kVertexOwner] = r.owner_element, o[kVertexCorner] = r.corner, o[kVertexNode] = r.node;
 }
 
 void write_row(MeshTables& t, Id e, const EdgeRow& r) {

@@ -249,7 +249,7 @@ void write_store(const FineMesh& mesh, const std::string& path,
     const std::int64_t rpp = rows_per_page(tab.width(), sizeof(tab.memory()[0]));
     return (tab.rows() + rpp - 1) / rpp;
   };
-  wp.total = pages(t.vertices) + pages(t.vertex_nodes) + pages(t.edges) + pages(t.faces) + pages(t.elements) +
+  wp.total = pages(t.vertex_nodes) + pages(t.edges) + pages(t.faces) + pages(t.elements) +
              pages(t.corners) + pages(t.bounding) + pages(t.vertex_owner) + 40;
   g_write_progress = &wp;
   struct Reset {
@@ -272,7 +272,6 @@ void write_store(const FineMesh& mesh, const std::string& path,
       f.write_attr("bounding_nodes", t.bounding.rows());
       f.write_attr("page_bytes", static_cast<std::int64_t>(kStorePageBytes));
       for (const char* g : {"coarse", "topology", "sheets", "numbering", "geometry", "sets"}) f.group(g);
-      write_paged(f, "coarse/vertices", t.vertices.memory(), 3);
       write_paged(f, "coarse/vertex_file_id", c->vertex_file_id);
       write_paged(f, row_dataset(RowTable::VertexNodes), t.vertex_nodes.memory(), t.vertex_nodes.width());
       write_paged(f, "geometry/vertex_owner", t.vertex_owner.memory(), 2);
@@ -374,7 +373,6 @@ FineMesh read_store(const std::string& path, const StoreOptions& options) {
     return Table<T>(width, a.rows, cache, id, a.rows_per_page);
   };
   const Mode m = info.mode;
-  tab.vertices = paged(double{}, "coarse/vertices", 3, info.coarse_vertices);
   tab.vertex_nodes = paged(std::int64_t{}, row_dataset(RowTable::VertexNodes), row_width(RowTable::VertexNodes, m),
                            info.coarse_vertices);
   tab.edges = paged(std::int64_t{}, row_dataset(RowTable::Edges), row_width(RowTable::Edges, m), info.coarse_edges);

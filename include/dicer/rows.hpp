@@ -32,9 +32,11 @@ namespace dicer {
 // held anyway; it keeps every product of a row's intervals within 64 bits.
 inline constexpr Id kMaxElementPoints = Id{1} << 40;
 
-// topology/vertex_nodes: who owns vertex v and its fine node id.
+// topology/vertex_nodes: who owns vertex v (the corner slot it is at in
+// its owner: its coordinates are that corner's) and its fine node id.
 struct VertexRow {
   Id owner_element = -1;
+  int corner = 0;
   Id node = -1;
 };
 
@@ -107,7 +109,7 @@ class RowReader {
   int edges() const { return t_.mode == Mode::Volume ? 12 : 4; }
   int faces() const { return t_.mode == Mode::Volume ? 6 : 1; }
 
-  Vec3 xyz(Id v) const;                       // coarse/vertices; v checked
+  Vec3 xyz(Id v) const;                       // its owner's corner; v checked
   VertexRow vertex(Id v) const;
   EdgeRow edge(Id e) const;
   FaceRow face(Id f) const;

@@ -10,12 +10,13 @@
 // What a row holds is the business of the row layer (rows.hpp): read and
 // write table rows only through its typed, validated views. The tables
 // (ids 0-based, in the store's numbering, every entity in owner order):
-//   vertices        [V x 3] float64  coordinates
-//   vertex_nodes    [V x 2]  owner element, fine node id
+//   vertex_nodes    [V x 3]  owner element, its corner slot, fine node id:
+//                   a vertex's coordinates are its owner's corner there
 //   edges           [E x 8], faces [F x 14], elements [H x W]: rows.hpp
-//   corners         [H x 3c] float64  the element's c corner coordinates,
-//                   so that a sweep over straight elements reads nothing
-//                   but `elements` and `corners`, each page once
+//   corners         [H x 3c] float64  the element's c corner coordinates:
+//                   the only coordinates of the coarse mesh, so that a
+//                   sweep over straight elements reads nothing but
+//                   `elements` and `corners`, each page once
 //   bounding        [N x 3]  the bounding fine arrays (nodes moved onto the
 //                   CAD or a curved coarse element), tfi::bounding_code
 //   vertex_owner    [V x 2] int32 geometric entity (dim, tag), -1 unknown
@@ -128,18 +129,18 @@ struct MeshTables {
   // first owned node id and first fine element id on every page of
   // `elements`, so an id -> element search reads one page. O(pages).
   std::vector<std::int64_t> node_index, element_index;
-  Table<double> vertices;
   Table<std::int64_t> vertex_nodes, edges, faces, elements;
   Table<double> corners;
   Table<std::int64_t> bounding;       // [N x 3], N = 0 without moved nodes
   Table<std::int32_t> vertex_owner;   // [V x 2]
+  Id num_vertices() const { return vertex_nodes.rows(); }
 };
 
 // One cursor per table: what a reader (a block, a query, a thread) carries.
 struct MeshCursor {
-  TableCursor vertices, vertex_nodes, edges, faces, elements, corners, bounding, vertex_owner;
+  TableCursor vertex_nodes, edges, faces, elements, corners, bounding, vertex_owner;
   void release() {
-    vertices.release(), vertex_nodes.release(), edges.release(), faces.release(), elements.release();
+    vertex_nodes.release(), edges.release(), faces.release(), elements.release();
     corners.release(), bounding.release(), vertex_owner.release();
   }
 };

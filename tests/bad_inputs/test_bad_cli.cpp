@@ -331,7 +331,9 @@ TEST(BadCli, QueryJsonCoordinatesAreExactForAwkwardDoubles) {
   {
     hid_t f = H5Fopen(store.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
     ASSERT_GE(f, 0);
-    test::forge_page(f, "coarse/vertices", 0, [&](std::vector<std::uint8_t>& page) {
+    // The corners table holds the coarse coordinates (a vertex's are its
+    // owner's corner); at interval 1 every fine node is a coarse vertex.
+    test::forge_page(f, "topology/element_corners", 0, [&](std::vector<std::uint8_t>& page) {
       const size_t n = std::min(page.size() / 8, size_t{321 * 3});
       std::memcpy(page.data(), values.data(), n * 8);
     }, true);

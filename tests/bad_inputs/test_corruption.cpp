@@ -57,15 +57,15 @@ TEST(Corruption, ADamagedPageWithAValidChecksumIsSeenAsDifferentData) {
     // the sweep's comparison can tell.
     hid_t f = H5Fopen(forged.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
     ASSERT_GE(f, 0);
-    test::forge_page(f, "coarse/vertices", 0, [](std::vector<std::uint8_t>& page) {
+    test::forge_page(f, "topology/element_corners", 0, [](std::vector<std::uint8_t>& page) {
       double x = 0;
-      std::memcpy(&x, page.data() + 5 * sizeof(double), sizeof x);  // vertex 1, z
+      std::memcpy(&x, page.data() + 5 * sizeof(double), sizeof x);  // element 0, corner 1, z
       x = std::nextafter(x, 1e300);
       std::memcpy(page.data() + 5 * sizeof(double), &x, sizeof x);
     }, true);
     H5Fclose(f);
   }
-  const corruption::TrialResult t = trials.check(forged, corruption::Chunk{"coarse/vertices", 0, 0, 0});
+  const corruption::TrialResult t = trials.check(forged, corruption::Chunk{"topology/element_corners", 0, 0, 0});
   EXPECT_EQ(t.outcome, corruption::Outcome::DifferentData) << t.message;
   EXPECT_FALSE(t.message.empty());
 }

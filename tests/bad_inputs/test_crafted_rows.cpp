@@ -102,7 +102,8 @@ std::vector<Column> all_columns(bool volume) {
   out.push_back({fa, 12, "geometric owner", [](const Store&) { return std::int64_t{-7}; }});
   out.push_back({fa, 13, "bounding row", [](const Store&) { return std::int64_t{0}; }});
   out.push_back({vn, 0, "owner element", [](const Store& s) { return s.H + 10; }});
-  out.push_back({vn, 1, "node", [](const Store& s) { return s.nodes; }});
+  out.push_back({vn, 1, "corner slot", [](const Store&) { return std::int64_t{8}; }});
+  out.push_back({vn, 2, "node", [](const Store& s) { return s.nodes; }});
   return out;
 }
 

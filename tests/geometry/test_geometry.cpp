@@ -85,7 +85,7 @@ void for_each_cad_node(const FineMesh& m, const std::function<void(Id, const Vec
     r.kind = k, r.entity = ent, r.local = {a, b, 0};
     fn(m.node_id(r, cur), m.node(r, cur));
   };
-  for (Id v = 0; v < T.vertices.rows(); ++v) {
+  for (Id v = 0; v < T.num_vertices(); ++v) {
     const auto o = m.owner(EntityKind::Vertex, v, cur);
     if (owner_dim(o) >= 0 && owner_dim(o) <= 2) visit(EntityKind::Vertex, v, 0, 0);
   }

@@ -204,7 +204,6 @@ Fingerprint sweep(const std::string& path) {
     f.elements = hel.h;
 
     const MeshTables& t = m.tables();
-    f.tables["coarse/vertices"] = hash_table(t.vertices);
     f.tables["topology/vertex_nodes"] = hash_table(t.vertex_nodes);
     f.tables["topology/edges"] = hash_table(t.edges);
     f.tables["topology/faces"] = hash_table(t.faces);
