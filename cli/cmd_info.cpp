@@ -26,7 +26,8 @@ int cmd_info(const std::vector<std::string>& argv) {
   cmd.flag("--json", json,
            "one JSON object with keys mode, source, format_version, "
            "store_bytes, coarse_vertices, coarse_edges, coarse_faces, "
-           "coarse_elements, sheets, fine_nodes, fine_elements, "
+           "coarse_elements, sheets, sheet_intervals (one per sheet, "
+           "in dicer sheets' numbering), fine_nodes, fine_elements, "
            "blocks [{id, name, coarse_elements, fine_elements}]");
   StoreFlags store(cmd);
   if (!cmd.parse(argv)) return 0;
@@ -53,6 +54,7 @@ int cmd_info(const std::vector<std::string>& argv) {
                 {"coarse_faces", c.coarse_faces},
                 {"coarse_elements", c.coarse_elements},
                 {"sheets", c.sheets},
+                {"sheet_intervals", m.sheet_intervals()},
                 {"fine_nodes", m.num_nodes()},
                 {"fine_elements", m.num_elements()},
                 {"blocks", blocks}});

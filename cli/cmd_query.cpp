@@ -19,8 +19,11 @@ static const CommandDoc kDoc = {
 half-open: --nodes 1000:2000 prints ids 1000..1999, one line each. Give
 exactly one of --node, --nodes, --element, --elements, --box.
 
-Node ids: coarse vertices first, then the interior nodes of each coarse
-edge, face and hex. Element ids: coarse element order, then i, j, k.
+Node ids (store format 6, owner order): coarse element by coarse element
+in the store's order, the nodes of the vertices, edges and faces it owns
+(the lowest coarse element containing them), then its interior; so the
+nodes of any range of coarse elements, a chunk, are one id range. Element
+ids: coarse element order, then i, j, k.
 Coordinates are printed with 17 significant digits (text) or in the
 shortest form that reads back exactly (JSON): both give the same bits.
 )",

@@ -8,6 +8,8 @@
 #include <vector>
 
 #include "common.hpp"
+#include "dicer/store.hpp"
+#include "dicer/version.hpp"
 #include "dicer/error.hpp"
 #include "exit_codes.hpp"
 
@@ -96,7 +98,7 @@ int main(int argc, char** argv) {
     return args.empty() ? exit_code(ErrorKind::Usage, 0) : kExitSuccess;
   }
   if (args[0] == "--version") {
-    std::puts("dicer 0.1.0");
+    std::printf("dicer %s (store format %d)\n", dicer::kVersion, dicer::kStoreFormatVersion);
     return kExitSuccess;
   }
   const CommandEntry* command = nullptr;

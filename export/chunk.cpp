@@ -171,7 +171,7 @@ void ExportChunk::prepare(const MeshSets& sets, const std::function<void(Id, Id)
   const RowReader R(mesh_.tables(), cur);
   FineBlock b;
   auto check_cancel = [&] {
-    if (cancel && cancel()) throw Error(ErrorKind::Usage, "interrupted");
+    if (cancel && cancel()) throw Error(ErrorKind::Cancelled, "interrupted");
   };
   node_global_.clear(), elem_global_.clear(), conn_.clear(), elem_block_.clear();
   x_.clear(), y_.clear(), z_.clear();

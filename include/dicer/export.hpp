@@ -70,7 +70,7 @@ class ExportChunk {
 
   // Generates everything; progress(done, total) after each coarse element;
   // cancel() is polled between coarse elements (returns true to stop: then
-  // prepare throws Error{Usage, "interrupted"}).
+  // prepare throws Error{Cancelled, "interrupted"}).
   void prepare(const MeshSets& sets, const std::function<void(Id, Id)>& progress = {},
                const std::function<bool()>& cancel = {});
 

@@ -43,6 +43,9 @@ TEST(Cli, DiceInfoQueryVerifyOnARealMesh) {
     EXPECT_TRUE(info.contains(k)) << k;
   ASSERT_EQ(info["blocks"].size(), 1u);
   EXPECT_EQ(info["blocks"][0]["fine_elements"], 256 * 27);
+  // One interval per sheet, as asked (every sheet at 3).
+  ASSERT_EQ(info["sheet_intervals"].size(), info["sheets"].get<size_t>());
+  for (const auto& n : info["sheet_intervals"]) EXPECT_EQ(n, 3);
   // V - E + F - H = 1 for a solid ball, on the coarse mesh.
   const long long euler = info["coarse_vertices"].get<long long>() - info["coarse_edges"].get<long long>() +
                           info["coarse_faces"].get<long long>() - info["coarse_elements"].get<long long>();
@@ -174,6 +177,22 @@ TEST(Cli, BadStoresAreRefusedClearly) {
   EXPECT_EQ(r.exit_code, 4);
   EXPECT_NE(r.err.find("version 99"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("reads version " + std::to_string(kStoreFormatVersion)), std::string::npos) << r.err;
+  // A store of the previous format (5, numbered by kind) is refused the same way.
+  {
+    hid_t f = H5Fopen(ver.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+    hid_t a = H5Aopen(f, "format_version", H5P_DEFAULT);
+    const long long v = 5;
+    H5Awrite(a, H5T_NATIVE_LLONG, &v);
+    H5Aclose(a);
+    H5Fclose(f);
+  }
+  r = run_cli({"query", ver, "--node", "0"});
+  EXPECT_EQ(r.exit_code, 4);
+  EXPECT_NE(r.err.find("store format version 5 is not known to this dicer (it reads version 6)"), std::string::npos) << r.err;
+  // --version names the project's version (CMake's project()) and the format.
+  r = run_cli({"--version"});
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_EQ(r.out, std::string("dicer ") + DICER_PROJECT_VERSION + " (store format 6)\n");
   r = run_cli({"query", miss, "--node", "0"});
   EXPECT_EQ(r.exit_code, 8);
   EXPECT_NE(r.err.find("topology/faces is missing"), std::string::npos) << r.err;
