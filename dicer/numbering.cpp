@@ -29,9 +29,9 @@ Numbering::Numbering(const Topology& t, std::vector<Id> edge_n) : edge_n_(std::m
   if (static_cast<Id>(edge_n_.size()) != ne)
     throw Error(ErrorKind::BadInput, "interval list has " + std::to_string(edge_n_.size()) + " entries for " +
                                          std::to_string(ne) + " edges");
-  if (static_cast<Id>(t.edge_owner_elem.size()) != ne || static_cast<Id>(t.face_owner_elem.size()) != nf ||
-      static_cast<Id>(t.vertex_owner_elem.size()) != nv)
-    throw Error(ErrorKind::Usage, "Numbering: the topology is not in owner order (call to_owner_order)");
+  DICER_ASSERT(static_cast<Id>(t.edge_owner_elem.size()) == ne && static_cast<Id>(t.face_owner_elem.size()) == nf &&
+                   static_cast<Id>(t.vertex_owner_elem.size()) == nv,
+               "Numbering needs a topology in owner order (to_owner_order)");
   for (Id e = 0; e < ne; ++e)
     if (edge_n_[e] < 1) throw Error(ErrorKind::BadInput, "edge " + std::to_string(e) + " has interval < 1");
   face_n_.resize(static_cast<size_t>(nf));
@@ -82,8 +82,7 @@ Numbering::Numbering(const Topology& t, std::vector<Id> edge_n) : edge_n_(std::m
     }
     element_first_[h + 1] = add(element_first_[h], mul(mul(n[0], n[1], "element"), n[2], "element"), "element");
   }
-  if (v != nv || e != ne || f != nf)
-    throw Error(ErrorKind::Usage, "Numbering: entities are not in owner order (to_owner_order)");
+  DICER_ASSERT(v == nv && e == ne && f == nf, "Numbering: every entity has its owner, in owner order");
   num_nodes_ = next;
 }
 

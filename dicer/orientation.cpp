@@ -2,6 +2,8 @@
 // that turns local corner orders into canonical ones.
 #include "dicer/orientation.hpp"
 
+#include "dicer/error.hpp"
+
 namespace dicer {
 
 FaceCode compose(FaceCode a, FaceCode b) {
@@ -11,13 +13,13 @@ FaceCode compose(FaceCode a, FaceCode b) {
       ok = code_corner(static_cast<FaceCode>(c), m) == code_corner(a, code_corner(b, m));
     if (ok) return static_cast<FaceCode>(c);
   }
-  return 0;  // unreachable: D4 is closed under composition
+  DICER_ASSERT(false, "the square's symmetries are closed under composition");
 }
 
 FaceCode inverse(FaceCode a) {
   for (int c = 0; c < 8; ++c)
     if (compose(static_cast<FaceCode>(c), a) == 0) return static_cast<FaceCode>(c);
-  return 0;  // unreachable
+  DICER_ASSERT(false, "every symmetry of the square has an inverse");
 }
 
 CanonicalQuad canonical_quad(const std::array<Id, 4>& h) {

@@ -148,10 +148,7 @@ void to_owner_order(Topology& t, const std::vector<Id>& conn) {
   // the fine node ids of vertices then rise with their ids.
   {
     std::vector<Id> rank = owner_rank(conn, cpe, t.num_vertices, t.vertex_owner_elem);
-    for (Id v = 0; v < t.num_vertices; ++v)
-      if (rank[v] != v)
-        throw Error(ErrorKind::Usage, "to_owner_order: vertices are not numbered in order of first use (vertex " +
-                                          std::to_string(v) + ")");
+    for (Id v = 0; v < t.num_vertices; ++v) DICER_ASSERT(rank[v] == v, "to_owner_order: vertices in order of first use");
   }
   const std::vector<Id> erank = owner_rank(t.elem_edge, epe, t.num_edges(), t.edge_owner_elem);
   const std::vector<Id> frank = owner_rank(t.elem_face, fpe, t.num_faces(), t.face_owner_elem);

@@ -3,8 +3,11 @@
 //
 // Three tiers (STYLE.md #8): bad files, bad arguments and I/O failures throw
 // dicer::Error; expected outcomes (a verify that finds a defect) are return
-// values; programmer errors are assertions. The library never calls exit or
-// abort.
+// values; programmer errors (a broken internal invariant) are DICER_ASSERT,
+// checked in every build, tests and release alike. The library never calls
+// exit or abort: a failed assertion throws InternalError, which is not a
+// dicer::Error, so the CLI reports an internal error (exit 70) and a test
+// fails loudly.
 #include <stdexcept>
 #include <string>
 
@@ -34,4 +37,17 @@ class Error : public std::runtime_error {
   ErrorKind kind_;
 };
 
+// A failed DICER_ASSERT: a bug in dicer, not in its input.
+class InternalError : public std::logic_error {
+ public:
+  using std::logic_error::logic_error;
+};
+
+[[noreturn]] inline void assertion_failed(const char* cond, const char* what, const char* file, int line) {
+  throw InternalError(std::string("internal error: ") + what + " (" + cond + " failed at " + file + ":" +
+                      std::to_string(line) + ")");
+}
+
 }  // namespace dicer
+
+#define DICER_ASSERT(cond, what) ((cond) ? void(0) : ::dicer::assertion_failed(#cond, what, __FILE__, __LINE__))

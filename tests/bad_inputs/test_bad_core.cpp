@@ -6,6 +6,8 @@
 
 #include "dicer/error.hpp"
 #include "dicer/fine_mesh.hpp"
+#include "dicer/numbering.hpp"
+#include "dicer/topology.hpp"
 #include "test_support.hpp"
 
 using namespace dicer;
@@ -185,4 +187,19 @@ TEST(BadCore, IntervalFileErrors) {
   EXPECT_EQ(r.blocks.size(), 2u);
   ASSERT_EQ(r.sheets.size(), 1u);
   EXPECT_EQ(r.sheets[0], (std::pair<Id, Id>{17, 12}));
+}
+
+// Programmer errors are assertions that stay on in release builds: they
+// throw InternalError (not a dicer::Error, so the CLI says "internal
+// error", exit 70), never abort.
+TEST(BadCore, AssertionsStayOnAndThrowInternalError) {
+  const CoarseMesh m = unit_cubes(3);
+  const Topology sorted = build_topology(m);  // not in owner order
+  std::vector<Id> n(static_cast<size_t>(sorted.num_edges()), 2);
+  EXPECT_THROW(Numbering(sorted, n), InternalError);
+  try {
+    Numbering bad(sorted, n);
+  } catch (const InternalError& e) {
+    EXPECT_NE(std::string(e.what()).find("owner order"), std::string::npos) << e.what();
+  }
 }
