@@ -7,13 +7,14 @@
 #include "common.hpp"
 #include "dicer/error.hpp"
 #include "dicer/export.hpp"
+#include "dicer/partition.hpp"
 #include "dicer/store.hpp"
 
 namespace dicer::cli {
 
 static const CommandDoc kDoc = {
     "export",
-    R"(export STORE --format FMT -o OUT [--chunk K/N | --chunks N]
+    R"(export STORE --format FMT -o OUT [--chunk K/N | --chunks N [--nemesis]]
                     [--box x0,y0,z0,x1,y1,z1] [--quiet] [store options])",
     R"(Writes fine elements for a solver or viewer, generated on the fly from the
 store; memory is bounded by the chunk, not the mesh.
@@ -25,7 +26,10 @@ Formats:
   msh         Gmsh MSH 4.1 binary (msh-ascii: ASCII); an entity and a
               physical group per block, boundary elements per side set
   exodus      Exodus II: element blocks with names, side and node sets
-              carried to the fine mesh, global id maps (1-based)
+              carried to the fine mesh, global id maps (1-based); with
+              --chunks N --nemesis, N files OUT.N.r decomposed the Nemesis
+              way for a parallel solver (global parameters, load balance,
+              node communication maps), as N MPI ranks of dicer export write
 
 A chunk K of N is a contiguous range of coarse elements (in the store's
 order) holding ~1/N of the fine elements; nodes shared with other chunks
@@ -35,6 +39,7 @@ and SIGHUP (exit 130, 143, 129) leave nothing behind.
 )",
     R"(dicer export fine.dice.h5 --format vtkhdf -o fine.vtkhdf
 dicer export fine.dice.h5 --format exodus --chunk 3/16 -o part3.exo
+dicer export fine.dice.h5 --format exodus --chunks 8 --nemesis -o fine.e   # fine.e.8.0 .. fine.e.8.7
 dicer export fine.dice.h5 --format msh --box 0,0,0,1,1,0.5 -o cut.msh --stats
 )"};
 
@@ -48,8 +53,10 @@ int cmd_export(const std::vector<std::string>& argv) {
   cmd.require(o_format, "vtkhdf, msh, msh-ascii or exodus");
   auto* o_chunk = cmd.value("--chunk", chunk, "K/N", "chunk K (0-based) of N", "Options", "the whole mesh");
   auto* o_chunks = cmd.value("--chunks", chunks, "N",
-                             "vtkhdf only: the whole mesh as N partitions", "Options",
-                             "about 4M fine elements per partition");
+                             "vtkhdf: the whole mesh as N partitions of one file; exodus with --nemesis: N files",
+                             "Options", "about 4M fine elements per partition");
+  bool nemesis = false;
+  cmd.flag("--nemesis", nemesis, "exodus with --chunks N: one Nemesis file per chunk, OUT.N.r");
   auto* o_box = cmd.value("--box", box_text, "x0,y0,z0,x1,y1,z1", "only the elements whose centroid is in the box");
   cmd.flag("--quiet", quiet, "no progress bar, no summary on stdout");
   StoreFlags store(cmd);
@@ -59,7 +66,10 @@ int cmd_export(const std::vector<std::string>& argv) {
   std::optional<Box> box;
   if (cmd.given(o_box)) box = parse_box(box_text);
   if (cmd.given(o_chunk) && cmd.given(o_chunks)) throw Error(ErrorKind::Usage, "give --chunk K/N or --chunks N, not both");
-  if (cmd.given(o_chunks) && format != "vtkhdf") throw Error(ErrorKind::Usage, "--chunks N is for --format vtkhdf");
+  if (nemesis && (format != "exodus" || !cmd.given(o_chunks) || box))
+    throw Error(ErrorKind::Usage, "--nemesis goes with --format exodus --chunks N (and no --box)");
+  if (cmd.given(o_chunks) && format != "vtkhdf" && !nemesis)
+    throw Error(ErrorKind::Usage, "--chunks N is for --format vtkhdf, or exodus with --nemesis");
 
   const FineMesh m = read_store(path, store.options());
   MeshSets sets;
@@ -79,7 +89,7 @@ int cmd_export(const std::vector<std::string>& argv) {
       throw Error(ErrorKind::Usage, "--chunk " + chunk + ": the mesh has only " + std::to_string(m.num_coarse_elements()) +
                                         " coarse elements, so at most that many chunks");
     ranges.push_back(plan_chunks(m, n)[static_cast<size_t>(k)]);
-  } else if (format == "vtkhdf" && !box) {
+  } else if ((format == "vtkhdf" && !box) || nemesis) {
     Id n = cmd.given(o_chunks) ? parse_int("--chunks", chunks)
                                : std::max<Id>(1, (m.num_elements() + (Id{1} << 22) - 1) >> 22);
     if (n < 1) throw Error(ErrorKind::Usage, "--chunks must be at least 1");
@@ -103,7 +113,19 @@ int cmd_export(const std::vector<std::string>& argv) {
       done_before += 2 * (c.range().end_coarse - c.range().first_coarse);
       written_elements += c.num_elements(), written_nodes += c.num_nodes();
     };
-    if (format == "vtkhdf") {
+    if (nemesis) {
+      const auto sharing = in_process_sharing(m, ranges);
+      const SetCounts counts = global_set_counts(m, sets);
+      for (const auto& r : ranges) {
+        const Partition p(m, ranges, r.index, sharing[static_cast<size_t>(r.index)], sets,
+                          [&](Id done, Id) { bar.update(done_before + done); }, cancel_requested);
+        throw_if_cancelled(nothing_written);
+        done_before += 2 * (r.end_coarse - r.first_coarse);
+        written_elements += p.num_elements(), written_nodes += p.num_nodes();
+        const NemesisInfo info = nemesis_info(p, counts);
+        write_exodus(p.chunk(), nemesis_path(out, r.count, r.index), &info);
+      }
+    } else if (format == "vtkhdf") {
       VtkHdfWriter w(out, static_cast<Id>(ranges.size()));
       for (const auto& r : ranges) {
         ExportChunk c(m, r, box);

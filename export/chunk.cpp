@@ -397,3 +397,58 @@ void ExportChunk::prepare(const MeshSets& sets, const std::function<void(Id, Id)
 }
 
 }  // namespace dicer
+
+namespace dicer {
+
+SetCounts global_set_counts(const FineMesh& mesh, const MeshSets& sets) {
+  SetCounts out;
+  MeshCursor cur;
+  const RowReader R(mesh.tables(), cur);
+  const Mode mode = mesh.mode();
+  for (const auto& ss : sets.side_sets) {
+    std::vector<std::pair<Id, int>> members;
+    for (size_t q = 0; q < ss.element.size() && q < ss.side.size(); ++q)
+      if (ss.element[q] >= 0 && ss.element[q] < mesh.num_coarse_elements() && ss.side[q] >= 0 && ss.side[q] <= 5)
+        members.emplace_back(ss.element[q], ss.side[q]);
+    std::sort(members.begin(), members.end());
+    members.erase(std::unique(members.begin(), members.end()), members.end());
+    std::int64_t n = 0;
+    for (const auto& [h, side] : members) {
+      const auto& iv = R.element(h).n;
+      const SidePlane plane = exodus_side_plane(mode, side);
+      std::int64_t faces = 1;
+      for (int a = 0; a < 3; ++a)
+        if (a != plane.axis) faces *= iv[a];
+      n += faces;
+    }
+    out.side.push_back(n);
+  }
+  for (const auto& ns : sets.node_sets) {
+    std::vector<Id> vs = ns.vertex;
+    std::sort(vs.begin(), vs.end());
+    vs.erase(std::unique(vs.begin(), vs.end()), vs.end());
+    auto in = [&](Id v) { return std::binary_search(vs.begin(), vs.end(), v); };
+    std::int64_t n = 0;
+    for (Id v : vs)
+      if (v >= 0 && v < mesh.tables().num_vertices()) ++n;
+    for (Id e = 0; e < mesh.tables().edges.rows(); ++e) {
+      const EdgeRow r = R.edge(e);
+      if (in(r.lo) && in(r.hi)) n += ids::edge_nodes(r.n);
+    }
+    for (Id f = 0; f < mesh.tables().faces.rows(); ++f) {
+      const FaceRow r = R.face(f);
+      if (in(r.v[0]) && in(r.v[1]) && in(r.v[2]) && in(r.v[3])) n += ids::face_nodes(r.nu, r.nv);
+    }
+    if (mode == Mode::Volume)
+      for (Id h = 0; h < mesh.num_coarse_elements(); ++h) {
+        const ElementRow r = R.element(h);
+        bool all = true;
+        for (int k = 0; k < 8 && all; ++k) all = in(r.corner[k]);
+        if (all) n += ids::cell_nodes(r.n);
+      }
+    out.node.push_back(n);
+  }
+  return out;
+}
+
+}  // namespace dicer

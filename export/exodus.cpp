@@ -119,9 +119,97 @@ struct NameList {
   }
 };
 
+// The Nemesis part of processor n.processor's file (see export.hpp). Written
+// before ex_put_init_ext, as SEACAS and libMesh do. All arrays int64 (the
+// file uses the 64-bit API); an empty array is passed as a one-element dummy
+// (the library dereferences what it is given).
+void write_nemesis(TempExodus& file, const ExportChunk& chunk, const NemesisInfo& n, const std::vector<Id>& order) {
+  const int exoid = file.id();
+  const int proc = static_cast<int>(n.processor);
+  const MeshInfo& info = chunk.mesh().info();
+  auto ptr = [](std::vector<std::int64_t>& v) {
+    if (v.empty()) v.reserve(1);
+    return v.data();
+  };
+  char ftype[] = "p";
+  exodus::clear_error();
+  file.check(ex_put_init_info(exoid, static_cast<int>(n.processors), 1, ftype), "ex_put_init_info");
+  exodus::clear_error();
+  file.check(ex_put_init_global(exoid, n.global_nodes, n.global_elements, static_cast<std::int64_t>(info.blocks.size()),
+                                static_cast<std::int64_t>(chunk.node_sets().size()),
+                                static_cast<std::int64_t>(chunk.side_sets().size())),
+             "ex_put_init_global");
+  {
+    std::vector<std::int64_t> ids, counts;
+    for (size_t b = 0; b < info.blocks.size(); ++b) ids.push_back(info.blocks[b].id), counts.push_back(info.block_fine_elements[b]);
+    exodus::clear_error();
+    if (!ids.empty()) file.check(ex_put_eb_info_global(exoid, ptr(ids), ptr(counts)), "ex_put_eb_info_global");
+  }
+  // Global set parameters: ids, global counts, no distribution factors.
+  auto set_params = [&](const auto& chunk_sets, const std::vector<std::int64_t>& global_counts, auto put, const char* call) {
+    if (chunk_sets.empty()) return;
+    std::vector<std::int64_t> ids, counts = global_counts, df(chunk_sets.size(), 0);
+    for (const auto& set : chunk_sets) ids.push_back(set.id);
+    counts.resize(ids.size());
+    exodus::clear_error();
+    file.check(put(exoid, ptr(ids), ptr(counts), ptr(df)), call);
+  };
+  set_params(chunk.side_sets(), n.side_set_counts, ex_put_ss_param_global, "ex_put_ss_param_global");
+  set_params(chunk.node_sets(), n.node_set_counts, ex_put_ns_param_global, "ex_put_ns_param_global");
+  // Border nodes: those on any communication map; the rest are internal.
+  const Id nn = chunk.num_nodes(), ne = chunk.num_elements();
+  std::vector<char> border(static_cast<size_t>(nn), 0);
+  for (const auto& list : n.shared)
+    for (Id l : list) {
+      if (l < 0 || l >= nn) file.fail("nemesis", "shared node " + std::to_string(l) + " is not in the chunk");
+      border[static_cast<size_t>(l)] = 1;
+    }
+  std::vector<std::int64_t> mapi, mapb, mape;
+  for (Id l = 0; l < nn; ++l) (border[static_cast<size_t>(l)] ? mapb : mapi).push_back(l + 1);
+  std::vector<std::int64_t> emapi, emapb;
+  const int c = chunk.corners();
+  const auto conn = chunk.connectivity();
+  for (size_t f = 0; f < order.size(); ++f) {  // file positions, in file order
+    const Id e = order[f];
+    bool b = false;
+    for (int q = 0; q < c && !b; ++q) b = border[static_cast<size_t>(conn[static_cast<size_t>(e * c + q)])] != 0;
+    (b ? emapb : emapi).push_back(static_cast<std::int64_t>(f) + 1);
+  }
+  (void)ne;
+  exodus::clear_error();
+  file.check(ex_put_loadbal_param(exoid, static_cast<std::int64_t>(mapi.size()), static_cast<std::int64_t>(mapb.size()), 0,
+                                  static_cast<std::int64_t>(emapi.size()), static_cast<std::int64_t>(emapb.size()),
+                                  static_cast<std::int64_t>(n.neighbors.size()), 0, proc),
+             "ex_put_loadbal_param");
+  std::vector<std::int64_t> map_ids, map_counts, none;
+  for (size_t k = 0; k < n.neighbors.size(); ++k)
+    map_ids.push_back(n.neighbors[k]), map_counts.push_back(static_cast<std::int64_t>(n.shared[k].size()));
+  exodus::clear_error();
+  file.check(ex_put_cmap_params(exoid, ptr(map_ids), ptr(map_counts), ptr(none), ptr(none), proc), "ex_put_cmap_params");
+  for (size_t k = 0; k < n.neighbors.size(); ++k) {
+    std::vector<std::int64_t> nodes, procs(n.shared[k].size(), n.neighbors[k]);
+    for (Id l : n.shared[k]) nodes.push_back(l + 1);
+    exodus::clear_error();
+    file.check(ex_put_node_cmap(exoid, n.neighbors[k], ptr(nodes), ptr(procs), proc),
+               "ex_put_node_cmap(" + std::to_string(n.neighbors[k]) + ")");
+  }
+  exodus::clear_error();
+  file.check(ex_put_processor_node_maps(exoid, ptr(mapi), ptr(mapb), ptr(mape), proc), "ex_put_processor_node_maps");
+  exodus::clear_error();
+  file.check(ex_put_processor_elem_maps(exoid, ptr(emapi), ptr(emapb), proc), "ex_put_processor_elem_maps");
+}
+
 }  // namespace
 
-void write_exodus(const ExportChunk& chunk, const std::string& path) {
+
+std::string nemesis_path(const std::string& out, Id processors, Id processor) {
+  const std::string p = std::to_string(processors);
+  std::string r = std::to_string(processor);
+  if (r.size() < p.size()) r.insert(0, p.size() - r.size(), '0');
+  return out + "." + p + "." + r;
+}
+
+void write_exodus(const ExportChunk& chunk, const std::string& path, const NemesisInfo* nem) {
   // netCDF-4 is HDF5 underneath: take the process-wide HDF5 lock (the
   // store's read-ahead thread may be loading pages meanwhile).
   std::lock_guard hdf5_guard(hdf5_lock());
@@ -161,9 +249,9 @@ void write_exodus(const ExportChunk& chunk, const std::string& path) {
     for (Id e = 0; e < num_elements; ++e)
       order[static_cast<std::size_t>(next[static_cast<std::size_t>(elem_block[static_cast<std::size_t>(e)])]++)] = e;
   }
-  std::vector<std::size_t> present;  // block indices with elements here
+  std::vector<std::size_t> present;  // block indices with elements here (every block in a Nemesis file)
   for (std::size_t b = 0; b < nblocks; ++b)
-    if (block_start[b + 1] > block_start[b]) present.push_back(b);
+    if (nem || block_start[b + 1] > block_start[b]) present.push_back(b);
 
   ex_opts(0);  // no chatter on stderr, never abort; errors become dicer::Error
   TempExodus file(path);
@@ -188,6 +276,7 @@ void write_exodus(const ExportChunk& chunk, const std::string& path) {
     file.check(ex_set_max_name_length(exoid, name_len), "ex_set_max_name_length");
   }
   const auto cut = [&](const std::string& name) { return name.substr(0, static_cast<std::size_t>(name_len)); };
+  if (nem) write_nemesis(file, chunk, *nem, order);
 
   // ---- header ----
   ex_init_params init{};
@@ -234,7 +323,7 @@ void write_exodus(const ExportChunk& chunk, const std::string& path) {
     const std::int64_t id = info.blocks[b].id;
     const Id count = block_start[b + 1] - block_start[b];
     exodus::clear_error();
-    file.check(ex_put_block(exoid, EX_ELEM_BLOCK, id, volume ? "HEX8" : "SHELL4", count, corners, 0, 0, 0),
+    file.check(ex_put_block(exoid, EX_ELEM_BLOCK, id, volume ? "HEX8" : "SHELL4", count, count ? corners : 0, 0, 0, 0),
                "ex_put_block(" + std::to_string(id) + ")");
   }
   if (!present.empty()) {
@@ -246,6 +335,7 @@ void write_exodus(const ExportChunk& chunk, const std::string& path) {
   for (std::size_t b : present) {
     const std::int64_t id = info.blocks[b].id;
     const Id first = block_start[b], count = block_start[b + 1] - first;
+    if (count == 0) continue;  // an empty block (Nemesis lists every block)
     buffer.resize(static_cast<std::size_t>(count * corners));
     const std::size_t width = static_cast<std::size_t>(corners);
     std::size_t k = 0;

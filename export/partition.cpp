@@ -110,10 +110,11 @@ PartitionStats partition_stats(Id r, const std::vector<ChunkRange>& plan, const 
 }
 
 Partition::Partition(const FineMesh& mesh, const std::vector<ChunkRange>& plan, Id rank, std::vector<NodeRun> sharing,
-                     const MeshSets& sets)
+                     const MeshSets& sets, const std::function<void(Id, Id)>& progress,
+                     const std::function<bool()>& cancel)
     : range_(plan.at(static_cast<size_t>(rank))), chunk_(mesh, range_), sharing_(std::move(sharing)) {
   chunk_.set_plan(plan);
-  chunk_.prepare(sets);
+  chunk_.prepare(sets, progress, cancel);
   const Id nown = num_owned(), nn = chunk_.num_nodes(), ng = nn - nown;
   const auto g = chunk_.node_global();
   // The chunk lists ghosts (lower ids) then the own range; here the own
@@ -149,6 +150,24 @@ Partition::Partition(const FineMesh& mesh, const std::vector<ChunkRange>& plan, 
     }
   }
   for (auto& [q, list] : by_rank) neighbors_.push_back(q), shared_.push_back(std::move(list));
+}
+
+NemesisInfo nemesis_info(const Partition& p, const SetCounts& counts) {
+  NemesisInfo n;
+  n.processors = p.size();
+  n.processor = p.rank();
+  n.global_nodes = p.chunk().mesh().num_nodes();
+  n.global_elements = p.chunk().mesh().num_elements();
+  n.side_set_counts = counts.side;
+  n.node_set_counts = counts.node;
+  n.neighbors = p.neighbors();
+  for (const auto& list : p.shared_nodes()) {
+    std::vector<Id> l;
+    l.reserve(list.size());
+    for (Id L : list) l.push_back(p.chunk_local(L));
+    n.shared.push_back(std::move(l));
+  }
+  return n;
 }
 
 }  // namespace dicer

@@ -153,6 +153,33 @@ void write_msh(const ExportChunk& chunk, const std::string& path, bool binary);
 // Exodus II through the Exodus library: element blocks with names, side sets
 // and node sets, global node and element id maps (1-based: global id + 1),
 // 64-bit integers; netCDF-4 when the counts need it.
-void write_exodus(const ExportChunk& chunk, const std::string& path);
+//
+// With `nemesis`, the file is one processor's part of a Nemesis (decomposed
+// Exodus) set, OUT.P.r (nemesis_path): global parameters, load-balance
+// parameters, processor node and element maps and node communication maps
+// (the Partition's), every global block and set listed in every file.
+// Element-based decomposition: nodes on a processor boundary are "border"
+// nodes in every file that has them, there are no "external" nodes; an
+// element with a border node is a border element; no element maps.
+struct NemesisInfo {
+  Id processors = 1, processor = 0;
+  Id global_nodes = 0, global_elements = 0;
+  std::vector<std::int64_t> side_set_counts, node_set_counts;  // global, in the chunk's set order
+  std::vector<std::int32_t> neighbors;                         // node map ids: the neighbouring processors
+  std::vector<std::vector<Id>> shared;                         // per neighbour: chunk-local node ids (0-based)
+};
+void write_exodus(const ExportChunk& chunk, const std::string& path, const NemesisInfo* nemesis = nullptr);
+
+// "OUT.P.r" with r zero-padded to the digits of P (SEACAS epu/decomp, MOOSE).
+std::string nemesis_path(const std::string& out, Id processors, Id processor);
+
+// Global fine counts of each set, from the coarse rows alone (no fine data):
+// a side set's fine faces, a node set's fine nodes (every node whose owning
+// entity has all its corners in the set). O(coarse rows).
+struct SetCounts {
+  std::vector<std::int64_t> side, node;
+};
+SetCounts global_set_counts(const FineMesh& mesh, const MeshSets& sets);
+
 
 }  // namespace dicer

@@ -69,8 +69,10 @@ class Partition {
   // Chunk `rank` of plan (plan_chunks(mesh, size)), with the sharing runs
   // of that chunk (sharing_for / in_process_sharing / the MPI exchange).
   // Materialises the chunk's nodes and elements (ExportChunk::prepare).
+  // progress and cancel as for ExportChunk::prepare.
   Partition(const FineMesh& mesh, const std::vector<ChunkRange>& plan, Id rank, std::vector<NodeRun> sharing,
-            const MeshSets& sets = {});
+            const MeshSets& sets = {}, const std::function<void(Id, Id)>& progress = {},
+            const std::function<bool()>& cancel = {});
 
   Id rank() const { return range_.index; }
   Id size() const { return range_.count; }
@@ -93,6 +95,8 @@ class Partition {
   // Local node ids shared with neighbors()[k], sorted by global id.
   const std::vector<std::vector<Id>>& shared_nodes() const { return shared_; }
   const std::vector<NodeRun>& sharing() const { return sharing_; }
+  // Local id in chunk() of local node L of the partition.
+  Id chunk_local(Id L) const { return L < num_owned() ? num_nodes() - num_owned() + L : L - num_owned(); }
 
  private:
   ChunkRange range_;
@@ -104,5 +108,9 @@ class Partition {
   std::vector<std::int32_t> neighbors_;
   std::vector<std::vector<Id>> shared_;
 };
+
+// The Nemesis description of a partition (write_exodus with `nemesis`):
+// its neighbours and shared node lists in chunk() numbering, global counts.
+NemesisInfo nemesis_info(const Partition& p, const SetCounts& counts);
 
 }  // namespace dicer
