@@ -6,6 +6,7 @@
 set -euo pipefail
 pkgs=(cmake g++ make pkg-config libhdf5-dev liblz4-dev libexodusii-dev libnetcdf-dev libgmsh-dev
       libgtest-dev libbenchmark-dev nlohmann-json3-dev libcli11-dev
+      libopenmpi-dev openmpi-bin libhdf5-openmpi-dev libnetcdf-mpi-dev
       hdf5-tools hdf5-filter-plugin python3-h5py python3-hdf5plugin
       python3-vtk9 python3-meshio python3-netcdf4 python3-gmsh)
 missing=()

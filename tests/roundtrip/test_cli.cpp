@@ -248,3 +248,16 @@ TEST(Cli, GmshIsLoadedOnlyByTheCadCommands) {
   EXPECT_EQ(r.exit_code, 5) << r.err;
   EXPECT_NE(r.err.find("absent.step"), std::string::npos) << r.err;
 }
+
+// One HDF5 and one netCDF in the process: dicer links the Open MPI
+// flavours that Debian's Exodus library already loads, never the serial ones.
+TEST(Cli, TheBinaryLoadsOneHdf5AndOneNetcdf) {
+  for (const std::string& bin : {std::string(DICER_CLI), std::string(DICER_CLI) + "-cad"}) {
+    const test::CliResult r = test::run_process({"/usr/bin/ldd", bin});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_EQ(r.out.find("libhdf5_serial"), std::string::npos) << bin << "\n" << r.out;
+    EXPECT_EQ(r.out.find("libnetcdf.so"), std::string::npos) << bin << "\n" << r.out;
+    EXPECT_NE(r.out.find("libhdf5_openmpi"), std::string::npos) << bin;
+    EXPECT_NE(r.out.find("libnetcdf_mpi"), std::string::npos) << bin;
+  }
+}

@@ -8,6 +8,9 @@ namespace dicer::test {
 
 void forge_page(hid_t file, const std::string& dataset, hsize_t page,
                 const std::function<void(std::vector<std::uint8_t>&)>& edit, bool keep_crc_valid) {
+  // The CRC companions are LZ4 pages too: H5Dwrite needs the filter (the
+  // HDF Group's plugin is installed for serial HDF5 only).
+  store::register_lz4_filter();
   hid_t ds = H5Dopen2(file, dataset.c_str(), H5P_DEFAULT);
   if (ds < 0) throw std::runtime_error("forge_page: no dataset " + dataset);
   hid_t dcpl = H5Dget_create_plist(ds), type = H5Dget_type(ds);
@@ -43,7 +46,8 @@ void forge_page(hid_t file, const std::string& dataset, hsize_t page,
   std::vector<std::uint32_t> crc(n);
   H5Dread(cds, H5T_NATIVE_UINT32, H5S_ALL, H5S_ALL, H5P_DEFAULT, crc.data());
   crc.at(page) = store::page_crc(bytes);
-  H5Dwrite(cds, H5T_NATIVE_UINT32, H5S_ALL, H5S_ALL, H5P_DEFAULT, crc.data());
+  if (H5Dwrite(cds, H5T_NATIVE_UINT32, H5S_ALL, H5S_ALL, H5P_DEFAULT, crc.data()) < 0)
+    throw std::runtime_error("forge_page: cannot rewrite " + crc_name);
   H5Sclose(sp), H5Dclose(cds);
 }
 
