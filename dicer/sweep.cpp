@@ -8,6 +8,7 @@
 #include <thread>
 #include <vector>
 
+#include "dicer/error.hpp"
 #include "dicer/rows.hpp"
 
 namespace dicer {
@@ -41,17 +42,20 @@ namespace {
 // Coarse elements [first, end) split into `parts` ranges of about equal work
 // (owned nodes + fine elements: node_first + element_first rises by exactly
 // that from one element to the next). O(parts log H) rows.
-std::vector<Id> split_work(const FineMesh& mesh, unsigned parts) {
+std::vector<Id> split_work(const FineMesh& mesh, unsigned parts, Id first, Id end) {
   const Id H = mesh.num_coarse_elements();
-  const __int128 total = static_cast<__int128>(mesh.num_nodes()) + mesh.num_elements();
   MeshCursor cur;
   const RowReader R(mesh.tables(), cur);
-  auto work_before = [&](Id h) { return static_cast<__int128>(R.node_first(h)) + R.element_first(h); };
-  std::vector<Id> at(parts + 1, H);
-  at[0] = 0;
+  auto work_before = [&](Id h) {
+    return h < H ? static_cast<__int128>(R.node_first(h)) + R.element_first(h)
+                 : static_cast<__int128>(mesh.num_nodes()) + mesh.num_elements();
+  };
+  const __int128 w0 = work_before(first), total = work_before(end) - w0;
+  std::vector<Id> at(parts + 1, end);
+  at[0] = first;
   for (unsigned p = 1; p < parts; ++p) {
-    const __int128 want = total * p / parts;
-    Id lo = at[p - 1], hi = H;  // first element whose work before it is >= want
+    const __int128 want = w0 + total * p / parts;
+    Id lo = at[p - 1], hi = end;  // first element whose work before it is >= want
     while (lo < hi) {
       const Id mid = lo + (hi - lo) / 2;
       if (work_before(mid) < want) lo = mid + 1;
@@ -64,15 +68,30 @@ std::vector<Id> split_work(const FineMesh& mesh, unsigned parts) {
 
 }  // namespace
 
-SweepResult sweep(const FineMesh& mesh, unsigned threads, const std::function<void(Id, Id)>& progress) {
+SweepResult sweep(const FineMesh& mesh, unsigned threads, const std::function<void(Id, Id)>& progress, Id first_coarse,
+                  Id end_coarse) {
+  const Id H = mesh.num_coarse_elements();
+  if (end_coarse < 0) end_coarse = H;
+  if (first_coarse < 0 || first_coarse > end_coarse || end_coarse > H)
+    throw Error(ErrorKind::Usage, "sweep: coarse elements " + std::to_string(first_coarse) + ".." +
+                                      std::to_string(end_coarse) + " outside the mesh");
   threads = std::max(1u, threads);
   if (const auto& cache = mesh.tables().cache) {
     const std::uint64_t per_thread = 2ull * kSweepPagesPerThread * kStorePageBytes;
     threads = static_cast<unsigned>(std::clamp<std::uint64_t>(cache->budget() / per_thread, 1, threads));
   }
   const auto start = std::chrono::steady_clock::now();
-  const Id nn = mesh.num_nodes(), ne = mesh.num_elements(), total = nn + ne;
-  const std::vector<Id> split = split_work(mesh, threads);
+  Id nn = 0, ne = 0;
+  {
+    MeshCursor cur;
+    const RowReader R(mesh.tables(), cur);
+    const auto own = mesh.owned_nodes(first_coarse, end_coarse, cur);
+    nn = own[1] - own[0];
+    auto efirst = [&](Id h) { return h < H ? R.element_first(h) : mesh.num_elements(); };
+    ne = efirst(end_coarse) - efirst(first_coarse);
+  }
+  const Id total = nn + ne;
+  const std::vector<Id> split = split_work(mesh, threads, first_coarse, end_coarse);
   const bool vol = mesh.mode() == Mode::Volume;
   std::atomic<Id> done{0};
   std::vector<std::uint64_t> sums(threads, 0);

@@ -98,12 +98,14 @@ Box parse_box(const std::string& text) {
   return b;
 }
 
-Id for_each_in_box(const FineMesh& mesh, const Box& box, const std::function<void(const FineBlock&, Id)>& fn) {
+Id for_each_in_box(const FineMesh& mesh, const Box& box, const std::function<void(const FineBlock&, Id)>& fn,
+                   Id first_coarse, Id end_coarse) {
   MeshCursor cur;
   FineBlock b;
   Id count = 0;
   const int nc = mesh.corners();
-  for (Id h = 0; h < mesh.num_coarse_elements(); ++h) {
+  if (end_coarse < 0) end_coarse = mesh.num_coarse_elements();
+  for (Id h = std::max<Id>(first_coarse, 0); h < std::min(end_coarse, mesh.num_coarse_elements()); ++h) {
     if (coarse_box_misses(mesh, h, box, cur)) continue;
     mesh.fill_block(h, b);
     for (Id e = 0; e < b.num_elements(); ++e) {

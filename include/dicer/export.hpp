@@ -50,8 +50,10 @@ Box parse_box(const std::string& text);
 // connectivity filled. Coarse elements whose corner bounding box misses the
 // box are skipped without generating anything (straight-sided TFI stays
 // inside the corners' bounding box). Returns the number of elements.
+// [first_coarse, end_coarse) restricts the search (an MPI rank's chunk).
 Id for_each_in_box(const FineMesh& mesh, const Box& box,
-                   const std::function<void(const FineBlock& block, Id local_element)>& fn);
+                   const std::function<void(const FineBlock& block, Id local_element)>& fn, Id first_coarse = 0,
+                   Id end_coarse = -1);
 
 // Side and node sets in the store's numbering (CoarseMesh::side_sets etc.).
 struct MeshSets {

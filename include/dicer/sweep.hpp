@@ -25,7 +25,12 @@ struct SweepResult {
 // progress(done, total) is called from the calling thread only, in units of
 // nodes + elements.
 inline constexpr unsigned kSweepPagesPerThread = 20;
-SweepResult sweep(const FineMesh& mesh, unsigned threads, const std::function<void(Id, Id)>& progress = {});
+// [first_coarse, end_coarse) restricts the sweep to those coarse elements
+// (end -1: the last): their fine elements and the nodes they own (an MPI
+// rank's chunk); the checksums of a partition of the mesh add up to the
+// whole mesh's (mod 2^64).
+SweepResult sweep(const FineMesh& mesh, unsigned threads, const std::function<void(Id, Id)>& progress = {},
+                  Id first_coarse = 0, Id end_coarse = -1);
 
 // The checksum terms, exposed so tests can compute the same sum independently.
 std::uint64_t node_checksum_term(Id id, const Vec3& x);

@@ -1,0 +1,94 @@
+#pragma once
+// The MPI layer: what dicer's commands and a solver need to run the same
+// library on P ranks. Thin by design: rank r works on chunk r of
+// plan_chunks(mesh, P) (partition.hpp), and MPI only exchanges what the
+// ranks cannot compute alone (who uses a shared node run) and agrees on
+// errors. The single process stays complete without any of this.
+//
+// Errors: every collective operation here is entered by every rank; a rank
+// whose local work failed still enters it (checkpoint), so no rank ever
+// waits for one that died in an exception. After checkpoint, all ranks
+// throw: the failing rank (the lowest, when several) its own Error, the
+// others PeerFailed with its exit kind, so all end with the same code and
+// only one prints a message.
+#include <mpi.h>
+
+#include <exception>
+#include <string>
+#include <vector>
+
+#include "dicer/error.hpp"
+#include "dicer/export.hpp"
+#include "dicer/partition.hpp"
+
+namespace dicer::mpi {
+
+// True when this process was started by mpirun (Open MPI or a PMIx launcher
+// set the environment): the CLI then initialises MPI. Without it, dicer
+// never touches MPI.
+bool launched_by_mpirun();
+
+// MPI_Init_thread (funneled: only the calling thread talks MPI) and
+// MPI_Finalize, when launched by mpirun; otherwise a one-rank session that
+// calls nothing.
+class Session {
+ public:
+  Session(int& argc, char**& argv);
+  ~Session();
+  Session(const Session&) = delete;
+  Session& operator=(const Session&) = delete;
+  bool active() const { return active_; }
+  int rank() const { return rank_; }
+  int size() const { return size_; }
+  MPI_Comm comm() const { return MPI_COMM_WORLD; }
+
+ private:
+  bool active_ = false;
+  int rank_ = 0, size_ = 1;
+};
+
+// Another rank failed; `failed_rank` reported the error.
+class PeerFailed : public std::runtime_error {
+ public:
+  PeerFailed(ErrorKind kind, int failed_rank)
+      : std::runtime_error("rank " + std::to_string(failed_rank) + " failed"), kind_(kind), rank_(failed_rank) {}
+  ErrorKind kind() const { return kind_; }
+  int failed_rank() const { return rank_; }
+
+ private:
+  ErrorKind kind_;
+  int rank_;
+};
+
+// Collective: every rank passes what its local work threw (nullptr when it
+// succeeded). If any rank failed, every rank throws as described above.
+// Non-dicer exceptions count as internal errors (kind 0 is sent as -1).
+void checkpoint(MPI_Comm comm, std::exception_ptr local);
+
+// Runs fn on this rank, then checkpoints.
+template <class Fn>
+void collectively(MPI_Comm comm, Fn&& fn) {
+  std::exception_ptr e;
+  try {
+    fn();
+  } catch (...) {
+    e = std::current_exception();
+  }
+  checkpoint(comm, e);
+}
+
+// The sharing runs of this rank's chunk (partition.hpp), exchanged with the
+// owners of its ghost runs: two all-to-all rounds, messages proportional to
+// the chunk's boundary. Equals in_process_sharing(mesh, plan)[rank].
+std::vector<NodeRun> exchange_sharing(MPI_Comm comm, const FineMesh& mesh, const std::vector<ChunkRange>& plan);
+
+// The partition of this rank (chunk `rank` of `size`), maps exchanged.
+Partition make_partition(const FineMesh& mesh, MPI_Comm comm, const MeshSets& sets = {});
+
+// One VTKHDF file with one partition per rank, written collectively through
+// parallel HDF5 (MPI-IO): the same datasets and values as VtkHdfWriter
+// writing the chunks one after another in one process. Rank 0 owns the
+// temporary (AtomicOutput) and renames it when every rank has written.
+void write_vtkhdf_collective(MPI_Comm comm, const ExportChunk& chunk, const std::string& path);
+
+}  // namespace dicer::mpi
