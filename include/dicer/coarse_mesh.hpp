@@ -49,6 +49,8 @@ struct NodeSet {
 // Exodus HEX8 side -> local corners (outward normal, right-handed hex).
 inline constexpr int kHexSideCorners[6][4] = {
     {0, 1, 5, 4}, {1, 2, 6, 5}, {2, 3, 7, 6}, {0, 4, 7, 3}, {0, 3, 2, 1}, {4, 5, 6, 7}};
+// Exodus SHELL4 edge side s (2..5) -> its two local corners, [s - 2].
+inline constexpr int kShellEdgeCorners[4][2] = {{0, 1}, {1, 2}, {2, 3}, {3, 0}};
 
 struct CoarseMesh {
   std::string source;                 // path of the file it came from (messages)
