@@ -128,11 +128,11 @@ double Lexer::real(const std::string& what) {
   return v;
 }
 
-void Lexer::expect_end(const std::string& name) {
+void Lexer::expect_line(const std::string& want) {
   skip_space();
   if (pos_ >= data_.size()) eof();
   const std::string line = header_line();
-  if (line != "$End" + name) fail("expected $End" + name + ", found '" + shown(line) + "'");
+  if (line != want) fail("expected " + want + ", found '" + shown(line) + "'");
 }
 
 void Lexer::start_binary_data() {

@@ -96,7 +96,9 @@ class Lexer {
   // bytes left (each token needs a character and a separator).
   std::size_t count(const std::string& what, std::size_t tokens_each);
   double real(const std::string& what);
-  void expect_end(const std::string& name);
+  void expect_end(const std::string& name) { expect_line("$End" + name); }
+  // The next non-blank line must be exactly `line`.
+  void expect_line(const std::string& line);
   // After an ASCII count in MSH2 binary sections: exactly one line end, then data.
   void start_binary_data();
   // Moves past the line "$End<name>", wherever it is; the section's content

@@ -105,8 +105,15 @@ class SectionReader {
   void read_format();
   void read_physical_names();
   void read_entities();
-  void read_nodes();
-  void read_elements();
+  // MSH 1 ($NOD, $ENDNOD) and 2: a count, then "tag x y z" per node.
+  void read_nodes_msh12(const std::string& end_line);
+  void read_nodes_msh41();
+  void read_elements_msh1();
+  void read_elements_msh2();
+  void read_elements_msh41();
+  // The nodes of one ASCII element (MSH 1 and 2), after its tags; `listed`
+  // is MSH 1's node count (-1 in MSH 2, which does not state it).
+  void ascii_element_nodes(Id tag, Id type, Id entity, Id physical, Id listed);
 
   // MSH 4.1 $Nodes / $Elements header: number of entity blocks, number of
   // items (each at least `bytes_each` binary bytes or `tokens_each` tokens),
@@ -121,6 +128,7 @@ class SectionReader {
 
   Lexer& lex_;
   MshSections s_;
+  int version_ = 0;      // 1, 2 or 4 once known ($NOD or $MeshFormat)
   bool binary_ = false;  // file-type 1
   bool saw_nodes_ = false, saw_elements_ = false;
   std::unordered_map<Id, Id> node_index_;                               // file tag -> 0-based vertex
@@ -128,15 +136,6 @@ class SectionReader {
 };
 
 void SectionReader::read_format() {
-  lex_.skip_space();
-  if (lex_.at_end()) throw Error(ErrorKind::BadInput, lex_.path() + ": the file is empty");
-  const std::string first = lex_.header_line();
-  if (first == "$NOD" || first == "$NOE")
-    lex_.fail("MSH version 1.0 is not supported; dicer reads MSH 2.2 and 4.1 (re-save the mesh with Gmsh)",
-              ErrorKind::Unsupported);
-  if (first != "$MeshFormat")
-    lex_.fail("not a Gmsh MSH file: expected $MeshFormat on the first line, found '" + shown(first) + "'");
-  lex_.set_section("$MeshFormat");
   const std::string version(lex_.token());
   binary_ = lex_.integer("file-type", 0, 1) == 1;
   const Id data_size = lex_.integer("data-size", 0);
@@ -145,14 +144,15 @@ void SectionReader::read_format() {
   if (ec != std::errc() || end != version.data() + version.size())
     lex_.fail("expected a version number, found '" + shown(version) + "'");
   if (v >= 2.0 && v < 3.0) {
-    s_.msh4 = false;
+    version_ = 2;
   } else if (std::abs(v - 4.1) < 1e-9) {
-    s_.msh4 = true;
+    version_ = 4;
   } else {
     lex_.fail("MSH version " + shown(version) +
-                  " is not supported; dicer reads MSH 2.2 and 4.1 (re-save the mesh with Gmsh)",
+                  " is not supported; dicer reads MSH 1, 2.2 and 4.1 (re-save the mesh with Gmsh)",
               ErrorKind::Unsupported);
   }
+  s_.msh4 = version_ == 4;
   if (binary_ && data_size != 8)
     lex_.fail("binary data-size " + std::to_string(data_size) + " is not supported; only 8-byte doubles are");
   if (!trim(lex_.rest_of_line()).empty()) lex_.fail("unexpected text after the data-size");
@@ -251,35 +251,35 @@ void SectionReader::add_coords(Id tag, double x, double y, double z) {
   s_.z.push_back(z);
 }
 
-void SectionReader::read_nodes() {
+void SectionReader::read_nodes_msh12(const std::string& end_line) {
   saw_nodes_ = true;
-  if (!s_.msh4) {
-    // MSH2: count, then "tag x y z" per node.
-    const std::size_t n = lex_.count("number of nodes", 4);
-    if (binary_) {
-      lex_.start_binary_data();
-      if (n > lex_.remaining() / 28) lex_.too_many("number of nodes", n);
-    }
-    node_index_.reserve(node_index_.size() + n);
-    for (std::size_t i = 0; i < n; ++i) {
-      Id tag;
-      double c[3];
-      if (binary_) {
-        tag = lex_.bin_int("node tag", 1);
-        for (double& v : c) v = lex_.bin<double>();
-      } else {
-        tag = lex_.integer("node tag", 1);
-        for (double& v : c) v = lex_.real("coordinate");
-      }
-      add_node_tag(tag);
-      add_coords(tag, c[0], c[1], c[2]);
-      s_.geo_dim.push_back(-1);
-      s_.geo_tag.push_back(-1);
-    }
-    lex_.expect_end("Nodes");
-    return;
+  const std::size_t n = lex_.count("number of nodes", 4);
+  if (binary_) {
+    lex_.start_binary_data();
+    if (n > lex_.remaining() / 28) lex_.too_many("number of nodes", n);
   }
-  // MSH 4.1: header, then entity blocks (tags, then coordinates).
+  node_index_.reserve(node_index_.size() + n);
+  for (std::size_t i = 0; i < n; ++i) {
+    Id tag;
+    double c[3];
+    if (binary_) {
+      tag = lex_.bin_int("node tag", 1);
+      for (double& v : c) v = lex_.bin<double>();
+    } else {
+      tag = lex_.integer("node tag", 1);
+      for (double& v : c) v = lex_.real("coordinate");
+    }
+    add_node_tag(tag);
+    add_coords(tag, c[0], c[1], c[2]);
+    s_.geo_dim.push_back(-1);
+    s_.geo_tag.push_back(-1);
+  }
+  lex_.expect_line(end_line);
+}
+
+// MSH 4.1: header, then entity blocks (tags, then coordinates).
+void SectionReader::read_nodes_msh41() {
+  saw_nodes_ = true;
   const auto [blocks, total] = msh41_header("node", 32, 4);
   node_index_.reserve(node_index_.size() + total);
   std::size_t seen = 0;
@@ -357,77 +357,106 @@ void SectionReader::fail_unknown_type(Id type) {
             ErrorKind::Unsupported);
 }
 
-void SectionReader::read_elements() {
+void SectionReader::ascii_element_nodes(Id tag, Id type, Id entity, Id physical, Id listed) {
+  const int dim = kept_dim(type);
+  if (dim >= 0) {
+    Id nodes[8];
+    for (int k = 0; k < kNodesOfDim[dim]; ++k) nodes[k] = lex_.integer("node tag", 1);
+    add_element(dim, tag, dim, entity, physical, nodes);
+    return;
+  }
+  count_unsupported(type, 1);
+  const ElementType* info = find_type(type);
+  if (listed >= 0 || info) {
+    for (Id k = 0; k < (listed >= 0 ? listed : info->nodes); ++k) lex_.token();
+  } else {
+    lex_.rest_of_line();
+  }
+}
+
+// MSH 1: "tag type reg-phys reg-elem number-of-nodes nodes..." per line.
+void SectionReader::read_elements_msh1() {
+  if (!saw_nodes_) lex_.fail("no $NOD section before $ELM");
+  saw_elements_ = true;
+  const std::size_t n = lex_.count("number of elements", 6);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Id tag = lex_.integer("element tag", 1);
+    const Id type = lex_.integer("element type", 1, kInt32Max);
+    const Id physical = lex_.integer("physical entity", kInt32Min, kInt32Max);
+    const Id entity = lex_.integer("elementary entity", kInt32Min, kInt32Max);
+    const std::size_t listed = lex_.count("number of nodes", 1);
+    const ElementType* info = find_type(type);
+    if (info && listed != static_cast<std::size_t>(info->nodes))
+      lex_.fail("element " + std::to_string(tag) + ": a " + type_name(static_cast<int>(type)) + " (type " +
+                std::to_string(type) + ") has " + std::to_string(info->nodes) + " nodes, the line says " +
+                std::to_string(listed));
+    ascii_element_nodes(tag, type, entity, physical, static_cast<Id>(listed));
+  }
+  lex_.expect_line("$ENDELM");
+}
+
+void SectionReader::read_elements_msh2() {
   if (!saw_nodes_) lex_.fail("no $Nodes section before $Elements");
   saw_elements_ = true;
   Id nodes[8];
-  if (!s_.msh4) {
-    const std::size_t n = lex_.count("number of elements", 4);
-    if (binary_) {
-      // Binary MSH2: blocks of elements of one type: {type, count, number of tags},
-      // then per element: tag, tags, node tags (all 4-byte ints).
-      lex_.start_binary_data();
-      std::size_t seen = 0;
-      while (seen < n) {
-        const int type = lex_.bin_int("element type", 1);
-        const std::size_t follow = static_cast<std::size_t>(lex_.bin_int("number of elements in the block", 1));
-        const int ntags = lex_.bin_int("number of tags", 0);
-        if (follow > n - seen)
-          lex_.fail("the element blocks hold more elements than the header's total of " + std::to_string(n));
-        const ElementType* info = find_type(type);
-        if (!info) fail_unknown_type(type);
-        const std::size_t bytes_each = 4 * (1 + static_cast<std::size_t>(ntags) + static_cast<std::size_t>(info->nodes));
-        if (follow > lex_.remaining() / bytes_each) lex_.too_many("number of elements in the block", follow);
-        const int dim = kept_dim(type);
-        if (dim < 0) {
-          count_unsupported(type, follow);
-          lex_.skip_bytes(follow * bytes_each);
-        } else {
-          for (std::size_t i = 0; i < follow; ++i) {
-            const Id tag = lex_.bin_int("element tag", 1);
-            Id physical = 0, entity = 0;
-            for (int k = 0; k < ntags; ++k) {
-              const Id t = lex_.bin<std::int32_t>();
-              if (k == 0) physical = t;
-              if (k == 1) entity = t;
-            }
-            for (int k = 0; k < kNodesOfDim[dim]; ++k) nodes[k] = lex_.bin_int("node tag", 1);
-            add_element(dim, tag, dim, entity, physical, nodes);
+  const std::size_t n = lex_.count("number of elements", 4);
+  if (binary_) {
+    // Binary MSH2: blocks of elements of one type: {type, count, number of tags},
+    // then per element: tag, tags, node tags (all 4-byte ints).
+    lex_.start_binary_data();
+    std::size_t seen = 0;
+    while (seen < n) {
+      const int type = lex_.bin_int("element type", 1);
+      const std::size_t follow = static_cast<std::size_t>(lex_.bin_int("number of elements in the block", 1));
+      const int ntags = lex_.bin_int("number of tags", 0);
+      if (follow > n - seen)
+        lex_.fail("the element blocks hold more elements than the header's total of " + std::to_string(n));
+      const ElementType* info = find_type(type);
+      if (!info) fail_unknown_type(type);
+      const std::size_t bytes_each = 4 * (1 + static_cast<std::size_t>(ntags) + static_cast<std::size_t>(info->nodes));
+      if (follow > lex_.remaining() / bytes_each) lex_.too_many("number of elements in the block", follow);
+      const int dim = kept_dim(type);
+      if (dim < 0) {
+        count_unsupported(type, follow);
+        lex_.skip_bytes(follow * bytes_each);
+      } else {
+        for (std::size_t i = 0; i < follow; ++i) {
+          const Id tag = lex_.bin_int("element tag", 1);
+          Id physical = 0, entity = 0;
+          for (int k = 0; k < ntags; ++k) {
+            const Id t = lex_.bin<std::int32_t>();
+            if (k == 0) physical = t;
+            if (k == 1) entity = t;
           }
-        }
-        seen += follow;
-      }
-    } else {
-      // ASCII MSH2: "tag type ntags tags... nodes..." per line.
-      for (std::size_t i = 0; i < n; ++i) {
-        const Id tag = lex_.integer("element tag", 1);
-        const Id type = lex_.integer("element type", 1, kInt32Max);
-        const std::size_t ntags = lex_.count("number of tags", 1);
-        Id physical = 0, entity = 0;
-        for (std::size_t k = 0; k < ntags; ++k) {
-          const Id t = lex_.integer("element tag value", kInt32Min, kInt32Max);
-          if (k == 0) physical = t;
-          if (k == 1) entity = t;
-        }
-        const int dim = kept_dim(type);
-        if (dim >= 0) {
-          for (int k = 0; k < kNodesOfDim[dim]; ++k) nodes[k] = lex_.integer("node tag", 1);
+          for (int k = 0; k < kNodesOfDim[dim]; ++k) nodes[k] = lex_.bin_int("node tag", 1);
           add_element(dim, tag, dim, entity, physical, nodes);
-        } else {
-          count_unsupported(type, 1);
-          const ElementType* info = find_type(type);
-          if (info) {
-            for (int k = 0; k < info->nodes; ++k) lex_.token();
-          } else {
-            lex_.rest_of_line();
-          }
         }
       }
+      seen += follow;
     }
-    lex_.expect_end("Elements");
-    return;
+  } else {
+    // ASCII MSH2: "tag type ntags tags... nodes..." per line.
+    for (std::size_t i = 0; i < n; ++i) {
+      const Id tag = lex_.integer("element tag", 1);
+      const Id type = lex_.integer("element type", 1, kInt32Max);
+      const std::size_t ntags = lex_.count("number of tags", 1);
+      Id physical = 0, entity = 0;
+      for (std::size_t k = 0; k < ntags; ++k) {
+        const Id t = lex_.integer("element tag value", kInt32Min, kInt32Max);
+        if (k == 0) physical = t;
+        if (k == 1) entity = t;
+      }
+      ascii_element_nodes(tag, type, entity, physical, -1);
+    }
   }
-  // MSH 4.1: header, then entity blocks of one element type each.
+  lex_.expect_end("Elements");
+}
+
+// MSH 4.1: header, then entity blocks of one element type each.
+void SectionReader::read_elements_msh41() {
+  if (!saw_nodes_) lex_.fail("no $Nodes section before $Elements");
+  saw_elements_ = true;
+  Id nodes[8];
   const auto [blocks, total] = msh41_header("element", 16, 2);
   std::size_t seen = 0;
   for (std::size_t b = 0; b < blocks; ++b) {
@@ -480,28 +509,61 @@ void SectionReader::read_elements() {
   lex_.expect_end("Elements");
 }
 
+// Gmsh reads sections in any order and skips those it does not know, before
+// $MeshFormat too; so do we. Sections whose layout depends on the format
+// (binary or not, version) must come after it.
 MshSections SectionReader::read() {
-  read_format();
+  lex_.skip_space();
+  if (lex_.at_end()) throw Error(ErrorKind::BadInput, lex_.path() + ": the file is empty");
   for (;;) {
     lex_.set_section("");
     lex_.set_binary(false);
     lex_.skip_space();
     if (lex_.at_end()) break;
     const std::string header = lex_.header_line();
-    if (header.size() < 2 || header[0] != '$')
+    if (header.size() < 2 || header[0] != '$') {
+      if (version_ == 0) lex_.fail("not a Gmsh MSH file: expected a section header such as $MeshFormat, found '" +
+                                   shown(header) + "'");
       lex_.fail("expected a section header such as $Nodes, found '" + shown(header) + "'");
+    }
     const std::string name = header.substr(1);
-    if (name.starts_with("End")) lex_.fail("'" + shown(header) + "' has no matching opening line");
+    if (name.starts_with("End") || name.starts_with("END"))
+      lex_.fail("'" + shown(header) + "' has no matching opening line");
     lex_.set_section(header);
-    if (name == "MeshFormat") lex_.fail("a second $MeshFormat section");
-    else if (name == "PhysicalNames") read_physical_names();
-    else if (name == "Entities" && s_.msh4) read_entities();
-    else if (name == "Nodes") read_nodes();
-    else if (name == "Elements") read_elements();
-    else lex_.skip_to_end_line(name);
+    const bool msh1_section = name == "NOD" || name == "NOE" || name == "ELM";
+    const bool needs_format = name == "Nodes" || name == "Elements" || name == "Entities";
+    if (name == "MeshFormat") {
+      if (version_ != 0) lex_.fail(version_ == 1 ? "$MeshFormat in an MSH 1 file" : "a second $MeshFormat section");
+      read_format();
+    } else if (msh1_section) {
+      if (version_ > 1) lex_.fail("an MSH 1 section in an MSH " + std::string(s_.msh4 ? "4.1" : "2") + " file");
+      version_ = 1;
+      if (name == "ELM") read_elements_msh1();
+      else read_nodes_msh12("$END" + name);
+    } else if (needs_format && version_ == 0) {
+      lex_.fail("comes before $MeshFormat, which says how to read it");
+    } else if (needs_format && version_ == 1) {
+      lex_.fail("an MSH 2/4 section in an MSH 1 file ($NOD)");
+    } else if (name == "PhysicalNames") {
+      read_physical_names();
+    } else if (name == "Entities" && s_.msh4) {
+      read_entities();
+    } else if (name == "Nodes") {
+      if (s_.msh4) read_nodes_msh41();
+      else read_nodes_msh12("$EndNodes");
+    } else if (name == "Elements") {
+      if (s_.msh4) read_elements_msh41();
+      else read_elements_msh2();
+    } else {
+      lex_.skip_to_end_line(name);
+    }
   }
-  if (!saw_nodes_) throw Error(ErrorKind::BadInput, lex_.path() + ": no $Nodes section");
-  if (!saw_elements_) throw Error(ErrorKind::BadInput, lex_.path() + ": no $Elements section");
+  if (version_ == 0)
+    throw Error(ErrorKind::BadInput, lex_.path() + ": not a Gmsh MSH file: no $MeshFormat section (nor MSH 1's $NOD)");
+  const char* nodes = version_ == 1 ? "$NOD" : "$Nodes";
+  const char* elements = version_ == 1 ? "$ELM" : "$Elements";
+  if (!saw_nodes_) throw Error(ErrorKind::BadInput, lex_.path() + ": no " + nodes + " section");
+  if (!saw_elements_) throw Error(ErrorKind::BadInput, lex_.path() + ": no " + elements + " section");
   return std::move(s_);
 }
 

@@ -75,8 +75,9 @@ struct CoarseMesh {
   Vec3 vertex(Id v) const { return {x[v], y[v], z[v]}; }
 };
 
-// Reads an Exodus II (.e, .exo, .ex2, .g) or Gmsh MSH 2.2/4.1 file, chosen by
-// content (netCDF/HDF5 magic vs "$MeshFormat"), then validate_coarse_mesh().
+// Reads an Exodus II (.e, .exo, .ex2, .g) or Gmsh MSH 1/2.2/4.1 file, chosen
+// by content (netCDF/HDF5 magic vs a first line "$Section"), then
+// validate_coarse_mesh().
 // Throws Error{BadInput|Unsupported|Io} naming the file and what is wrong.
 CoarseMesh read_coarse_mesh(const std::string& path);
 
