@@ -57,7 +57,7 @@ void classify_from_elements(MshSections& sec) {
   }
 }
 
-void assign_blocks(const std::string& path, const MshSections& sec, int dim, CoarseMesh& mesh) {
+void assign_blocks(const MshSections& sec, int dim, CoarseMesh& mesh) {
   const Group& cells = sec.groups[dim];
   const std::size_t num_cells = cells.size();
   std::map<Id, std::string> block_names;  // id -> name
@@ -92,7 +92,7 @@ void assign_blocks(const std::string& path, const MshSections& sec, int dim, Coa
     }
     for (std::size_t i = 0; i < num_cells; ++i)
       if (sec.physicals(dim, i).empty()) cell_block_id[i] = orphan_entities[cells.entity[i]];
-    mesh.warnings.push_back(path + ": " + std::to_string(orphans) + " " + (dim == 3 ? "hexahedra" : "quadrangles") +
+    mesh.warnings.push_back(std::to_string(orphans) + " " + (dim == 3 ? "hexahedra" : "quadrangles") +
                             " are in no physical group; they were put in blocks named 'entity <tag>' with ids from " +
                             std::to_string(max_physical + 1));
   }
@@ -107,7 +107,7 @@ void assign_blocks(const std::string& path, const MshSections& sec, int dim, Coa
 
 // Side sets: physical groups of dimension dim-1, matched to element sides
 // by the sorted corner ids of each side.
-void assign_side_sets(const std::string& path, const MshSections& sec, int dim, CoarseMesh& mesh) {
+void assign_side_sets(const MshSections& sec, int dim, CoarseMesh& mesh) {
   const Group& cells = sec.groups[dim];
   const Group& bnd = sec.groups[dim - 1];
   bool any_side = false;
@@ -173,7 +173,7 @@ void assign_side_sets(const std::string& path, const MshSections& sec, int dim, 
     mesh.side_sets.push_back(std::move(ss));
   }
   if (unmatched > 0)
-    mesh.warnings.push_back(path + ": " + std::to_string(unmatched) + " " + (dim == 3 ? "quadrangles" : "lines") +
+    mesh.warnings.push_back(std::to_string(unmatched) + " " + (dim == 3 ? "quadrangles" : "lines") +
                             " in physical groups match no " + (dim == 3 ? "hexahedron face" : "quadrangle edge") +
                             " and were skipped (the first is element " + std::to_string(first_unmatched) + ")");
 }
@@ -204,12 +204,12 @@ CoarseMesh assemble(const std::string& path, MshSections sec) {
   mesh.mode = sec.groups[3].size() > 0 ? Mode::Volume : Mode::Surface;
   const int dim = mesh.mode == Mode::Volume ? 3 : 2;
   if (!sec.msh4) classify_from_elements(sec);
-  assign_blocks(path, sec, dim, mesh);
+  assign_blocks(sec, dim, mesh);
   if (sec.repeated > 0)
-    mesh.warnings.push_back(path + ": " + std::to_string(sec.repeated) +
+    mesh.warnings.push_back(std::to_string(sec.repeated) +
                             " element(s) are listed again, same tag and nodes, for a further physical group (Gmsh's "
                             "MSH 2 writer does this); each was kept once, in its first group");
-  assign_side_sets(path, sec, dim, mesh);
+  assign_side_sets(sec, dim, mesh);
   assign_node_sets(sec, mesh);
 
   mesh.x = std::move(sec.x);

@@ -226,7 +226,7 @@ std::vector<Id> read_id_map(int exoid, ex_entity_type type, std::int64_t count, 
   const bool all_zero = sorted.front() == 0 && sorted.back() == 0;
   const bool duplicates = std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end();
   if (all_zero || duplicates) {
-    warnings.push_back(path + ": the " + what + " id map " +
+    warnings.push_back("the " + what + " id map " +
                        (all_zero ? "is all zeros" : "has duplicate ids") + "; using " + what + " ids 1.." +
                        std::to_string(count));
     for (std::size_t i = 0; i < map.size(); ++i) map[i] = static_cast<Id>(i) + 1;
@@ -386,7 +386,7 @@ CoarseMesh read_exodus(const std::string& path) {
     const bool wanted = mesh.mode == Mode::Volume ? b.shape == Shape::Hex
                                                   : (b.shape == Shape::Quad || b.shape == Shape::Shell);
     if (b.count > 0 && !wanted) {
-      mesh.warnings.push_back(path + ": element block " + std::to_string(b.id) + ": skipped " +
+      mesh.warnings.push_back("element block " + std::to_string(b.id) + ": skipped " +
                               std::to_string(b.count) + " " + b.type + " elements (boundary faces of a hex mesh)");
       continue;
     }
@@ -514,7 +514,7 @@ CoarseMesh read_exodus(const std::string& path) {
       set.side.push_back(static_cast<std::int8_t>(quad ? side + 1 : side - 1));
     }
     if (dropped > 0)
-      mesh.warnings.push_back(path + ": " + what + ": dropped " + std::to_string(dropped) +
+      mesh.warnings.push_back(what + ": dropped " + std::to_string(dropped) +
                               " sides on elements of skipped blocks");
     mesh.side_sets.push_back(std::move(set));
   }

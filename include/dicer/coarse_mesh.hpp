@@ -67,7 +67,9 @@ struct CoarseMesh {
   // -1 where unknown (Exodus files, MSH 2.2 without it). Empty or sized V.
   std::vector<std::int8_t> vertex_geo_dim;
   std::vector<std::int32_t> vertex_geo_tag;
-  std::vector<std::string> warnings;  // quirks accepted (reoriented, dropped nodes)
+  // Quirks accepted (reoriented, dropped nodes, skipped blocks): one sentence
+  // each, WITHOUT the file path; whoever prints them prefixes `source`.
+  std::vector<std::string> warnings;
 
   int corners_per_element() const { return mode == Mode::Volume ? 8 : 4; }
   Id num_vertices() const { return static_cast<Id>(x.size()); }

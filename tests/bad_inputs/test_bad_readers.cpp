@@ -1,0 +1,71 @@
+// The coarse-mesh and intervals readers through the real `dicer` binary:
+// what the user sees on stderr (warnings, refusals) for inputs that are odd
+// rather than broken. Every run is under `timeout`, so an input that would
+// block the reader fails the test instead of hanging it.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <string>
+#include <vector>
+
+#include "test_support.hpp"
+
+namespace {
+
+using dicer::test::CliResult;
+using dicer::test::TempDir;
+
+// `dicer ARGS...` killed after 60 s (exit 124 then).
+CliResult run_cli_bounded(const std::vector<std::string>& args) {
+  std::vector<std::string> argv{"/usr/bin/timeout", "-k", "5", "60", DICER_CLI};
+  argv.insert(argv.end(), args.begin(), args.end());
+  return dicer::test::run_process(argv);
+}
+
+std::vector<std::string> lines_with(const std::string& text, const std::string& what) {
+  std::vector<std::string> out;
+  std::size_t at = 0;
+  while (at < text.size()) {
+    std::size_t end = text.find('\n', at);
+    if (end == std::string::npos) end = text.size();
+    const std::string line = text.substr(at, end - at);
+    if (line.find(what) != std::string::npos) out.push_back(line);
+    at = end + 1;
+  }
+  return out;
+}
+
+std::size_t occurrences(const std::string& text, const std::string& what) {
+  std::size_t n = 0;
+  for (std::size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
+  return n;
+}
+
+// Two hexes stacked in z, the second in no physical group: a reader warning.
+const std::string kOrphanHex =
+    "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n"
+    "$Nodes\n12\n1 0 0 0\n2 1 0 0\n3 1 1 0\n4 0 1 0\n5 0 0 1\n6 1 0 1\n7 1 1 1\n8 0 1 1\n"
+    "9 0 0 2\n10 1 0 2\n11 1 1 2\n12 0 1 2\n$EndNodes\n"
+    "$Elements\n2\n1 5 2 8 1 1 2 3 4 5 6 7 8\n2 5 2 0 8 5 6 7 8 9 10 11 12\n$EndElements\n";
+
+}  // namespace
+
+// A warning names the file once: the reader's text has no path, the
+// command prefixes it (coarse_mesh.hpp, CoarseMesh::warnings).
+TEST(ReaderCli, WarningNamesTheFileOnce) {
+  TempDir d;
+  const std::string in = d.path("orphan.msh");
+  dicer::test::write_file(in, kOrphanHex);
+  const std::vector<std::pair<std::string, std::vector<std::string>>> runs = {
+      {"dicer sheets", {"sheets", in}}, {"dicer dice", {"dice", in, "--quiet", "-o", d.path("out.dice.h5")}}};
+  for (const auto& [command, args] : runs) {
+    SCOPED_TRACE(command);
+    const CliResult r = run_cli_bounded(args);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const auto warnings = lines_with(r.err, "warning");
+    ASSERT_EQ(warnings.size(), 1u) << r.err;
+    EXPECT_EQ(warnings[0].rfind(command + ": warning: " + in + ": 1 hexahedra are in no physical group", 0), 0u)
+        << warnings[0];
+    EXPECT_EQ(occurrences(warnings[0], in), 1u) << warnings[0];
+  }
+}
