@@ -1,9 +1,12 @@
 // MSH assembly: the sections of a file (msh_sections.cpp) -> CoarseMesh.
 //
 // Mapping (see coarse_mesh.hpp):
-//  - mode: Volume if the file has hexahedra (type 5), else Surface if it has
-//    quadrangles (type 3). Points (15) and lines (1) are classification and
-//    set information; any other element type is refused (Unsupported).
+//  - mode: the highest dimension present (mesh_dimension): Volume if it is 3,
+//    then every 3D element must be a hexahedron (type 5); Surface if it is 2,
+//    then every 2D element must be a quadrangle (type 3). Other elements of
+//    that dimension are refused (Unsupported); lower-dimensional ones are
+//    classification and set information (first-order quads, lines, points)
+//    or skipped with one warning.
 //  - blocks: the element's physical group (MSH4: first physical tag of its
 //    entity; MSH2: first element tag). If no element of the mesh dimension has
 //    a physical group, blocks are the elementary entities (id = entity tag,
@@ -27,19 +30,75 @@
 namespace dicer::msh {
 namespace {
 
-void refuse_unsupported(const std::string& path, const MshSections& sec) {
-  if (!sec.unsupported.empty()) {
+// One rule for every input format (README, Inputs): the highest dimension
+// present is the mesh's. Its elements must all be first-order hexahedra
+// (quadrangles for a surface); lower-dimensional ones are side and node sets
+// or are skipped, with one warning naming them. Returns that dimension.
+int mesh_dimension(const std::string& path, const MshSections& sec, std::vector<std::string>& warnings) {
+  int dim = -1;
+  for (int d = 0; d < 4; ++d)
+    if (sec.groups[d].size() > 0) dim = d;
+  for (const auto& [key, n] : sec.others) dim = std::max(dim, type_dim(std::get<0>(key)));
+
+  std::map<Id, std::size_t> refused;  // type -> count
+  for (const auto& [key, n] : sec.others) {
+    const int d = type_dim(std::get<0>(key));
+    if (d == dim || d < 0) refused[std::get<0>(key)] += n;
+  }
+  if (!refused.empty()) {
     std::string list;
-    for (const auto& [type, n] : sec.unsupported) {
+    for (const auto& [type, n] : refused) {
       if (!list.empty()) list += ", ";
       list += std::to_string(n) + " " + type_name(static_cast<int>(type)) + " (type " + std::to_string(type) + ")";
     }
     throw Error(ErrorKind::Unsupported, path + ": unsupported elements: " + list +
                                             "; dicer needs all-hex (type 5) or all-quad (type 3) meshes");
   }
-  if (sec.groups[3].size() == 0 && sec.groups[2].size() == 0)
+  if (dim < 2)
     throw Error(ErrorKind::Unsupported,
                 path + ": no hexahedra (type 5) or quadrangles (type 3); dicer needs all-hex or all-quad meshes");
+
+  // Skipped: other types of lower dimension, and lines in physical groups of
+  // a volume mesh (dicer has no edge sets). Counted by physical group, or by
+  // entity where there is none.
+  std::map<std::tuple<Id, Id, int, Id>, std::size_t> skipped;  // (type, physical, entity dim, entity)
+  auto count = [&](Id type, std::span<const int> physical, int entity_dim, Id entity, std::size_t n) {
+    if (physical.empty()) skipped[{type, 0, entity_dim, entity}] += n;
+    else skipped[{type, physical[0], type_dim(type), 0}] += n;
+  };
+  for (const auto& [key, n] : sec.others) {
+    const auto& [type, entity_dim, entity, physical] = key;
+    std::span<const int> p;
+    const int tag = static_cast<int>(physical);
+    if (physical != 0) {
+      p = std::span<const int>(&tag, 1);
+    } else if (sec.msh4) {
+      auto it = sec.entity_physicals.find({entity_dim, static_cast<int>(entity)});
+      if (it != sec.entity_physicals.end()) p = it->second;
+    }
+    count(type, p, entity_dim, entity, n);
+  }
+  if (dim == 3)
+    for (std::size_t i = 0; i < sec.groups[1].size(); ++i)
+      if (std::span<const int> p = sec.physicals(1, i); !p.empty()) count(kLine, p, 1, 0, 1);
+  if (!skipped.empty()) {
+    std::string list;
+    for (const auto& [key, n] : skipped) {
+      const auto& [type, physical, entity_dim, entity] = key;
+      list += (list.empty() ? "" : ", ") + std::to_string(n) + " " + type_name(static_cast<int>(type)) + " (type " +
+              std::to_string(type) + ") in ";
+      if (physical != 0) {
+        list += "physical group " + std::to_string(physical);
+        auto it = sec.physical_names.find({entity_dim, physical});
+        if (it != sec.physical_names.end() && !it->second.empty()) list += " \"" + it->second + "\"";
+      } else {
+        list += "entity " + std::to_string(entity);
+      }
+    }
+    warnings.push_back(std::string("skipped elements of lower dimension than the ") +
+                       (dim == 3 ? "hexahedra" : "quadrangles") + " (dicer dices only those): " + list);
+  }
+  return dim;
 }
 
 // MSH2 states no classification: a node lies on the lowest-dimensional
@@ -198,11 +257,10 @@ void assign_node_sets(const MshSections& sec, CoarseMesh& mesh) {
 }  // namespace
 
 CoarseMesh assemble(const std::string& path, MshSections sec) {
-  refuse_unsupported(path, sec);
   CoarseMesh mesh;
   mesh.source = path;
-  mesh.mode = sec.groups[3].size() > 0 ? Mode::Volume : Mode::Surface;
-  const int dim = mesh.mode == Mode::Volume ? 3 : 2;
+  const int dim = mesh_dimension(path, sec, mesh.warnings);
+  mesh.mode = dim == 3 ? Mode::Volume : Mode::Surface;
   if (!sec.msh4) classify_from_elements(sec);
   assign_blocks(sec, dim, mesh);
   if (sec.repeated > 0)

@@ -15,6 +15,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -41,6 +42,8 @@ struct ElementType {
 const ElementType* find_type(Id type);
 // "hexahedron", "27-node hexahedron", "element of unknown type".
 std::string type_name(int type);
+// 0 points, 1 lines, 2 triangles and quadrangles, 3 solids; -1 unknown type.
+int type_dim(Id type);
 
 // The types dicer keeps (first-order point, line, quadrangle, hexahedron),
 // indexed by their dimension.
@@ -162,7 +165,9 @@ struct MshSections {
   std::vector<std::int8_t> geo_dim;
   std::vector<std::int32_t> geo_tag;
   Group groups[4];                           // by dimension: points, lines, quads, hexes
-  std::map<Id, std::size_t> unsupported;     // element type -> count
+  // Elements of the types dicer does not keep, counted by type and place:
+  // (type, entity dimension, entity tag, MSH 1/2 physical tag or 0).
+  std::map<std::tuple<Id, int, Id, Id>, std::size_t> others;
   std::size_t repeated = 0;                  // MSH2 elements written once per physical group
   std::map<std::pair<int, int>, std::vector<int>> entity_physicals;  // MSH4 (dim, tag)
   std::map<std::pair<int, Id>, std::string> physical_names;          // (dim, tag)

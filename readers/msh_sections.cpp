@@ -71,6 +71,12 @@ int kept_dim(Id type) {
   }
 }
 
+int type_dim(Id type) {
+  static constexpr int kShapeDim[] = {0, 1, 2, 2, 3, 3, 3, 3};
+  const ElementType* t = find_type(type);
+  return t ? kShapeDim[static_cast<int>(t->shape)] : -1;
+}
+
 std::string type_name(int type) {
   static const char* const kShapeNames[] = {"point",       "line",       "triangle", "quadrangle",
                                             "tetrahedron", "hexahedron", "prism",    "pyramid"};
@@ -123,7 +129,9 @@ class SectionReader {
   void add_node_tag(Id tag);
   void add_coords(Id tag, double x, double y, double z);
   void add_element(int dim, Id tag, int entity_dim, Id entity, Id physical, const Id* nodes);
-  void count_unsupported(Id type, std::size_t n) { s_.unsupported[type] += n; }
+  void count_other(Id type, int entity_dim, Id entity, Id physical, std::size_t n) {
+    s_.others[{type, entity_dim, entity, physical}] += n;
+  }
   [[noreturn]] void fail_unknown_type(Id type);
 
   Lexer& lex_;
@@ -365,7 +373,7 @@ void SectionReader::ascii_element_nodes(Id tag, Id type, Id entity, Id physical,
     add_element(dim, tag, dim, entity, physical, nodes);
     return;
   }
-  count_unsupported(type, 1);
+  count_other(type, type_dim(type), entity, physical, 1);
   const ElementType* info = find_type(type);
   if (listed >= 0 || info) {
     for (Id k = 0; k < (listed >= 0 ? listed : info->nodes); ++k) lex_.token();
@@ -416,21 +424,21 @@ void SectionReader::read_elements_msh2() {
       const std::size_t bytes_each = 4 * (1 + static_cast<std::size_t>(ntags) + static_cast<std::size_t>(info->nodes));
       if (follow > lex_.remaining() / bytes_each) lex_.too_many("number of elements in the block", follow);
       const int dim = kept_dim(type);
-      if (dim < 0) {
-        count_unsupported(type, follow);
-        lex_.skip_bytes(follow * bytes_each);
-      } else {
-        for (std::size_t i = 0; i < follow; ++i) {
-          const Id tag = lex_.bin_int("element tag", 1);
-          Id physical = 0, entity = 0;
-          for (int k = 0; k < ntags; ++k) {
-            const Id t = lex_.bin<std::int32_t>();
-            if (k == 0) physical = t;
-            if (k == 1) entity = t;
-          }
-          for (int k = 0; k < kNodesOfDim[dim]; ++k) nodes[k] = lex_.bin_int("node tag", 1);
-          add_element(dim, tag, dim, entity, physical, nodes);
+      for (std::size_t i = 0; i < follow; ++i) {
+        const Id tag = lex_.bin_int("element tag", 1);
+        Id physical = 0, entity = 0;
+        for (int k = 0; k < ntags; ++k) {
+          const Id t = lex_.bin<std::int32_t>();
+          if (k == 0) physical = t;
+          if (k == 1) entity = t;
         }
+        if (dim < 0) {
+          count_other(type, type_dim(type), entity, physical, 1);
+          lex_.skip_bytes(4 * static_cast<std::uint64_t>(info->nodes));
+          continue;
+        }
+        for (int k = 0; k < kNodesOfDim[dim]; ++k) nodes[k] = lex_.bin_int("node tag", 1);
+        add_element(dim, tag, dim, entity, physical, nodes);
       }
       seen += follow;
     }
@@ -482,7 +490,7 @@ void SectionReader::read_elements_msh41() {
     seen += n;
     const int dim = kept_dim(type);
     if (dim < 0) {
-      count_unsupported(type, n);
+      count_other(type, entity_dim, entity, 0, n);
       if (binary_) {
         lex_.skip_bytes(static_cast<std::uint64_t>(n) * 8 * (1 + static_cast<std::uint64_t>(info->nodes)));
       } else {

@@ -236,14 +236,40 @@ std::vector<Id> read_id_map(int exoid, ex_entity_type type, std::int64_t count, 
 
 // ----------------------------------------------------------- block types ---
 
-enum class Shape { Hex, Quad, Shell, Other };
+// What an element type is to dicer. Kept: HEX8 (volume), QUAD4 and SHELL4
+// (surface; they number their sides differently). Everything else counts
+// only by its dimension: refused when it is the mesh's, skipped below it.
+enum class Shape { Hex, Quad, Shell, Solid, Face, Bar, Point, Unknown };
 
 Shape classify(const std::string& type, std::int64_t nodes_per_element) {
   const std::string t = upper(type);
   if ((t == "HEX8" || t == "HEX" || t == "HEXAHEDRON") && nodes_per_element == 8) return Shape::Hex;
   if ((t == "QUAD4" || t == "QUAD") && nodes_per_element == 4) return Shape::Quad;
   if ((t == "SHELL4" || t == "SHELL") && nodes_per_element == 4) return Shape::Shell;
-  return Shape::Other;
+  // The name without its node count: "TETRA10" -> "TETRA", "BAR2" -> "BAR".
+  std::string base = t;
+  while (!base.empty() && std::isdigit(static_cast<unsigned char>(base.back()))) base.pop_back();
+  for (const char* solid : {"HEX", "HEXAHEDRON", "TETRA", "TET", "TETRAHEDRON", "WEDGE", "PYRAMID", "NFACED"})
+    if (base == solid) return Shape::Solid;
+  for (const char* face : {"QUAD", "QUADRILATERAL", "SHELL", "TRI", "TRIANGLE", "TRISHELL", "NSIDED"})
+    if (base == face) return Shape::Face;
+  for (const char* bar : {"BAR", "BEAM", "TRUSS", "EDGE", "ROD", "SPRING"})
+    if (base == bar) return Shape::Bar;
+  for (const char* point : {"SPHERE", "CIRCLE", "POINT", "NODE", "PARTICLE"})
+    if (base == point) return Shape::Point;
+  return Shape::Unknown;
+}
+
+// 3 solids, 2 faces, 1 bars, 0 points; -1 for a type dicer does not know.
+int dimension(Shape s) {
+  switch (s) {
+    case Shape::Hex: case Shape::Solid: return 3;
+    case Shape::Quad: case Shape::Shell: case Shape::Face: return 2;
+    case Shape::Bar: return 1;
+    case Shape::Point: return 0;
+    case Shape::Unknown: return -1;
+  }
+  return -1;
 }
 
 struct BlockInfo {
@@ -252,7 +278,7 @@ struct BlockInfo {
   std::string type;
   std::int64_t count = 0;
   std::int64_t nodes_per_element = 0;
-  Shape shape = Shape::Other;
+  Shape shape = Shape::Unknown;
   bool kept = false;          // its elements go into the mesh
   std::int32_t index = -1;    // position in mesh.blocks when kept
 };
@@ -263,7 +289,8 @@ std::string describe_type(const BlockInfo& b) {
   const std::string u = upper(b.type);
   const bool generic = u == "HEX" || u == "HEX8" || u == "HEXAHEDRON" || u == "QUAD" || u == "QUAD4" ||
                        u == "SHELL" || u == "SHELL4";
-  if (generic) t += " with " + std::to_string(b.nodes_per_element) + " nodes per element";
+  const bool diced = b.shape == Shape::Hex || b.shape == Shape::Quad || b.shape == Shape::Shell;
+  if (generic && !diced) t += " with " + std::to_string(b.nodes_per_element) + " nodes per element";
   return t;
 }
 
@@ -358,38 +385,46 @@ CoarseMesh read_exodus(const std::string& path) {
          "element blocks hold " + std::to_string(total_elements) + " elements but the header claims " +
              std::to_string(init.num_elem));
 
-  bool has_hex = false, has_quad = false;
-  std::vector<std::string> unsupported;
+  // One rule for every input format (README, Inputs): the highest dimension
+  // among the non-empty blocks is the mesh's; its blocks must be HEX8 (or
+  // QUAD4/SHELL4), lower-dimensional blocks are skipped with one warning.
+  int dim = -1;
+  for (const BlockInfo& b : blocks)
+    if (b.count > 0) dim = std::max(dim, dimension(b.shape));
+  std::string refused, skipped;
   for (const BlockInfo& b : blocks) {
     if (b.count == 0) continue;
-    if (b.shape == Shape::Hex) has_hex = true;
-    if (b.shape == Shape::Quad || b.shape == Shape::Shell) has_quad = true;
-    if (b.shape == Shape::Other)
-      unsupported.push_back(std::to_string(b.count) + " " + describe_type(b) + " (block " + std::to_string(b.id) +
-                            ")");
+    const int d = dimension(b.shape);
+    const bool kept = d == 3 ? b.shape == Shape::Hex : b.shape == Shape::Quad || b.shape == Shape::Shell;
+    const std::string what = std::to_string(b.count) + " " + describe_type(b);
+    if (d < 0 || (d == dim && dim >= 2 && !kept)) {
+      refused += (refused.empty() ? "" : ", ") + what + " (block " + std::to_string(b.id) + ")";
+    } else if (d < dim) {
+      skipped += (skipped.empty() ? "" : ", ") + std::string("block ") + std::to_string(b.id) +
+                 (b.name.empty() ? "" : " \"" + b.name + "\"") + " (" + what + ")";
+    }
   }
-  if (!unsupported.empty()) {
-    std::string list;
-    for (const std::string& u : unsupported) list += (list.empty() ? "" : ", ") + u;
+  if (!refused.empty())
     fail(ErrorKind::Unsupported, path,
-         "unsupported elements: " + list + "; dicer needs all-hex (HEX8) or all-quad (QUAD4/SHELL4) meshes");
-  }
-  mesh.mode = (has_quad && !has_hex) ? Mode::Surface : Mode::Volume;
-  if (mesh.mode == Mode::Volume && init.num_dim != 3 && has_hex)
+         "unsupported elements: " + refused + "; dicer needs all-hex (HEX8) or all-quad (QUAD4/SHELL4) meshes");
+  if (dim >= 0 && dim < 2)
+    fail(ErrorKind::Unsupported, path,
+         "no hexahedra or quadrilaterals, only elements of dimension " + std::to_string(dim) +
+             "; dicer needs all-hex (HEX8) or all-quad (QUAD4/SHELL4) meshes");
+  mesh.mode = dim == 2 ? Mode::Surface : Mode::Volume;
+  if (mesh.mode == Mode::Volume && init.num_dim != 3 && dim == 3)
     fail(ErrorKind::BadInput, path,
          "hexahedral mesh needs 3 coordinate dimensions, the file has " + std::to_string(init.num_dim));
   if (mesh.mode == Mode::Surface && init.num_dim < 2)
     fail(ErrorKind::BadInput, path,
          "quadrilateral mesh needs 2 or 3 coordinate dimensions, the file has " + std::to_string(init.num_dim));
+  if (!skipped.empty())
+    mesh.warnings.push_back(std::string("skipped element blocks of lower dimension than the ") +
+                            (mesh.mode == Mode::Volume ? "hexahedra" : "quadrilaterals") +
+                            " (dicer dices only those): " + skipped);
 
   for (BlockInfo& b : blocks) {
-    const bool wanted = mesh.mode == Mode::Volume ? b.shape == Shape::Hex
-                                                  : (b.shape == Shape::Quad || b.shape == Shape::Shell);
-    if (b.count > 0 && !wanted) {
-      mesh.warnings.push_back("element block " + std::to_string(b.id) + ": skipped " +
-                              std::to_string(b.count) + " " + b.type + " elements (boundary faces of a hex mesh)");
-      continue;
-    }
+    if (b.count > 0 && dimension(b.shape) < dim) continue;
     b.kept = true;
     b.index = static_cast<std::int32_t>(mesh.blocks.size());
     mesh.blocks.push_back(Block{b.id, b.name});

@@ -708,3 +708,48 @@ TEST(ReadMsh, Msh1WithoutPhysicalGroups) {
   EXPECT_EQ(m.vertex_geo_dim[0], 0);  // on the point element
   EXPECT_EQ(m.vertex_geo_tag[0], 3);
 }
+
+// ---------------------------------------------------------------------------
+// Lower-dimensional elements (README, Inputs): boundary quads, lines and
+// points are sets; anything else below the mesh's dimension is skipped with
+// one warning naming where it was.
+
+TEST(ReadMsh, LowerDimensionalElementsOfAHexMeshAreSkippedWithOneWarning) {
+  const std::string text = std::string("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n") +
+                           "$PhysicalNames\n3\n2 7 \"skin\"\n1 12 \"beam\"\n3 1 \"solid\"\n$EndPhysicalNames\n" +
+                           kTwoHexNodes22 +
+                           "$Elements\n7\n"
+                           "1 5 2 1 1 10 20 30 40 50 60 70 80\n"
+                           "2 5 2 1 1 50 60 70 80 90 100 110 120\n"
+                           "3 2 2 7 4 10 20 30\n"         // triangles in physical surface 7
+                           "4 2 2 7 4 10 30 40\n"
+                           "5 8 2 0 9 10 20 30\n"         // a 3-node line in no group (entity 9)
+                           "6 1 2 12 5 90 100\n"          // a line in physical curve 12
+                           "7 3 2 7 4 10 40 30 20\n"      // a quad of the same group: a side
+                           "$EndElements\n";
+  const CoarseMesh m = read_text(text);
+  expect_consistent(m);
+  EXPECT_EQ(m.mode, Mode::Volume);
+  EXPECT_EQ(m.num_elements(), 2);
+  ASSERT_EQ(m.side_sets.size(), 1u);
+  EXPECT_EQ(m.side_sets[0].id, 7);
+  EXPECT_EQ(m.side_sets[0].element.size(), 1u);
+  ASSERT_EQ(m.warnings.size(), 1u);
+  const std::string& w = m.warnings[0];
+  EXPECT_THAT(w, HasSubstr("lower dimension than the hexahedra"));
+  EXPECT_THAT(w, HasSubstr("2 triangle (type 2) in physical group 7 \"skin\""));
+  EXPECT_THAT(w, HasSubstr("1 3-node line (type 8) in entity 9"));
+  EXPECT_THAT(w, HasSubstr("1 line (type 1) in physical group 12 \"beam\""));
+}
+
+TEST(ReadMsh, SecondOrderLinesOfAQuadMeshAreSkippedIn41) {
+  const std::string text = std::string("$MeshFormat\n4.1 0 8\n$EndMeshFormat\n") +
+                           "$Nodes\n1 5 1 5\n2 1 0 5\n1\n2\n3\n4\n5\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n0.5 0 0\n$EndNodes\n"
+                           "$Elements\n2 2 1 2\n2 1 3 1\n1 1 2 3 4\n1 3 8 1\n2 1 2 5\n$EndElements\n";
+  const CoarseMesh m = read_text(text);
+  EXPECT_EQ(m.mode, Mode::Surface);
+  EXPECT_EQ(m.num_elements(), 1);
+  ASSERT_EQ(m.warnings.size(), 1u);
+  EXPECT_THAT(m.warnings[0], HasSubstr("lower dimension than the quadrangles"));
+  EXPECT_THAT(m.warnings[0], HasSubstr("1 3-node line (type 8) in entity 3"));
+}
