@@ -69,3 +69,28 @@ TEST(ReaderCli, WarningNamesTheFileOnce) {
     EXPECT_EQ(occurrences(warnings[0], in), 1u) << warnings[0];
   }
 }
+
+// Three quads on one edge (a fin on a plate): refused like a face shared by
+// three hexes, naming the edge by the file's node tags and the quads by
+// their element tags.
+TEST(ReaderCli, NonManifoldSurfaceEdgeIsRefused) {
+  TempDir d;
+  const std::string in = d.path("fin.msh");
+  dicer::test::write_file(in,
+                          "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n"
+                          "$Nodes\n8\n10 0 0 0\n20 1 0 0\n30 1 1 0\n40 0 1 0\n50 2 0 0\n60 2 1 0\n70 1 0 1\n80 1 1 1\n"
+                          "$EndNodes\n"
+                          "$Elements\n3\n100 3 2 1 1 10 20 30 40\n200 3 2 1 1 20 50 60 30\n300 3 2 1 2 20 70 80 30\n"
+                          "$EndElements\n");
+  for (const std::vector<std::string>& args :
+       {std::vector<std::string>{"sheets", in}, std::vector<std::string>{"dice", in, "-o", d.path("fin.dice.h5")}}) {
+    const CliResult r = run_cli_bounded(args);
+    SCOPED_TRACE(args[0]);
+    EXPECT_EQ(r.exit_code, 3) << r.err;
+    EXPECT_NE(r.err.find(in + ": non-manifold edge (nodes 20 30) is shared by more than two quadrilaterals: "
+                              "elements 100, 200, 300"),
+              std::string::npos)
+        << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  }
+}
