@@ -25,6 +25,7 @@
 #include <array>
 #include <tuple>
 
+#include "input_file.hpp"
 #include "msh_reader.hpp"
 
 namespace dicer::msh {
@@ -288,7 +289,7 @@ namespace dicer {
 // Our own bounds-checked parser, not the Gmsh API: Gmsh 4.8 segfaults on
 // some malformed or unusual MSH files and keeps global state.
 CoarseMesh read_msh(const std::string& path) {
-  msh::Lexer lex(path, msh::read_whole_file(path));
+  msh::Lexer lex(path, InputFile(path).read_all());
   return msh::assemble(path, msh::read_sections(lex));
 }
 

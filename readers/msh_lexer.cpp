@@ -1,11 +1,8 @@
 // MSH lexer: tokens and binary values out of the whole file in memory, each
 // read checked against the end of the buffer (see msh_reader.hpp).
 #include <algorithm>
-#include <cerrno>
 #include <charconv>
 #include <cmath>
-#include <cstdio>
-#include <cstring>
 #include <limits>
 
 #include "msh_reader.hpp"
@@ -25,20 +22,6 @@ std::string shown(std::string_view s) {
   for (char c : s.substr(0, 40)) out += (c >= 32 && c < 127) ? c : '?';
   if (s.size() > 40) out += "...";
   return out;
-}
-
-std::string read_whole_file(const std::string& path) {
-  std::FILE* f = std::fopen(path.c_str(), "rb");
-  if (!f) throw Error(ErrorKind::Io, path + ": cannot open: " + std::strerror(errno));
-  std::string data;
-  char buf[1 << 16];
-  std::size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, f)) > 0) data.append(buf, n);
-  const int err = errno;
-  const bool failed = std::ferror(f) != 0;
-  std::fclose(f);
-  if (failed) throw Error(ErrorKind::Io, path + ": cannot read: " + std::strerror(err));
-  return data;
 }
 
 // ---- messages -----------------------------------------------------------------

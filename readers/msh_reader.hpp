@@ -54,7 +54,6 @@ int kept_dim(Id type);
 
 // ---- lexer --------------------------------------------------------------------
 
-std::string read_whole_file(const std::string& path);
 bool is_space(char c);
 std::string_view trim(std::string_view s);
 // A piece of the file fit for a one-line message: at most 40 characters,

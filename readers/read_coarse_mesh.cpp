@@ -1,10 +1,10 @@
 // Reading dispatch: the format is chosen by content, not by file name.
 #include <cctype>
-#include <fstream>
 #include <string>
 
 #include "dicer/coarse_mesh.hpp"
 #include "dicer/error.hpp"
+#include "input_file.hpp"
 
 namespace dicer {
 namespace {
@@ -22,11 +22,7 @@ bool starts_like_msh(const std::string& head) {
 }  // namespace
 
 CoarseMesh read_coarse_mesh(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error(ErrorKind::Io, path + ": cannot open file for reading");
-  char head[256] = {};
-  in.read(head, sizeof head);
-  const std::string h(head, static_cast<size_t>(in.gcount()));
+  const std::string h = InputFile(path).head(256);
   CoarseMesh mesh;
   // netCDF classic/64-bit ("CDF\1", "CDF\2", "CDF\5") or netCDF-4 (HDF5).
   if (h.rfind("CDF", 0) == 0 || h.rfind("\x89HDF", 0) == 0) {

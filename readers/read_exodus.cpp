@@ -10,10 +10,7 @@
 // Geometry (handedness, duplicates, unused vertices) is left to
 // validate_coarse_mesh.
 #include <exodusII.h>
-#include <fcntl.h>
 #include <netcdf.h>
-#include <sys/stat.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
@@ -29,6 +26,7 @@
 #include "dicer/coarse_mesh.hpp"
 #include "dicer/error.hpp"
 #include "exodus_errors.hpp"
+#include "input_file.hpp"
 
 namespace dicer {
 namespace {
@@ -67,33 +65,16 @@ struct FileFacts {
   bool netcdf_magic = false;  // "CDF\1", "CDF\2", "CDF\5" or the HDF5 signature
 };
 
-// Opens the file with the OS first so that a missing or unreadable file is
-// an I/O error, not a "bad Exodus file".
+// Opens the file with the OS first so that a missing, unreadable or
+// non-regular file is an I/O error, not a "bad Exodus file".
 FileFacts probe_file(const std::string& path) {
-  int fd = ::open(path.c_str(), O_RDONLY);
-  if (fd < 0) fail(ErrorKind::Io, path, std::string("cannot open: ") + std::strerror(errno));
-  struct stat st {};
-  if (::fstat(fd, &st) != 0) {
-    int err = errno;
-    ::close(fd);
-    fail(ErrorKind::Io, path, std::string("cannot stat: ") + std::strerror(err));
-  }
-  if (S_ISDIR(st.st_mode)) {
-    ::close(fd);
-    fail(ErrorKind::Io, path, "is a directory");
-  }
-  unsigned char magic[8] = {};
-  ssize_t got = ::read(fd, magic, sizeof magic);
-  int err = errno;
-  ::close(fd);
-  if (got < 0) fail(ErrorKind::Io, path, std::string("cannot read: ") + std::strerror(err));
-
+  const InputFile file(path);
+  const std::string magic = file.head(8);
   FileFacts facts;
-  facts.size = static_cast<std::int64_t>(st.st_size);
-  const bool cdf = got >= 4 && magic[0] == 'C' && magic[1] == 'D' && magic[2] == 'F' &&
+  facts.size = file.size();
+  const bool cdf = magic.size() >= 4 && magic.compare(0, 3, "CDF") == 0 &&
                    (magic[3] == 1 || magic[3] == 2 || magic[3] == 5);
-  static const unsigned char hdf5[8] = {0x89, 'H', 'D', 'F', '\r', '\n', 0x1a, '\n'};
-  const bool h5 = got == 8 && std::memcmp(magic, hdf5, 8) == 0;
+  const bool h5 = magic == std::string("\x89HDF\r\n\x1a\n", 8);
   facts.netcdf_magic = cdf || h5;
   return facts;
 }

@@ -3,11 +3,16 @@
 // rather than broken. Every run is under `timeout`, so an input that would
 // block the reader fails the test instead of hanging it.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <algorithm>
+#include <filesystem>
 #include <string>
 #include <vector>
 
+#include "dicer/coarse_mesh.hpp"
+#include "dicer/error.hpp"
+#include "dicer/intervals.hpp"
 #include "test_support.hpp"
 
 namespace {
@@ -15,9 +20,9 @@ namespace {
 using dicer::test::CliResult;
 using dicer::test::TempDir;
 
-// `dicer ARGS...` killed after 60 s (exit 124 then).
+// `dicer ARGS...` killed after 30 s (exit 124 then).
 CliResult run_cli_bounded(const std::vector<std::string>& args) {
-  std::vector<std::string> argv{"/usr/bin/timeout", "-k", "5", "60", DICER_CLI};
+  std::vector<std::string> argv{"/usr/bin/timeout", "-k", "5", "30", DICER_CLI};
   argv.insert(argv.end(), args.begin(), args.end());
   return dicer::test::run_process(argv);
 }
@@ -92,5 +97,56 @@ TEST(ReaderCli, NonManifoldSurfaceEdgeIsRefused) {
               std::string::npos)
         << r.err;
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  }
+}
+
+// Inputs that are not regular files. A FIFO used to block `dice` and
+// `sheets` in open() for ever (exit 124 from `timeout` here); a directory
+// read as an empty file.
+TEST(ReaderCli, FifoOrDirectoryAsMeshOrIntervalsFileIsRefused) {
+  TempDir d;
+  const std::string fifo = d.path("pipe.msh");
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  const std::string dir = d.path("folder.e");
+  std::filesystem::create_directory(dir);
+  const std::string mesh = dicer::test::data_path("cardinal_sphere.e");
+  const std::string out = d.path("out.dice.h5");
+  struct Run {
+    std::vector<std::string> args;
+    std::string path, says;
+  };
+  const std::vector<Run> runs = {
+      {{"dice", fifo, "-o", out}, fifo, "is a FIFO (named pipe), not a regular file"},
+      {{"sheets", fifo}, fifo, "is a FIFO (named pipe), not a regular file"},
+      {{"dice", mesh, "--intervals-file", fifo, "-o", out}, fifo, "is a FIFO (named pipe), not a regular file"},
+      {{"sheets", mesh, "--intervals-file", fifo}, fifo, "is a FIFO (named pipe), not a regular file"},
+      {{"dice", dir, "-o", out}, dir, "is a directory, not a regular file"},
+      {{"sheets", mesh, "--intervals-file", dir}, dir, "is a directory, not a regular file"},
+  };
+  for (const Run& run : runs) {
+    std::string command;
+    for (const auto& a : run.args) command += " " + a;
+    SCOPED_TRACE(command);
+    const CliResult r = run_cli_bounded(run.args);
+    EXPECT_EQ(r.exit_code, 5) << r.err;
+    EXPECT_NE(r.err.find(run.path + ": " + run.says), std::string::npos) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  }
+  EXPECT_FALSE(std::filesystem::exists(out));
+}
+
+TEST(ReaderCli, DirectoryIsAnIoErrorInTheLibrary) {
+  TempDir d;
+  const std::string dir = d.dir().string();
+  for (auto read : {+[](const std::string& p) { dicer::read_coarse_mesh(p); },
+                    +[](const std::string& p) { dicer::read_msh(p); },
+                    +[](const std::string& p) { dicer::read_interval_file(p); }}) {
+    try {
+      read(dir);
+      ADD_FAILURE() << "no error";
+    } catch (const dicer::Error& e) {
+      EXPECT_EQ(e.kind(), dicer::ErrorKind::Io) << e.what();
+      EXPECT_EQ(std::string(e.what()), dir + ": is a directory, not a regular file; dicer reads only regular files");
+    }
   }
 }
