@@ -4,6 +4,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 
@@ -54,11 +55,13 @@ InputFile::~InputFile() {
   if (fd_ >= 0) ::close(fd_);
 }
 
-std::string InputFile::head(std::size_t n) const {
+std::string InputFile::read_at(std::int64_t offset, std::size_t n) const {
+  if (offset < 0 || offset >= size_) return {};
+  n = std::min<std::uint64_t>(n, static_cast<std::uint64_t>(size_ - offset));  // never more than the file holds
   std::string out(n, '\0');
   std::size_t got = 0;
   while (got < n) {
-    const ssize_t r = ::pread(fd_, out.data() + got, n - got, static_cast<off_t>(got));
+    const ssize_t r = ::pread(fd_, out.data() + got, n - got, static_cast<off_t>(offset + static_cast<std::int64_t>(got)));
     if (r < 0 && errno == EINTR) continue;
     if (r < 0) io_error(path_, "cannot read", errno);
     if (r == 0) break;

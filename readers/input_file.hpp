@@ -20,8 +20,9 @@ class InputFile {
   InputFile& operator=(const InputFile&) = delete;
 
   std::int64_t size() const { return size_; }
-  // Up to n bytes from the start (fewer if the file is shorter).
-  std::string head(std::size_t n) const;
+  // Up to n bytes from `offset` (fewer where the file ends).
+  std::string read_at(std::int64_t offset, std::size_t n) const;
+  std::string head(std::size_t n) const { return read_at(0, n); }
   // The whole file, read to its end.
   std::string read_all() const;
 

@@ -5,9 +5,13 @@
 // widened by the library. Every failing library call becomes a dicer::Error
 // naming the file and the entity; the file is always closed (ExodusFile).
 //
-// Counts from the header are checked against the file size before anything
-// is allocated, so a hostile header cannot make us allocate terabytes.
-// Geometry (handedness, duplicates, unused vertices) is left to
+// Neither netCDF nor Exodus 6.02 check a file against itself, so before
+// they read anything: our own parse of a classic header (sizes against the
+// file), the attributes ex_open reads into single values, the header's
+// counts against the file size, and the shape of every variable a getter
+// reads whole (netcdf_checks.hpp). A hostile file is a one-line BadInput,
+// never a crash or a huge allocation. netCDF-4 (HDF5) files get all but the
+// first: HDF5 opens them as they are. Geometry (handedness, duplicates, unused vertices) is left to
 // validate_coarse_mesh.
 #include <exodusII.h>
 #include <netcdf.h>
@@ -27,6 +31,7 @@
 #include "dicer/error.hpp"
 #include "exodus_errors.hpp"
 #include "input_file.hpp"
+#include "netcdf_checks.hpp"
 
 namespace dicer {
 namespace {
@@ -59,76 +64,6 @@ class ExodusFile {
  private:
   int id_;
 };
-
-struct FileFacts {
-  std::int64_t size = 0;
-  bool netcdf_magic = false;  // "CDF\1", "CDF\2", "CDF\5" or the HDF5 signature
-};
-
-// Opens the file with the OS first so that a missing, unreadable or
-// non-regular file is an I/O error, not a "bad Exodus file".
-FileFacts probe_file(const std::string& path) {
-  const InputFile file(path);
-  const std::string magic = file.head(8);
-  FileFacts facts;
-  facts.size = file.size();
-  const bool cdf = magic.size() >= 4 && magic.compare(0, 3, "CDF") == 0 &&
-                   (magic[3] == 1 || magic[3] == 2 || magic[3] == 5);
-  const bool h5 = magic == std::string("\x89HDF\r\n\x1a\n", 8);
-  facts.netcdf_magic = cdf || h5;
-  return facts;
-}
-
-// Saturating a * b for non-negative sizes.
-std::uint64_t mul_sat(std::uint64_t a, std::uint64_t b) {
-  if (a != 0 && b > std::numeric_limits<std::uint64_t>::max() / a)
-    return std::numeric_limits<std::uint64_t>::max();
-  return a * b;
-}
-std::uint64_t add_sat(std::uint64_t a, std::uint64_t b) {
-  return (b > std::numeric_limits<std::uint64_t>::max() - a) ? std::numeric_limits<std::uint64_t>::max()
-                                                             : a + b;
-}
-
-// netCDF-3 (classic, 64-bit offset, CDF5) reads past the end of a truncated
-// file as zeros without any error. The data of all variables must fit in the
-// file, so a file shorter than the sum of their sizes is truncated (or its
-// header lies). HDF5-based files detect truncation themselves.
-void check_classic_not_truncated(int ncid, const std::string& path, std::int64_t file_size) {
-  int format = 0;
-  if (nc_inq_format(ncid, &format) != NC_NOERR) return;
-  if (format != NC_FORMAT_CLASSIC && format != NC_FORMAT_64BIT_OFFSET && format != NC_FORMAT_64BIT_DATA)
-    return;
-  int nvars = 0, unlim = -1;
-  if (nc_inq_nvars(ncid, &nvars) != NC_NOERR) return;
-  nc_inq_unlimdim(ncid, &unlim);
-  std::size_t numrecs = 0;
-  if (unlim >= 0) nc_inq_dimlen(ncid, unlim, &numrecs);
-
-  std::uint64_t needed = 0;
-  for (int v = 0; v < nvars; ++v) {
-    nc_type type{};
-    int ndims = 0;
-    if (nc_inq_var(ncid, v, nullptr, &type, &ndims, nullptr, nullptr) != NC_NOERR) return;
-    std::vector<int> dims(static_cast<std::size_t>(std::max(ndims, 0)));
-    if (nc_inq_vardimid(ncid, v, dims.data()) != NC_NOERR) return;
-    std::size_t type_size = 0;
-    if (nc_inq_type(ncid, type, nullptr, &type_size) != NC_NOERR) return;
-    std::uint64_t bytes = type_size;
-    for (int d : dims) {
-      std::size_t len = 0;
-      if (nc_inq_dimlen(ncid, d, &len) != NC_NOERR) return;
-      bytes = mul_sat(bytes, d == unlim ? numrecs : len);  // len of unlim dim is numrecs too
-    }
-    needed = add_sat(needed, bytes);
-  }
-  if (needed > static_cast<std::uint64_t>(file_size)) {
-    std::ostringstream os;
-    os << "not a readable Exodus II file (truncated: its header describes at least " << needed
-       << " bytes of data, but the file has " << file_size << " bytes)";
-    fail(ErrorKind::BadInput, path, os.str());
-  }
-}
 
 // Bytes the file may hold per stored byte: 1 for netCDF-3; HDF5 files can be
 // compressed, so allow a generous ratio there.
@@ -278,18 +213,36 @@ std::string describe_type(const BlockInfo& b) {
 }  // namespace
 
 CoarseMesh read_exodus(const std::string& path) {
-  const FileFacts facts = probe_file(path);
+  // The OS first: a missing, unreadable or non-regular file is an I/O error,
+  // not a "bad Exodus file".
+  std::int64_t file_size = 0;
+  {
+    const InputFile input(path);
+    file_size = input.size();
+    const std::string magic = input.head(8);
+    const bool classic = magic.size() >= 4 && magic.compare(0, 3, "CDF") == 0 &&
+                         (magic[3] == 1 || magic[3] == 2 || magic[3] == 5);
+    const bool hdf5 = magic == std::string("\x89HDF\r\n\x1a\n", 8);
+    if (!classic && !hdf5)
+      fail(ErrorKind::BadInput, path,
+           std::string("not a readable Exodus II file (") +
+               (file_size == 0 ? "the file is empty" : "no netCDF or HDF5 signature") + ")");
+    // netCDF's own header parser trusts the header: check it first.
+    if (classic) check_classic_header(input, path);
+  }
 
   // Let netCDF try first: when it cannot open the file, ex_open prints its
   // own guess (a misleading "netcdf-4 not supported") straight to stderr.
   {
     int ncid = -1;
     const int status = nc_open(path.c_str(), NC_NOWRITE, &ncid);
-    if (status != NC_NOERR) {
-      const std::string reason = facts.size == 0          ? "the file is empty"
-                                 : !facts.netcdf_magic ? "no netCDF or HDF5 signature"
-                                                       : std::string(nc_strerror(status));
-      fail(ErrorKind::BadInput, path, "not a readable Exodus II file (" + reason + ")");
+    if (status != NC_NOERR)
+      fail(ErrorKind::BadInput, path, "not a readable Exodus II file (" + std::string(nc_strerror(status)) + ")");
+    try {
+      audit_exodus_attributes(ncid, path);
+    } catch (...) {
+      nc_close(ncid);
+      throw;
     }
     nc_close(ncid);
   }
@@ -312,15 +265,19 @@ CoarseMesh read_exodus(const std::string& path) {
          "not a readable Exodus II file (reading the header failed: " + exodus::reason(-1) + ")");
 
   // ---- sanity of the header counts before any allocation ----
-  const std::uint64_t budget = storage_budget(exoid, facts.size);
+  const std::uint64_t budget = storage_budget(exoid, file_size);
+  // Every block and set is at least a variable in the header: its count is
+  // bounded by the file's bytes, compressed or not.
+  const std::uint64_t raw = static_cast<std::uint64_t>(file_size);
   if (init.num_dim < 1 || init.num_dim > 3)
     fail(ErrorKind::BadInput, path, "header claims " + std::to_string(init.num_dim) + " dimensions");
-  check_count(init.num_nodes, 4 * static_cast<std::uint64_t>(init.num_dim), budget, facts.size, path, "nodes");
-  check_count(init.num_elem, 4, budget, facts.size, path, "elements");
-  check_count(init.num_elem_blk, 4, budget, facts.size, path, "element blocks");
-  check_count(init.num_side_sets, 4, budget, facts.size, path, "side sets");
-  check_count(init.num_node_sets, 4, budget, facts.size, path, "node sets");
-  check_classic_not_truncated(exoid, path, facts.size);
+  check_count(init.num_nodes, 4 * static_cast<std::uint64_t>(init.num_dim), budget, file_size, path, "nodes");
+  check_count(init.num_elem, 4, budget, file_size, path, "elements");
+  check_count(init.num_elem_blk, 16, raw, file_size, path, "element blocks");
+  check_count(init.num_side_sets, 16, raw, file_size, path, "side sets");
+  check_count(init.num_node_sets, 16, raw, file_size, path, "node sets");
+  // What the getters below read whole must fit the buffers sized from these.
+  audit_exodus_variables(exoid, path);
 
   CoarseMesh mesh;
   mesh.source = path;
@@ -351,7 +308,7 @@ CoarseMesh read_exodus(const std::string& path) {
           path, "reading " + what);
     type[MAX_STR_LENGTH] = '\0';
     info.type = trim(type);
-    check_count(info.count, 4, budget, facts.size, path, "elements in " + what);
+    check_count(info.count, 4, budget, file_size, path, "elements in " + what);
     if (info.nodes_per_element < 0 || info.nodes_per_element > 1000)
       fail(ErrorKind::BadInput, path,
            what + ": header claims " + std::to_string(info.nodes_per_element) + " nodes per element");
@@ -494,7 +451,7 @@ CoarseMesh read_exodus(const std::string& path) {
     std::int64_t count = 0, num_df = 0;
     exodus::clear_error();
     check(ex_get_set_param(exoid, EX_SIDE_SET, set.id, &count, &num_df), path, "reading " + what);
-    check_count(count, 8, budget, facts.size, path, "sides in " + what);
+    check_count(count, 8, budget, file_size, path, "sides in " + what);
     std::vector<std::int64_t> elems(static_cast<std::size_t>(count)), sides(static_cast<std::size_t>(count));
     if (count > 0) {
       exodus::clear_error();
@@ -547,7 +504,7 @@ CoarseMesh read_exodus(const std::string& path) {
     std::int64_t count = 0, num_df = 0;
     exodus::clear_error();
     check(ex_get_set_param(exoid, EX_NODE_SET, set.id, &count, &num_df), path, "reading " + what);
-    check_count(count, 4, budget, facts.size, path, "nodes in " + what);
+    check_count(count, 4, budget, file_size, path, "nodes in " + what);
     std::vector<std::int64_t> nodes(static_cast<std::size_t>(count));
     if (count > 0) {
       exodus::clear_error();
