@@ -11,6 +11,7 @@
 #include <exodusII.h>
 #include <netcdf.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -118,7 +119,19 @@ void audit_exodus_variables(int ncid, const std::string& path) {
   f.shape("node_num_map", {nodes}, "node id map");
   f.shape("elem_num_map", {elems}, "element id map");
 
-  const std::uint64_t blocks = f.dim("num_el_blk");
+  // Each block and set has dimensions of its own (num_el_in_blk<i>, ...):
+  // counts beyond the file's dimensions are lies, and would only make the
+  // loops below long.
+  const std::uint64_t blocks = f.dim("num_el_blk"), side_sets = f.dim("num_side_sets"),
+                      node_sets = f.dim("num_node_sets");
+  int ndims = 0;
+  nc_inq_ndims(ncid, &ndims);
+  if (add_sat(add_sat(blocks, side_sets), node_sets) > static_cast<std::uint64_t>(std::max(ndims, 0)))
+    throw Error(ErrorKind::BadInput, path + ": the header claims " + std::to_string(blocks) + " element blocks, " +
+                                         std::to_string(side_sets) + " side sets and " + std::to_string(node_sets) +
+                                         " node sets but defines only " + std::to_string(ndims) +
+                                         " dimensions (each needs its own)");
+
   f.shape("eb_prop1", {blocks}, "element block ids");
   f.shape("eb_status", {blocks}, "element block status");
   for (std::uint64_t i = 1; i <= blocks; ++i) {
@@ -128,7 +141,6 @@ void audit_exodus_variables(int ncid, const std::string& path) {
     f.element_type(conn, what);
   }
 
-  const std::uint64_t side_sets = f.dim("num_side_sets");
   f.shape("ss_prop1", {side_sets}, "side set ids");
   f.shape("ss_status", {side_sets}, "side set status");
   for (std::uint64_t i = 1; i <= side_sets; ++i) {
@@ -138,7 +150,6 @@ void audit_exodus_variables(int ncid, const std::string& path) {
     f.shape(numbered("side_ss", i), {n}, what + ", sides");
   }
 
-  const std::uint64_t node_sets = f.dim("num_node_sets");
   f.shape("ns_prop1", {node_sets}, "node set ids");
   f.shape("ns_status", {node_sets}, "node set status");
   for (std::uint64_t i = 1; i <= node_sets; ++i)

@@ -59,7 +59,7 @@ class HeaderReader {
     numrecs_ = version_ == 5 ? u64("the number of records") : u32("the number of records");
     const bool streaming = numrecs_ == (version_ == 5 ? ~std::uint64_t{0} : 0xFFFFFFFFu);
     if (streaming) numrecs_ = 0;
-    else if (numrecs_ > max_non_neg()) fail("the number of records " + std::to_string(numrecs_) + " is negative");
+    else if (numrecs_ > max_non_neg()) fail("the number of records is " + std::to_string(numrecs_) + " (negative)");
 
     const std::uint64_t ndims = list(kDimensionTag, "dimension");
     for (std::uint64_t i = 0; i < ndims; ++i) {
@@ -122,7 +122,7 @@ class HeaderReader {
   std::uint64_t u64(const std::string& what) { return be(8, what); }
   std::uint64_t non_neg(const std::string& what) {
     const std::uint64_t v = version_ == 5 ? u64(what) : u32(what);
-    if (v > max_non_neg()) fail(what + " " + std::to_string(v) + " is negative");
+    if (v > max_non_neg()) fail(what + " is " + std::to_string(v) + " (negative)");
     return v;
   }
   std::uint64_t remaining() const { return size_ - pos_; }

@@ -546,7 +546,7 @@ TEST(BadExodus, LyingNetcdfHeaderBytesAreRefusedBeforeNetcdfOpensThem) {
       {"name_length", 16, 0x7ffffff0u, "the name of dimension 0 is 2147483632 characters long"},
       {"dimension_count", 12, 0x7fffffffu, "claims 2147483647 dimensions"},
       {"attribute_length", api_length, 0x7fffffffu, "global attribute 'api_version' claims 2147483647 values"},
-      {"negative_count", 12, 0x80000001u, "the number of dimensions 2147483649 is negative"},
+      {"negative_count", 12, 0x80000001u, "the number of dimensions is 2147483649 (negative)"},
   };
   for (const Patch& p : patches) {
     SCOPED_TRACE(p.name);
@@ -556,4 +556,23 @@ TEST(BadExodus, LyingNetcdfHeaderBytesAreRefusedBeforeNetcdfOpensThem) {
     dicer::test::write_file(path, b);
     expect_refused_in_child(path, {"not a readable Exodus II file (netCDF header: ", p.says});
   }
+}
+
+// A count of sets that only a dimension states (no set of them exists): the
+// audit would otherwise look for thousands of variables.
+TEST(BadExodus, MoreSetsThanTheFileHasDimensionsIsRefused) {
+  TempDir tmp;
+  const std::string path = tmp.path("phantom_sets.e");
+  write_exodus(path, two_hexes());
+  int ncid = -1, dim = -1, filler_dim = -1, filler = -1;
+  nc_check(nc_open(path.c_str(), NC_WRITE, &ncid), "nc_open");
+  nc_check(nc_redef(ncid), "nc_redef");
+  nc_check(nc_def_dim(ncid, "num_side_sets", 5000, &dim), "num_side_sets");
+  nc_check(nc_def_dim(ncid, "filler", 200000, &filler_dim), "filler dim");  // room for the count check
+  nc_check(nc_def_var(ncid, "filler", NC_BYTE, 1, &filler_dim, &filler), "filler");
+  nc_check(nc_enddef(ncid), "nc_enddef");
+  const std::vector<signed char> zeros(200000, 0);
+  nc_check(nc_put_var_schar(ncid, filler, zeros.data()), "filler data");
+  nc_check(nc_close(ncid), "nc_close");
+  expect_refused_in_child(path, {"claims 1 element blocks, 5000 side sets and 0 node sets but defines only"});
 }
