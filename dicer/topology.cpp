@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <string>
 #include <tuple>
 
 #include "dicer/error.hpp"
@@ -48,12 +49,24 @@ Topology build_topology(const CoarseMesh& m) {
     t.elem_edge.resize(keys.size());
     t.elem_edge_rev.resize(keys.size());
     Id id = -1;
+    size_t first = 0;  // first key of the current edge
     for (size_t i = 0; i < keys.size(); ++i) {
       const auto& [a, b, slot] = keys[i];
       if (i == 0 || std::get<0>(keys[i - 1]) != a || std::get<1>(keys[i - 1]) != b) {
         ++id;
+        first = i;
         t.edge_v.push_back(a);
         t.edge_v.push_back(b);
+      } else if (!vol && i - first == 2) {
+        // A surface edge has one quad (boundary) or two; three or more is a
+        // T-junction of shells, which no single sheet can dice.
+        std::string quads;
+        for (size_t j = first; j < keys.size() && std::get<0>(keys[j]) == a && std::get<1>(keys[j]) == b; ++j)
+          quads += (j == first ? "" : ", ") + std::to_string(m.element_file_id[std::get<2>(keys[j]) / epe]);
+        throw Error(ErrorKind::BadInput, m.source + ": non-manifold edge (nodes " +
+                                             std::to_string(m.vertex_file_id[a]) + " " +
+                                             std::to_string(m.vertex_file_id[b]) +
+                                             ") is shared by more than two quadrilaterals: elements " + quads);
       }
       t.elem_edge[slot] = id;
       const Id e = slot / epe;

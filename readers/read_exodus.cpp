@@ -5,15 +5,16 @@
 // widened by the library. Every failing library call becomes a dicer::Error
 // naming the file and the entity; the file is always closed (ExodusFile).
 //
-// Counts from the header are checked against the file size before anything
-// is allocated, so a hostile header cannot make us allocate terabytes.
-// Geometry (handedness, duplicates, unused vertices) is left to
+// Neither netCDF nor Exodus 6.02 check a file against itself, so before
+// they read anything: our own parse of a classic header (sizes against the
+// file), the attributes ex_open reads into single values, the header's
+// counts against the file size, and the shape of every variable a getter
+// reads whole (netcdf_checks.hpp). A hostile file is a one-line BadInput,
+// never a crash or a huge allocation. netCDF-4 (HDF5) files get all but the
+// first: HDF5 opens them as they are. Geometry (handedness, duplicates, unused vertices) is left to
 // validate_coarse_mesh.
 #include <exodusII.h>
-#include <fcntl.h>
 #include <netcdf.h>
-#include <sys/stat.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
@@ -29,6 +30,8 @@
 #include "dicer/coarse_mesh.hpp"
 #include "dicer/error.hpp"
 #include "exodus_errors.hpp"
+#include "input_file.hpp"
+#include "netcdf_checks.hpp"
 
 namespace dicer {
 namespace {
@@ -61,93 +64,6 @@ class ExodusFile {
  private:
   int id_;
 };
-
-struct FileFacts {
-  std::int64_t size = 0;
-  bool netcdf_magic = false;  // "CDF\1", "CDF\2", "CDF\5" or the HDF5 signature
-};
-
-// Opens the file with the OS first so that a missing or unreadable file is
-// an I/O error, not a "bad Exodus file".
-FileFacts probe_file(const std::string& path) {
-  int fd = ::open(path.c_str(), O_RDONLY);
-  if (fd < 0) fail(ErrorKind::Io, path, std::string("cannot open: ") + std::strerror(errno));
-  struct stat st {};
-  if (::fstat(fd, &st) != 0) {
-    int err = errno;
-    ::close(fd);
-    fail(ErrorKind::Io, path, std::string("cannot stat: ") + std::strerror(err));
-  }
-  if (S_ISDIR(st.st_mode)) {
-    ::close(fd);
-    fail(ErrorKind::Io, path, "is a directory");
-  }
-  unsigned char magic[8] = {};
-  ssize_t got = ::read(fd, magic, sizeof magic);
-  int err = errno;
-  ::close(fd);
-  if (got < 0) fail(ErrorKind::Io, path, std::string("cannot read: ") + std::strerror(err));
-
-  FileFacts facts;
-  facts.size = static_cast<std::int64_t>(st.st_size);
-  const bool cdf = got >= 4 && magic[0] == 'C' && magic[1] == 'D' && magic[2] == 'F' &&
-                   (magic[3] == 1 || magic[3] == 2 || magic[3] == 5);
-  static const unsigned char hdf5[8] = {0x89, 'H', 'D', 'F', '\r', '\n', 0x1a, '\n'};
-  const bool h5 = got == 8 && std::memcmp(magic, hdf5, 8) == 0;
-  facts.netcdf_magic = cdf || h5;
-  return facts;
-}
-
-// Saturating a * b for non-negative sizes.
-std::uint64_t mul_sat(std::uint64_t a, std::uint64_t b) {
-  if (a != 0 && b > std::numeric_limits<std::uint64_t>::max() / a)
-    return std::numeric_limits<std::uint64_t>::max();
-  return a * b;
-}
-std::uint64_t add_sat(std::uint64_t a, std::uint64_t b) {
-  return (b > std::numeric_limits<std::uint64_t>::max() - a) ? std::numeric_limits<std::uint64_t>::max()
-                                                             : a + b;
-}
-
-// netCDF-3 (classic, 64-bit offset, CDF5) reads past the end of a truncated
-// file as zeros without any error. The data of all variables must fit in the
-// file, so a file shorter than the sum of their sizes is truncated (or its
-// header lies). HDF5-based files detect truncation themselves.
-void check_classic_not_truncated(int ncid, const std::string& path, std::int64_t file_size) {
-  int format = 0;
-  if (nc_inq_format(ncid, &format) != NC_NOERR) return;
-  if (format != NC_FORMAT_CLASSIC && format != NC_FORMAT_64BIT_OFFSET && format != NC_FORMAT_64BIT_DATA)
-    return;
-  int nvars = 0, unlim = -1;
-  if (nc_inq_nvars(ncid, &nvars) != NC_NOERR) return;
-  nc_inq_unlimdim(ncid, &unlim);
-  std::size_t numrecs = 0;
-  if (unlim >= 0) nc_inq_dimlen(ncid, unlim, &numrecs);
-
-  std::uint64_t needed = 0;
-  for (int v = 0; v < nvars; ++v) {
-    nc_type type{};
-    int ndims = 0;
-    if (nc_inq_var(ncid, v, nullptr, &type, &ndims, nullptr, nullptr) != NC_NOERR) return;
-    std::vector<int> dims(static_cast<std::size_t>(std::max(ndims, 0)));
-    if (nc_inq_vardimid(ncid, v, dims.data()) != NC_NOERR) return;
-    std::size_t type_size = 0;
-    if (nc_inq_type(ncid, type, nullptr, &type_size) != NC_NOERR) return;
-    std::uint64_t bytes = type_size;
-    for (int d : dims) {
-      std::size_t len = 0;
-      if (nc_inq_dimlen(ncid, d, &len) != NC_NOERR) return;
-      bytes = mul_sat(bytes, d == unlim ? numrecs : len);  // len of unlim dim is numrecs too
-    }
-    needed = add_sat(needed, bytes);
-  }
-  if (needed > static_cast<std::uint64_t>(file_size)) {
-    std::ostringstream os;
-    os << "not a readable Exodus II file (truncated: its header describes at least " << needed
-       << " bytes of data, but the file has " << file_size << " bytes)";
-    fail(ErrorKind::BadInput, path, os.str());
-  }
-}
 
 // Bytes the file may hold per stored byte: 1 for netCDF-3; HDF5 files can be
 // compressed, so allow a generous ratio there.
@@ -226,7 +142,7 @@ std::vector<Id> read_id_map(int exoid, ex_entity_type type, std::int64_t count, 
   const bool all_zero = sorted.front() == 0 && sorted.back() == 0;
   const bool duplicates = std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end();
   if (all_zero || duplicates) {
-    warnings.push_back(path + ": the " + what + " id map " +
+    warnings.push_back("the " + what + " id map " +
                        (all_zero ? "is all zeros" : "has duplicate ids") + "; using " + what + " ids 1.." +
                        std::to_string(count));
     for (std::size_t i = 0; i < map.size(); ++i) map[i] = static_cast<Id>(i) + 1;
@@ -236,14 +152,40 @@ std::vector<Id> read_id_map(int exoid, ex_entity_type type, std::int64_t count, 
 
 // ----------------------------------------------------------- block types ---
 
-enum class Shape { Hex, Quad, Shell, Other };
+// What an element type is to dicer. Kept: HEX8 (volume), QUAD4 and SHELL4
+// (surface; they number their sides differently). Everything else counts
+// only by its dimension: refused when it is the mesh's, skipped below it.
+enum class Shape { Hex, Quad, Shell, Solid, Face, Bar, Point, Unknown };
 
 Shape classify(const std::string& type, std::int64_t nodes_per_element) {
   const std::string t = upper(type);
   if ((t == "HEX8" || t == "HEX" || t == "HEXAHEDRON") && nodes_per_element == 8) return Shape::Hex;
   if ((t == "QUAD4" || t == "QUAD") && nodes_per_element == 4) return Shape::Quad;
   if ((t == "SHELL4" || t == "SHELL") && nodes_per_element == 4) return Shape::Shell;
-  return Shape::Other;
+  // The name without its node count: "TETRA10" -> "TETRA", "BAR2" -> "BAR".
+  std::string base = t;
+  while (!base.empty() && std::isdigit(static_cast<unsigned char>(base.back()))) base.pop_back();
+  for (const char* solid : {"HEX", "HEXAHEDRON", "TETRA", "TET", "TETRAHEDRON", "WEDGE", "PYRAMID", "NFACED"})
+    if (base == solid) return Shape::Solid;
+  for (const char* face : {"QUAD", "QUADRILATERAL", "SHELL", "TRI", "TRIANGLE", "TRISHELL", "NSIDED"})
+    if (base == face) return Shape::Face;
+  for (const char* bar : {"BAR", "BEAM", "TRUSS", "EDGE", "ROD", "SPRING"})
+    if (base == bar) return Shape::Bar;
+  for (const char* point : {"SPHERE", "CIRCLE", "POINT", "NODE", "PARTICLE"})
+    if (base == point) return Shape::Point;
+  return Shape::Unknown;
+}
+
+// 3 solids, 2 faces, 1 bars, 0 points; -1 for a type dicer does not know.
+int dimension(Shape s) {
+  switch (s) {
+    case Shape::Hex: case Shape::Solid: return 3;
+    case Shape::Quad: case Shape::Shell: case Shape::Face: return 2;
+    case Shape::Bar: return 1;
+    case Shape::Point: return 0;
+    case Shape::Unknown: return -1;
+  }
+  return -1;
 }
 
 struct BlockInfo {
@@ -252,7 +194,7 @@ struct BlockInfo {
   std::string type;
   std::int64_t count = 0;
   std::int64_t nodes_per_element = 0;
-  Shape shape = Shape::Other;
+  Shape shape = Shape::Unknown;
   bool kept = false;          // its elements go into the mesh
   std::int32_t index = -1;    // position in mesh.blocks when kept
 };
@@ -263,25 +205,44 @@ std::string describe_type(const BlockInfo& b) {
   const std::string u = upper(b.type);
   const bool generic = u == "HEX" || u == "HEX8" || u == "HEXAHEDRON" || u == "QUAD" || u == "QUAD4" ||
                        u == "SHELL" || u == "SHELL4";
-  if (generic) t += " with " + std::to_string(b.nodes_per_element) + " nodes per element";
+  const bool diced = b.shape == Shape::Hex || b.shape == Shape::Quad || b.shape == Shape::Shell;
+  if (generic && !diced) t += " with " + std::to_string(b.nodes_per_element) + " nodes per element";
   return t;
 }
 
 }  // namespace
 
 CoarseMesh read_exodus(const std::string& path) {
-  const FileFacts facts = probe_file(path);
+  // The OS first: a missing, unreadable or non-regular file is an I/O error,
+  // not a "bad Exodus file".
+  std::int64_t file_size = 0;
+  {
+    const InputFile input(path);
+    file_size = input.size();
+    const std::string magic = input.head(8);
+    const bool classic = magic.size() >= 4 && magic.compare(0, 3, "CDF") == 0 &&
+                         (magic[3] == 1 || magic[3] == 2 || magic[3] == 5);
+    const bool hdf5 = magic == std::string("\x89HDF\r\n\x1a\n", 8);
+    if (!classic && !hdf5)
+      fail(ErrorKind::BadInput, path,
+           std::string("not a readable Exodus II file (") +
+               (file_size == 0 ? "the file is empty" : "no netCDF or HDF5 signature") + ")");
+    // netCDF's own header parser trusts the header: check it first.
+    if (classic) check_classic_header(input, path);
+  }
 
   // Let netCDF try first: when it cannot open the file, ex_open prints its
   // own guess (a misleading "netcdf-4 not supported") straight to stderr.
   {
     int ncid = -1;
     const int status = nc_open(path.c_str(), NC_NOWRITE, &ncid);
-    if (status != NC_NOERR) {
-      const std::string reason = facts.size == 0          ? "the file is empty"
-                                 : !facts.netcdf_magic ? "no netCDF or HDF5 signature"
-                                                       : std::string(nc_strerror(status));
-      fail(ErrorKind::BadInput, path, "not a readable Exodus II file (" + reason + ")");
+    if (status != NC_NOERR)
+      fail(ErrorKind::BadInput, path, "not a readable Exodus II file (" + std::string(nc_strerror(status)) + ")");
+    try {
+      audit_exodus_attributes(ncid, path);
+    } catch (...) {
+      nc_close(ncid);
+      throw;
     }
     nc_close(ncid);
   }
@@ -304,15 +265,19 @@ CoarseMesh read_exodus(const std::string& path) {
          "not a readable Exodus II file (reading the header failed: " + exodus::reason(-1) + ")");
 
   // ---- sanity of the header counts before any allocation ----
-  const std::uint64_t budget = storage_budget(exoid, facts.size);
+  const std::uint64_t budget = storage_budget(exoid, file_size);
+  // Every block and set is at least a variable in the header: its count is
+  // bounded by the file's bytes, compressed or not.
+  const std::uint64_t raw = static_cast<std::uint64_t>(file_size);
   if (init.num_dim < 1 || init.num_dim > 3)
     fail(ErrorKind::BadInput, path, "header claims " + std::to_string(init.num_dim) + " dimensions");
-  check_count(init.num_nodes, 4 * static_cast<std::uint64_t>(init.num_dim), budget, facts.size, path, "nodes");
-  check_count(init.num_elem, 4, budget, facts.size, path, "elements");
-  check_count(init.num_elem_blk, 4, budget, facts.size, path, "element blocks");
-  check_count(init.num_side_sets, 4, budget, facts.size, path, "side sets");
-  check_count(init.num_node_sets, 4, budget, facts.size, path, "node sets");
-  check_classic_not_truncated(exoid, path, facts.size);
+  check_count(init.num_nodes, 4 * static_cast<std::uint64_t>(init.num_dim), budget, file_size, path, "nodes");
+  check_count(init.num_elem, 4, budget, file_size, path, "elements");
+  check_count(init.num_elem_blk, 16, raw, file_size, path, "element blocks");
+  check_count(init.num_side_sets, 16, raw, file_size, path, "side sets");
+  check_count(init.num_node_sets, 16, raw, file_size, path, "node sets");
+  // What the getters below read whole must fit the buffers sized from these.
+  audit_exodus_variables(exoid, path);
 
   CoarseMesh mesh;
   mesh.source = path;
@@ -343,7 +308,7 @@ CoarseMesh read_exodus(const std::string& path) {
           path, "reading " + what);
     type[MAX_STR_LENGTH] = '\0';
     info.type = trim(type);
-    check_count(info.count, 4, budget, facts.size, path, "elements in " + what);
+    check_count(info.count, 4, budget, file_size, path, "elements in " + what);
     if (info.nodes_per_element < 0 || info.nodes_per_element > 1000)
       fail(ErrorKind::BadInput, path,
            what + ": header claims " + std::to_string(info.nodes_per_element) + " nodes per element");
@@ -358,38 +323,46 @@ CoarseMesh read_exodus(const std::string& path) {
          "element blocks hold " + std::to_string(total_elements) + " elements but the header claims " +
              std::to_string(init.num_elem));
 
-  bool has_hex = false, has_quad = false;
-  std::vector<std::string> unsupported;
+  // One rule for every input format (README, Inputs): the highest dimension
+  // among the non-empty blocks is the mesh's; its blocks must be HEX8 (or
+  // QUAD4/SHELL4), lower-dimensional blocks are skipped with one warning.
+  int dim = -1;
+  for (const BlockInfo& b : blocks)
+    if (b.count > 0) dim = std::max(dim, dimension(b.shape));
+  std::string refused, skipped;
   for (const BlockInfo& b : blocks) {
     if (b.count == 0) continue;
-    if (b.shape == Shape::Hex) has_hex = true;
-    if (b.shape == Shape::Quad || b.shape == Shape::Shell) has_quad = true;
-    if (b.shape == Shape::Other)
-      unsupported.push_back(std::to_string(b.count) + " " + describe_type(b) + " (block " + std::to_string(b.id) +
-                            ")");
+    const int d = dimension(b.shape);
+    const bool kept = d == 3 ? b.shape == Shape::Hex : b.shape == Shape::Quad || b.shape == Shape::Shell;
+    const std::string what = std::to_string(b.count) + " " + describe_type(b);
+    if (d < 0 || (d == dim && dim >= 2 && !kept)) {
+      refused += (refused.empty() ? "" : ", ") + what + " (block " + std::to_string(b.id) + ")";
+    } else if (d < dim) {
+      skipped += (skipped.empty() ? "" : ", ") + std::string("block ") + std::to_string(b.id) +
+                 (b.name.empty() ? "" : " \"" + b.name + "\"") + " (" + what + ")";
+    }
   }
-  if (!unsupported.empty()) {
-    std::string list;
-    for (const std::string& u : unsupported) list += (list.empty() ? "" : ", ") + u;
+  if (!refused.empty())
     fail(ErrorKind::Unsupported, path,
-         "unsupported elements: " + list + "; dicer needs all-hex (HEX8) or all-quad (QUAD4/SHELL4) meshes");
-  }
-  mesh.mode = (has_quad && !has_hex) ? Mode::Surface : Mode::Volume;
-  if (mesh.mode == Mode::Volume && init.num_dim != 3 && has_hex)
+         "unsupported elements: " + refused + "; dicer needs all-hex (HEX8) or all-quad (QUAD4/SHELL4) meshes");
+  if (dim >= 0 && dim < 2)
+    fail(ErrorKind::Unsupported, path,
+         "no hexahedra or quadrilaterals, only elements of dimension " + std::to_string(dim) +
+             "; dicer needs all-hex (HEX8) or all-quad (QUAD4/SHELL4) meshes");
+  mesh.mode = dim == 2 ? Mode::Surface : Mode::Volume;
+  if (mesh.mode == Mode::Volume && init.num_dim != 3 && dim == 3)
     fail(ErrorKind::BadInput, path,
          "hexahedral mesh needs 3 coordinate dimensions, the file has " + std::to_string(init.num_dim));
   if (mesh.mode == Mode::Surface && init.num_dim < 2)
     fail(ErrorKind::BadInput, path,
          "quadrilateral mesh needs 2 or 3 coordinate dimensions, the file has " + std::to_string(init.num_dim));
+  if (!skipped.empty())
+    mesh.warnings.push_back(std::string("skipped element blocks of lower dimension than the ") +
+                            (mesh.mode == Mode::Volume ? "hexahedra" : "quadrilaterals") +
+                            " (dicer dices only those): " + skipped);
 
   for (BlockInfo& b : blocks) {
-    const bool wanted = mesh.mode == Mode::Volume ? b.shape == Shape::Hex
-                                                  : (b.shape == Shape::Quad || b.shape == Shape::Shell);
-    if (b.count > 0 && !wanted) {
-      mesh.warnings.push_back(path + ": element block " + std::to_string(b.id) + ": skipped " +
-                              std::to_string(b.count) + " " + b.type + " elements (boundary faces of a hex mesh)");
-      continue;
-    }
+    if (b.count > 0 && dimension(b.shape) < dim) continue;
     b.kept = true;
     b.index = static_cast<std::int32_t>(mesh.blocks.size());
     mesh.blocks.push_back(Block{b.id, b.name});
@@ -478,7 +451,7 @@ CoarseMesh read_exodus(const std::string& path) {
     std::int64_t count = 0, num_df = 0;
     exodus::clear_error();
     check(ex_get_set_param(exoid, EX_SIDE_SET, set.id, &count, &num_df), path, "reading " + what);
-    check_count(count, 8, budget, facts.size, path, "sides in " + what);
+    check_count(count, 8, budget, file_size, path, "sides in " + what);
     std::vector<std::int64_t> elems(static_cast<std::size_t>(count)), sides(static_cast<std::size_t>(count));
     if (count > 0) {
       exodus::clear_error();
@@ -514,7 +487,7 @@ CoarseMesh read_exodus(const std::string& path) {
       set.side.push_back(static_cast<std::int8_t>(quad ? side + 1 : side - 1));
     }
     if (dropped > 0)
-      mesh.warnings.push_back(path + ": " + what + ": dropped " + std::to_string(dropped) +
+      mesh.warnings.push_back(what + ": dropped " + std::to_string(dropped) +
                               " sides on elements of skipped blocks");
     mesh.side_sets.push_back(std::move(set));
   }
@@ -531,7 +504,7 @@ CoarseMesh read_exodus(const std::string& path) {
     std::int64_t count = 0, num_df = 0;
     exodus::clear_error();
     check(ex_get_set_param(exoid, EX_NODE_SET, set.id, &count, &num_df), path, "reading " + what);
-    check_count(count, 4, budget, facts.size, path, "nodes in " + what);
+    check_count(count, 4, budget, file_size, path, "nodes in " + what);
     std::vector<std::int64_t> nodes(static_cast<std::size_t>(count));
     if (count > 0) {
       exodus::clear_error();

@@ -2,20 +2,19 @@
 // parser is safer than our own for user-written JSON.
 #include <cmath>
 #include <cstdlib>
-#include <fstream>
 #include <nlohmann/json.hpp>  // Debian's nlohmann-json3-dev
 
 #include "dicer/error.hpp"
 #include "dicer/intervals.hpp"
+#include "input_file.hpp"
 
 namespace dicer {
 
 IntervalRequest read_interval_file(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw Error(ErrorKind::Io, path + ": cannot open intervals file");
+  const std::string text = InputFile(path).read_all();
   nlohmann::json j;
   try {
-    j = nlohmann::json::parse(in);
+    j = nlohmann::json::parse(text);
   } catch (const nlohmann::json::exception& e) {
     throw Error(ErrorKind::Usage, path + ": not valid JSON: " + e.what());
   }

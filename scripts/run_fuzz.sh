@@ -14,6 +14,19 @@
 #               <= 2000 elements is then diced at interval 1 and verified
 #               (counts, id round trips, bit identity). Inputs with netCDF/HDF5
 #               magic (the Exodus reader, i.e. netCDF's parser) are skipped.
+#   fuzz_exodus the Exodus reader path through Debian's netCDF and Exodus
+#               libraries: bytes -> file -> read_coarse_mesh (our netCDF
+#               header check, the Exodus layout audit, the getters, then
+#               validate_coarse_mesh); small meshes are diced and verified as
+#               in fuzz_msh. Only netCDF classic/64-bit offset/CDF-5 inputs
+#               ("CDF" 1, 2, 5) are read; HDF5-based netCDF-4 files are not
+#               fuzzed (HDF5 1.10 does not survive damaged metadata).
+#               Seeds: tests/data/cardinal_sphere.e (CUBIT, CDF-2) and three
+#               small files written with the Exodus library (two hexes with
+#               named block, side set, node set and id maps, as CDF-2 and, via
+#               python3-netCDF4, CDF-5; two SHELL4 quads with a BAR2 block and
+#               an edge side set, CDF-1 "normal model" with the combined
+#               coord variable).
 #   fuzz_page   the page decoder: filter 32004 (LZ4) layout + Fletcher32, via
 #               store::decode_page; once as given, once with the size field and
 #               checksum fixed up (reaches the LZ4 layout and data checks), and
@@ -52,8 +65,8 @@ target=$1
 seconds=$2
 shift 2
 case "$target" in
-  fuzz_msh | fuzz_page | fuzz_store) ;;
-  *) echo "unknown target '$target' (fuzz_msh, fuzz_page, fuzz_store)" >&2; exit 2 ;;
+  fuzz_msh | fuzz_exodus | fuzz_page | fuzz_store) ;;
+  *) echo "unknown target '$target' (fuzz_msh, fuzz_exodus, fuzz_page, fuzz_store)" >&2; exit 2 ;;
 esac
 cmake -S . -B build-fuzz -DDICER_FUZZ=ON -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ \
   -DDICER_BUILD_TESTS=OFF -DDICER_BUILD_BENCH=OFF -DCMAKE_BUILD_TYPE=RelWithDebInfo \

@@ -62,7 +62,9 @@ struct CoarseMesh {
   // -1 where unknown (Exodus files, MSH 2.2 without it). Empty or sized V.
   std::vector<std::int8_t> vertex_geo_dim;
   std::vector<std::int32_t> vertex_geo_tag;
-  std::vector<std::string> warnings;  // quirks accepted (reoriented, dropped nodes)
+  // Quirks accepted (reoriented, dropped nodes, skipped blocks): one sentence
+  // each, WITHOUT the file path; whoever prints them prefixes `source`.
+  std::vector<std::string> warnings;
 
   int corners_per_element() const { return mode == Mode::Volume ? 8 : 4; }
   Id num_vertices() const { return static_cast<Id>(x.size()); }
@@ -70,8 +72,9 @@ struct CoarseMesh {
   Vec3 vertex(Id v) const { return {x[v], y[v], z[v]}; }
 };
 
-// Reads an Exodus II (.e, .exo, .ex2, .g) or Gmsh MSH 2.2/4.1 file, chosen by
-// content (netCDF/HDF5 magic vs "$MeshFormat"), then validate_coarse_mesh().
+// Reads an Exodus II (.e, .exo, .ex2, .g) or Gmsh MSH 1/2.2/4.1 file, chosen
+// by content (netCDF/HDF5 magic vs a first line "$Section"), then
+// validate_coarse_mesh().
 // Throws Error{BadInput|Unsupported|Io} naming the file and what is wrong.
 CoarseMesh read_coarse_mesh(const std::string& path);
 

@@ -4,6 +4,8 @@
 #include <exodusII.h>
 #include <gtest/gtest.h>
 #include <netcdf.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <cstdint>
@@ -16,6 +18,7 @@
 
 #include "dicer/coarse_mesh.hpp"
 #include "dicer/error.hpp"
+#include "exodus_fixture.hpp"
 #include "test_support.hpp"
 
 namespace {
@@ -23,92 +26,7 @@ namespace {
 using dicer::ErrorKind;
 using dicer::test::data_path;
 using dicer::test::TempDir;
-
-// A small Exodus file written with the Exodus library itself (test fixture).
-struct FixtureBlock {
-  std::int64_t id = 1;
-  std::string type = "HEX8";
-  std::int64_t nodes_per_element = 8;
-  std::vector<std::int64_t> conn;  // 1-based node numbers
-  std::string name;
-};
-struct FixtureSideSet {
-  std::int64_t id = 1;
-  std::vector<std::int64_t> element, side;  // 1-based, as Exodus stores them
-};
-struct FixtureNodeSet {
-  std::int64_t id = 1;
-  std::vector<std::int64_t> node;  // 1-based
-};
-struct Fixture {
-  int create_mode = EX_CLOBBER;  // | EX_NETCDF4 for an HDF5-based file
-  int num_dim = 3;
-  std::vector<double> x, y, z;
-  bool write_coords = true;
-  std::vector<FixtureBlock> blocks;
-  std::vector<FixtureSideSet> side_sets;
-  std::vector<FixtureNodeSet> node_sets;
-  std::vector<std::int64_t> node_map, elem_map;  // empty: none stored
-};
-
-// Two unit hexes side by side along x: nodes (i, j, k), i in 0..2, j, k in 0..1,
-// node number 1 + i + 3 j + 6 k; elements 1 and 2 in block 1.
-Fixture two_hexes() {
-  Fixture f;
-  for (int k = 0; k < 2; ++k)
-    for (int j = 0; j < 2; ++j)
-      for (int i = 0; i < 3; ++i) {
-        f.x.push_back(i);
-        f.y.push_back(j);
-        f.z.push_back(k);
-      }
-  FixtureBlock b;
-  for (int i = 0; i < 2; ++i) {
-    const std::int64_t n = 1 + i;
-    for (std::int64_t v : {n, n + 1, n + 4, n + 3, n + 6, n + 7, n + 10, n + 9}) b.conn.push_back(v);
-  }
-  f.blocks.push_back(b);
-  return f;
-}
-
-void exo_check(int rc, const char* what) {
-  if (rc < 0) throw std::runtime_error(std::string("fixture: ") + what + " failed");
-}
-
-void write_exodus(const std::string& path, const Fixture& f) {
-  int cpu_ws = 8, io_ws = 8;
-  const int exoid = ex_create(path.c_str(), f.create_mode, &cpu_ws, &io_ws);
-  if (exoid < 0) throw std::runtime_error("fixture: ex_create failed for " + path);
-  ex_set_int64_status(exoid, EX_ALL_INT64_API);
-  std::int64_t num_elem = 0;
-  for (const auto& b : f.blocks) num_elem += static_cast<std::int64_t>(b.conn.size()) / b.nodes_per_element;
-  exo_check(ex_put_init(exoid, "dicer fixture", f.num_dim, static_cast<std::int64_t>(f.x.size()), num_elem,
-                        static_cast<std::int64_t>(f.blocks.size()), static_cast<std::int64_t>(f.node_sets.size()),
-                        static_cast<std::int64_t>(f.side_sets.size())),
-            "ex_put_init");
-  if (f.write_coords)
-    exo_check(ex_put_coord(exoid, f.x.data(), f.y.data(), f.num_dim >= 3 ? f.z.data() : nullptr), "ex_put_coord");
-  if (!f.node_map.empty()) exo_check(ex_put_id_map(exoid, EX_NODE_MAP, f.node_map.data()), "node map");
-  if (!f.elem_map.empty()) exo_check(ex_put_id_map(exoid, EX_ELEM_MAP, f.elem_map.data()), "elem map");
-  for (const auto& b : f.blocks) {
-    const std::int64_t n = static_cast<std::int64_t>(b.conn.size()) / b.nodes_per_element;
-    exo_check(ex_put_block(exoid, EX_ELEM_BLOCK, b.id, b.type.c_str(), n, b.nodes_per_element, 0, 0, 0),
-              "ex_put_block");
-    if (n > 0) exo_check(ex_put_conn(exoid, EX_ELEM_BLOCK, b.id, b.conn.data(), nullptr, nullptr), "ex_put_conn");
-    if (!b.name.empty()) exo_check(ex_put_name(exoid, EX_ELEM_BLOCK, b.id, b.name.c_str()), "ex_put_name");
-  }
-  for (const auto& s : f.side_sets) {
-    exo_check(ex_put_set_param(exoid, EX_SIDE_SET, s.id, static_cast<std::int64_t>(s.element.size()), 0),
-              "side set param");
-    exo_check(ex_put_set(exoid, EX_SIDE_SET, s.id, s.element.data(), s.side.data()), "side set");
-  }
-  for (const auto& s : f.node_sets) {
-    exo_check(ex_put_set_param(exoid, EX_NODE_SET, s.id, static_cast<std::int64_t>(s.node.size()), 0),
-              "node set param");
-    exo_check(ex_put_set(exoid, EX_NODE_SET, s.id, s.node.data(), nullptr), "node set");
-  }
-  exo_check(ex_close(exoid), "ex_close");
-}
+using namespace dicer::test;  // Exodus fixtures
 
 // Reads the file, expecting an Error of `kind` whose message starts with the
 // path and contains every one of `parts`. Returns the message.
@@ -387,3 +305,274 @@ TEST(BadExodus, NoCoordinatesWrittenIsBadInput) {
 }
 
 }  // namespace
+
+// Same dimension as the mesh but not diceable: refused, whatever else is there.
+TEST(BadExodus, TrianglesInAQuadMeshAreUnsupported) {
+  TempDir tmp;
+  const std::string path = tmp.path("quad_tri.e");
+  Fixture f = two_quads();
+  f.blocks[0].conn.resize(4);  // the first quad; triangles fill the second
+  f.blocks.push_back(block_of(2, "TRI3", 3, {2, 3, 6, 2, 6, 5}));
+  f.blocks.push_back(block_of(4, "BAR2", 2, {1, 2}));
+  write_exodus(path, f);
+  const std::string msg = expect_error(path, ErrorKind::Unsupported, {"2 TRI3 (block 2)", "QUAD4"});
+  EXPECT_EQ(msg.find("BAR2"), std::string::npos) << "beams are skipped, not refused: " << msg;
+}
+
+TEST(BadExodus, UnknownElementTypeIsUnsupported) {
+  TempDir tmp;
+  const std::string path = tmp.path("unknown.e");
+  Fixture f = two_hexes();
+  f.blocks.push_back(block_of(4, "SUPERELEMENT", 2, {1, 2}));
+  write_exodus(path, f);
+  expect_error(path, ErrorKind::Unsupported, {"1 SUPERELEMENT (block 4)"});
+}
+
+TEST(BadExodus, OnlyBeamsIsUnsupported) {
+  TempDir tmp;
+  const std::string path = tmp.path("beams.e");
+  Fixture f = two_hexes();
+  f.blocks[0].type = "BEAM2", f.blocks[0].nodes_per_element = 2;
+  f.blocks[0].conn = {1, 2, 2, 3};
+  write_exodus(path, f);
+  expect_error(path, ErrorKind::Unsupported, {"no hexahedra or quadrilaterals", "dimension 1"});
+}
+
+// ---------------------------------------------------------------------------
+// Files whose variables and attributes lie about their size. The Exodus
+// 6.02 getters read whole variables into buffers sized from the header's
+// dimensions (and into their own, in ex_id_lkup), so each of these wrote far
+// past a buffer before the reader checked shapes: the reads run in a child
+// process, where a crash fails the test instead of ending the suite.
+
+// What reading `path` with read_exodus did in a child process.
+struct ChildRead {
+  bool normal_exit = false;  // the child returned, with or without an Error
+  std::string outcome;       // "error <kind>: <message>", "no error", "other exception", or the signal
+};
+
+ChildRead read_in_child(const std::string& path) {
+  int fds[2];
+  if (::pipe(fds) != 0) throw std::runtime_error("pipe failed");
+  const pid_t pid = ::fork();
+  if (pid < 0) throw std::runtime_error("fork failed");
+  if (pid == 0) {
+    ::close(fds[0]);
+    ::alarm(60);  // a read that hangs fails the test too
+    std::string out = "no error";
+    try {
+      dicer::read_exodus(path);
+    } catch (const dicer::Error& e) {
+      out = "error " + std::to_string(static_cast<int>(e.kind())) + ": " + e.what();
+    } catch (...) {
+      out = "other exception";
+    }
+    const ssize_t ignored = ::write(fds[1], out.data(), out.size());
+    (void)ignored;
+    ::_exit(0);
+  }
+  ::close(fds[1]);
+  ChildRead r;
+  char buf[4096];
+  ssize_t n;
+  while ((n = ::read(fds[0], buf, sizeof buf)) > 0) r.outcome.append(buf, static_cast<std::size_t>(n));
+  ::close(fds[0]);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  r.normal_exit = WIFEXITED(status) && WEXITSTATUS(status) == 0;
+  if (WIFSIGNALED(status)) r.outcome = "killed by signal " + std::to_string(WTERMSIG(status)) + " (" + strsignal(WTERMSIG(status)) + ")";
+  return r;
+}
+
+// The child refused the file with BadInput, naming the file and every part.
+void expect_refused_in_child(const std::string& path, std::initializer_list<std::string> parts) {
+  const ChildRead r = read_in_child(path);
+  ASSERT_TRUE(r.normal_exit) << r.outcome;
+  const std::string prefix = "error " + std::to_string(static_cast<int>(ErrorKind::BadInput)) + ": " + path + ": ";
+  EXPECT_EQ(r.outcome.rfind(prefix, 0), 0u) << r.outcome;
+  for (const std::string& p : parts) EXPECT_NE(r.outcome.find(p), std::string::npos) << "missing '" << p << "' in: " << r.outcome;
+  EXPECT_EQ(r.outcome.find('\n'), std::string::npos) << "one line: " << r.outcome;
+}
+
+void nc_check(int rc, const char* what) {
+  if (rc != NC_NOERR) throw std::runtime_error(std::string("fixture: ") + what + ": " + nc_strerror(rc));
+}
+
+// Replaces variable `name` by one whose first dimension is a new one of
+// `length`; other dimensions and attributes as they were; NC_BYTE values 1.
+// The header's own dimensions (num_nodes, num_el_in_blk1, ...) still say
+// the old size.
+void lengthen_variable(const std::string& path, const std::string& name, std::size_t length) {
+  int ncid = -1, old = -1, rank = 0, natts = 0;
+  nc_check(nc_open(path.c_str(), NC_WRITE, &ncid), "nc_open");
+  nc_check(nc_redef(ncid), "nc_redef");
+  nc_check(nc_inq_varid(ncid, name.c_str(), &old), name.c_str());
+  nc_check(nc_inq_varndims(ncid, old, &rank), "nc_inq_varndims");
+  std::vector<int> dims(static_cast<std::size_t>(rank));
+  nc_check(nc_inq_vardimid(ncid, old, dims.data()), "nc_inq_vardimid");
+  nc_check(nc_rename_var(ncid, old, (name + "_as_written").c_str()), "nc_rename_var");
+  nc_check(nc_def_dim(ncid, ("lie_" + name).c_str(), length, &dims[0]), "nc_def_dim");
+  int var = -1;
+  nc_check(nc_def_var(ncid, name.c_str(), NC_BYTE, rank, dims.data(), &var), "nc_def_var");
+  nc_check(nc_inq_varnatts(ncid, old, &natts), "nc_inq_varnatts");
+  for (int a = 0; a < natts; ++a) {
+    char att[NC_MAX_NAME + 1] = {};
+    nc_check(nc_inq_attname(ncid, old, a, att), "nc_inq_attname");
+    nc_check(nc_copy_att(ncid, old, att, ncid, var), "nc_copy_att");
+  }
+  nc_check(nc_enddef(ncid), "nc_enddef");
+  std::size_t total = 1;
+  for (int d : dims) {
+    std::size_t len = 0;
+    nc_check(nc_inq_dimlen(ncid, d, &len), "nc_inq_dimlen");
+    total *= len;
+  }
+  const std::vector<signed char> ones(total, 1);
+  nc_check(nc_put_var_schar(ncid, var, ones.data()), "nc_put_var_schar");
+  nc_check(nc_close(ncid), "nc_close");
+}
+
+Fixture two_hexes_with_sets() {
+  Fixture f = two_hexes();
+  f.side_sets.push_back({4, {1, 2}, {5, 5}});
+  f.node_sets.push_back({6, {1, 2, 3}});
+  return f;
+}
+
+TEST(BadExodus, VariablesLongerThanTheirDimensionsAreRefusedBeforeAnyRead) {
+  TempDir tmp;
+  struct Lie {
+    const char* var;
+    std::size_t length;
+    const char* says;
+  };
+  // Lengths large enough that writing them into the buffers the header sizes
+  // runs off the heap.
+  const Lie lies[] = {
+      {"connect1", 200000, "has shape 200000 x 8 but the dimensions the reader sizes it from give 2 x 8"},
+      {"coordx", 1000000, "has shape 1000000 but the dimensions the reader sizes it from give 12"},
+      {"node_num_map", 1000000, "give 12"},
+      {"elem_num_map", 1000000, "give 2"},
+      {"eb_prop1", 1000000, "give 1"},
+      {"eb_status", 1000000, "give 1"},
+      {"ss_prop1", 1000000, "give 1"},
+      {"ss_status", 1000000, "give 1"},
+      {"elem_ss1", 1000000, "give 2"},
+      {"side_ss1", 1000000, "give 2"},
+      {"ns_prop1", 1000000, "give 1"},
+      {"node_ns1", 1000000, "give 3"},
+  };
+  Fixture f = two_hexes_with_sets();
+  f.node_map = {11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22};
+  f.elem_map = {7, 8};
+  for (const Lie& lie : lies) {
+    SCOPED_TRACE(lie.var);
+    const std::string path = tmp.path(std::string("long_") + lie.var + ".e");
+    write_exodus(path, f);
+    lengthen_variable(path, lie.var, lie.length);
+    expect_refused_in_child(path, {std::string("variable '") + lie.var + "'", lie.says});
+  }
+}
+
+// The Exodus library copies elem_type into a 33-byte buffer on its stack.
+TEST(BadExodus, ElementTypeLongerThanExodusAllowsIsRefused) {
+  TempDir tmp;
+  for (const std::size_t length : {std::size_t{500}, std::size_t{33}}) {
+    SCOPED_TRACE(length);
+    const std::string path = tmp.path("long_type_" + std::to_string(length) + ".e");
+    write_exodus(path, two_hexes());
+    int ncid = -1, var = -1;
+    nc_check(nc_open(path.c_str(), NC_WRITE, &ncid), "nc_open");
+    nc_check(nc_redef(ncid), "nc_redef");
+    nc_check(nc_inq_varid(ncid, "connect1", &var), "connect1");
+    const std::string type = "HEX8" + std::string(length - 4, 'X');  // no terminating NUL
+    nc_check(nc_put_att_text(ncid, var, "elem_type", type.size(), type.data()), "elem_type");
+    nc_check(nc_close(ncid), "nc_close");
+    expect_refused_in_child(path, {"variable 'connect1'", "elem_type attribute is " + std::to_string(length) + " characters"});
+  }
+}
+
+// ex_open reads version and word size into one float / int of its caller's.
+TEST(BadExodus, GlobalAttributeWithManyValuesIsRefused) {
+  TempDir tmp;
+  for (const char* att : {"version", "floating_point_word_size", "maximum_name_length"}) {
+    SCOPED_TRACE(att);
+    const std::string path = tmp.path(std::string("many_") + att + ".e");
+    write_exodus(path, two_hexes());
+    int ncid = -1;
+    nc_check(nc_open(path.c_str(), NC_WRITE, &ncid), "nc_open");
+    nc_check(nc_redef(ncid), "nc_redef");
+    const std::vector<int> values(100000, 8);
+    nc_check(nc_put_att_int(ncid, NC_GLOBAL, att, NC_INT, values.size(), values.data()), att);
+    nc_check(nc_close(ncid), "nc_close");
+    expect_refused_in_child(path, {std::string("attribute '") + att + "' has 100000 values"});
+  }
+}
+
+// Byte-level lies in the netCDF header itself, which netCDF trusts: a name
+// length or an attribute length of 2^31 made nc_open allocate gigabytes
+// (out of memory, or tens of seconds).
+std::uint32_t be32(const std::string& b, std::size_t at) {
+  std::uint32_t v = 0;
+  for (int k = 0; k < 4; ++k) v = v << 8 | static_cast<unsigned char>(b[at + k]);
+  return v;
+}
+void put_be32(std::string& b, std::size_t at, std::uint32_t v) {
+  for (int k = 0; k < 4; ++k) b[at + k] = static_cast<char>(v >> (8 * (3 - k)));
+}
+
+TEST(BadExodus, LyingNetcdfHeaderBytesAreRefusedBeforeNetcdfOpensThem) {
+  TempDir tmp;
+  const std::string good = tmp.path("good.e");
+  write_exodus(good, two_hexes_with_sets());
+  const std::string bytes = dicer::test::read_file(good);
+  ASSERT_EQ(bytes.compare(0, 3, "CDF"), 0);
+  ASSERT_NE(bytes[3], 5) << "the offsets below are those of CDF-1 and CDF-2";
+  // magic, numrecs, then the dimension list: tag, count, first name's length.
+  ASSERT_EQ(be32(bytes, 8), 10u) << "dimension list tag";
+  struct Patch {
+    const char* name;
+    std::size_t at;
+    std::uint32_t value;
+    const char* says;
+  };
+  // An attribute's length sits after its name and type: find "api_version".
+  const std::string key = std::string("\0\0\0\x0b", 4) + "api_version";
+  const std::size_t api = bytes.find(key);
+  ASSERT_NE(api, std::string::npos);
+  const std::size_t api_length = api + 4 + 12 + 4;  // name length, padded name, type
+  ASSERT_EQ(be32(bytes, api_length), 1u);
+  const Patch patches[] = {
+      {"name_length", 16, 0x7ffffff0u, "the name of dimension 0 is 2147483632 characters long"},
+      {"dimension_count", 12, 0x7fffffffu, "claims 2147483647 dimensions"},
+      {"attribute_length", api_length, 0x7fffffffu, "global attribute 'api_version' claims 2147483647 values"},
+      {"negative_count", 12, 0x80000001u, "the number of dimensions is 2147483649 (negative)"},
+  };
+  for (const Patch& p : patches) {
+    SCOPED_TRACE(p.name);
+    std::string b = bytes;
+    put_be32(b, p.at, p.value);
+    const std::string path = tmp.path(std::string("patched_") + p.name + ".e");
+    dicer::test::write_file(path, b);
+    expect_refused_in_child(path, {"not a readable Exodus II file (netCDF header: ", p.says});
+  }
+}
+
+// A count of sets that only a dimension states (no set of them exists): the
+// audit would otherwise look for thousands of variables.
+TEST(BadExodus, MoreSetsThanTheFileHasDimensionsIsRefused) {
+  TempDir tmp;
+  const std::string path = tmp.path("phantom_sets.e");
+  write_exodus(path, two_hexes());
+  int ncid = -1, dim = -1, filler_dim = -1, filler = -1;
+  nc_check(nc_open(path.c_str(), NC_WRITE, &ncid), "nc_open");
+  nc_check(nc_redef(ncid), "nc_redef");
+  nc_check(nc_def_dim(ncid, "num_side_sets", 5000, &dim), "num_side_sets");
+  nc_check(nc_def_dim(ncid, "filler", 200000, &filler_dim), "filler dim");  // room for the count check
+  nc_check(nc_def_var(ncid, "filler", NC_BYTE, 1, &filler_dim, &filler), "filler");
+  nc_check(nc_enddef(ncid), "nc_enddef");
+  const std::vector<signed char> zeros(200000, 0);
+  nc_check(nc_put_var_schar(ncid, filler, zeros.data()), "filler data");
+  nc_check(nc_close(ncid), "nc_close");
+  expect_refused_in_child(path, {"claims 1 element blocks, 5000 side sets and 0 node sets but defines only"});
+}

@@ -50,5 +50,6 @@ void replay(const std::string& target, void (*entry)(const std::uint8_t*, std::s
 }  // namespace
 
 TEST(FuzzRegressions, MshInputsReturnNormally) { replay("fuzz_msh", dicer::fuzz::run_msh, 3); }
+TEST(FuzzRegressions, ExodusInputsReturnNormally) { replay("fuzz_exodus", dicer::fuzz::run_exodus, 4); }
 TEST(FuzzRegressions, PageInputsReturnNormally) { replay("fuzz_page", dicer::fuzz::run_page, 3); }
 TEST(FuzzRegressions, StoreInputsReturnNormally) { replay("fuzz_store", dicer::fuzz::run_store, 1); }

@@ -238,17 +238,29 @@ std::uint32_t le32(const std::uint8_t* p) {
 
 }  // namespace
 
-void run_msh(const std::uint8_t* data, std::size_t size) {
-  // netCDF classic / HDF5 magic goes to the Exodus reader: not this target.
-  if (size >= 3 && std::memcmp(data, "CDF", 3) == 0) return;
-  if (size >= 4 && std::memcmp(data, "\x89HDF", 4) == 0) return;
-  static const std::string path = temp_dir().path("input.msh");
+// Bytes -> a file -> read_coarse_mesh; small meshes are diced and verified.
+void read_dice_verify(const std::string& path, const std::uint8_t* data, std::size_t size) {
   write_bytes(path, data, size);
   try {
     CoarseMesh mesh = read_coarse_mesh(path);
     if (mesh.num_elements() <= kMaxDiceElements) dice_and_verify(std::move(mesh));
   } catch (const Error&) {
   }
+}
+
+void run_msh(const std::uint8_t* data, std::size_t size) {
+  // netCDF classic / HDF5 magic goes to the Exodus reader: not this target.
+  if (size >= 3 && std::memcmp(data, "CDF", 3) == 0) return;
+  if (size >= 4 && std::memcmp(data, "\x89HDF", 4) == 0) return;
+  static const std::string path = temp_dir().path("input.msh");
+  read_dice_verify(path, data, size);
+}
+
+void run_exodus(const std::uint8_t* data, std::size_t size) {
+  // Only netCDF classic, 64-bit offset and 64-bit data files ("CDF" 1, 2, 5).
+  if (size < 4 || std::memcmp(data, "CDF", 3) != 0 || (data[3] != 1 && data[3] != 2 && data[3] != 5)) return;
+  static const std::string path = temp_dir().path("input.e");
+  read_dice_verify(path, data, size);
 }
 
 void run_page(const std::uint8_t* data, std::size_t size) {

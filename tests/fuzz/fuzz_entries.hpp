@@ -32,6 +32,13 @@ struct FuzzBug : std::logic_error {
 inline constexpr long kMaxDiceElements = 2000;
 void run_msh(const std::uint8_t* data, std::size_t size);
 
+// Exodus reader path: bytes -> a file -> read_coarse_mesh through the real
+// netCDF and Exodus libraries, then dice and verify as run_msh does. Only
+// inputs that start with netCDF classic magic ("CDF" then 1, 2 or 5) are
+// read: HDF5-based (netCDF-4) files are accepted as HDF5 opens them, and
+// HDF5 1.10 is known not to survive hostile metadata (see run_store).
+void run_exodus(const std::uint8_t* data, std::size_t size);
+
 // Page decoder (filter 32004 layout + Fletcher32): the first 4 bytes (LE)
 // modulo 1 MiB give expected_size, the rest is the stored page. Decodes it
 // as is, then again with the header's size set to expected_size and the

@@ -16,6 +16,7 @@
 
 #include "dicer/coarse_mesh.hpp"
 #include "dicer/error.hpp"
+#include "exodus_fixture.hpp"
 #include "test_support.hpp"
 
 namespace {
@@ -25,6 +26,7 @@ using dicer::Id;
 using dicer::Mode;
 using dicer::test::data_path;
 using dicer::test::TempDir;
+using namespace dicer::test;  // Exodus fixtures
 
 CoarseMesh read(const std::string& name) { return dicer::read_exodus(data_path(name)); }
 
@@ -272,92 +274,6 @@ TEST(ReadExodus, CylinderShellIsSurfaceMode) {
   }
 }
 
-// A small Exodus file written with the Exodus library itself (test fixture).
-struct FixtureBlock {
-  std::int64_t id = 1;
-  std::string type = "HEX8";
-  std::int64_t nodes_per_element = 8;
-  std::vector<std::int64_t> conn;  // 1-based node numbers
-  std::string name;
-};
-struct FixtureSideSet {
-  std::int64_t id = 1;
-  std::vector<std::int64_t> element, side;  // 1-based, as Exodus stores them
-};
-struct FixtureNodeSet {
-  std::int64_t id = 1;
-  std::vector<std::int64_t> node;  // 1-based
-};
-struct Fixture {
-  int create_mode = EX_CLOBBER;  // | EX_NETCDF4 for an HDF5-based file
-  int num_dim = 3;
-  std::vector<double> x, y, z;
-  bool write_coords = true;
-  std::vector<FixtureBlock> blocks;
-  std::vector<FixtureSideSet> side_sets;
-  std::vector<FixtureNodeSet> node_sets;
-  std::vector<std::int64_t> node_map, elem_map;  // empty: none stored
-};
-
-// Two unit hexes side by side along x: nodes (i, j, k), i in 0..2, j, k in 0..1,
-// node number 1 + i + 3 j + 6 k; elements 1 and 2 in block 1.
-Fixture two_hexes() {
-  Fixture f;
-  for (int k = 0; k < 2; ++k)
-    for (int j = 0; j < 2; ++j)
-      for (int i = 0; i < 3; ++i) {
-        f.x.push_back(i);
-        f.y.push_back(j);
-        f.z.push_back(k);
-      }
-  FixtureBlock b;
-  for (int i = 0; i < 2; ++i) {
-    const std::int64_t n = 1 + i;
-    for (std::int64_t v : {n, n + 1, n + 4, n + 3, n + 6, n + 7, n + 10, n + 9}) b.conn.push_back(v);
-  }
-  f.blocks.push_back(b);
-  return f;
-}
-
-void exo_check(int rc, const char* what) {
-  if (rc < 0) throw std::runtime_error(std::string("fixture: ") + what + " failed");
-}
-
-void write_exodus(const std::string& path, const Fixture& f) {
-  int cpu_ws = 8, io_ws = 8;
-  const int exoid = ex_create(path.c_str(), f.create_mode, &cpu_ws, &io_ws);
-  if (exoid < 0) throw std::runtime_error("fixture: ex_create failed for " + path);
-  ex_set_int64_status(exoid, EX_ALL_INT64_API);
-  std::int64_t num_elem = 0;
-  for (const auto& b : f.blocks) num_elem += static_cast<std::int64_t>(b.conn.size()) / b.nodes_per_element;
-  exo_check(ex_put_init(exoid, "dicer fixture", f.num_dim, static_cast<std::int64_t>(f.x.size()), num_elem,
-                        static_cast<std::int64_t>(f.blocks.size()), static_cast<std::int64_t>(f.node_sets.size()),
-                        static_cast<std::int64_t>(f.side_sets.size())),
-            "ex_put_init");
-  if (f.write_coords)
-    exo_check(ex_put_coord(exoid, f.x.data(), f.y.data(), f.num_dim >= 3 ? f.z.data() : nullptr), "ex_put_coord");
-  if (!f.node_map.empty()) exo_check(ex_put_id_map(exoid, EX_NODE_MAP, f.node_map.data()), "node map");
-  if (!f.elem_map.empty()) exo_check(ex_put_id_map(exoid, EX_ELEM_MAP, f.elem_map.data()), "elem map");
-  for (const auto& b : f.blocks) {
-    const std::int64_t n = static_cast<std::int64_t>(b.conn.size()) / b.nodes_per_element;
-    exo_check(ex_put_block(exoid, EX_ELEM_BLOCK, b.id, b.type.c_str(), n, b.nodes_per_element, 0, 0, 0),
-              "ex_put_block");
-    if (n > 0) exo_check(ex_put_conn(exoid, EX_ELEM_BLOCK, b.id, b.conn.data(), nullptr, nullptr), "ex_put_conn");
-    if (!b.name.empty()) exo_check(ex_put_name(exoid, EX_ELEM_BLOCK, b.id, b.name.c_str()), "ex_put_name");
-  }
-  for (const auto& s : f.side_sets) {
-    exo_check(ex_put_set_param(exoid, EX_SIDE_SET, s.id, static_cast<std::int64_t>(s.element.size()), 0),
-              "side set param");
-    exo_check(ex_put_set(exoid, EX_SIDE_SET, s.id, s.element.data(), s.side.data()), "side set");
-  }
-  for (const auto& s : f.node_sets) {
-    exo_check(ex_put_set_param(exoid, EX_NODE_SET, s.id, static_cast<std::int64_t>(s.node.size()), 0),
-              "node set param");
-    exo_check(ex_put_set(exoid, EX_NODE_SET, s.id, s.node.data(), nullptr), "node set");
-  }
-  exo_check(ex_close(exoid), "ex_close");
-}
-
 TEST(ReadExodus, FixtureWithoutMapsNumbersFromOne) {
   TempDir tmp;
   const std::string path = tmp.path("plain.e");
@@ -474,8 +390,61 @@ TEST(ReadExodus, ShellBlockInHexFileIsSkipped) {
   EXPECT_EQ(m.side_sets[0].element, (std::vector<Id>{0, 1}));
   EXPECT_EQ(m.side_sets[0].side, (std::vector<std::int8_t>{4, 5}));
   ASSERT_EQ(m.warnings.size(), 2u);  // skipped block, dropped side
-  EXPECT_NE(m.warnings[0].find("element block 100"), std::string::npos) << m.warnings[0];
+  EXPECT_NE(m.warnings[0].find("block 100 (1 SHELL4)"), std::string::npos) << m.warnings[0];
   EXPECT_NE(m.warnings[1].find("side set 1"), std::string::npos) << m.warnings[1];
+}
+
+// One rule for lower-dimensional blocks (README, Inputs): in a hex mesh,
+// shells, beams and spheres are skipped with one warning naming each block;
+// in a quad mesh, beams and spheres are.
+TEST(ReadExodus, LowerDimensionalBlocksInAHexMeshAreSkippedWithOneWarning) {
+  TempDir tmp;
+  const std::string path = tmp.path("hex_beam_shell_sphere.e");
+  Fixture f = two_hexes();
+  f.blocks[0].name = "solid";
+  f.blocks.push_back(block_of(7, "BAR2", 2, {1, 2, 2, 3}, "beams"));
+  f.blocks.push_back(block_of(8, "SHELL4", 4, {1, 4, 5, 2}));
+  f.blocks.push_back(block_of(9, "SPHERE", 1, {12}, "mass"));
+  f.blocks.push_back(block_of(10, "BEAM3", 3, {1, 2, 3}));
+  write_exodus(path, f);
+  const CoarseMesh m = dicer::read_exodus(path);
+  expect_consistent(m);
+  EXPECT_EQ(m.mode, Mode::Volume);
+  EXPECT_EQ(m.num_elements(), 2);
+  EXPECT_EQ(block_ids(m), (std::vector<std::int64_t>{1}));
+  ASSERT_EQ(m.warnings.size(), 1u);
+  const std::string& w = m.warnings[0];
+  for (const char* part : {"lower dimension than the hexahedra", "block 7 \"beams\" (2 BAR2)", "block 8 (1 SHELL4)",
+                           "block 9 \"mass\" (1 SPHERE)", "block 10 (1 BEAM3)"})
+    EXPECT_NE(w.find(part), std::string::npos) << "missing '" << part << "' in: " << w;
+  EXPECT_EQ(dicer::read_coarse_mesh(path).num_elements(), 2) << "and the mesh is diceable";
+}
+
+TEST(ReadExodus, BeamsInAQuadMeshAreSkipped) {
+  TempDir tmp;
+  const std::string path = tmp.path("quad_beam.e");
+  Fixture f = two_quads("SHELL4");
+  f.blocks.push_back(block_of(4, "TRUSS", 2, {1, 2}, "stiffener"));
+  write_exodus(path, f);
+  const CoarseMesh m = dicer::read_exodus(path);
+  EXPECT_EQ(m.mode, Mode::Surface);
+  EXPECT_EQ(m.num_elements(), 2);
+  EXPECT_EQ(block_ids(m), (std::vector<std::int64_t>{3}));
+  ASSERT_EQ(m.warnings.size(), 1u);
+  EXPECT_NE(m.warnings[0].find("lower dimension than the quadrilaterals"), std::string::npos) << m.warnings[0];
+  EXPECT_NE(m.warnings[0].find("block 4 \"stiffener\" (1 TRUSS)"), std::string::npos) << m.warnings[0];
+}
+
+TEST(ReadExodus, SecondOrderShellsInAHexMeshAreSkippedToo) {
+  TempDir tmp;
+  const std::string path = tmp.path("hex_quad8.e");
+  Fixture f = two_hexes();
+  f.blocks.push_back(block_of(5, "QUAD8", 8, {1, 2, 5, 4, 1, 2, 5, 4}));
+  write_exodus(path, f);
+  const CoarseMesh m = dicer::read_exodus(path);
+  EXPECT_EQ(m.num_elements(), 2);
+  ASSERT_EQ(m.warnings.size(), 1u);
+  EXPECT_NE(m.warnings[0].find("block 5 (1 QUAD8)"), std::string::npos) << m.warnings[0];
 }
 
 TEST(ReadExodus, PlanarQuad4FileIsSurfaceWithZeroZ) {

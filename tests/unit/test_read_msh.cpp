@@ -566,3 +566,190 @@ TEST(ReadMsh, Msh22ElementRepeatedForASecondPhysicalGroupIsKeptOnce) {
                           "$EndElements\n";
   EXPECT_THROW(read_text(bad), dicer::Error);
 }
+
+// ---------------------------------------------------------------------------
+// Sections Gmsh skips, wherever they are (Gmsh and meshio read these files).
+
+namespace {
+
+const std::string kTwoHexElements22 =
+    "$Elements\n2\n"
+    "1 5 2 4 1 10 20 30 40 50 60 70 80\n"
+    "2 5 2 4 1 50 60 70 80 90 100 110 120\n"
+    "$EndElements\n";
+
+// Number of nodes Gmsh itself reads from `path` (an independent reader).
+std::size_t gmsh_node_count(const std::string& path) {
+  gmsh::initialize();
+  gmsh::option::setNumber("General.Terminal", 0);
+  gmsh::open(path);
+  std::vector<std::size_t> tags;
+  std::vector<double> coords, params;
+  gmsh::model::mesh::getNodes(tags, coords, params);
+  gmsh::finalize();
+  return tags.size();
+}
+
+}  // namespace
+
+TEST(ReadMsh, UnknownSectionsBeforeMeshFormatAreSkipped) {
+  const std::string plain = std::string("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n") + kTwoHexNodes22 + kTwoHexElements22;
+  const std::string commented = "$Comments\nwritten by hand; $MeshFormat is not here\n$EndComments\n"
+                                "$Foo\n1 2 3\n$EndFoo\n" +
+                                plain + "$Bar\n$EndBar\n";
+  TempDir tmp;
+  const std::string path = tmp.path("commented.msh");
+  write_file(path, commented);
+  EXPECT_EQ(gmsh_node_count(path), 12u) << "Gmsh itself reads this file";
+  const CoarseMesh a = read_text(plain);
+  for (const CoarseMesh& b : {dicer::read_msh(path), dicer::read_coarse_mesh(path)}) {
+    expect_consistent(b);
+    EXPECT_EQ(b.num_elements(), 2);
+    EXPECT_EQ(by_id(b).coords, by_id(a).coords);
+    EXPECT_EQ(by_id(b).cells, by_id(a).cells);
+  }
+}
+
+TEST(ReadMsh, Binary41AfterAComment) {
+  TempDir tmp;
+  const std::string path = tmp.path("commented_binary.msh");
+  write_file(path, "\n$Comments\nbinary data follows\n$EndComments\n" + binary41(false));
+  expect_tiny_cube(dicer::read_coarse_mesh(path));
+}
+
+// ---------------------------------------------------------------------------
+// MSH 1 ($NOD / $ELM), written by Gmsh itself.
+
+namespace {
+
+// A 2 x 1 x 1 box meshed by Gmsh into 2 x 2 x 2 hexes, with a physical
+// volume 7 "solid", the two end faces in physical surface 4 "ends" and a
+// corner in physical point 9; written as MSH `version` (ASCII).
+void gmsh_box(const std::string& path, double version) {
+  gmsh::initialize();
+  gmsh::option::setNumber("General.Terminal", 0);
+  gmsh::model::add("box");
+  gmsh::model::occ::addBox(0, 0, 0, 2, 1, 1);
+  gmsh::model::occ::synchronize();
+  gmsh::vectorpair entities;
+  gmsh::model::getEntities(entities, 1);
+  for (const auto& [dim, tag] : entities) gmsh::model::mesh::setTransfiniteCurve(tag, 3);
+  gmsh::model::getEntities(entities, 2);
+  for (const auto& [dim, tag] : entities) {
+    gmsh::model::mesh::setTransfiniteSurface(tag);
+    gmsh::model::mesh::setRecombine(2, tag);
+  }
+  gmsh::model::mesh::setTransfiniteVolume(1);
+  gmsh::model::addPhysicalGroup(3, {1}, 7);
+  gmsh::model::setPhysicalName(3, 7, "solid");
+  gmsh::model::addPhysicalGroup(2, {1, 2}, 4);
+  gmsh::model::setPhysicalName(2, 4, "ends");
+  gmsh::model::addPhysicalGroup(0, {1}, 9);
+  gmsh::model::mesh::generate(3);
+  gmsh::option::setNumber("Mesh.MshFileVersion", version);
+  gmsh::option::setNumber("Mesh.Binary", 0);
+  gmsh::write(path);
+  gmsh::finalize();
+}
+
+}  // namespace
+
+TEST(ReadMsh, Msh1WrittenByGmshReadsLikeMsh22And41) {
+  TempDir tmp;
+  const std::string v1 = tmp.path("box_v1.msh"), v22 = tmp.path("box_v22.msh"), v41 = tmp.path("box_v41.msh");
+  gmsh_box(v1, 1.0);
+  gmsh_box(v22, 2.2);
+  gmsh_box(v41, 4.1);
+  ASSERT_EQ(dicer::test::read_file(v1).rfind("$NOD\n", 0), 0u) << "Gmsh wrote MSH 1";
+  const CoarseMesh m1 = dicer::read_coarse_mesh(v1);
+  expect_consistent(m1);
+  EXPECT_EQ(m1.mode, Mode::Volume);
+  EXPECT_EQ(m1.num_vertices(), 27);  // 3 x 3 x 3 grid points
+  EXPECT_EQ(m1.num_elements(), 8);
+  ASSERT_EQ(m1.blocks.size(), 1u);
+  EXPECT_EQ(m1.blocks[0].id, 7);
+  EXPECT_EQ(m1.blocks[0].name, "");  // MSH 1 has no names
+  ASSERT_EQ(m1.side_sets.size(), 1u);
+  EXPECT_EQ(m1.side_sets[0].id, 4);
+  EXPECT_EQ(m1.side_sets[0].element.size(), 8u);  // 2 x 2 quads on each end
+  ASSERT_EQ(m1.node_sets.size(), 1u);
+  EXPECT_EQ(m1.node_sets[0].id, 9);
+  EXPECT_EQ(m1.node_sets[0].vertex.size(), 1u);
+  EXPECT_TRUE(m1.warnings.empty());
+
+  // The same mesh through MSH 2.2 (names dropped: MSH 1 cannot carry them)
+  // and MSH 4.1 (which states the classification instead of implying it).
+  CoarseMesh m22 = dicer::read_coarse_mesh(v22);
+  EXPECT_EQ(m22.blocks[0].name, "solid");
+  for (auto& b : m22.blocks) b.name.clear();
+  for (auto& s : m22.side_sets) s.name.clear();
+  EXPECT_TRUE(expect_same_mesh(m1, m22, true));
+  EXPECT_EQ(m1.node_sets[0].vertex, m22.node_sets[0].vertex);
+  CoarseMesh m41 = dicer::read_coarse_mesh(v41);
+  for (auto& b : m41.blocks) b.name.clear();
+  for (auto& s : m41.side_sets) s.name.clear();
+  expect_same_mesh(m1, m41, false);
+}
+
+TEST(ReadMsh, Msh1WithoutPhysicalGroups) {
+  // A hex in elementary entity 12 and a point in entity 3; reg-phys 0 is "none".
+  const std::string text =
+      "$NOD\n8\n1 0 0 0\n2 1 0 0\n3 1 1 0\n4 0 1 0\n5 0 0 1\n6 1 0 1\n7 1 1 1\n8 0 1 1\n$ENDNOD\n"
+      "$ELM\n2\n"
+      "3 5 0 12 8 1 2 3 4 5 6 7 8\n"
+      "4 15 0 3 1 1\n"
+      "$ENDELM\n";
+  const CoarseMesh m = read_text(text);
+  expect_consistent(m);
+  EXPECT_EQ(m.element_file_id, std::vector<Id>{3});
+  ASSERT_EQ(m.blocks.size(), 1u);  // no physical group: the elementary entity
+  EXPECT_EQ(m.blocks[0].id, 12);
+  EXPECT_EQ(m.blocks[0].name, "entity 12");
+  EXPECT_EQ(m.vertex_geo_dim[0], 0);  // on the point element
+  EXPECT_EQ(m.vertex_geo_tag[0], 3);
+}
+
+// ---------------------------------------------------------------------------
+// Lower-dimensional elements (README, Inputs): boundary quads, lines and
+// points are sets; anything else below the mesh's dimension is skipped with
+// one warning naming where it was.
+
+TEST(ReadMsh, LowerDimensionalElementsOfAHexMeshAreSkippedWithOneWarning) {
+  const std::string text = std::string("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n") +
+                           "$PhysicalNames\n3\n2 7 \"skin\"\n1 12 \"beam\"\n3 1 \"solid\"\n$EndPhysicalNames\n" +
+                           kTwoHexNodes22 +
+                           "$Elements\n7\n"
+                           "1 5 2 1 1 10 20 30 40 50 60 70 80\n"
+                           "2 5 2 1 1 50 60 70 80 90 100 110 120\n"
+                           "3 2 2 7 4 10 20 30\n"         // triangles in physical surface 7
+                           "4 2 2 7 4 10 30 40\n"
+                           "5 8 2 0 9 10 20 30\n"         // a 3-node line in no group (entity 9)
+                           "6 1 2 12 5 90 100\n"          // a line in physical curve 12
+                           "7 3 2 7 4 10 40 30 20\n"      // a quad of the same group: a side
+                           "$EndElements\n";
+  const CoarseMesh m = read_text(text);
+  expect_consistent(m);
+  EXPECT_EQ(m.mode, Mode::Volume);
+  EXPECT_EQ(m.num_elements(), 2);
+  ASSERT_EQ(m.side_sets.size(), 1u);
+  EXPECT_EQ(m.side_sets[0].id, 7);
+  EXPECT_EQ(m.side_sets[0].element.size(), 1u);
+  ASSERT_EQ(m.warnings.size(), 1u);
+  const std::string& w = m.warnings[0];
+  EXPECT_THAT(w, HasSubstr("lower dimension than the hexahedra"));
+  EXPECT_THAT(w, HasSubstr("2 triangle (type 2) in physical group 7 \"skin\""));
+  EXPECT_THAT(w, HasSubstr("1 3-node line (type 8) in entity 9"));
+  EXPECT_THAT(w, HasSubstr("1 line (type 1) in physical group 12 \"beam\""));
+}
+
+TEST(ReadMsh, SecondOrderLinesOfAQuadMeshAreSkippedIn41) {
+  const std::string text = std::string("$MeshFormat\n4.1 0 8\n$EndMeshFormat\n") +
+                           "$Nodes\n1 5 1 5\n2 1 0 5\n1\n2\n3\n4\n5\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n0.5 0 0\n$EndNodes\n"
+                           "$Elements\n2 2 1 2\n2 1 3 1\n1 1 2 3 4\n1 3 8 1\n2 1 2 5\n$EndElements\n";
+  const CoarseMesh m = read_text(text);
+  EXPECT_EQ(m.mode, Mode::Surface);
+  EXPECT_EQ(m.num_elements(), 1);
+  ASSERT_EQ(m.warnings.size(), 1u);
+  EXPECT_THAT(m.warnings[0], HasSubstr("lower dimension than the quadrangles"));
+  EXPECT_THAT(m.warnings[0], HasSubstr("1 3-node line (type 8) in entity 3"));
+}
