@@ -113,6 +113,7 @@ int report(const std::string& path, bool with_cad, const std::string& cad, bool 
               {"misoriented", r.misoriented},
               {"conformity_errors", r.conformity_errors},
               {"inverted", r.inverted},
+              {"index_errors", r.index_errors},
               {"min_scaled_jacobian", r.min_scaled_jacobian},
               {"problems", r.problems},
               {"warnings", r.warnings}};
@@ -138,6 +139,8 @@ int report(const std::string& path, bool with_cad, const std::string& cad, bool 
                 ll(r.coincident_coarse_vertices), ll(r.near_coincident));
     std::printf("  %s quality        min scaled Jacobian %.4f, %lld inverted\n", mark(r.inverted == 0), r.min_scaled_jacobian,
                 ll(r.inverted));
+    std::printf("  %s index          %lld errors (element and group bounds, neighbours)\n", mark(r.index_errors == 0),
+                ll(r.index_errors));
     if (with_cad)
       std::printf("  %s geometry       max distance to the CAD %.3g (node %lld on %s; limit %.3g, %.3g of the diagonal), "
                   "%lld nodes checked\n",

@@ -40,6 +40,7 @@ FineMesh compile(std::shared_ptr<const CoarseMesh> cm, const Topology& t, const 
   tab.faces = make(std::int64_t{}, RowTable::Faces, nf);
   tab.elements = make(std::int64_t{}, RowTable::Elements, nh);
   tab.corners = make(double{}, RowTable::Corners, nh);
+  tab.bounds = make(double{}, RowTable::Bounds, nh);
   tab.bounding = Table<std::int64_t>(3, {});
   std::vector<std::int32_t> vowner(static_cast<size_t>(nv) * 2, -1);
   for (size_t v = 0; v < m.vertex_geo_dim.size() && v < m.vertex_geo_tag.size(); ++v)
@@ -53,14 +54,33 @@ FineMesh compile(std::shared_ptr<const CoarseMesh> cm, const Topology& t, const 
     while (slot < nc && m.conn[static_cast<size_t>(h) * nc + slot] != v) ++slot;
     write_row(tab, v, VertexRow{h, slot, num.vertex_node(v)});
   }
+  // Surface mode: the quad across each edge from its owner (neighbour
+  // queries read it instead of searching); -1 where a non-manifold edge has
+  // no single other quad.
+  std::vector<Id> edge_other(static_cast<size_t>(ne), -1);
+  if (!vol) {
+    std::vector<std::int8_t> uses(static_cast<size_t>(ne), 0);
+    for (Id h = 0; h < nh; ++h)
+      for (int k = 0; k < 4; ++k) {
+        const Id e = t.elem_edge[static_cast<size_t>(h) * 4 + k];
+        if (uses[e] < 3) ++uses[e];
+        if (h != t.edge_owner_elem[e]) edge_other[e] = h;
+      }
+    for (Id e = 0; e < ne; ++e)
+      if (uses[e] > 2) edge_other[e] = -1;
+  }
   for (Id e = 0; e < ne; ++e)
     write_row(tab, e, EdgeRow{t.edge_v[2 * e], t.edge_v[2 * e + 1], num.edge_n(e), num.edge_node(e), edge_sheet[e],
-                              t.edge_owner_elem[e], -1, -1});
+                              t.edge_owner_elem[e], -1, -1, edge_other[e]});
   for (Id f = 0; f < nf; ++f) {
     FaceRow r;
     for (int k = 0; k < 4; ++k) r.v[k] = t.face_v[4 * f + k], r.e[k] = t.face_edge[4 * f + k];
     r.nu = num.face_n(f)[0], r.nv = num.face_n(f)[1];
     r.node = num.face_node(f), r.owner_element = t.face_owner_elem[f];
+    if (vol) {
+      const Id a = t.face_elem[2 * f], b = t.face_elem[2 * f + 1];
+      r.other_element = b < 0 ? -1 : (a == r.owner_element ? b : a);
+    }
     write_row(tab, f, r);
   }
   MeshInfo info;
@@ -97,6 +117,7 @@ FineMesh compile(std::shared_ptr<const CoarseMesh> cm, const Topology& t, const 
     if (!vol) r.n[2] = 1;
     write_row(tab, h, r);
     write_corners(tab, h, xyz);
+    write_bounds(tab, h, corner_bounds(xyz, nc));
     ++info.block_coarse_elements[r.block];
     info.block_fine_elements[r.block] += r.n[0] * r.n[1] * r.n[2];
   }
@@ -107,6 +128,7 @@ FineMesh compile(std::shared_ptr<const CoarseMesh> cm, const Topology& t, const 
   info.sheets = num_sheets;
   info.nodes = num.num_nodes();
   info.elements = num.num_elements();
+  tab.group_bounds = group_bounds(tab);
   return FineMesh(std::move(info), std::move(tab), std::move(cm));
 }
 
@@ -182,6 +204,14 @@ void FineMesh::set_vertex(Id v, const Vec3& x, int dim, int tag) {
     const Id h = vertex_uses_[u] / 8, k = vertex_uses_[u] % 8;
     double* p = &c[static_cast<size_t>(h * 3 * nc + 3 * k)];
     p[0] = x.x, p[1] = x.y, p[2] = x.z;
+    // The element's box from its corners again, and its group's grown to
+    // hold it (a superset stays a valid index; finish_moves makes it exact).
+    Vec3 xyz[8];
+    for (int q = 0; q < nc; ++q) xyz[q] = {c[h * 3 * nc + 3 * q], c[h * 3 * nc + 3 * q + 1], c[h * 3 * nc + 3 * q + 2]};
+    const ElementBounds b = corner_bounds(xyz, nc);
+    write_bounds(tables_, h, b);
+    double* g = &tables_.group_bounds[static_cast<size_t>(h / kBoundsGroup) * 6];
+    for (int d = 0; d < 3; ++d) g[d] = std::min(g[d], b.lo[d]), g[3 + d] = std::max(g[3 + d], b.hi[d]);
   }
 }
 
@@ -260,6 +290,23 @@ void FineMesh::finish_moves() {
               (static_cast<std::uint64_t>(curved) << ElementRow::kCurvedBit);
     write_row(tables_, h, r);
   }
+  // Bounds: a curved element's fine nodes leave its corners' box (a
+  // cylinder's wall bulges out): the box of all of them, O(its nodes).
+  FineBlock b;
+  for (Id h = 0; h < tables_.elements.rows(); ++h) {
+    Vec3 xyz[8];
+    R.corner_xyz(h, xyz);
+    ElementBounds box = corner_bounds(xyz, corners());
+    if (R.element(h).curved()) {
+      fill_block(h, b, true);
+      for (Id q = 0; q < b.num_points(); ++q) {
+        const double p[3] = {b.x[q], b.y[q], b.z[q]};
+        for (int d = 0; d < 3; ++d) box.lo[d] = std::min(box.lo[d], p[d]), box.hi[d] = std::max(box.hi[d], p[d]);
+      }
+    }
+    write_bounds(tables_, h, box);
+  }
+  tables_.group_bounds = group_bounds(tables_);
 }
 
 }  // namespace dicer

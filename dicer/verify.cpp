@@ -161,8 +161,38 @@ VerifyPart verify_part(const FineMesh& mesh, Id first, Id end, const std::functi
       q = q2;
     }
 
-    // Coarse faces (volume) / coarse edges (both modes): hash what this block sees.
+    // The spatial index: the element's bounds hold every node (so a box
+    // query or a point search that skips the element skips none of it).
     const ElementRow row = R.element(h);
+    {
+      const ElementBounds box = R.bounds(h);
+      for (Id g = 0; g < b.num_points(); ++g)
+        if (!box.contains({b.x[g], b.y[g], b.z[g]})) {
+          ++r.index_errors;
+          note(r, "coarse element " + std::to_string(h) + ": node " + std::to_string(b.node_id[g]) +
+                      " lies outside topology/element_bounds row " + std::to_string(h));
+          break;
+        }
+      // Neighbours: the element is the owner or the other element of each
+      // of its faces (volume) or edges (surface).
+      for (int k = 0; k < (vol ? 6 : 4); ++k) {
+        Id owner, other;
+        if (vol) {
+          const FaceRow fr = R.face(row.face[k]);
+          owner = fr.owner_element, other = fr.other_element;
+        } else {
+          const EdgeRow er = R.edge(row.edge[k]);
+          owner = er.owner_element, other = er.other_element;
+        }
+        if (owner != h && other != h && (vol || other != -1)) {  // surface -1: non-manifold
+          ++r.index_errors;
+          note(r, "coarse element " + std::to_string(h) + ": its " + (vol ? "face " : "edge ") +
+                      std::to_string(vol ? row.face[k] : row.edge[k]) + " names elements " + std::to_string(owner) +
+                      " and " + std::to_string(other) + ", not it");
+        }
+      }
+    }
+    // Coarse faces (volume) / coarse edges (both modes): hash what this block sees.
     if (vol) {
       for (int lf = 0; lf < 6; ++lf) {
         const Id f = row.face[lf];
@@ -245,7 +275,7 @@ VerifyReport verify_finish(const FineMesh& mesh, const std::vector<VerifyPart>& 
     r.fine_faces_checked += q.fine_faces_checked;
     r.id_errors += q.id_errors, r.bit_identity_errors += q.bit_identity_errors;
     r.coincident_nodes += q.coincident_nodes, r.conformity_errors += q.conformity_errors;
-    r.inverted += q.inverted;
+    r.inverted += q.inverted, r.index_errors += q.index_errors;
     r.min_scaled_jacobian = std::min(r.min_scaled_jacobian, q.min_scaled_jacobian);
     for (const auto& s : q.problems) note(r, s);
     for (const auto& s : q.warnings) r.warnings.push_back(s);
@@ -292,6 +322,26 @@ VerifyReport verify_finish(const FineMesh& mesh, const std::vector<VerifyPart>& 
       if (t.node_index[p] != R.node_first(p * rpp) || t.element_index[p] != R.element_first(p * rpp))
         throw Error(ErrorKind::Corrupt, store + ": numbering/element_page_node or element_page_element entry " +
                                             std::to_string(p) + " disagrees with the first row of its page");
+  }
+
+  // The spatial index: every group's box holds its elements' boxes.
+  {
+    const Id H = t.elements.rows(), groups = (H + kBoundsGroup - 1) / kBoundsGroup;
+    if (static_cast<Id>(t.group_bounds.size()) != 6 * groups)
+      throw Error(ErrorKind::Corrupt, (t.origin.empty() ? std::string("in memory") : t.origin) +
+                                          ": index/group_bounds: not one box per group of " +
+                                          std::to_string(kBoundsGroup) + " coarse elements");
+    for (Id h = 0; h < H; ++h) {
+      const ElementBounds e = R.bounds(h);
+      const double* g = &t.group_bounds[static_cast<size_t>(h / kBoundsGroup) * 6];
+      for (int d = 0; d < 3; ++d)
+        if (e.lo[d] < g[d] || e.hi[d] > g[3 + d]) {
+          ++r.index_errors;
+          note(r, "coarse element " + std::to_string(h) + ": its bounds leave index/group_bounds row " +
+                      std::to_string(h / kBoundsGroup));
+          break;
+        }
+    }
   }
 
   // Coincident coarse vertices (the only nodes two blocks can share by position alone).

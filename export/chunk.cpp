@@ -14,18 +14,19 @@
 namespace dicer {
 namespace {
 
+// The spatial index (tables.hpp group_bounds, rows.hpp ElementBounds): a
+// coarse element whose group's box or own box misses `box` has no node, so
+// no centroid, in it. The group test reads nothing (the index is in
+// memory), so a small box reads the bounds pages of its groups only.
 bool coarse_box_misses(const FineMesh& mesh, Id h, const Box& box, MeshCursor& cur) {
-  Vec3 c[8];
-  const RowReader R(mesh.tables(), cur);
-  R.corner_xyz(h, c);
-  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-  for (int q = 0; q < R.corners(); ++q) {
-    const double p[3] = {c[q].x, c[q].y, c[q].z};
-    for (int d = 0; d < 3; ++d) lo[d] = std::min(lo[d], p[d]), hi[d] = std::max(hi[d], p[d]);
+  const MeshTables& t = mesh.tables();
+  const size_t g = static_cast<size_t>(h / kBoundsGroup) * 6;
+  if (g + 6 <= t.group_bounds.size()) {
+    const double* q = &t.group_bounds[g];
+    for (int d = 0; d < 3; ++d)
+      if (q[3 + d] < box.lo[d] || q[d] > box.hi[d]) return true;
   }
-  for (int d = 0; d < 3; ++d)
-    if (hi[d] < box.lo[d] || lo[d] > box.hi[d]) return true;
-  return false;
+  return !RowReader(t, cur).bounds(h).overlaps(box.lo, box.hi);
 }
 
 void centroid(const FineBlock& b, Id e, int corners, double c[3]) {

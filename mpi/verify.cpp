@@ -19,7 +19,8 @@ std::vector<char> pack(const VerifyPart& p) {
   };
   auto put64 = [&](std::int64_t v) { put(&v, 8); };
   const VerifyReport& r = p.report;
-  for (Id v : {r.fine_faces_checked, r.id_errors, r.bit_identity_errors, r.coincident_nodes, r.conformity_errors, r.inverted})
+  for (Id v : {r.fine_faces_checked, r.id_errors, r.bit_identity_errors, r.coincident_nodes, r.conformity_errors, r.inverted,
+                 r.index_errors})
     put64(v);
   put(&r.min_scaled_jacobian, 8);
   put64(static_cast<std::int64_t>(p.face_sides.size()));
@@ -58,7 +59,7 @@ VerifyPart unpack(const char* d, size_t n) {
   VerifyPart p;
   VerifyReport& r = p.report;
   for (Id* v : {&r.fine_faces_checked, &r.id_errors, &r.bit_identity_errors, &r.coincident_nodes, &r.conformity_errors,
-                &r.inverted})
+                &r.inverted, &r.index_errors})
     *v = get64();
   get(&r.min_scaled_jacobian, 8);
   p.face_sides.resize(count(sizeof(p.face_sides[0])));

@@ -2,6 +2,7 @@
 // file), and the checks a row passes before anyone uses it.
 #include "dicer/rows.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include "dicer/error.hpp"
@@ -12,9 +13,11 @@ namespace {
 // ---------------------------------------------------------------- columns
 
 enum VertexCol : int { kVertexOwner = 0, kVertexCorner, kVertexNode, kVertexWidth };
-enum EdgeCol : int { kEdgeLo = 0, kEdgeHi, kEdgeN, kEdgeNode, kEdgeSheet, kEdgeOwner, kEdgeGeo, kEdgeBound, kEdgeWidth };
+enum EdgeCol : int {
+  kEdgeLo = 0, kEdgeHi, kEdgeN, kEdgeNode, kEdgeSheet, kEdgeOwner, kEdgeGeo, kEdgeBound, kEdgeOther, kEdgeWidth
+};
 enum FaceCol : int {
-  kFaceV = 0, kFaceE = 4, kFaceNu = 8, kFaceNv, kFaceNode, kFaceOwner, kFaceGeo, kFaceBound, kFaceWidth
+  kFaceV = 0, kFaceE = 4, kFaceNu = 8, kFaceNv, kFaceNode, kFaceOwner, kFaceGeo, kFaceBound, kFaceOther, kFaceWidth
 };
 
 // Element row: corners, their node ids, edges, their first node ids, faces,
@@ -50,6 +53,7 @@ std::int64_t row_width(RowTable table, Mode mode) {
     case RowTable::Faces: return kFaceWidth;
     case RowTable::Elements: return ElementCols::of(mode).width();
     case RowTable::Corners: return 3 * ElementCols::of(mode).c;
+    case RowTable::Bounds: return 6;
   }
   return 0;
 }
@@ -61,6 +65,7 @@ const char* row_dataset(RowTable table) {
     case RowTable::Faces: return "topology/faces";
     case RowTable::Elements: return "topology/elements";
     case RowTable::Corners: return "topology/element_corners";
+    case RowTable::Bounds: return "topology/element_bounds";
   }
   return "?";
 }
@@ -102,13 +107,17 @@ EdgeRow RowReader::edge(Id e) const {
   const std::int64_t* r = t_.edges.row(e, c_.edges);
   EdgeRow o;
   o.lo = r[kEdgeLo], o.hi = r[kEdgeHi], o.n = r[kEdgeN], o.node = r[kEdgeNode], o.sheet = r[kEdgeSheet];
-  o.owner_element = r[kEdgeOwner], o.geo = r[kEdgeGeo], o.bound = r[kEdgeBound];
+  o.owner_element = r[kEdgeOwner], o.geo = r[kEdgeGeo], o.bound = r[kEdgeBound], o.other_element = r[kEdgeOther];
   const Id V = t_.num_vertices();
   if (o.lo < 0 || o.hi >= V || o.lo >= o.hi) corrupt(RowTable::Edges, e, "vertex ids out of range or not ascending");
   if (!interval_ok(o.n)) corrupt(RowTable::Edges, e, "interval " + std::to_string(o.n) + " out of range");
   if (!range_ok(o.node, o.n - 1, t_.fine_nodes)) corrupt(RowTable::Edges, e, "node ids outside the mesh");
   if (o.sheet < 0 || (t_.sheets > 0 && o.sheet >= t_.sheets)) corrupt(RowTable::Edges, e, "sheet id out of range");
   if (o.owner_element < 0 || o.owner_element >= t_.elements.rows()) corrupt(RowTable::Edges, e, "owner element out of range");
+  // The other element comes after the owner (the owner is the lowest).
+  if (o.other_element != -1 &&
+      (t_.mode == Mode::Volume || o.other_element <= o.owner_element || o.other_element >= t_.elements.rows()))
+    corrupt(RowTable::Edges, e, "other element " + std::to_string(o.other_element) + " out of range");
   if (!geo_ok(o.geo)) corrupt(RowTable::Edges, e, "geometric owner " + std::to_string(o.geo) + " is not a CAD entity");
   if (o.bound != -1 && !range_ok(o.bound, o.n - 1, t_.bounding.rows()))
     corrupt(RowTable::Edges, e, "bounding rows outside geometry/bounding");
@@ -121,7 +130,7 @@ FaceRow RowReader::face(Id f) const {
   FaceRow o;
   for (int k = 0; k < 4; ++k) o.v[k] = r[kFaceV + k], o.e[k] = r[kFaceE + k];
   o.nu = r[kFaceNu], o.nv = r[kFaceNv], o.node = r[kFaceNode], o.owner_element = r[kFaceOwner];
-  o.geo = r[kFaceGeo], o.bound = r[kFaceBound];
+  o.geo = r[kFaceGeo], o.bound = r[kFaceBound], o.other_element = r[kFaceOther];
   for (int k = 0; k < 4; ++k) {
     if (o.v[k] < 0 || o.v[k] >= t_.num_vertices()) corrupt(RowTable::Faces, f, "corner vertex id out of range");
     if (o.e[k] < 0 || o.e[k] >= t_.edges.rows()) corrupt(RowTable::Faces, f, "side edge id out of range");
@@ -131,6 +140,9 @@ FaceRow RowReader::face(Id f) const {
   const i128 interior = i128{o.nu - 1} * (o.nv - 1);
   if (!range_ok(o.node, interior, t_.fine_nodes)) corrupt(RowTable::Faces, f, "node ids outside the mesh");
   if (o.owner_element < 0 || o.owner_element >= t_.elements.rows()) corrupt(RowTable::Faces, f, "owner element out of range");
+  if (o.other_element != -1 &&
+      (t_.mode == Mode::Surface || o.other_element <= o.owner_element || o.other_element >= t_.elements.rows()))
+    corrupt(RowTable::Faces, f, "other element " + std::to_string(o.other_element) + " out of range");
   if (!geo_ok(o.geo)) corrupt(RowTable::Faces, f, "geometric owner " + std::to_string(o.geo) + " is not a CAD entity");
   if (o.bound != -1 && !range_ok(o.bound, interior, t_.bounding.rows()))
     corrupt(RowTable::Faces, f, "bounding rows outside geometry/bounding");
@@ -193,6 +205,18 @@ void RowReader::corner_xyz(Id h, Vec3* out) const {
   }
 }
 
+ElementBounds RowReader::bounds(Id h) const {
+  if (h < 0 || h >= t_.bounds.rows()) corrupt(RowTable::Bounds, h, "element id out of range");
+  const double* r = t_.bounds.row(h, c_.bounds);
+  ElementBounds b;
+  for (int d = 0; d < 3; ++d) {
+    b.lo[d] = r[d], b.hi[d] = r[3 + d];
+    if (!std::isfinite(b.lo[d]) || !std::isfinite(b.hi[d]) || b.lo[d] > b.hi[d])
+      corrupt(RowTable::Bounds, h, "bounds not finite or lower above upper");
+  }
+  return b;
+}
+
 std::array<std::int64_t, 3> RowReader::bounding(Id row) const {
   if (row < 0 || row >= t_.bounding.rows())
     throw Error(ErrorKind::Corrupt, (t_.origin.empty() ? std::string("in memory") : t_.origin) +
@@ -240,14 +264,14 @@ void write_row(MeshTables& t, Id v, const VertexRow& r) {
 void write_row(MeshTables& t, Id e, const EdgeRow& r) {
   std::int64_t* o = row_for_write(t.edges, e);
   o[kEdgeLo] = r.lo, o[kEdgeHi] = r.hi, o[kEdgeN] = r.n, o[kEdgeNode] = r.node, o[kEdgeSheet] = r.sheet;
-  o[kEdgeOwner] = r.owner_element, o[kEdgeGeo] = r.geo, o[kEdgeBound] = r.bound;
+  o[kEdgeOwner] = r.owner_element, o[kEdgeGeo] = r.geo, o[kEdgeBound] = r.bound, o[kEdgeOther] = r.other_element;
 }
 
 void write_row(MeshTables& t, Id f, const FaceRow& r) {
   std::int64_t* o = row_for_write(t.faces, f);
   for (int k = 0; k < 4; ++k) o[kFaceV + k] = r.v[k], o[kFaceE + k] = r.e[k];
   o[kFaceNu] = r.nu, o[kFaceNv] = r.nv, o[kFaceNode] = r.node, o[kFaceOwner] = r.owner_element;
-  o[kFaceGeo] = r.geo, o[kFaceBound] = r.bound;
+  o[kFaceGeo] = r.geo, o[kFaceBound] = r.bound, o[kFaceOther] = r.other_element;
 }
 
 void write_row(MeshTables& t, Id h, const ElementRow& r) {
@@ -259,6 +283,44 @@ void write_row(MeshTables& t, Id h, const ElementRow& r) {
   o[L.node_first()] = r.node_first, o[L.element_first()] = r.element_first, o[L.cell_node()] = r.cell_node;
   o[L.file_id()] = r.file_id, o[L.block()] = r.block, o[L.flags()] = static_cast<std::int64_t>(r.flags);
   for (int k = 0; k < 3; ++k) o[L.n() + k] = r.n[k];
+}
+
+ElementBounds corner_bounds(const Vec3* xyz, int n) {
+  ElementBounds b;
+  b.lo = {xyz[0].x, xyz[0].y, xyz[0].z}, b.hi = b.lo;
+  for (int k = 1; k < n; ++k) {
+    const double c[3] = {xyz[k].x, xyz[k].y, xyz[k].z};
+    for (int d = 0; d < 3; ++d) b.lo[d] = std::min(b.lo[d], c[d]), b.hi[d] = std::max(b.hi[d], c[d]);
+  }
+  // TFI of straight edges is a convex combination of the corners, but in
+  // floating point a node of a flat side may land an ulp outside: pad by far
+  // more than rounding and far less than any cell.
+  double scale = 0;
+  for (int d = 0; d < 3; ++d) scale = std::max({scale, std::abs(b.lo[d]), std::abs(b.hi[d]), b.hi[d] - b.lo[d]});
+  const double pad = 1e-12 * scale;
+  for (int d = 0; d < 3; ++d) b.lo[d] -= pad, b.hi[d] += pad;
+  return b;
+}
+
+std::vector<double> group_bounds(const MeshTables& t) {
+  const Id nh = t.bounds.rows(), groups = (nh + kBoundsGroup - 1) / kBoundsGroup;
+  std::vector<double> out(static_cast<size_t>(groups) * 6);
+  MeshCursor cur;
+  const RowReader R(t, cur);
+  for (Id g = 0; g < groups; ++g) {
+    double* o = &out[static_cast<size_t>(g) * 6];
+    for (int d = 0; d < 3; ++d) o[d] = INFINITY, o[3 + d] = -INFINITY;
+    for (Id h = g * kBoundsGroup; h < std::min(nh, (g + 1) * kBoundsGroup); ++h) {
+      const ElementBounds b = R.bounds(h);
+      for (int d = 0; d < 3; ++d) o[d] = std::min(o[d], b.lo[d]), o[3 + d] = std::max(o[3 + d], b.hi[d]);
+    }
+  }
+  return out;
+}
+
+void write_bounds(MeshTables& t, Id h, const ElementBounds& b) {
+  double* o = row_for_write(t.bounds, h);
+  for (int d = 0; d < 3; ++d) o[d] = b.lo[d], o[3 + d] = b.hi[d];
 }
 
 void write_corners(MeshTables& t, Id h, const Vec3* xyz) {

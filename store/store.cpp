@@ -4,6 +4,7 @@
 
 #include <unistd.h>
 
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <mutex>
@@ -39,8 +40,11 @@ hid_t h5_type() {
 // H5Dwrite_chunk per page: every page is written once, never re-read.
 // The CRC-32 of every decoded page of a dataset, as its companion dataset
 // (1-D uint32, LZ4 + Fletcher32 like the rest; read whole at open: O(pages)).
+// Entries per chunk of a `_crc` companion (its "pages").
+constexpr hsize_t kCrcChunk = 16384;
+
 void write_crcs(const h5::File& f, const std::string& name, const std::vector<std::uint32_t>& crcs) {
-  hsize_t dims[1] = {crcs.size()}, chunk[1] = {std::max<hsize_t>(1, std::min<hsize_t>(crcs.size(), 16384))};
+  hsize_t dims[1] = {crcs.size()}, chunk[1] = {std::max<hsize_t>(1, std::min<hsize_t>(crcs.size(), kCrcChunk))};
   h5::Handle space(H5Screate_simple(1, dims, nullptr), H5Sclose);
   h5::Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
   if (!space || !dcpl || H5Pset_chunk(dcpl.get(), 1, chunk) < 0)
@@ -210,8 +214,17 @@ std::uint32_t open_paged(OpenStore& s, const std::string& name, std::int64_t wid
         cdims[0] != pages)
       throw Error(ErrorKind::Corrupt, path + ": dataset " + crc_name + " does not have one entry per page of " + name);
     a.crc.resize(static_cast<size_t>(pages));
-    if (pages > 0 && H5Dread(cds.get(), H5T_NATIVE_UINT32, H5S_ALL, H5S_ALL, H5P_DEFAULT, a.crc.data()) < 0)
-      throw Error(ErrorKind::Corrupt, path + ": dataset " + crc_name + " cannot be read (damaged)");
+    // Read page by page of the companion (write_crcs' chunks) so that a
+    // damaged one is named like any other page.
+    for (hsize_t at = 0, page = 0; at < pages; at += kCrcChunk, ++page) {
+      hsize_t start[1] = {at}, count[1] = {std::min<hsize_t>(kCrcChunk, pages - at)};
+      h5::Handle fsp(H5Scopy(csp.get()), H5Sclose);
+      h5::Handle msp(H5Screate_simple(1, count, nullptr), H5Sclose);
+      if (!fsp || !msp || H5Sselect_hyperslab(fsp.get(), H5S_SELECT_SET, start, nullptr, count, nullptr) < 0 ||
+          H5Dread(cds.get(), H5T_NATIVE_UINT32, msp.get(), fsp.get(), H5P_DEFAULT, a.crc.data() + at) < 0)
+        throw Error(ErrorKind::Corrupt, path + ": dataset " + crc_name + " page " + std::to_string(page) +
+                                            ": cannot be read (damaged)");
+    }
   }
   s.arrays.push_back(std::move(a));
   return static_cast<std::uint32_t>(s.arrays.size() - 1);
@@ -250,7 +263,7 @@ void write_store(const FineMesh& mesh, const std::string& path,
     return (tab.rows() + rpp - 1) / rpp;
   };
   wp.total = pages(t.vertex_nodes) + pages(t.edges) + pages(t.faces) + pages(t.elements) +
-             pages(t.corners) + pages(t.bounding) + pages(t.vertex_owner) + 40;
+             pages(t.corners) + pages(t.bounds) + pages(t.bounding) + pages(t.vertex_owner) + 40;
   g_write_progress = &wp;
   struct Reset {
     ~Reset() { g_write_progress = nullptr; }
@@ -271,7 +284,7 @@ void write_store(const FineMesh& mesh, const std::string& path,
       f.write_attr("fine_elements", info.elements);
       f.write_attr("bounding_nodes", t.bounding.rows());
       f.write_attr("page_bytes", static_cast<std::int64_t>(kStorePageBytes));
-      for (const char* g : {"coarse", "topology", "sheets", "numbering", "geometry", "sets"}) f.group(g);
+      for (const char* g : {"coarse", "topology", "sheets", "numbering", "geometry", "sets", "index"}) f.group(g);
       write_paged(f, "coarse/vertex_file_id", c->vertex_file_id);
       write_paged(f, row_dataset(RowTable::VertexNodes), t.vertex_nodes.memory(), t.vertex_nodes.width());
       write_paged(f, "geometry/vertex_owner", t.vertex_owner.memory(), 2);
@@ -280,6 +293,8 @@ void write_store(const FineMesh& mesh, const std::string& path,
       write_paged(f, row_dataset(RowTable::Faces), t.faces.memory(), t.faces.width());
       write_paged(f, row_dataset(RowTable::Elements), t.elements.memory(), t.elements.width());
       write_paged(f, row_dataset(RowTable::Corners), t.corners.memory(), t.corners.width());
+      write_paged(f, row_dataset(RowTable::Bounds), t.bounds.memory(), t.bounds.width());
+      write_paged(f, "index/group_bounds", t.group_bounds);
       // Page index of the elements table: the first row's first owned node
       // and first fine element on every page (id -> element reads one page).
       {
@@ -380,6 +395,7 @@ FineMesh read_store(const std::string& path, const StoreOptions& options) {
   tab.elements = paged(std::int64_t{}, row_dataset(RowTable::Elements), row_width(RowTable::Elements, m),
                        info.coarse_elements);
   tab.corners = paged(double{}, row_dataset(RowTable::Corners), row_width(RowTable::Corners, m), info.coarse_elements);
+  tab.bounds = paged(double{}, row_dataset(RowTable::Bounds), row_width(RowTable::Bounds, m), info.coarse_elements);
   tab.bounding = paged(std::int64_t{}, "geometry/bounding", 3, bounding_nodes);
   tab.vertex_owner = paged(std::int32_t{}, "geometry/vertex_owner", 2, info.coarse_vertices);
   // Small metadata, read whole now (O(blocks + pages)); pages come through
@@ -393,6 +409,15 @@ FineMesh read_store(const std::string& path, const StoreOptions& options) {
   };
   tab.node_index = index("numbering/element_page_node");
   tab.element_index = index("numbering/element_page_element");
+  // The spatial index (48 B per kBoundsGroup elements): finite boxes.
+  tab.group_bounds = read_small<double>(*s, cache, "index/group_bounds",
+                                        6 * ((info.coarse_elements + kBoundsGroup - 1) / kBoundsGroup));
+  for (size_t g = 0; g < tab.group_bounds.size(); g += 6)
+    for (int d = 0; d < 3; ++d)
+      if (!std::isfinite(tab.group_bounds[g + d]) || !std::isfinite(tab.group_bounds[g + 3 + d]) ||
+          tab.group_bounds[g + d] > tab.group_bounds[g + 3 + d])
+        throw Error(ErrorKind::Corrupt, path + ": index/group_bounds row " + std::to_string(g / 6) +
+                                            ": not finite or lower above upper");
   std::int64_t nblocks = 0;
   {
     std::lock_guard relock(hdf5_mutex());

@@ -47,9 +47,11 @@ Box parse_box(const std::string& text);
 
 // Streams the fine elements whose centroid lies in `box`, in id order:
 // fn(block, local element index) with the block's coordinates and
-// connectivity filled. Coarse elements whose corner bounding box misses the
-// box are skipped without generating anything (straight-sided TFI stays
-// inside the corners' bounding box). Returns the number of elements.
+// connectivity filled. Coarse elements whose bounds (the store's spatial
+// index: rows.hpp ElementBounds, curved elements included) miss the box are
+// skipped without generating or reading anything else; whole groups of
+// kBoundsGroup elements are skipped without reading. Returns the number of
+// elements.
 // [first_coarse, end_coarse) restricts the search (an MPI rank's chunk).
 Id for_each_in_box(const FineMesh& mesh, const Box& box,
                    const std::function<void(const FineBlock& block, Id local_element)>& fn, Id first_coarse = 0,

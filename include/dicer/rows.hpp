@@ -20,6 +20,7 @@
 #include <array>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "dicer/orientation.hpp"
 #include "dicer/tables.hpp"
@@ -49,6 +50,7 @@ struct EdgeRow {
   Id owner_element = 0;      // lowest coarse element containing the edge
   std::int64_t geo = -1;     // geometric owner, pack_owner(dim, tag), -1 unknown
   Id bound = -1;             // first row of `bounding` for its n-1 nodes, -1: not moved
+  Id other_element = -1;     // surface mode: the other quad on the edge (-1: boundary or non-manifold); volume: -1
 };
 
 // topology/faces: canonical corners v (v0 lowest id, v1 its lower
@@ -61,6 +63,26 @@ struct FaceRow {
   Id owner_element = 0;
   std::int64_t geo = -1;
   Id bound = -1;             // first row of `bounding` for its (nu-1)(nv-1) nodes
+  Id other_element = -1;     // volume mode: the other hex on the face (-1: boundary); surface: -1
+};
+
+// topology/element_bounds: an axis-aligned box holding every fine node of
+// the coarse element (so every fine cell: trilinear cells stay in their
+// nodes' box). Straight elements: their corners' box (TFI of straight
+// edges is a convex combination of the corners); curved ones: the box of
+// all their fine nodes. The spatial index (index/group_bounds) is the union
+// of kBoundsGroup consecutive rows.
+struct ElementBounds {
+  std::array<double, 3> lo{}, hi{};
+  bool contains(const Vec3& p, double pad = 0) const {
+    return p.x >= lo[0] - pad && p.x <= hi[0] + pad && p.y >= lo[1] - pad && p.y <= hi[1] + pad && p.z >= lo[2] - pad &&
+           p.z <= hi[2] + pad;
+  }
+  bool overlaps(const std::array<double, 3>& blo, const std::array<double, 3>& bhi) const {
+    for (int d = 0; d < 3; ++d)
+      if (hi[d] < blo[d] || lo[d] > bhi[d]) return false;
+    return true;
+  }
 };
 
 // topology/elements. Local numbering of corners, edges and faces:
@@ -91,8 +113,8 @@ struct ElementRow {
 };
 
 // Which table a row comes from (errors, widths, dataset names).
-enum class RowTable : std::uint8_t { VertexNodes, Edges, Faces, Elements, Corners };
-// Values per row (int64, or float64 for Corners) in `mode`.
+enum class RowTable : std::uint8_t { VertexNodes, Edges, Faces, Elements, Corners, Bounds };
+// Values per row (int64, or float64 for Corners and Bounds) in `mode`.
 std::int64_t row_width(RowTable table, Mode mode);
 // The table's dataset in the store (store/FORMAT.md), e.g. "topology/edges".
 const char* row_dataset(RowTable table);
@@ -117,6 +139,8 @@ class RowReader {
   // The element's corner coordinates (corners() of them), as `corners`
   // stores them: bit-identical to xyz() of its corner vertices.
   void corner_xyz(Id h, Vec3* out) const;
+  // Element h's bounds: finite, lo <= hi (Corrupt otherwise).
+  ElementBounds bounds(Id h) const;
   // Row `row` of the bounding arrays: the three codes of one moved node.
   std::array<std::int64_t, 3> bounding(Id row) const;
   // Geometric owner of vertex v (pack_owner), -1 unknown.
@@ -141,5 +165,12 @@ void write_row(MeshTables& t, Id e, const EdgeRow& r);
 void write_row(MeshTables& t, Id f, const FaceRow& r);
 void write_row(MeshTables& t, Id h, const ElementRow& r);
 void write_corners(MeshTables& t, Id h, const Vec3* xyz);
+void write_bounds(MeshTables& t, Id h, const ElementBounds& b);
+
+// The box of n points padded by 1e-12 of their magnitude (a straight
+// element's bounds from its corners: its nodes' rounding stays inside).
+ElementBounds corner_bounds(const Vec3* xyz, int n);
+// MeshTables::group_bounds from the bounds rows: O(H) reads.
+std::vector<double> group_bounds(const MeshTables& t);
 
 }  // namespace dicer

@@ -17,6 +17,7 @@
 //                   the only coordinates of the coarse mesh, so that a
 //                   sweep over straight elements reads nothing but
 //                   `elements` and `corners`, each page once
+//   bounds          [H x 6] float64  each element's box (rows.hpp ElementBounds)
 //   bounding        [N x 3]  the bounding fine arrays (nodes moved onto the
 //                   CAD or a curved coarse element), tfi::bounding_code
 //   vertex_owner    [V x 2] int32 geometric entity (dim, tag), -1 unknown
@@ -119,6 +120,9 @@ inline const T* Table<T>::row(std::int64_t i, TableCursor& cur) const {
   return reinterpret_cast<const T*>(w[0].data) + (i - page * rows_per_page_) * width_;
 }
 
+// Coarse elements per group of the spatial index (MeshTables::group_bounds).
+inline constexpr Id kBoundsGroup = 256;
+
 struct MeshTables {
   Mode mode = Mode::Volume;
   std::shared_ptr<PageCache> cache;  // the pages behind paged tables (nullptr in memory)
@@ -131,6 +135,12 @@ struct MeshTables {
   std::vector<std::int64_t> node_index, element_index;
   Table<std::int64_t> vertex_nodes, edges, faces, elements;
   Table<double> corners;
+  Table<double> bounds;               // [H x 6]
+  // The spatial index: the union of the bounds of elements
+  // [g kBoundsGroup, (g + 1) kBoundsGroup), 6 values (lo, hi) per group g,
+  // always in memory (48 B per 256 coarse elements). Store order is a
+  // Morton curve, so a group is a compact cluster.
+  std::vector<double> group_bounds;
   Table<std::int64_t> bounding;       // [N x 3], N = 0 without moved nodes
   Table<std::int32_t> vertex_owner;   // [V x 2]
   Id num_vertices() const { return vertex_nodes.rows(); }
@@ -138,10 +148,10 @@ struct MeshTables {
 
 // One cursor per table: what a reader (a block, a query, a thread) carries.
 struct MeshCursor {
-  TableCursor vertex_nodes, edges, faces, elements, corners, bounding, vertex_owner;
+  TableCursor vertex_nodes, edges, faces, elements, corners, bounds, bounding, vertex_owner;
   void release() {
     vertex_nodes.release(), edges.release(), faces.release(), elements.release();
-    corners.release(), bounding.release(), vertex_owner.release();
+    corners.release(), bounds.release(), bounding.release(), vertex_owner.release();
   }
 };
 

@@ -52,6 +52,7 @@ struct VerifyReport {
   Id misoriented = 0;          // surface: coarse edges two quads traverse the same way
   Id conformity_errors = 0;    // fine faces/edges that do not match up
   Id inverted = 0;
+  Id index_errors = 0;         // a node outside its element's bounds, an element outside its group's, a wrong neighbour
   double min_scaled_jacobian = 1.0;
   std::vector<std::string> problems;  // the first few, human readable
   std::vector<std::string> warnings;  // what is reported but not a failure (interfaces, near nodes)
@@ -59,7 +60,7 @@ struct VerifyReport {
   bool counts_ok() const { return nodes == nodes_formula && elements == elements_formula; }
   bool ok() const {
     return counts_ok() && id_errors == 0 && bit_identity_errors == 0 && coincident_nodes == coincident_interface &&
-           conformity_errors == 0 && misoriented == 0 && inverted == 0;
+           conformity_errors == 0 && misoriented == 0 && inverted == 0 && index_errors == 0;
   }
 };
 

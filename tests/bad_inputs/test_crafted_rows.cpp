@@ -93,6 +93,7 @@ std::vector<Column> all_columns(bool volume) {
   out.push_back({ed, 5, "owner element", [](const Store& s) { return s.H; }});
   out.push_back({ed, 6, "geometric owner", [](const Store&) { return std::int64_t{9} << 32; }});
   out.push_back({ed, 7, "bounding row", [](const Store&) { return std::int64_t{5}; }});
+  out.push_back({ed, 8, "other element", [](const Store& s) { return s.H; }});
   for (int k = 0; k < 4; ++k) out.push_back({fa, k, "corner", [](const Store& s) { return s.V; }});
   for (int k = 0; k < 4; ++k) out.push_back({fa, 4 + k, "side edge", [](const Store& s) { return s.E + 1; }});
   out.push_back({fa, 8, "nu", [](const Store&) { return std::int64_t{0}; }});
@@ -101,6 +102,11 @@ std::vector<Column> all_columns(bool volume) {
   out.push_back({fa, 11, "owner element", [](const Store&) { return std::int64_t{-2}; }});
   out.push_back({fa, 12, "geometric owner", [](const Store&) { return std::int64_t{-7}; }});
   out.push_back({fa, 13, "bounding row", [](const Store&) { return std::int64_t{0}; }});
+  out.push_back({fa, 14, "other element", [](const Store&) { return std::int64_t{0}; }});  // not above the owner
+  // Bounds are float64: a NaN's bits, and a lower bound above the upper.
+  const std::string bo = "topology/element_bounds";
+  out.push_back({bo, 0, "x lower bound", [](const Store&) { return std::int64_t{0x7FF8000000000000}; }});
+  out.push_back({bo, 5, "z upper bound", [](const Store&) { return static_cast<std::int64_t>(0xC1E0000000000000ull); }});  // -2^31
   out.push_back({vn, 0, "owner element", [](const Store& s) { return s.H + 10; }});
   out.push_back({vn, 1, "corner slot", [](const Store&) { return std::int64_t{8}; }});
   out.push_back({vn, 2, "node", [](const Store& s) { return s.nodes; }});
