@@ -2,6 +2,8 @@
 
 #include <string>
 
+#include "dicer/mpi.hpp"
+
 namespace dicer::py_module {
 namespace {
 
@@ -82,6 +84,10 @@ void register_errors(py::module_& m) {
       PyErr_SetString(class_for(e.kind()), e.what());
     } catch (const InternalError& e) {
       PyErr_SetString(g_internal, e.what());
+    } catch (const mpi::PeerFailed& e) {
+      // Another rank failed in a collective call: the same class as its
+      // error, so every rank raises alike ("rank 1 failed").
+      PyErr_SetString(class_for(e.kind()), e.what());
     }
   });
 }

@@ -23,6 +23,7 @@
 #include "dicer/export.hpp"
 #include "dicer/fine_mesh.hpp"
 #include "dicer/intervals.hpp"
+#include "dicer/mpi.hpp"
 #include "dicer/partition.hpp"
 #include "dicer/store.hpp"
 #include "dicer/sweep.hpp"
@@ -362,6 +363,34 @@ std::unique_ptr<PartitionBox> make_partition(const Store& s, std::int64_t rank, 
   return p;
 }
 
+// The partition of this rank of an mpi4py communicator, sharing exchanged
+// over MPI (mpi::make_partition). Collective: every rank of comm calls it.
+std::unique_ptr<PartitionBox> make_partition_mpi(const Store& s, const py::object& comm) {
+  if (!py::hasattr(comm, "py2f"))
+    throw Error(ErrorKind::Usage, "partition(comm): comm must be an mpi4py communicator (or give rank, size)");
+  int initialized = 0;
+  MPI_Initialized(&initialized);
+  if (!initialized) throw Error(ErrorKind::Usage, "partition(comm): MPI is not initialised (import mpi4py.MPI first)");
+  // Through the Fortran handle: no mpi4py headers needed, and the same
+  // Open MPI library on both sides (Debian's mpi4py links it too).
+  const MPI_Comm c = MPI_Comm_f2c(comm.attr("py2f")().cast<MPI_Fint>());
+  auto p = std::make_unique<PartitionBox>();
+  const std::string path = s.path;
+  const Store* store = &s;
+  py::gil_scoped_release release;
+  MeshSets sets;
+  // What only this rank can get wrong (a closed store, an unreadable file)
+  // is agreed on first, so no rank waits in the exchange for one that failed.
+  mpi::collectively(c, [&] {
+    py::gil_scoped_acquire gil;  // Store::get() reads a Python-owned object
+    p->mesh = store->get();
+  });
+  mpi::collectively(c, [&] { sets = store_sets(path); });
+  p->part = std::make_unique<Partition>(mpi::make_partition(*p->mesh, c, sets));
+  p->xyz = interleave(p->part->x(), p->part->y(), p->part->z());
+  return p;
+}
+
 // ---- blocks(): one batch per coarse element.
 
 struct Batch {
@@ -625,6 +654,8 @@ PYBIND11_MODULE(_core, m) {
       .def("chunk", &make_chunk, py::arg("k"), py::arg("n"), "chunk k of n (as `dicer export --chunk k/n`)")
       .def("partition", &make_partition, py::arg("rank"), py::arg("size"),
            "the partition of rank `rank` of `size`, sharing computed in this process")
+      .def("partition", &make_partition_mpi, py::arg("comm"),
+           "this rank's partition of an mpi4py communicator (collective), sharing exchanged over MPI")
       .def("sweep", &sweep_dict, py::arg("threads") = 2, "as `dicer sweep --json`: counts, time, checksum")
       .def("_set_report", [](Store& s, std::vector<std::string> warnings, std::vector<std::string> notes) {
         s.warnings = std::move(warnings);
