@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import dicer
-from conftest import DATA, bits
+from conftest import DATA, EXAMPLES, bits
 
 
 def query_nodes(cli, store, a, b):
@@ -122,7 +122,7 @@ def test_dice_reports_interval_conflicts(tmp_path):
 
 def test_dice_with_geometry_equals_cli(cli, tmp_path):
     """geometry= runs dicer-cad, as `dicer dice --geometry` does: identical nodes."""
-    cyl = DATA.parent.parent / "examples" / "cylinder.brep"
+    cyl = EXAMPLES / "cylinder.brep"
     coarse = tmp_path / "cyl.msh"
     cli.run("mesh-coarse", cyl, "--size", "0.8", "-o", coarse)
     py = dicer.dice(coarse, tmp_path / "py.dice.h5", interval=2, geometry=cyl)
