@@ -46,8 +46,9 @@ def solve_store(store, comm, quadrature_degree=4, vtk_to_dolfinx=True):
     else:
         # Rank r passes the nodes it owns (one global id range, ranks in
         # order: exactly DOLFINx's "rank r holds the next rows of x") and its
-        # elements by global node id.
-        part = store.partition(comm.rank, comm.size)
+        # elements by global node id. Store.partition(comm) exchanges the
+        # sharing over MPI (collective).
+        part = store.partition(comm)
         x = np.array(part.points[:part.num_owned])
         cells = np.asarray(part.node_global)[np.asarray(part.connectivity)]
     # dicer gives VTK HEX8 order; DOLFINx numbers a hexahedron's vertices

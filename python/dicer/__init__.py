@@ -169,10 +169,22 @@ _KIND_BY_EXIT = {2: UsageError, 3: BadInputError, 4: UnsupportedError, 5: IoErro
                  7: GeometryError, 8: CorruptError, 129: CancelledError, 130: CancelledError, 143: CancelledError}
 
 
+# Variables by which a process knows mpirun (or srun, prterun) started it as
+# a rank (mpi/session.cpp launched_by_mpirun). A script run under mpirun
+# passes them to its children; dicer-cad would then try to join the job as
+# a rank that mpirun never started and abort in MPI_Init, so they are not
+# passed: dicer-cad runs as one plain process.
+_MPI_LAUNCH_PREFIXES = ("OMPI_COMM_WORLD_", "PMIX_", "PMI_")
+
+
+def _child_env():
+    return {k: v for k, v in _os.environ.items() if not k.startswith(_MPI_LAUNCH_PREFIXES)}
+
+
 def _run_dicer_cad(args):
     """Runs `dicer-cad ARGS`; its failure becomes the dicer.Error its exit status names."""
     proc = _subprocess.run([_dicer_cad()] + args, stdin=_subprocess.DEVNULL, stdout=_subprocess.PIPE,
-                           stderr=_subprocess.PIPE, text=True, errors="replace")
+                           stderr=_subprocess.PIPE, text=True, errors="replace", env=_child_env())
     lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
     report = {"warning": [], "note": []}
     for ln in lines:

@@ -76,3 +76,30 @@ def test_not_a_communicator(store_path):
     with pytest.raises(dicer.UsageError, match="mpi4py communicator"):
         dicer.open(store_path).partition(object())
 
+
+def test_poisson_under_mpirun_equals_one_process():
+    """examples/poisson_dolfinx.py under mpirun: rank 0 runs dicer-cad (which
+    must not take itself for a rank of the job), every rank hands DOLFINx its
+    Store.partition(comm), and the errors equal the one-process solve."""
+    pytest.importorskip("dolfinx")
+    import sys
+
+    from conftest import EXAMPLES
+    sys.path.insert(0, str(EXAMPLES))
+    import poisson_dolfinx
+
+    workdir = comm.bcast(tempfile.mkdtemp() if comm.rank == 0 else None, root=0)
+    try:
+        rows = poisson_dolfinx.convergence(workdir, intervals=(1, 2), geometry=True, comm=comm)
+        serial = None
+        if comm.rank == 0:
+            serial = poisson_dolfinx.convergence(workdir, intervals=(1, 2), geometry=True, comm=MPI.COMM_SELF)
+        serial = comm.bcast(serial, root=0)
+        assert [r[:3] for r in rows] == [r[:3] for r in serial]  # interval, hexes, unknowns
+        for r, s in zip(rows, serial):
+            assert abs(r[3] - s[3]) <= 1e-6 * s[3], (r, s)  # CG to 1e-10: the same error to ~7 digits
+        assert 3.4 < rows[0][3] / rows[1][3] < 4.6
+    finally:
+        comm.Barrier()
+        if comm.rank == 0:
+            shutil.rmtree(workdir)
