@@ -38,7 +38,8 @@ std::vector<char> pack(const VerifyPart& p) {
 VerifyPart unpack(const char* d, size_t n) {
   size_t at = 0;
   auto get = [&](void* to, size_t k) {
-    if (at + k > n) throw Error(ErrorKind::Io, "verify: a truncated part from another rank");
+    if (k > n - at) throw Error(ErrorKind::Io, "verify: a truncated part from another rank");
+    if (k == 0) return;  // an empty vector's data() may be null
     std::memcpy(to, d + at, k);
     at += k;
   };
@@ -47,22 +48,29 @@ VerifyPart unpack(const char* d, size_t n) {
     get(&v, 8);
     return v;
   };
+  // A count is checked against the bytes left before anything is sized by it.
+  auto count = [&](size_t item) {
+    const std::int64_t k = get64();
+    if (k < 0 || static_cast<std::uint64_t>(k) > (n - at) / item)
+      throw Error(ErrorKind::Io, "verify: a part from another rank declares more than it holds");
+    return static_cast<size_t>(k);
+  };
   VerifyPart p;
   VerifyReport& r = p.report;
   for (Id* v : {&r.fine_faces_checked, &r.id_errors, &r.bit_identity_errors, &r.coincident_nodes, &r.conformity_errors,
                 &r.inverted})
     *v = get64();
   get(&r.min_scaled_jacobian, 8);
-  p.face_sides.resize(static_cast<size_t>(get64()));
+  p.face_sides.resize(count(sizeof(p.face_sides[0])));
   get(p.face_sides.data(), p.face_sides.size() * sizeof(p.face_sides[0]));
-  p.edge_hashes.resize(static_cast<size_t>(get64()));
+  p.edge_hashes.resize(count(sizeof(p.edge_hashes[0])));
   get(p.edge_hashes.data(), p.edge_hashes.size() * sizeof(p.edge_hashes[0]));
-  p.edge_uses.resize(static_cast<size_t>(get64()));
+  p.edge_uses.resize(count(sizeof(p.edge_uses[0])));
   get(p.edge_uses.data(), p.edge_uses.size() * sizeof(p.edge_uses[0]));
   for (auto* list : {&r.problems, &r.warnings}) {
-    const auto k = get64();
-    for (std::int64_t i = 0; i < k; ++i) {
-      std::string s(static_cast<size_t>(get64()), '\0');
+    const size_t k = count(8);
+    for (size_t i = 0; i < k; ++i) {
+      std::string s(count(1), '\0');
       get(s.data(), s.size());
       list->push_back(std::move(s));
     }
