@@ -1,0 +1,329 @@
+"""dicer: huge implicit fine meshes, regenerated on demand from one HDF5 store.
+
+    import dicer
+    store = dicer.dice("part.exo", "part.dice.h5", interval=8)
+    store = dicer.open("part.dice.h5", cache_mb=64)
+    store.info                      # dict, the keys of `dicer info --json`
+    xyz = store.nodes(0, 1000)      # float64 (1000, 3), bit-equal to `dicer query`
+    conn = store.elements([5, 17])  # int64 (2, 8), VTK/Exodus HEX8 order
+    for ids, points, conn in store.blocks(): ...   # one batch per coarse element
+    chunk = store.chunk(3, 16)      # chunk 3 of 16, local numbering, global ids
+    mesh = chunk.to_meshio()        # a meshio.Mesh, one cell block per element block
+    store.sweep(threads=2)          # as `dicer sweep --json`
+
+Errors are dicer.Error subclasses named after the library's error kinds
+(UsageError, BadInputError, UnsupportedError, IoError, IdOverflowError,
+GeometryError, CorruptError, CancelledError); str(e) is the one line the
+dicer command prints after "dicer COMMAND: error: " (an argument is named
+by its command-line option: interval= is "--interval"), and e.exit_code is
+the status it exits with. UsageError is also a ValueError, IdOverflowError also
+an OverflowError. A bug in dicer raises dicer.InternalError.
+"""
+
+import os as _os
+import shutil as _shutil
+import stat as _stat
+import subprocess as _subprocess
+import warnings as _warnings
+
+from . import _core
+from ._core import (  # noqa: F401  (the public names)
+    Batch,
+    BadInputError,
+    CancelledError,
+    Chunk,
+    CorruptError,
+    Error,
+    GeometryError,
+    IdOverflowError,
+    InternalError,
+    IoError,
+    Partition,
+    Store,
+    UnsupportedError,
+    UsageError,
+    STORE_FORMAT_VERSION,
+)
+from ._paths import DICER_CAD_CANDIDATES as _DICER_CAD_CANDIDATES
+
+__version__ = _core.__version__
+
+__all__ = [
+    "dice", "open", "mesh_coarse", "Store", "Chunk", "Partition", "Batch", "Error", "UsageError", "BadInputError",
+    "UnsupportedError", "IoError", "IdOverflowError", "GeometryError", "CorruptError", "CancelledError",
+    "InternalError", "DicerWarning", "STORE_FORMAT_VERSION",
+]
+
+
+class DicerWarning(UserWarning):
+    """What dicer accepted but reports: reader quirks, interval conflicts."""
+
+
+# ---- argument checks, worded as the dicer command words them (cli/common.cpp)
+
+def _file_kind(mode):
+    if _stat.S_ISDIR(mode):
+        return "a directory"
+    if _stat.S_ISFIFO(mode):
+        return "a FIFO (named pipe)"
+    if _stat.S_ISSOCK(mode):
+        return "a socket"
+    if _stat.S_ISCHR(mode):
+        return "a character device"
+    if _stat.S_ISBLK(mode):
+        return "a block device"
+    return "a special file"
+
+
+def _check_input(path, role):
+    # stat, never open: opening a FIFO without a writer blocks for ever.
+    try:
+        st = _os.stat(path)
+    except OSError as e:
+        raise IoError(f"{path}: cannot open: {_os.strerror(e.errno)}") from None
+    if not _stat.S_ISREG(st.st_mode):
+        raise UsageError(f"{path}: {role} is {_file_kind(st.st_mode)}, not a regular file")
+
+
+def _check_output(path, role, inputs):
+    try:
+        out = _os.stat(path)
+    except OSError:
+        return  # a new file: nothing to protect
+    if _stat.S_ISDIR(out.st_mode):
+        raise UsageError(f"{path}: {role} is a directory; give the name of the file to write")
+    if not _stat.S_ISREG(out.st_mode):
+        raise UsageError(f"{path}: {role} is {_file_kind(out.st_mode)}; "
+                         "dicer writes a temporary file and renames it over the output")
+    for p, in_role in inputs:
+        try:
+            st = _os.stat(p)
+        except OSError:
+            continue
+        if (st.st_dev, st.st_ino) == (out.st_dev, out.st_ino):
+            raise UsageError(f"{path}: {role} is the same file as {in_role} ({p}); "
+                             "writing it would destroy the input")
+
+
+def _whole(what, value):
+    # bool is an int in Python; an interval of True is a mistake, not 1.
+    if isinstance(value, bool) or not isinstance(value, int):
+        try:
+            import numpy
+            if isinstance(value, numpy.integer):
+                return int(value)
+        except ImportError:
+            pass
+        raise UsageError(f'{what}: "{value}" is not a whole number')
+    if not -(1 << 63) <= value < (1 << 63):
+        raise IdOverflowError(f'{what}: "{value}" does not fit in 64 bits')
+    return value
+
+
+def _finite(what, value):
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise UsageError(f'{what}: "{value}" is not a finite number') from None
+    if v != v or v in (float("inf"), float("-inf")) or isinstance(value, bool):
+        raise UsageError(f'{what}: "{value}" is not a finite number')
+    return v
+
+
+def _pairs(what, mapping, key):
+    if mapping is None:
+        return []
+    items = mapping.items() if hasattr(mapping, "items") else mapping
+    out = []
+    for k, n in items:
+        out.append((key(f"{what} {k}={n}", k), _whole(f"{what} {k}={n}", n)))
+    return out
+
+
+def _block_key(what, k):
+    # A block is named by its id or its name, as on the command line.
+    if isinstance(k, bool) or not isinstance(k, (int, str)):
+        raise UsageError(f"{what}: a block is an id or a name")
+    return str(k)
+
+
+def _sheet_key(what, k):
+    return _whole(what, k)
+
+
+def _dicer_cad():
+    exe = _os.environ.get("DICER_CAD")
+    if exe:
+        return exe
+    for c in _DICER_CAD_CANDIDATES:
+        if c and _os.access(c, _os.X_OK):
+            return c
+    found = _shutil.which("dicer-cad")
+    if found:
+        return found
+    raise IoError("cannot find dicer-cad (the dicer command built with Gmsh) for geometry=; "
+                  "install dicer or set DICER_CAD")
+
+
+_KIND_BY_EXIT = {2: UsageError, 3: BadInputError, 4: UnsupportedError, 5: IoError, 6: IdOverflowError,
+                 7: GeometryError, 8: CorruptError, 129: CancelledError, 130: CancelledError, 143: CancelledError}
+
+
+# Variables by which a process knows mpirun (or srun, prterun) started it as
+# a rank (mpi/session.cpp launched_by_mpirun). A script run under mpirun
+# passes them to its children; dicer-cad would then try to join the job as
+# a rank that mpirun never started and abort in MPI_Init, so they are not
+# passed: dicer-cad runs as one plain process.
+_MPI_LAUNCH_PREFIXES = ("OMPI_COMM_WORLD_", "PMIX_", "PMI_")
+
+
+def _child_env():
+    return {k: v for k, v in _os.environ.items() if not k.startswith(_MPI_LAUNCH_PREFIXES)}
+
+
+def _run_dicer_cad(args):
+    """Runs `dicer-cad ARGS`; its failure becomes the dicer.Error its exit status names."""
+    proc = _subprocess.run([_dicer_cad()] + args, stdin=_subprocess.DEVNULL, stdout=_subprocess.PIPE,
+                           stderr=_subprocess.PIPE, text=True, errors="replace", env=_child_env())
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    report = {"warning": [], "note": []}
+    for ln in lines:
+        for tag, found in report.items():
+            if f": {tag}: " in ln:
+                found.append(ln.split(f": {tag}: ", 1)[1])
+    if proc.returncode == 0:
+        return report["warning"], report["note"]
+    last = lines[-1] if lines else f"dicer-cad exited with status {proc.returncode}"
+    # "dicer dice: error: MESSAGE" -> MESSAGE, the library's own line.
+    for marker in (": error: ", ": internal error: "):
+        if marker in last:
+            last = last.split(marker, 1)[1]
+            break
+    if proc.returncode == 70:
+        raise InternalError(last)
+    raise _KIND_BY_EXIT.get(proc.returncode, Error)(last)
+
+
+# ---- the API
+
+def open(path, cache_mb=64, read_ahead=4):  # noqa: A001  (dicer.open, as the brief names it)
+    """Opens a store. Memory stays under cache_mb MiB of decoded pages plus a
+    small constant, whatever the fine mesh size."""
+    path = _os.fspath(path)
+    _check_input(path, "STORE")
+    return _core._open(path, _whole("--cache-mb", cache_mb), _whole("--read-ahead", read_ahead))
+
+
+def dice(mesh, out, interval=None, sheet_intervals=None, block_intervals=None, size=None,
+         intervals_file=None, geometry=None, geometry_tol=None, cache_mb=64):
+    """Dices a coarse mesh (Exodus II or Gmsh MSH) into the store `out` and
+    opens it, like `dicer dice MESH -o OUT ...`.
+
+    interval: every sheet gets it; size: each sheet the smallest interval
+    making its edges no longer than size; block_intervals: {block id or
+    name: n} (a sheet touching several takes the largest); sheet_intervals:
+    {sheet id: n}; intervals_file: the JSON file of `dicer dice
+    --intervals-file` (the arguments win over it). Precedence: sheet >
+    block > size > interval > 1; conflicts are reported as DicerWarning and
+    kept in Store.notes.
+
+    geometry: a STEP or BREP model; the fine nodes then lie on it. dicer's
+    Python module does not link Gmsh (as the dicer command does not), so
+    this runs `dicer-cad dice ...` (beside the dicer command, or $DICER_CAD)
+    and opens what it wrote: the same bits as the command line.
+    """
+    mesh, out = _os.fspath(mesh), _os.fspath(out)
+    inputs = [(mesh, "MESH")]
+    _check_input(mesh, "MESH")
+    if intervals_file is not None:
+        intervals_file = _os.fspath(intervals_file)
+        _check_input(intervals_file, "--intervals-file")
+        inputs.append((intervals_file, "--intervals-file"))
+    if geometry is not None:
+        geometry = _os.fspath(geometry)
+        _check_input(geometry, "--geometry")
+        inputs.append((geometry, "--geometry"))
+    _check_output(out, "-o", inputs)
+    interval = None if interval is None else _whole("--interval", interval)
+    size = None if size is None else _finite("--size", size)
+    blocks = _pairs("--block-interval", block_intervals, _block_key)
+    sheets = _pairs("--sheet-interval", sheet_intervals, _sheet_key)
+    if geometry_tol is not None and geometry is None:
+        raise UsageError("--geometry-tol needs --geometry CAD")
+
+    if geometry is None:
+        r = _core._dice(mesh, out, interval, size, blocks, sheets, intervals_file)
+        warns, notes = [f"{mesh}: {w}" for w in r["warnings"]], r["notes"]
+    else:
+        args = ["dice", mesh, "-o", out, "--quiet", "--geometry", geometry]
+        if geometry_tol is not None:
+            args += ["--geometry-tol", repr(_finite("--geometry-tol", geometry_tol))]
+        if interval is not None:
+            args += ["--interval", str(interval)]
+        if size is not None:
+            args += ["--size", repr(size)]  # repr: the shortest text that reads back to the same double
+        for b, n in blocks:
+            args += ["--block-interval", f"{b}={n}"]
+        for s, n in sheets:
+            args += ["--sheet-interval", f"{s}={n}"]
+        if intervals_file is not None:
+            args += ["--intervals-file", intervals_file]
+        warns, notes = _run_dicer_cad(args)
+    for text in warns + notes:
+        _warnings.warn(text, DicerWarning, stacklevel=2)
+    store = open(out, cache_mb=cache_mb)
+    store._set_report(warns, notes)
+    return store
+
+
+
+def mesh_coarse(cad, out, size, surface=False, subdivide=False):
+    """CAD (STEP/BREP) -> coarse all-hex (surface=True: all-quad) MSH 4.1 mesh,
+    as `dicer mesh-coarse CAD --size H -o OUT`: run in dicer-cad (Gmsh).
+    Returns the path written."""
+    cad, out = _os.fspath(cad), _os.fspath(out)
+    _check_input(cad, "CAD")
+    _check_output(out, "-o", [(cad, "CAD")])
+    args = ["mesh-coarse", cad, "--size", repr(_finite("--size", size)), "-o", out, "--quiet"]
+    if surface:
+        args.append("--surface")
+    if subdivide:
+        args.append("--subdivide")
+    _run_dicer_cad(args)
+    return out
+
+
+# ---- meshio
+
+_MESHIO_CELL = {8: "hexahedron", 4: "quad"}
+
+
+def _chunk_to_meshio(self):
+    """A meshio.Mesh of this chunk: one cell block per element block (in the
+    order of the store's blocks), point data GlobalNodeId and NodeOwner, cell
+    data GlobalElementId and BlockId (the names of dicer's VTKHDF export),
+    and the node sets as point_sets."""
+    import meshio
+    import numpy as np
+
+    cells = self.cells
+    block_index = np.asarray(self.block_index)
+    cell_blocks, global_ids, block_ids = [], [], []
+    for b in np.unique(block_index):
+        rows = np.flatnonzero(block_index == b)
+        cell_blocks.append(meshio.CellBlock(_MESHIO_CELL[cells.shape[1]], np.ascontiguousarray(cells[rows])))
+        global_ids.append(np.asarray(self.global_element_ids)[rows])
+        block_ids.append(np.asarray(self.block_ids)[rows])
+    point_sets = {}
+    for s in self.node_sets:
+        point_sets[s["name"] or f"nodeset_{s['id']}"] = s["node"]
+    return meshio.Mesh(
+        np.array(self.points),
+        cell_blocks,
+        point_data={"GlobalNodeId": np.array(self.global_node_ids), "NodeOwner": np.array(self.node_owner)},
+        cell_data={"GlobalElementId": global_ids, "BlockId": block_ids},
+        point_sets=point_sets,
+    )
+
+
+Chunk.to_meshio = _chunk_to_meshio

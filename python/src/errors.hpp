@@ -1,0 +1,51 @@
+#pragma once
+// dicer::Error -> dicer.Error subclasses, and Ctrl-C during long calls.
+#include <pybind11/pybind11.h>
+
+#include "dicer/error.hpp"
+
+namespace dicer::py_module {
+
+namespace py = pybind11;
+
+// Creates dicer.Error and one subclass per ErrorKind in module m and
+// registers the translator (message = what(), the CLI's one line).
+void register_errors(py::module_& m);
+
+// Python's signal handlers run only in the main thread with the GIL held,
+// so a call that released the GIL would not see Ctrl-C until it ended.
+// The library's cancel and progress callbacks call poll() (from the calling
+// thread): it takes the GIL, runs the handlers, and remembers what they
+// raised (KeyboardInterrupt). The binding then stops the library
+// (Error{Cancelled}) and rethrows the remembered exception, so the user
+// sees KeyboardInterrupt, as for any other Python call.
+class SignalPoll {
+ public:
+  SignalPoll() = default;
+  SignalPoll(const SignalPoll&) = delete;
+  SignalPoll& operator=(const SignalPoll&) = delete;
+  ~SignalPoll();
+  // Called without the GIL. True once a handler raised.
+  bool poll();
+  bool raised() const { return type_ != nullptr; }
+  // With the GIL: throws py::error_already_set with what the handler raised.
+  [[noreturn]] void rethrow();
+
+ private:
+  PyObject *type_ = nullptr, *value_ = nullptr, *trace_ = nullptr;
+};
+
+// Runs fn() without the GIL; a KeyboardInterrupt seen by `poll` wins over
+// the Error{Cancelled} it provoked.
+template <class Fn>
+auto without_gil(SignalPoll& poll, Fn&& fn) {
+  try {
+    py::gil_scoped_release release;
+    return fn();
+  } catch (const Error& e) {
+    if (e.kind() == ErrorKind::Cancelled && poll.raised()) poll.rethrow();
+    throw;
+  }
+}
+
+}  // namespace dicer::py_module

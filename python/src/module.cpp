@@ -1,0 +1,672 @@
+// dicer._core: the library's store, queries, chunks and partitions for
+// Python. The Python package (python/dicer/__init__.py) adds argument
+// checks worded like the CLI's, `dice --geometry` through dicer-cad, and
+// Chunk.to_meshio.
+//
+// Every call reaches the library through the same functions the dicer
+// command uses (read_store, NodeCursor, ElementCursor, ExportChunk,
+// sweep), so Python gets the CLI's bits. Long calls run without the GIL.
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <memory>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "arrays.hpp"
+#include "dicer/coarse_mesh.hpp"
+#include "dicer/error.hpp"
+#include "dicer/export.hpp"
+#include "dicer/fine_mesh.hpp"
+#include "dicer/intervals.hpp"
+#include "dicer/mpi.hpp"
+#include "dicer/partition.hpp"
+#include "dicer/store.hpp"
+#include "dicer/sweep.hpp"
+#include "dicer/version.hpp"
+#include "errors.hpp"
+
+namespace dicer::py_module {
+namespace {
+
+using Mesh = std::shared_ptr<const FineMesh>;
+
+// ---- Store
+
+struct Store {
+  Mesh mesh;
+  std::string path;
+  StoreOptions options;
+  std::vector<std::string> warnings, notes;  // from dice(): the mesh reader's warnings, interval conflicts
+
+  // A copy, held for the length of a call, so close() from another thread
+  // cannot pull the mesh from under it.
+  Mesh get() const {
+    if (!mesh) throw Error(ErrorKind::Usage, path + ": the store is closed");
+    return mesh;
+  }
+};
+
+Store open_store(const std::string& path, std::int64_t cache_mb, std::int64_t read_ahead) {
+  // The CLI's --cache-mb and --read-ahead limits and words (messages name
+  // the command-line option of each argument, as every message here does).
+  if (cache_mb < 1 || cache_mb > (std::int64_t{1} << 30))
+    throw Error(ErrorKind::Usage, "--cache-mb: must be between 1 and 2^30 (MiB)");
+  if (read_ahead < 0 || read_ahead > 1024) throw Error(ErrorKind::Usage, "--read-ahead: must be between 0 and 1024 pages");
+  Store s;
+  s.path = path;
+  s.options.cache_bytes = static_cast<std::uint64_t>(cache_mb) << 20;
+  s.options.read_ahead_pages = static_cast<unsigned>(read_ahead);
+  py::gil_scoped_release release;
+  s.mesh = std::make_shared<const FineMesh>(read_store(path, s.options));
+  return s;
+}
+
+// The keys and order of `dicer info --json` (cli/cmd_info.cpp).
+py::dict info_dict(const Store& s) {
+  const Mesh m = s.get();
+  const StoreSummary sum = [&] {
+    py::gil_scoped_release release;
+    return store_summary(s.path);
+  }();
+  const MeshInfo& c = m->info();
+  py::list blocks;
+  for (size_t b = 0; b < c.blocks.size(); ++b) {
+    py::dict d;
+    d["id"] = c.blocks[b].id;
+    d["name"] = c.blocks[b].name;
+    d["coarse_elements"] = c.block_coarse_elements[b];
+    d["fine_elements"] = c.block_fine_elements[b];
+    blocks.append(d);
+  }
+  py::dict d;
+  d["mode"] = mode_name(m->mode());
+  d["source"] = c.source;
+  d["format_version"] = sum.format_version;
+  d["store_bytes"] = sum.file_bytes;
+  d["coarse_vertices"] = c.coarse_vertices;
+  d["coarse_edges"] = c.coarse_edges;
+  d["coarse_faces"] = c.coarse_faces;
+  d["coarse_elements"] = c.coarse_elements;
+  d["sheets"] = c.sheets;
+  d["sheet_intervals"] = m->sheet_intervals();
+  d["fine_nodes"] = m->num_nodes();
+  d["fine_elements"] = m->num_elements();
+  d["blocks"] = blocks;
+  return d;
+}
+
+py::dict cache_stats(const Store& s) {
+  const Mesh m = s.get();
+  const auto cache = store_cache(*m);
+  const CacheStats st = cache->stats();
+  py::dict d;
+  d["budget_bytes"] = cache->budget();
+  d["pages_read"] = st.pages_read;
+  d["distinct_pages_read"] = st.distinct_pages_read;
+  d["bytes_read"] = st.bytes_read;
+  d["bytes_decompressed"] = st.bytes_decompressed;
+  d["hits"] = st.hits;
+  d["misses"] = st.misses;
+  d["evictions"] = st.evictions;
+  d["resident_bytes"] = st.resident_bytes;
+  d["peak_resident_bytes"] = st.peak_resident_bytes;
+  return d;
+}
+
+// Ids given either as (start, stop) or as one sequence of ids.
+struct IdSelection {
+  bool range = true;
+  Id a = 0, b = 0;
+  std::vector<Id> ids;
+  size_t size() const { return range ? static_cast<size_t>(b - a) : ids.size(); }
+};
+
+IdSelection select_ids(const char* what, const py::object& first, const py::object& stop, Id count) {
+  IdSelection sel;
+  const std::string plural = std::string(what) + "s";
+  if (!stop.is_none()) {
+    if (!py::isinstance<py::int_>(first) || !py::isinstance<py::int_>(stop))
+      throw Error(ErrorKind::Usage, plural + "(start, stop): start and stop must be whole numbers");
+    sel.a = first.cast<Id>();
+    sel.b = stop.cast<Id>();
+    if (sel.b < sel.a) throw Error(ErrorKind::Usage, plural + "(start, stop): stop is below start");
+    // The CLI's words for `query --nodes a:b` out of range.
+    if (sel.a < 0 || sel.b > count)
+      throw Error(ErrorKind::Usage, std::string(what) + " ids " + std::to_string(sel.a) + ".." + std::to_string(sel.b - 1) +
+                                        " out of range (the mesh has " + std::to_string(count) + " " + plural +
+                                        ", ids 0.." + std::to_string(count - 1) + ")");
+    return sel;
+  }
+  sel.range = false;
+  py::module_ np = py::module_::import("numpy");
+  py::array arr = np.attr("asarray")(first);
+  if (arr.ndim() != 1)
+    throw Error(ErrorKind::Usage, plural + "(ids): ids must be a 1-d sequence of whole numbers (or give start, stop)");
+  const char k = arr.dtype().kind();
+  if (arr.size() > 0 && k != 'i' && k != 'u')
+    throw Error(ErrorKind::Usage, plural + "(ids): ids must be whole numbers, not " + std::string(py::str(arr.dtype())));
+  auto ids = np.attr("ascontiguousarray")(arr, py::arg("dtype") = "int64").cast<py::array_t<std::int64_t>>();
+  sel.ids.assign(ids.data(), ids.data() + ids.size());
+  return sel;
+}
+
+py::array nodes(const Store& s, const py::object& first, const py::object& stop) {
+  const Mesh m = s.get();
+  const IdSelection sel = select_ids("node", first, stop, m->num_nodes());
+  std::vector<double> xyz(3 * sel.size());
+  {
+    py::gil_scoped_release release;
+    if (sel.range) {
+      // The cursor `dicer query --nodes` uses: one pass in id order.
+      NodeCursor cur(*m, sel.a, sel.b);
+      Id id;
+      Vec3 p;
+      for (size_t i = 0; cur.next(id, p); ++i) xyz[3 * i] = p.x, xyz[3 * i + 1] = p.y, xyz[3 * i + 2] = p.z;
+    } else {
+      MeshCursor cur;
+      for (size_t i = 0; i < sel.ids.size(); ++i) {
+        const Vec3 p = m->node(sel.ids[i], cur);
+        xyz[3 * i] = p.x, xyz[3 * i + 1] = p.y, xyz[3 * i + 2] = p.z;
+      }
+    }
+  }
+  return owned(std::move(xyz), {static_cast<py::ssize_t>(sel.size()), 3});
+}
+
+// What `dicer query --elements --json` prints, as arrays (`details`: the
+// block, coarse element and ijk columns too).
+struct ElementRows {
+  Mesh mesh;
+  py::ssize_t count = 0;
+  std::vector<Id> nodes, block, coarse, ijk;
+};
+
+ElementRows element_rows(const Store& s, const py::object& first, const py::object& stop, bool details) {
+  ElementRows r;
+  r.mesh = s.get();
+  const FineMesh& m = *r.mesh;
+  const IdSelection sel = select_ids("element", first, stop, m.num_elements());
+  r.count = static_cast<py::ssize_t>(sel.size());
+  py::gil_scoped_release release;
+  const int corners = m.corners(), dims = m.mode() == Mode::Volume ? 3 : 2;
+  r.nodes.resize(sel.size() * static_cast<size_t>(corners));
+  if (details) {
+    r.block.resize(sel.size());
+    r.coarse.resize(sel.size());
+    r.ijk.resize(sel.size() * static_cast<size_t>(dims));
+  }
+  auto put = [&](size_t i, const FineElement& e) {
+    std::copy_n(e.nodes.begin(), corners, r.nodes.begin() + static_cast<std::ptrdiff_t>(i) * corners);
+    if (!details) return;
+    r.block[i] = m.info().blocks.at(static_cast<size_t>(e.block)).id;
+    r.coarse[i] = e.coarse_element;
+    std::copy_n(e.ijk.begin(), dims, r.ijk.begin() + static_cast<std::ptrdiff_t>(i) * dims);
+  };
+  FineElement e;
+  if (sel.range) {
+    ElementCursor cur(m, sel.a, sel.b);
+    for (size_t i = 0; cur.next(e); ++i) put(i, e);
+  } else {
+    MeshCursor cur;
+    for (size_t i = 0; i < sel.ids.size(); ++i) put(i, m.element(sel.ids[i], cur));
+  }
+  return r;
+}
+
+py::array elements(const Store& s, const py::object& first, const py::object& stop) {
+  ElementRows r = element_rows(s, first, stop, false);
+  return owned(std::move(r.nodes), {r.count, r.mesh->corners()});
+}
+
+py::dict element_info(const Store& s, const py::object& first, const py::object& stop) {
+  ElementRows r = element_rows(s, first, stop, true);
+  py::dict d;
+  d["nodes"] = owned(std::move(r.nodes), {r.count, r.mesh->corners()});
+  d["block"] = owned(std::move(r.block));
+  d["coarse_element"] = owned(std::move(r.coarse));
+  d["ijk"] = owned(std::move(r.ijk), {r.count, r.mesh->mode() == Mode::Volume ? 3 : 2});
+  return d;
+}
+
+py::array elements_in_box(const Store& s, const std::vector<double>& lo, const std::vector<double>& hi) {
+  const Mesh m = s.get();
+  if (lo.size() != 3 || hi.size() != 3) throw Error(ErrorKind::Usage, "elements_in_box: lo and hi need 3 numbers each");
+  Box box;
+  std::copy(lo.begin(), lo.end(), box.lo.begin());
+  std::copy(hi.begin(), hi.end(), box.hi.begin());
+  std::vector<Id> ids;
+  {
+    py::gil_scoped_release release;
+    for_each_in_box(*m, box, [&](const FineBlock& b, Id e) { ids.push_back(b.first_element + e); });
+  }
+  return owned(std::move(ids));
+}
+
+py::dict sweep_dict(const Store& s, std::int64_t threads) {
+  if (threads < 1 || threads > 1024) throw Error(ErrorKind::Usage, "--threads: must be between 1 and 1024");
+  const Mesh m = s.get();
+  SweepResult r;
+  {
+    py::gil_scoped_release release;
+    r = sweep(*m, static_cast<unsigned>(threads));
+  }
+  char checksum[24];
+  std::snprintf(checksum, sizeof checksum, "%016llx", static_cast<unsigned long long>(r.checksum));
+  // The keys and order of `dicer sweep --json`.
+  py::dict d;
+  d["nodes"] = r.nodes;
+  d["elements"] = r.elements;
+  d["seconds"] = r.seconds;
+  d["nodes_per_s"] = r.seconds > 0 ? static_cast<double>(r.nodes) / r.seconds : 0.0;
+  d["checksum"] = std::string(checksum);
+  d["threads"] = r.threads;
+  return d;
+}
+
+// ---- Chunks: the plan `dicer export --chunk K/N` uses.
+
+std::vector<ChunkRange> checked_plan(const FineMesh& m, std::int64_t k, std::int64_t n) {
+  const std::string what = "--chunk " + std::to_string(k) + "/" + std::to_string(n);
+  if (n < 1 || k < 0 || k >= n) throw Error(ErrorKind::Usage, what + ": need 0 <= K < N (chunks are numbered from 0)");
+  if (n > m.num_coarse_elements())
+    throw Error(ErrorKind::Usage, what + ": the mesh has only " + std::to_string(m.num_coarse_elements()) +
+                                      " coarse elements, so at most that many chunks");
+  return plan_chunks(m, n);
+}
+
+py::dict range_dict(const ChunkRange& r) {
+  py::dict d;
+  d["index"] = r.index;
+  d["count"] = r.count;
+  d["first_coarse"] = r.first_coarse;
+  d["end_coarse"] = r.end_coarse;
+  d["fine_elements"] = r.fine_elements;
+  d["node_begin"] = r.node_begin;
+  d["node_end"] = r.node_end;
+  return d;
+}
+
+MeshSets store_sets(const std::string& path) {
+  StoreSets s = read_store_sets(path);
+  MeshSets sets;
+  sets.side_sets = std::move(s.side_sets);
+  sets.node_sets = std::move(s.node_sets);
+  return sets;
+}
+
+struct Chunk {
+  Mesh mesh;  // the ExportChunk refers to it
+  std::unique_ptr<ExportChunk> chunk;
+  std::vector<double> xyz;            // interleaved once, at construction
+  std::vector<std::int64_t> block_id; // file ids of the elements' blocks
+};
+
+std::int64_t block_file_id(const FineMesh& m, std::int32_t index) { return m.info().blocks.at(static_cast<size_t>(index)).id; }
+
+std::unique_ptr<Chunk> make_chunk(const Store& s, std::int64_t k, std::int64_t n) {
+  auto c = std::make_unique<Chunk>();
+  c->mesh = s.get();
+  const FineMesh& m = *c->mesh;
+  SignalPoll poll;
+  without_gil(poll, [&] {
+    std::vector<ChunkRange> plan = checked_plan(m, k, n);
+    c->chunk = std::make_unique<ExportChunk>(m, plan[static_cast<size_t>(k)]);
+    c->chunk->set_plan(std::move(plan));
+    c->chunk->prepare(store_sets(s.path), {}, [&] { return poll.poll(); });
+    c->xyz = interleave(c->chunk->x(), c->chunk->y(), c->chunk->z());
+    c->block_id.reserve(c->chunk->element_block().size());
+    for (const std::int32_t b : c->chunk->element_block()) c->block_id.push_back(block_file_id(m, b));
+  });
+  return c;
+}
+
+// A chunk's side or node sets: [{id, name, members...}], members by `fill`.
+template <class Set, class Fill>
+py::list set_list(const std::vector<Set>& sets, Fill fill) {
+  py::list out;
+  for (const Set& s : sets) {
+    py::dict d;
+    d["id"] = s.id;
+    d["name"] = s.name;
+    fill(d, s);
+    out.append(d);
+  }
+  return out;
+}
+
+// ---- Partitions (partition.hpp): rank r of P in one process.
+
+struct PartitionBox {
+  Mesh mesh;
+  std::unique_ptr<Partition> part;
+  std::vector<double> xyz;
+};
+
+std::unique_ptr<PartitionBox> make_partition(const Store& s, std::int64_t rank, std::int64_t size) {
+  auto p = std::make_unique<PartitionBox>();
+  p->mesh = s.get();
+  const FineMesh& m = *p->mesh;
+  SignalPoll poll;
+  without_gil(poll, [&] {
+    const std::vector<ChunkRange> plan = checked_plan(m, rank, size);
+    std::vector<std::vector<NodeRun>> sharing = in_process_sharing(m, plan);
+    p->part = std::make_unique<Partition>(m, plan, rank, std::move(sharing[static_cast<size_t>(rank)]),
+                                          store_sets(s.path), std::function<void(Id, Id)>{},
+                                          [&] { return poll.poll(); });
+    p->xyz = interleave(p->part->x(), p->part->y(), p->part->z());
+  });
+  return p;
+}
+
+// The partition of this rank of an mpi4py communicator, sharing exchanged
+// over MPI (mpi::make_partition). Collective: every rank of comm calls it.
+std::unique_ptr<PartitionBox> make_partition_mpi(const Store& s, const py::object& comm) {
+  if (!py::hasattr(comm, "py2f"))
+    throw Error(ErrorKind::Usage, "partition(comm): comm must be an mpi4py communicator (or give rank, size)");
+  int initialized = 0;
+  MPI_Initialized(&initialized);
+  if (!initialized) throw Error(ErrorKind::Usage, "partition(comm): MPI is not initialised (import mpi4py.MPI first)");
+  // Through the Fortran handle: no mpi4py headers needed, and the same
+  // Open MPI library on both sides (Debian's mpi4py links it too).
+  const MPI_Comm c = MPI_Comm_f2c(comm.attr("py2f")().cast<MPI_Fint>());
+  auto p = std::make_unique<PartitionBox>();
+  const std::string path = s.path;
+  const Store* store = &s;
+  py::gil_scoped_release release;
+  MeshSets sets;
+  // What only this rank can get wrong (a closed store, an unreadable file)
+  // is agreed on first, so no rank waits in the exchange for one that failed.
+  mpi::collectively(c, [&] {
+    py::gil_scoped_acquire gil;  // Store::get() reads a Python-owned object
+    p->mesh = store->get();
+  });
+  mpi::collectively(c, [&] { sets = store_sets(path); });
+  p->part = std::make_unique<Partition>(mpi::make_partition(*p->mesh, c, sets));
+  p->xyz = interleave(p->part->x(), p->part->y(), p->part->z());
+  return p;
+}
+
+// ---- blocks(): one batch per coarse element.
+
+struct Batch {
+  py::array node_ids, points, connectivity, owned_mask;
+  Id first_element = 0, coarse_element = 0, node_first = 0;
+  std::int64_t block_id = 0;
+};
+
+struct BlockIterator {
+  Mesh mesh;
+  Id next = 0, end = 0;
+  bool connectivity = true;
+  FineBlock block;
+
+  Batch step() {
+    if (next >= end) throw py::stop_iteration();
+    const FineMesh& m = *mesh;
+    std::vector<double> xyz;
+    std::vector<Id> ids, conn;
+    std::vector<bool> mine;
+    {
+      py::gil_scoped_release release;
+      m.fill_block(next, block, !connectivity);
+      xyz = interleave(block.x, block.y, block.z);
+      // Handed over, not copied: fill_block refills them next time.
+      ids = std::move(block.node_id);
+      conn = std::move(block.conn);
+      block.node_id.clear();
+      block.conn.clear();
+    }
+    Batch b;
+    b.first_element = block.first_element;
+    b.coarse_element = block.coarse_element;
+    b.node_first = block.node_first;
+    b.block_id = block_file_id(m, block.block);
+    const auto points = static_cast<py::ssize_t>(ids.size());
+    std::vector<std::uint8_t> own(ids.size());
+    for (size_t i = 0; i < ids.size(); ++i) own[i] = ids[i] >= block.node_first;
+    py::array own_arr = owned(std::move(own));
+    b.owned_mask = own_arr.attr("view")("bool");
+    b.node_ids = owned(std::move(ids));
+    b.points = owned(std::move(xyz), {points, 3});
+    const py::ssize_t elements = connectivity ? static_cast<py::ssize_t>(conn.size()) / m.corners() : 0;
+    b.connectivity = owned(std::move(conn), {elements, m.corners()});
+    ++next;
+    return b;
+  }
+};
+
+BlockIterator make_blocks(const Store& s, const py::object& chunk, bool connectivity) {
+  BlockIterator it;
+  it.mesh = s.get();
+  it.connectivity = connectivity;
+  it.end = it.mesh->num_coarse_elements();
+  if (!chunk.is_none()) {
+    const auto kn = chunk.cast<std::pair<std::int64_t, std::int64_t>>();
+    const std::vector<ChunkRange> plan = checked_plan(*it.mesh, kn.first, kn.second);
+    it.next = plan[static_cast<size_t>(kn.first)].first_coarse;
+    it.end = plan[static_cast<size_t>(kn.first)].end_coarse;
+  }
+  return it;
+}
+
+// ---- dice (without CAD: the package runs dicer-cad for --geometry)
+
+py::dict dice_to_store(const std::string& mesh_path, const std::string& out, std::optional<std::int64_t> interval,
+                       std::optional<double> size, const std::vector<std::pair<std::string, std::int64_t>>& blocks,
+                       const std::vector<std::pair<std::int64_t, std::int64_t>>& sheets,
+                       std::optional<std::string> intervals_file) {
+  std::vector<std::string> warnings, notes;
+  Id coarse = 0, nodes = 0, elements = 0;
+  SignalPoll poll;
+  without_gil(poll, [&] {
+    // The CLI's order: the file first, flags over it (cli/command.cpp).
+    IntervalRequest file;
+    if (intervals_file) file = read_interval_file(*intervals_file);
+    IntervalRequest flags;
+    flags.global = interval;
+    flags.size = size;
+    flags.blocks = blocks;
+    flags.sheets = sheets;
+    const IntervalRequest request = merge(file, flags);
+    CoarseMesh mesh = read_coarse_mesh(mesh_path);
+    warnings = mesh.warnings;
+    FineMesh fine = FineMesh::dice(std::move(mesh), request, &notes);
+    if (poll.poll()) throw Error(ErrorKind::Cancelled, "interrupted; nothing written to " + out);
+    write_store(fine, out, [&](std::int64_t, std::int64_t) {
+      // Thrown from the page callback: write_store removes its temporary.
+      if (poll.poll()) throw Error(ErrorKind::Cancelled, "interrupted; nothing written to " + out);
+    });
+    coarse = fine.num_coarse_elements(), nodes = fine.num_nodes(), elements = fine.num_elements();
+  });
+  py::dict d;
+  d["warnings"] = warnings;
+  d["notes"] = notes;
+  d["coarse_elements"] = coarse;
+  d["nodes"] = nodes;
+  d["elements"] = elements;
+  return d;
+}
+
+}  // namespace
+}  // namespace dicer::py_module
+
+PYBIND11_MODULE(_core, m) {
+  using namespace dicer;
+  using namespace dicer::py_module;
+  m.doc() = "dicer's C++ library (use the `dicer` package, not this module)";
+  m.attr("__version__") = kVersion;
+  m.attr("STORE_FORMAT_VERSION") = kStoreFormatVersion;
+  register_errors(m);
+
+  m.def("_dice", &dice_to_store, py::arg("mesh"), py::arg("out"), py::arg("interval"), py::arg("size"),
+        py::arg("block_intervals"), py::arg("sheet_intervals"), py::arg("intervals_file"));
+  m.def("_open", &open_store, py::arg("path"), py::arg("cache_mb"), py::arg("read_ahead"));
+
+  py::class_<Batch>(m, "Batch",
+                    "The fine nodes and elements of one coarse element: node_ids, points (n, 3) and "
+                    "connectivity (e, 8|4, global node ids, VTK order) over ALL its grid points; "
+                    "owned[i] is True for the points this coarse element owns (node_ids >= node_first), "
+                    "so keeping only owned points visits every fine node exactly once. Unpacks as "
+                    "(node_ids, points, connectivity).")
+      .def_readonly("node_ids", &Batch::node_ids)
+      .def_readonly("points", &Batch::points)
+      .def_readonly("connectivity", &Batch::connectivity)
+      .def_readonly("owned", &Batch::owned_mask)
+      .def_readonly("first_element", &Batch::first_element, "fine id of the first element; they are consecutive")
+      .def_readonly("coarse_element", &Batch::coarse_element, "index in the store's (Morton) order")
+      .def_readonly("node_first", &Batch::node_first)
+      .def_readonly("block_id", &Batch::block_id, "the element block's id in the mesh file")
+      .def_property_readonly("element_ids",
+                             [](const Batch& b) {
+                               py::module_ np = py::module_::import("numpy");
+                               const auto e = b.connectivity.shape(0);
+                               return np.attr("arange")(b.first_element, b.first_element + e, py::arg("dtype") = "int64");
+                             })
+      .def("__iter__", [](const Batch& b) { return py::iter(py::make_tuple(b.node_ids, b.points, b.connectivity)); })
+      .def("__repr__", [](const Batch& b) {
+        return "<dicer.Batch coarse element " + std::to_string(b.coarse_element) + ": " +
+               std::to_string(b.node_ids.size()) + " points, " + std::to_string(b.connectivity.shape(0)) + " elements>";
+      });
+
+  py::class_<BlockIterator>(m, "BlockIterator")
+      .def("__iter__", [](BlockIterator& it) -> BlockIterator& { return it; })
+      .def("__next__", &BlockIterator::step)
+      .def("__len__", [](const BlockIterator& it) { return it.end - it.next; });
+
+  py::class_<Chunk>(m, "Chunk",
+                    "Chunk k of n of the fine mesh (what `dicer export --chunk k/n` writes). Arrays are "
+                    "read-only views into the chunk, no copies.")
+      .def_property_readonly("index", [](const Chunk& c) { return c.chunk->range().index; })
+      .def_property_readonly("count", [](const Chunk& c) { return c.chunk->range().count; })
+      .def_property_readonly("range", [](const Chunk& c) { return range_dict(c.chunk->range()); })
+      .def_property_readonly("mode", [](const Chunk& c) { return std::string(mode_name(c.chunk->mode())); })
+      .def_property_readonly("num_nodes", [](const Chunk& c) { return c.chunk->num_nodes(); })
+      .def_property_readonly("num_elements", [](const Chunk& c) { return c.chunk->num_elements(); })
+      .def_property_readonly("points", [](py::object self) {
+        const Chunk& c = self.cast<const Chunk&>();
+        return view(std::span<const double>(c.xyz), {c.chunk->num_nodes(), 3}, self);
+      })
+      .def_property_readonly("cells", [](py::object self) {
+        const Chunk& c = self.cast<const Chunk&>();
+        return view(c.chunk->connectivity(), {c.chunk->num_elements(), c.chunk->corners()}, self);
+      }, "local node ids (rows of points), VTK/Exodus HEX8 or QUAD4 order")
+      .def_property_readonly("global_node_ids", [](py::object self) { return view(self.cast<const Chunk&>().chunk->node_global(), self); })
+      .def_property_readonly("global_element_ids", [](py::object self) { return view(self.cast<const Chunk&>().chunk->element_global(), self); })
+      .def_property_readonly("node_owner", [](py::object self) { return view(self.cast<const Chunk&>().chunk->node_owner(), self); },
+                             "the lowest chunk holding each node")
+      .def_property_readonly("block_ids", [](py::object self) {
+        return view(std::span<const std::int64_t>(self.cast<const Chunk&>().block_id), self);
+      }, "per element: its block's id in the mesh file")
+      .def_property_readonly("block_index", [](py::object self) { return view(self.cast<const Chunk&>().chunk->element_block(), self); },
+                             "per element: index into Store.info['blocks']")
+      .def_property_readonly("block_names", [](const Chunk& c) {
+        py::dict d;
+        for (const auto& b : c.mesh->info().blocks) d[py::int_(b.id)] = b.name;
+        return d;
+      })
+      .def_property_readonly("side_sets", [](const Chunk& c) {
+        return set_list(c.chunk->side_sets(), [](py::dict& d, const ExportChunk::SideMembers& s) {
+          d["element"] = owned(std::vector<Id>(s.element));
+          d["side"] = owned(std::vector<std::int8_t>(s.side));
+        });
+      }, "[{id, name, element (local element index), side (0-based Exodus side)}]")
+      .def_property_readonly("node_sets", [](const Chunk& c) {
+        return set_list(c.chunk->node_sets(), [](py::dict& d, const ExportChunk::NodeMembers& s) {
+          d["node"] = owned(std::vector<Id>(s.node));
+        });
+      }, "[{id, name, node (local node index)}]")
+      .def("__repr__", [](const Chunk& c) {
+        return "<dicer.Chunk " + std::to_string(c.chunk->range().index) + "/" + std::to_string(c.chunk->range().count) +
+               ": " + std::to_string(c.chunk->num_nodes()) + " nodes, " + std::to_string(c.chunk->num_elements()) +
+               " elements>";
+      });
+
+  py::class_<PartitionBox>(m, "Partition",
+                           "Rank r of P (partition.hpp): owned nodes first (one global id range), then ghosts; "
+                           "communication maps per neighbour. Arrays are read-only views.")
+      .def_property_readonly("rank", [](const PartitionBox& p) { return p.part->rank(); })
+      .def_property_readonly("size", [](const PartitionBox& p) { return p.part->size(); })
+      .def_property_readonly("range", [](const PartitionBox& p) { return range_dict(p.part->range()); })
+      .def_property_readonly("num_owned", [](const PartitionBox& p) { return p.part->num_owned(); })
+      .def_property_readonly("num_nodes", [](const PartitionBox& p) { return p.part->num_nodes(); })
+      .def_property_readonly("num_elements", [](const PartitionBox& p) { return p.part->num_elements(); })
+      .def_property_readonly("element_begin", [](const PartitionBox& p) { return p.part->element_begin(); })
+      .def_property_readonly("node_global", [](py::object self) { return view(self.cast<const PartitionBox&>().part->node_global(), self); })
+      .def_property_readonly("node_owner", [](py::object self) { return view(self.cast<const PartitionBox&>().part->node_owner(), self); })
+      .def_property_readonly("points", [](py::object self) {
+        const PartitionBox& p = self.cast<const PartitionBox&>();
+        return view(std::span<const double>(p.xyz), {p.part->num_nodes(), 3}, self);
+      })
+      .def_property_readonly("x", [](py::object self) { return view(self.cast<const PartitionBox&>().part->x(), self); })
+      .def_property_readonly("y", [](py::object self) { return view(self.cast<const PartitionBox&>().part->y(), self); })
+      .def_property_readonly("z", [](py::object self) { return view(self.cast<const PartitionBox&>().part->z(), self); })
+      .def_property_readonly("connectivity", [](py::object self) {
+        const PartitionBox& p = self.cast<const PartitionBox&>();
+        return view(p.part->connectivity(), {p.part->num_elements(), p.part->corners()}, self);
+      }, "local node ids, VTK/Exodus HEX8 or QUAD4 order")
+      .def_property_readonly("neighbors", [](const PartitionBox& p) { return p.part->neighbors(); })
+      .def_property_readonly("shared_nodes", [](py::object self) {
+        const PartitionBox& p = self.cast<const PartitionBox&>();
+        py::list out;
+        for (const auto& s : p.part->shared_nodes()) out.append(view(std::span<const Id>(s), self));
+        return out;
+      }, "per neighbour: local ids of the nodes both use, sorted by global id")
+      .def("__repr__", [](const PartitionBox& p) {
+        return "<dicer.Partition rank " + std::to_string(p.part->rank()) + " of " + std::to_string(p.part->size()) + ": " +
+               std::to_string(p.part->num_owned()) + " owned + " +
+               std::to_string(p.part->num_nodes() - p.part->num_owned()) + " ghost nodes, " +
+               std::to_string(p.part->num_elements()) + " elements>";
+      });
+
+  py::class_<Store>(m, "Store", "A fine mesh kept in a dicer store (open with dicer.open or dicer.dice).")
+      .def_readonly("path", &Store::path)
+      .def_readonly("warnings", &Store::warnings, "what the mesh reader accepted with a warning (from dice)")
+      .def_readonly("notes", &Store::notes, "how interval conflicts were resolved (from dice)")
+      .def_property_readonly("info", &info_dict, "the keys and values of `dicer info --json`")
+      .def_property_readonly("num_nodes", [](const Store& s) { return s.get()->num_nodes(); })
+      .def_property_readonly("num_elements", [](const Store& s) { return s.get()->num_elements(); })
+      .def_property_readonly("num_coarse_elements", [](const Store& s) { return s.get()->num_coarse_elements(); })
+      .def_property_readonly("mode", [](const Store& s) { return std::string(mode_name(s.get()->mode())); })
+      .def_property_readonly("corners", [](const Store& s) { return s.get()->corners(); })
+      .def_property_readonly("closed", [](const Store& s) { return !s.mesh; })
+      .def("cache_stats", &cache_stats, "the page cache's counters (what --stats prints)")
+      .def("nodes", &nodes, py::arg("start"), py::arg("stop") = py::none(),
+           "nodes(start, stop) or nodes(ids): coordinates, float64 (n, 3)")
+      .def("elements", &elements, py::arg("start"), py::arg("stop") = py::none(),
+           "elements(start, stop) or elements(ids): node ids, int64 (n, 8) (surface: (n, 4)), VTK/Exodus order")
+      .def("element_info", &element_info, py::arg("start"), py::arg("stop") = py::none(),
+           "like elements(), with block (file id), coarse_element and ijk, as `dicer query --elements --json`")
+      .def("elements_in_box", &elements_in_box, py::arg("lo"), py::arg("hi"),
+           "ids of the fine elements whose centroid lies in the box (`dicer query --box`)")
+      .def("blocks", &make_blocks, py::arg("chunk") = py::none(), py::arg("connectivity") = true,
+           "iterator of Batch, one per coarse element, over the mesh or over chunk (k, n)")
+      .def("chunk_ranges", [](const Store& s, std::int64_t n) {
+        const Mesh m = s.get();
+        py::list out;
+        for (const auto& r : checked_plan(*m, 0, n)) out.append(range_dict(r));
+        return out;
+      }, py::arg("n"), "the plan of n chunks: coarse element and owned node ranges")
+      .def("chunk", &make_chunk, py::arg("k"), py::arg("n"), "chunk k of n (as `dicer export --chunk k/n`)")
+      .def("partition", &make_partition, py::arg("rank"), py::arg("size"),
+           "the partition of rank `rank` of `size`, sharing computed in this process")
+      .def("partition", &make_partition_mpi, py::arg("comm"),
+           "this rank's partition of an mpi4py communicator (collective), sharing exchanged over MPI")
+      .def("sweep", &sweep_dict, py::arg("threads") = 2, "as `dicer sweep --json`: counts, time, checksum")
+      .def("_set_report", [](Store& s, std::vector<std::string> warnings, std::vector<std::string> notes) {
+        s.warnings = std::move(warnings);
+        s.notes = std::move(notes);
+      })
+      .def("close", [](Store& s) { s.mesh.reset(); }, "release the file and the cache (chunks keep their own reference)")
+      .def("__enter__", [](Store& s) -> Store& { return s; })
+      .def("__exit__", [](Store& s, py::args) { s.mesh.reset(); })
+      .def("__repr__", [](const Store& s) {
+        if (!s.mesh) return "<dicer.Store " + s.path + " (closed)>";
+        return "<dicer.Store " + s.path + ": " + std::string(mode_name(s.mesh->mode())) + ", " +
+               std::to_string(s.mesh->num_nodes()) + " nodes, " + std::to_string(s.mesh->num_elements()) + " elements>";
+      });
+}

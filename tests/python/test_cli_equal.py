@@ -1,0 +1,226 @@
+"""Every function of the Python API against the dicer command on the same store.
+
+The command and the module are two paths through the same library (argv
+parsing, JSON printing, the cursors) vs (pybind11, numpy): coordinates and
+ids must agree bit for bit. `query --json` writes the shortest decimal that
+reads back to the same double, so json.loads gives the exact bits.
+"""
+import json
+
+import numpy as np
+import pytest
+
+import dicer
+from conftest import DATA, EXAMPLES, bits
+
+
+def query_nodes(cli, store, a, b):
+    rows = cli.json_lines("query", store, "--nodes", f"{a}:{b}")
+    assert [r["id"] for r in rows] == list(range(a, b))
+    return np.array([r["xyz"] for r in rows], dtype=np.float64).reshape(-1, 3)
+
+
+def query_elements(cli, store, a, b):
+    rows = cli.json_lines("query", store, "--elements", f"{a}:{b}")
+    assert [r["id"] for r in rows] == list(range(a, b))
+    return rows
+
+
+@pytest.mark.parametrize("fixture", ["sphere_store", "prism_store", "shell_store"])
+def test_info_is_the_cli_info(request, cli, fixture):
+    path = request.getfixturevalue(fixture)
+    with dicer.open(path) as s:
+        assert s.info == cli.json("info", path)
+        assert list(s.info) == list(cli.json("info", path))  # the documented key order too
+        assert s.num_nodes == s.info["fine_nodes"] and s.num_elements == s.info["fine_elements"]
+
+
+@pytest.mark.parametrize("fixture", ["sphere_store", "prism_store", "shell_store"])
+def test_nodes_range_bit_equal_to_query(request, cli, fixture):
+    path = request.getfixturevalue(fixture)
+    s = dicer.open(path)
+    n = s.num_nodes
+    for a, b in [(0, 200), (n // 2 - 50, n // 2 + 50), (n - 150, n)]:
+        got = s.nodes(a, b)
+        assert got.shape == (b - a, 3) and got.dtype == np.float64
+        assert np.array_equal(bits(got), bits(query_nodes(cli, path, a, b)))
+
+
+def test_nodes_by_ids_equal_ranges(sphere_store):
+    s = dicer.open(sphere_store)
+    all_nodes = s.nodes(0, s.num_nodes)
+    ids = np.random.default_rng(7).integers(0, s.num_nodes, 500)
+    assert np.array_equal(bits(s.nodes(ids)), bits(all_nodes[ids]))
+    assert np.array_equal(bits(s.nodes(list(ids[:3]))), bits(all_nodes[ids[:3]]))
+    assert s.nodes([]).shape == (0, 3) and s.nodes(5, 5).shape == (0, 3)
+
+
+@pytest.mark.parametrize("fixture", ["sphere_store", "prism_store", "shell_store"])
+def test_elements_equal_to_query(request, cli, fixture):
+    path = request.getfixturevalue(fixture)
+    s = dicer.open(path)
+    e = s.num_elements
+    corners = 8 if s.mode == "volume" else 4
+    for a, b in [(0, 120), (e - 120, e)]:
+        rows = query_elements(cli, path, a, b)
+        got = s.elements(a, b)
+        assert got.shape == (b - a, corners) and got.dtype == np.int64
+        assert got.tolist() == [r["nodes"] for r in rows]
+        info = s.element_info(a, b)
+        assert info["block"].tolist() == [r["block"] for r in rows]
+        assert info["coarse_element"].tolist() == [r["coarse_element"] for r in rows]
+        assert info["ijk"].tolist() == [r["ijk"] for r in rows]
+        ids = np.arange(b - 1, a - 1, -1)  # by ids, reversed: random access, not the cursor
+        assert s.elements(ids).tolist() == got[::-1].tolist()
+
+
+def test_box_equals_query_box(cli, prism_store):
+    s = dicer.open(prism_store)
+    lo, hi = s.nodes(0, s.num_nodes).min(0), s.nodes(0, s.num_nodes).max(0)
+    mid = (lo + hi) / 2
+    box = ",".join(repr(float(v)) for v in [*lo, *mid])
+    want = [r["id"] for r in cli.json_lines("query", prism_store, "--box", box)]
+    got = s.elements_in_box(lo.tolist(), mid.tolist())
+    assert got.tolist() == want and 0 < len(want) < s.num_elements
+
+
+def test_sweep_equals_cli_sweep(cli, sphere_store):
+    s = dicer.open(sphere_store)
+    for threads in (1, 2):
+        want = cli.json("sweep", sphere_store, "--threads", threads)
+        got = s.sweep(threads=threads)
+        assert list(got) == list(want)
+        for k in ("nodes", "elements", "checksum", "threads"):
+            assert got[k] == want[k], k
+
+
+def test_dice_from_python_equals_cli_dice(cli, tmp_path):
+    """dicer.dice vs dicer dice with every interval option: same store content."""
+    plan = tmp_path / "plan.json"
+    plan.write_text(json.dumps({"global": 2, "blocks": {"2": 3}}))
+    args = dict(interval=2, block_intervals={1: 2}, sheet_intervals={0: 4}, intervals_file=plan)
+    with pytest.warns(dicer.DicerWarning, match="using the largest"):  # file's block 2 vs block 1
+        py = dicer.dice(DATA / "cardinal_prism.exo", tmp_path / "py.dice.h5", **args)
+    cli.run("dice", DATA / "cardinal_prism.exo", "-o", tmp_path / "cli.dice.h5", "--quiet", "--interval", 2,
+            "--block-interval", "1=2", "--sheet-interval", "0=4", "--intervals-file", plan)
+    c = dicer.open(tmp_path / "cli.dice.h5")
+    assert py.info == c.info
+    assert py.info["sheet_intervals"][0] == 4
+    assert py.sweep()["checksum"] == cli.json("sweep", tmp_path / "cli.dice.h5")["checksum"]
+    # size= goes through the same resolution as --size.
+    by_size = dicer.dice(DATA / "cardinal_sphere.e", tmp_path / "size.dice.h5", size=0.2)
+    cli.run("dice", DATA / "cardinal_sphere.e", "-o", tmp_path / "size_cli.dice.h5", "--quiet", "--size", "0.2")
+    assert by_size.info["sheet_intervals"] == cli.json("info", tmp_path / "size_cli.dice.h5")["sheet_intervals"]
+
+
+def test_dice_reports_interval_conflicts(tmp_path):
+    """Invariant 5: a conflict is reported, never silent (a warning and Store.notes)."""
+    with pytest.warns(dicer.DicerWarning):
+        s = dicer.dice(DATA / "cardinal_prism.exo", tmp_path / "c.dice.h5", block_intervals={1: 2, 2: 5})
+    assert s.notes, "two blocks asked for different intervals on a shared sheet"
+
+
+def test_dice_with_geometry_equals_cli(cli, tmp_path):
+    """geometry= runs dicer-cad, as `dicer dice --geometry` does: identical nodes."""
+    cyl = EXAMPLES / "cylinder.brep"
+    coarse = tmp_path / "cyl.msh"
+    cli.run("mesh-coarse", cyl, "--size", "0.8", "-o", coarse)
+    py = dicer.dice(coarse, tmp_path / "py.dice.h5", interval=2, geometry=cyl)
+    cli.run("dice", coarse, "--geometry", cyl, "--interval", 2, "-o", tmp_path / "cli.dice.h5", "--quiet")
+    c = dicer.open(tmp_path / "cli.dice.h5")
+    assert np.array_equal(bits(py.nodes(0, py.num_nodes)), bits(c.nodes(0, c.num_nodes)))
+    assert py.sweep()["checksum"] == c.sweep()["checksum"]
+    flat = dicer.dice(coarse, tmp_path / "flat.dice.h5", interval=2)
+    assert not np.array_equal(bits(flat.nodes(0, flat.num_nodes)), bits(py.nodes(0, py.num_nodes))), \
+        "geometry must move the boundary nodes onto the cylinder"
+
+
+@pytest.mark.parametrize("fixture", ["prism_store", "shell_store"])
+def test_chunks_equal_cli_vtkhdf_export(request, cli, tmp_path, fixture):
+    """Store.chunk(k, n) against `dicer export --format vtkhdf --chunk k/n`, read by h5py."""
+    h5py = pytest.importorskip("h5py")
+    path = request.getfixturevalue(fixture)
+    s = dicer.open(path)
+    n = 3
+    for k in range(n):
+        out = tmp_path / f"c{k}.vtkhdf"
+        cli.run("export", path, "--format", "vtkhdf", "--chunk", f"{k}/{n}", "-o", out, "--quiet")
+        c = s.chunk(k, n)
+        with h5py.File(out, "r") as f:
+            g = f["VTKHDF"]
+            assert np.array_equal(bits(g["Points"][:]), bits(c.points))
+            assert np.array_equal(g["PointData/GlobalNodeId"][:], c.global_node_ids)
+            assert np.array_equal(g["CellData/GlobalElementId"][:], c.global_element_ids)
+            assert np.array_equal(g["CellData/BlockId"][:], c.block_ids)
+            assert np.array_equal(g["Connectivity"][:], c.cells.ravel())
+
+
+@pytest.mark.parametrize("fixture", ["sphere_store", "prism_store", "shell_store"])
+def test_chunks_tile_the_mesh_with_global_ids(request, fixture):
+    """Chunk arrays against the store's own random access, and the chunks against each other."""
+    s = dicer.open(request.getfixturevalue(fixture))
+    n = 4
+    seen = np.zeros(s.num_elements, dtype=np.int64)
+    owned = np.zeros(s.num_nodes, dtype=np.int64)
+    for k in range(n):
+        c = s.chunk(k, n)
+        assert np.array_equal(bits(c.points), bits(s.nodes(c.global_node_ids)))
+        assert np.array_equal(c.global_node_ids[c.cells], s.elements(c.global_element_ids))
+        assert np.array_equal(c.block_ids, s.element_info(c.global_element_ids)["block"])
+        seen[c.global_element_ids] += 1
+        mine = c.node_owner == k
+        owned[c.global_node_ids[mine]] += 1
+        r = c.range
+        assert np.array_equal(c.global_node_ids[mine], np.arange(r["node_begin"], r["node_end"]))
+        assert not c.points.flags.writeable  # a view into the chunk, not a copy
+    assert (seen == 1).all() and (owned == 1).all()
+
+
+@pytest.mark.parametrize("fixture", ["sphere_store", "shell_store"])
+def test_blocks_cover_every_node_and_element_once(request, fixture):
+    s = dicer.open(request.getfixturevalue(fixture))
+    nodes = s.nodes(0, s.num_nodes)
+    node_seen = np.zeros(s.num_nodes, dtype=np.int64)
+    elem_seen = np.zeros(s.num_elements, dtype=np.int64)
+    batches = s.blocks()
+    assert len(batches) == s.num_coarse_elements
+    for b in batches:
+        ids, xyz, conn = b  # unpacks as (node ids, coordinates, connectivity)
+        assert np.array_equal(bits(xyz), bits(nodes[ids]))
+        assert np.array_equal(ids[b.owned], ids[ids >= b.node_first])
+        node_seen[ids[b.owned]] += 1
+        assert np.array_equal(conn, s.elements(b.element_ids))
+        elem_seen[b.element_ids] += 1
+    assert (node_seen == 1).all() and (elem_seen == 1).all()
+
+
+def test_blocks_of_a_chunk_are_the_chunk(sphere_store):
+    s = dicer.open(sphere_store)
+    for k in range(3):
+        c = s.chunk(k, 3)
+        elems = np.concatenate([b.element_ids for b in s.blocks(chunk=(k, 3))])
+        assert np.array_equal(elems, c.global_element_ids)
+        nodes_only = list(s.blocks(chunk=(k, 3), connectivity=False))
+        assert all(b.connectivity.shape == (0, 8) for b in nodes_only)
+
+
+def test_partition_in_one_process(prism_store):
+    """Store.partition(rank, size): owned nodes first (one id range), ghosts after, symmetric maps."""
+    s = dicer.open(prism_store)
+    size = 3
+    parts = [s.partition(r, size) for r in range(size)]
+    begin = 0
+    for p in parts:
+        g = p.node_global
+        assert np.array_equal(g[:p.num_owned], np.arange(begin, begin + p.num_owned))
+        begin += p.num_owned
+        assert (p.node_owner[:p.num_owned] == p.rank).all() and (p.node_owner[p.num_owned:] < p.rank).all()
+        assert np.array_equal(bits(p.points), bits(s.nodes(g)))
+        assert np.array_equal(bits(p.x), bits(p.points[:, 0]))
+        els = np.arange(p.element_begin, p.element_begin + p.num_elements)
+        assert np.array_equal(g[p.connectivity], s.elements(els))
+        for nb, shared in zip(p.neighbors, p.shared_nodes):
+            q = parts[nb]
+            back = q.shared_nodes[q.neighbors.index(p.rank)]
+            assert np.array_equal(g[shared], q.node_global[back])
+    assert begin == s.num_nodes

@@ -1,0 +1,169 @@
+"""Errors: each kind raises its dicer.Error subclass with the CLI's one-line message.
+
+Each case runs the same bad input through the dicer command and through the
+module: the class must be the one the command's exit status names, and
+str(error) the line the command prints after "error: ".
+"""
+import os
+import signal
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import dicer
+from conftest import DATA, EXAMPLES, write_box_msh
+
+KIND_OF_EXIT = {2: dicer.UsageError, 3: dicer.BadInputError, 4: dicer.UnsupportedError, 5: dicer.IoError,
+                6: dicer.IdOverflowError, 7: dicer.GeometryError, 8: dicer.CorruptError}
+
+
+def same_error(cli, cli_args, call):
+    code, message = cli.error(*cli_args)
+    with pytest.raises(dicer.Error) as e:
+        call()
+    assert type(e.value) is KIND_OF_EXIT[code], (code, e.value)
+    assert str(e.value) == message
+    assert e.value.exit_code == code
+    return e.value
+
+
+def test_hierarchy():
+    for cls in KIND_OF_EXIT.values():
+        assert issubclass(cls, dicer.Error)
+    assert issubclass(dicer.UsageError, ValueError)
+    assert issubclass(dicer.IdOverflowError, OverflowError)
+    assert dicer.IdOverflowError.__name__ == "IdOverflowError"  # does not shadow the builtin OverflowError
+    assert not issubclass(dicer.InternalError, dicer.Error)
+    assert dicer.CorruptError.kind == "corrupt" and dicer.CorruptError.exit_code == 8
+
+
+def test_missing_mesh(cli, tmp_path):
+    missing = tmp_path / "nope.exo"
+    same_error(cli, ["dice", missing, "-o", tmp_path / "o.h5"], lambda: dicer.dice(missing, tmp_path / "o.h5"))
+    same_error(cli, ["info", missing], lambda: dicer.open(missing))
+
+
+def test_directory_and_same_file(cli, tmp_path):
+    same_error(cli, ["info", tmp_path], lambda: dicer.open(tmp_path))
+    mesh = tmp_path / "m.e"
+    mesh.write_bytes((DATA / "cardinal_sphere.e").read_bytes())
+    same_error(cli, ["dice", mesh, "-o", mesh], lambda: dicer.dice(mesh, mesh))
+    assert mesh.read_bytes() == (DATA / "cardinal_sphere.e").read_bytes()
+    same_error(cli, ["dice", mesh, "-o", tmp_path], lambda: dicer.dice(mesh, tmp_path))
+
+
+def test_bad_input_file(cli, tmp_path):
+    bad = tmp_path / "bad.msh"
+    bad.write_text("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n3\n1 0 0\n")
+    same_error(cli, ["dice", bad, "-o", tmp_path / "o.h5"], lambda: dicer.dice(bad, tmp_path / "o.h5"))
+    assert not (tmp_path / "o.h5").exists()
+
+
+def test_unsupported_elements(cli, tmp_path):
+    tet = tmp_path / "tet.msh"
+    tet.write_text("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n4\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n"
+                   "$EndNodes\n$Elements\n1\n1 4 2 1 1 1 2 3 4\n$EndElements\n")
+    same_error(cli, ["dice", tet, "-o", tmp_path / "o.h5"], lambda: dicer.dice(tet, tmp_path / "o.h5"))
+
+
+def test_bad_intervals(cli, tmp_path):
+    s = DATA / "cardinal_sphere.e"
+    o = tmp_path / "o.h5"
+    same_error(cli, ["dice", s, "-o", o, "--interval", 0], lambda: dicer.dice(s, o, interval=0))
+    same_error(cli, ["dice", s, "-o", o, "--interval", 1 << 50], lambda: dicer.dice(s, o, interval=1 << 50))
+    same_error(cli, ["dice", s, "-o", o, "--interval", 1 << 20], lambda: dicer.dice(s, o, interval=1 << 20))
+    same_error(cli, ["dice", s, "-o", o, "--block-interval", "99=2"], lambda: dicer.dice(s, o, block_intervals={99: 2}))
+    same_error(cli, ["dice", s, "-o", o, "--sheet-interval", "9999=2"], lambda: dicer.dice(s, o, sheet_intervals={9999: 2}))
+    same_error(cli, ["dice", s, "-o", o, "--size", "-1"], lambda: dicer.dice(s, o, size=-1.0))
+    plan = tmp_path / "plan.json"
+    plan.write_text('{"global": 2, "colour": "red"}')
+    same_error(cli, ["dice", s, "-o", o, "--intervals-file", plan], lambda: dicer.dice(s, o, intervals_file=plan))
+    with pytest.raises(dicer.UsageError):
+        dicer.dice(s, o, interval=2.5)  # not a whole number: refused, never rounded
+    with pytest.raises(dicer.UsageError):
+        dicer.dice(s, o, interval=True)
+    assert not o.exists()
+
+
+def test_query_out_of_range(cli, sphere_store):
+    s = dicer.open(sphere_store)
+    n, e = s.num_nodes, s.num_elements
+    same_error(cli, ["query", sphere_store, "--nodes", f"{n - 1}:{n + 1}"], lambda: s.nodes(n - 1, n + 1))
+    same_error(cli, ["query", sphere_store, "--elements", f"0:{e + 1}"], lambda: s.elements(0, e + 1))
+    same_error(cli, ["query", sphere_store, "--node", n], lambda: s.nodes(n, n + 1))
+    with pytest.raises(dicer.UsageError, match=f"node id {n} is out of range"):
+        s.nodes([0, n])  # random access: the library's own words, FineMesh::node
+    with pytest.raises(dicer.UsageError, match="element id -1 is out of range"):
+        s.elements([-1])
+    with pytest.raises(dicer.UsageError):
+        s.nodes([1.5])
+    with pytest.raises(dicer.UsageError):
+        s.nodes(np.zeros((2, 2), dtype=np.int64))
+    with pytest.raises(dicer.UsageError):
+        s.nodes(10, 5)
+    same_error(cli, ["export", sphere_store, "--format", "msh", "--chunk", "3/3", "-o", "x.msh"],
+               lambda: s.chunk(3, 3))
+    same_error(cli, ["export", sphere_store, "--format", "msh", "--chunk", "0/1000", "-o", "x.msh"],
+               lambda: s.chunk(0, 1000))
+    same_error(cli, ["sweep", sphere_store, "--threads", 0], lambda: s.sweep(threads=0))
+    same_error(cli, ["info", sphere_store, "--cache-mb", 0], lambda: dicer.open(sphere_store, cache_mb=0))
+
+
+def test_closed_store(sphere_store):
+    s = dicer.open(sphere_store)
+    c = s.chunk(0, 2)
+    s.close()
+    assert s.closed
+    with pytest.raises(dicer.UsageError, match="closed"):
+        s.nodes(0, 1)
+    assert c.points.shape[0] == c.num_nodes  # a chunk keeps the mesh it came from
+
+
+def test_corrupt_store(cli, tmp_path, sphere_store):
+    """A flipped byte in the middle of the file: the page checksum names it, the same way in both."""
+    bad = tmp_path / "bad.dice.h5"
+    data = bytearray(sphere_store.read_bytes())
+    # The last ~quarter of the file is page data (metadata sits at the start);
+    # flip bytes until the command reports corruption, then ask Python.
+    for offset in range(len(data) * 3 // 4, len(data) - 64, 97):
+        trial = bytearray(data)
+        trial[offset] ^= 0xFF
+        bad.write_bytes(trial)
+        proc = cli.run("sweep", bad, "--threads", 1, check=False)
+        if proc.returncode == 8:
+            break
+    else:
+        pytest.fail("no flipped byte gave a corrupt-store error")
+    e = same_error(cli, ["sweep", bad, "--threads", 1], lambda: dicer.open(bad).sweep(threads=1))
+    assert "bad.dice.h5" in str(e)
+
+
+def test_geometry_error_through_dicer_cad(cli, tmp_path):
+    """A mesh that does not fit the CAD: dicer-cad's exit 7 becomes GeometryError with its message."""
+    o = tmp_path / "o.h5"
+    mesh, cad = DATA / "cardinal_sphere.e", EXAMPLES / "cylinder.brep"
+    same_error(cli, ["dice", mesh, "--geometry", cad, "-o", o], lambda: dicer.dice(mesh, o, geometry=cad))
+    assert not o.exists()
+    with pytest.raises(dicer.UsageError):
+        dicer.dice(mesh, o, geometry_tol=1e-3)
+
+
+def test_ctrl_c_interrupts_a_long_chunk(tmp_path):
+    """SIGINT while chunk() runs without the GIL: KeyboardInterrupt from inside
+    the call (it returns early), not after it has finished."""
+    store = dicer.dice(write_box_msh(tmp_path / "box.msh", 6, 6, 6), tmp_path / "box.dice.h5", interval=26)
+    t0 = time.perf_counter()
+    store.chunk(0, 1)  # 3.8e6 elements: the time of a whole call
+    whole = time.perf_counter() - t0
+    timer = threading.Timer(0.15 * whole, lambda: os.kill(os.getpid(), signal.SIGINT))
+    t0 = time.perf_counter()
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            store.chunk(0, 1)
+        interrupted = time.perf_counter() - t0
+    finally:
+        timer.cancel()
+    assert interrupted < 0.6 * whole, (interrupted, whole)
