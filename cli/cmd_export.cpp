@@ -74,7 +74,7 @@ int cmd_export(const std::vector<std::string>& argv) {
   const FineMesh m = read_store(path, store.options());
   MeshSets sets;
   {
-    StoreSets s = read_store_sets(path);
+    StoreSets s = read_store_sets(m, path);  // the same store as m (its uuid), or Error{Io}
     sets.side_sets = std::move(s.side_sets);
     sets.node_sets = std::move(s.node_sets);
   }
