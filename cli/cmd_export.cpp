@@ -3,6 +3,8 @@
 #include <cstdio>
 #include <optional>
 
+#include "dicer/mpi.hpp"
+
 #include "command.hpp"
 #include "common.hpp"
 #include "dicer/error.hpp"
@@ -43,6 +45,66 @@ dicer export fine.dice.h5 --format exodus --chunks 8 --nemesis -o fine.e   # fin
 dicer export fine.dice.h5 --format msh --box 0,0,0,1,1,0.5 -o cut.msh --stats
 )"};
 
+namespace {
+
+// The sets of the store `m` was read from: read_store_sets checks its uuid,
+// so a store replaced at `path` since (a re-dice) is Error{Io}, not mixed in.
+MeshSets sets_of(const FineMesh& m, const std::string& path) {
+  StoreSets s = read_store_sets(m, path);
+  MeshSets sets;
+  sets.side_sets = std::move(s.side_sets);
+  sets.node_sets = std::move(s.node_sets);
+  return sets;
+}
+
+// Under mpirun -n P: rank r exports chunk r of P. Exodus: the Nemesis file
+// OUT.P.r (communication maps exchanged between ranks); VTKHDF: one file,
+// written collectively; MSH: OUT.P.r. The same files as one process with
+// --chunks P (and --nemesis).
+int export_ranks(const std::string& path, const std::string& out, const std::string& format, bool quiet,
+                 const StoreFlags& store) {
+  mpi::Session& mpi = session();
+  const int P = mpi.size(), r = mpi.rank();
+  std::optional<FineMesh> mesh;
+  MeshSets sets;
+  std::vector<ChunkRange> plan;
+  agree([&] {
+    mesh.emplace(read_store(path, store.options()));
+    sets = sets_of(*mesh, path);
+    plan = plan_chunks(*mesh, P);
+  });
+  const FineMesh& m = *mesh;
+  const CancelOnSignals cancel_on_signals;
+  long long counts[2] = {0, 0}, totals[2] = {0, 0};
+  if (format == "exodus") {
+    Partition p = mpi::make_partition(m, mpi.comm(), sets);
+    agree([&] {
+      const NemesisInfo info = nemesis_info(p, global_set_counts(m, sets));
+      write_exodus(p.chunk(), nemesis_path(out, P, r), &info);
+      counts[0] = p.num_elements(), counts[1] = p.num_nodes();
+    });
+  } else {
+    std::optional<ExportChunk> c;
+    agree([&] {
+      c.emplace(m, plan[static_cast<size_t>(r)]);
+      c->set_plan(plan);
+      c->prepare(sets, {}, cancel_requested);
+      counts[0] = c->num_elements(), counts[1] = c->num_nodes();
+      if (format != "vtkhdf") write_msh(*c, nemesis_path(out, P, r), format == "msh");
+    });
+    if (format == "vtkhdf") mpi::write_vtkhdf_collective(mpi.comm(), *c, out);
+  }
+  MPI_Reduce(counts, totals, 2, MPI_LONG_LONG, MPI_SUM, 0, mpi.comm());
+  if (r == 0 && !quiet)
+    std::printf("exported %s: %lld fine elements, %lld nodes (shared ones once per rank) from %d ranks to %s%s\n",
+                path.c_str(), totals[0], totals[1], P, out.c_str(),
+                format == "vtkhdf" ? "" : (" (" + nemesis_path(out, P, 0) + " ...)").c_str());
+  store.report(m);
+  return 0;
+}
+
+}  // namespace
+
 int cmd_export(const std::vector<std::string>& argv) {
   Command cmd(kDoc);
   std::string path, out, format, chunk, chunks, box_text;
@@ -60,6 +122,20 @@ int cmd_export(const std::vector<std::string>& argv) {
   auto* o_box = cmd.value("--box", box_text, "x0,y0,z0,x1,y1,z1", "only the elements whose centroid is in the box");
   cmd.flag("--quiet", quiet, "no progress bar, no summary on stdout");
   StoreFlags store(cmd);
+  mpi::Session& mpi = session();
+  if (mpi.active()) {
+    bool run = true;
+    agree([&] {
+      run = cmd.parse(argv);
+      if (!run) return;
+      if (format != "vtkhdf" && format != "msh" && format != "msh-ascii" && format != "exodus")
+        throw Error(ErrorKind::Usage, "--format: \"" + format + "\" is not one of vtkhdf, msh, msh-ascii, exodus");
+      if (cmd.given(o_chunk) || cmd.given(o_chunks) || cmd.given(o_box))
+        throw Error(ErrorKind::Usage, "under mpirun every rank exports its chunk of the whole mesh: no --chunk, "
+                                      "--chunks or --box (run without mpirun for those)");
+    });
+    return run ? export_ranks(path, out, format, quiet, store) : 0;
+  }
   if (!cmd.parse(argv)) return 0;
   if (format != "vtkhdf" && format != "msh" && format != "msh-ascii" && format != "exodus")
     throw Error(ErrorKind::Usage, "--format: \"" + format + "\" is not one of vtkhdf, msh, msh-ascii, exodus");
@@ -72,12 +148,7 @@ int cmd_export(const std::vector<std::string>& argv) {
     throw Error(ErrorKind::Usage, "--chunks N is for --format vtkhdf, or exodus with --nemesis");
 
   const FineMesh m = read_store(path, store.options());
-  MeshSets sets;
-  {
-    StoreSets s = read_store_sets(m, path);  // the same store as m (its uuid), or Error{Io}
-    sets.side_sets = std::move(s.side_sets);
-    sets.node_sets = std::move(s.node_sets);
-  }
+  const MeshSets sets = sets_of(m, path);
   std::vector<ChunkRange> ranges;
   if (cmd.given(o_chunk)) {
     const auto slash = chunk.find('/');

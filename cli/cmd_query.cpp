@@ -1,4 +1,5 @@
 // dicer query: fine nodes and elements by id.
+#include <algorithm>
 #include <cstdio>
 
 #include "command.hpp"
@@ -32,7 +33,11 @@ dicer query sphere.dice.h5 --elements 0:500 --json
 dicer query sphere.dice.h5 --box 0,0,0,1,1,0.5 --count
 )"};
 
-int cmd_query(const std::vector<std::string>& argv) {
+namespace {
+
+// `chunk_count`: under mpirun with --box --count, this rank's count in its
+// chunk is stored there and nothing is printed (the caller sums).
+int query(const std::vector<std::string>& argv, long long* chunk_count = nullptr, bool* as_json = nullptr) {
   Command cmd(kDoc);
   std::string path, node, nodes, element, elements, box_text;
   bool json = false, count_only = false;
@@ -65,6 +70,14 @@ int cmd_query(const std::vector<std::string>& argv) {
   const FineMesh m = read_store(path, store.options());
   if (cmd.given(o_box)) {
     const Box box = parse_box(box_text);
+    if (chunk_count && count_only) {  // rank r counts in chunk r
+      mpi::Session& mpi = session();
+      const ChunkRange r = plan_chunks(m, mpi.size())[static_cast<size_t>(mpi.rank())];
+      *chunk_count = for_each_in_box(m, box, {}, r.first_coarse, r.end_coarse);
+      if (as_json) *as_json = json;
+      store.report(m);
+      return 0;
+    }
     const Id n = for_each_in_box(m, box, [&](const FineBlock& b, Id e) {
       if (count_only) return;
       const Id id = b.first_element + e;
@@ -120,6 +133,27 @@ int cmd_query(const std::vector<std::string>& argv) {
     }
   }
   store.report(m);
+  return 0;
+}
+
+}  // namespace
+
+// Under mpirun, --box --count is counted by every rank on its chunk (errors
+// agreed before the sum); every other query runs on rank 0.
+int cmd_query(const std::vector<std::string>& argv) {
+  mpi::Session& mpi = session();
+  const bool has_box = std::find(argv.begin(), argv.end(), "--box") != argv.end() ||
+                       std::any_of(argv.begin(), argv.end(), [](const std::string& a) { return a.rfind("--box=", 0) == 0; });
+  const bool has_count = std::find(argv.begin(), argv.end(), "--count") != argv.end();
+  if (!mpi.active() || !(has_box && has_count)) return on_rank0([&] { return query(argv); });
+  long long mine = 0, sum = 0;
+  bool json = false;
+  agree([&] { query(argv, &mine, &json); });
+  MPI_Reduce(&mine, &sum, 1, MPI_LONG_LONG, MPI_SUM, 0, mpi.comm());
+  if (mpi.rank() == 0) {
+    if (json) print_json({{"count", sum}});
+    else std::printf("%lld\n", sum);
+  }
   return 0;
 }
 

@@ -1,5 +1,6 @@
 // dicer verify: the streaming conformity, count and quality check.
 #include <cstdio>
+#include <optional>
 
 #include "command.hpp"
 #include "common.hpp"
@@ -34,6 +35,11 @@ Exit status 0 only if everything holds, 1 if a check fails.
 dicer verify part.dice.h5 --geometry part.step --json
 )"};
 
+namespace {
+int report(const std::string& path, bool with_cad, const std::string& cad, bool json, bool quiet, const FineMesh& m,
+           const VerifyReport& r, const StoreFlags& store);
+}  // namespace
+
 int cmd_verify(const std::vector<std::string>& argv) {
   Command cmd(kDoc);
   std::string path, cad;
@@ -52,14 +58,35 @@ int cmd_verify(const std::vector<std::string>& argv) {
            "worst_entity, nodes_checked}");
   cmd.flag("--quiet", quiet, "no progress bar");
   StoreFlags store(cmd);
-  if (!cmd.parse(argv)) return 0;
-  const FineMesh m = read_store(path, store.options());
+  // Under mpirun every rank checks its chunk; rank 0 merges, matches the
+  // faces and edges across ranks, finishes and prints.
+  mpi::Session& mpi = session();
+  std::optional<FineMesh> mesh;
+  bool run = true;
+  agree([&] {
+    run = cmd.parse(argv);
+    if (run) mesh.emplace(read_store(path, store.options()));
+  });
+  if (!run) return 0;
+  const FineMesh& m = *mesh;
   VerifyReport r;
-  {
+  if (mpi.active()) {
+    Progress bar("verify", m.num_coarse_elements() / mpi.size() + 1, quiet || mpi.rank() > 0);
+    r = mpi::verify_distributed(mpi.comm(), m, [&](Id done, Id) { bar.update(done); });
+  } else {
     Progress bar("verify", m.num_coarse_elements(), quiet);
     r = verify(m, [&](Id done, Id) { bar.update(done); });
   }
-  const bool with_cad = cmd.given(o_cad);
+  int code = 0;
+  agree([&] { code = mpi.rank() == 0 ? report(path, cmd.given(o_cad), cad, json, quiet, m, r, store) : 0; });
+  if (mpi.active()) MPI_Bcast(&code, 1, MPI_INT, 0, mpi.comm());
+  return code;
+}
+
+namespace {
+
+int report(const std::string& path, bool with_cad, const std::string& cad, bool json, bool quiet, const FineMesh& m,
+           const VerifyReport& r, const StoreFlags& store) {
   GeometryCheck g;
   bool geo_ok = true;
   if (with_cad) {
@@ -80,10 +107,15 @@ int cmd_verify(const std::vector<std::string>& argv) {
               {"id_errors", r.id_errors},
               {"bit_identity_errors", r.bit_identity_errors},
               {"coincident_nodes", r.coincident_nodes},
+              {"coincident_interface", r.coincident_interface},
+              {"near_coincident", r.near_coincident},
+              {"coincident_coarse_vertices", r.coincident_coarse_vertices},
+              {"misoriented", r.misoriented},
               {"conformity_errors", r.conformity_errors},
               {"inverted", r.inverted},
               {"min_scaled_jacobian", r.min_scaled_jacobian},
-              {"problems", r.problems}};
+              {"problems", r.problems},
+              {"warnings", r.warnings}};
     if (with_cad)
       j["geometry"] = {{"max_distance", g.max_distance}, {"tolerance", g.tolerance}, {"diagonal", g.diagonal},
                        {"worst_node", g.worst_node},     {"worst_entity", g.worst_entity}, {"nodes_checked", g.nodes_checked}};
@@ -95,9 +127,15 @@ int cmd_verify(const std::vector<std::string>& argv) {
                 ll(r.elements), ll(r.nodes_formula), ll(r.elements_formula));
     std::printf("  %s numbering      %lld id errors, %lld bit-identity errors\n", mark(r.id_errors + r.bit_identity_errors == 0),
                 ll(r.id_errors), ll(r.bit_identity_errors));
-    std::printf("  %s conformity     %lld fine faces checked, %lld on the boundary, %lld mismatches\n",
-                mark(r.conformity_errors == 0), ll(r.fine_faces_checked), ll(r.boundary_fine_faces), ll(r.conformity_errors));
-    std::printf("  %s distinct nodes %lld coincident\n", mark(r.coincident_nodes == 0), ll(r.coincident_nodes));
+    const bool surface = m.mode() == Mode::Surface;
+    std::printf("  %s conformity     %lld fine %s checked, %lld on the boundary, %lld mismatches%s\n",
+                mark(r.conformity_errors == 0 && r.misoriented == 0), ll(r.fine_faces_checked),
+                surface ? "edges" : "faces", ll(r.boundary_fine_faces), ll(r.conformity_errors),
+                r.misoriented ? (", " + std::to_string(r.misoriented) + " misoriented coarse edges").c_str() : "");
+    std::printf("  %s distinct nodes %lld coincident (%lld on an interface of %lld coincident coarse vertices), "
+                "%lld within 1e-9 of the diagonal\n",
+                mark(r.coincident_nodes == r.coincident_interface), ll(r.coincident_nodes), ll(r.coincident_interface),
+                ll(r.coincident_coarse_vertices), ll(r.near_coincident));
     std::printf("  %s quality        min scaled Jacobian %.4f, %lld inverted\n", mark(r.inverted == 0), r.min_scaled_jacobian,
                 ll(r.inverted));
     if (with_cad)
@@ -106,10 +144,14 @@ int cmd_verify(const std::vector<std::string>& argv) {
                   mark(geo_ok), g.max_distance, ll(g.worst_node), g.worst_entity.empty() ? "-" : g.worst_entity.c_str(),
                   g.tolerance, g.diagonal > 0 ? g.max_distance / g.diagonal : 0.0, ll(g.nodes_checked));
     for (const auto& p : r.problems) std::printf("    %s\n", p.c_str());
+    for (const auto& w : r.warnings) std::printf("    warning: %s\n", w.c_str());
     std::printf("%s\n", ok ? "all checks passed" : "VERIFY FAILED");
   }
   store.report(m);
+  (void)quiet;
   return ok ? 0 : kExitDefect;
 }
+
+}  // namespace
 
 }  // namespace dicer::cli

@@ -77,6 +77,7 @@ class StoreFlags {
   StoreOptions options() const;
   // After the work: the page cache counters on stderr when --stats was given.
   void report(const FineMesh& mesh) const;
+  bool stats() const { return stats_; }
 
  private:
   std::string command_, cache_mb_, read_ahead_;

@@ -19,6 +19,33 @@
 
 namespace dicer::cli {
 
+namespace {
+dicer::mpi::Session* g_session = nullptr;
+}  // namespace
+
+dicer::mpi::Session& session() {
+  if (!g_session) throw std::logic_error("no MPI session (main sets one)");
+  return *g_session;
+}
+void set_session(dicer::mpi::Session* s) { g_session = s; }
+
+void agree(const std::function<void()>& fn) {
+  dicer::mpi::Session& s = session();
+  if (!s.active()) return fn();
+  dicer::mpi::collectively(s.comm(), fn);
+}
+
+int on_rank0(const std::function<int()>& fn) {
+  dicer::mpi::Session& s = session();
+  if (!s.active()) return fn();
+  int code = 0;
+  dicer::mpi::collectively(s.comm(), [&] {
+    if (s.rank() == 0) code = fn();
+  });
+  MPI_Bcast(&code, 1, MPI_INT, 0, s.comm());
+  return code;
+}
+
 std::int64_t parse_int(const std::string& what, const std::string& text) {
   errno = 0;
   char* end = nullptr;

@@ -4,14 +4,26 @@
 // bars. The parser and the option sets shared by several commands are in
 // command.hpp, JSON output in json_out.hpp, exit codes in exit_codes.hpp.
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "dicer/error.hpp"
+#include "dicer/mpi.hpp"
 #include "dicer/store.hpp"
 
 namespace dicer::cli {
+
+// The MPI session of this process, set by main (inactive without mpirun).
+dicer::mpi::Session& session();
+void set_session(dicer::mpi::Session* s);
+// Under mpirun, a command without a distributed mode runs on rank 0 alone;
+// every rank returns rank 0's exit code (errors agreed by checkpoint).
+int on_rank0(const std::function<int()>& fn);
+// Runs fn on this rank; under mpirun, then agrees on errors with the other
+// ranks (every rank calls it, and all throw if any failed).
+void agree(const std::function<void()>& fn);
 
 // In `dicer` (built without Gmsh): when args (command first) need a CAD
 // model, replaces this process by `dicer-cad` with the same argv (beside

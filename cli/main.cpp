@@ -20,6 +20,7 @@ struct CommandEntry {
   const char* args;     // shown after the name in `dicer --help`
   const char* summary;  // lines after the first are indented under it
   int (*run)(const std::vector<std::string>&);
+  bool distributed = false;  // has an MPI mode (rank r on chunk r); else rank 0 runs it alone
 };
 
 // In the order you use them.
@@ -30,13 +31,14 @@ const CommandEntry kCommands[] = {
     {"sheets", "MESH", "list the dicer sheets (edges that must share one\ninterval)", dicer::cli::cmd_sheets},
     {"dice", "MESH -o STORE", "choose intervals and write the implicit fine mesh", dicer::cli::cmd_dice},
     {"info", "STORE", "counts, blocks and settings of a store", dicer::cli::cmd_info},
-    {"query", "STORE", "fine nodes and elements by id, or in a box", dicer::cli::cmd_query},
+    {"query", "STORE", "fine nodes and elements by id, or in a box", dicer::cli::cmd_query, true},
     {"verify", "STORE",
      "stream through every fine element and check\nconformity, counts, coincident nodes and quality",
-     dicer::cli::cmd_verify},
+     dicer::cli::cmd_verify, true},
     {"footprint", "STORE", "bytes on disk and in memory vs an explicit mesh", dicer::cli::cmd_footprint},
-    {"export", "STORE", "a chunk, a box or the whole mesh to VTKHDF, MSH 4.1\nor Exodus II", dicer::cli::cmd_export},
-    {"sweep", "STORE", "every fine node and element in N threads, rate and\nchecksum", dicer::cli::cmd_sweep},
+    {"export", "STORE", "a chunk, a box or the whole mesh to VTKHDF, MSH 4.1\nor Exodus II", dicer::cli::cmd_export,
+     true},
+    {"sweep", "STORE", "every fine node and element in N threads, rate and\nchecksum", dicer::cli::cmd_sweep, true},
 };
 
 std::string usage() {
@@ -112,17 +114,42 @@ int main(int argc, char** argv) {
                  names.c_str());
     return exit_code(ErrorKind::Usage, 0);
   }
+  // Commands that need the CAD re-execute dicer-cad before MPI starts
+  // (dicer-cad starts its own session).
   try {
     hand_over_if_cad(argv, args);
-    return command->run(std::vector<std::string>(args.begin() + 1, args.end()));
   } catch (const dicer::Error& e) {
     std::fprintf(stderr, "dicer %s: error: %s\n", command->name, e.what());
     return exit_code(e.kind(), received_signal());
+  }
+  // Under mpirun every rank runs the command; errors are agreed between
+  // ranks (dicer::mpi::checkpoint) so all end with one code and only the
+  // failing rank prints; an error that escaped agreement ends the job.
+  dicer::mpi::Session mpi(argc, argv);
+  set_session(&mpi);
+  const std::vector<std::string> rest(args.begin() + 1, args.end());
+  int code = kExitSuccess;
+  bool caught = false;
+  try {
+    bool help = false;
+    for (const auto& a : rest) help = help || a == "--help" || a == "-h";
+    code = command->distributed && !help ? command->run(rest) : on_rank0([&] { return command->run(rest); });
+  } catch (const dicer::mpi::PeerFailed& e) {
+    const int k = static_cast<int>(e.kind());
+    return k < 0 ? kExitInternal : exit_code(e.kind(), received_signal());
+  } catch (const dicer::Error& e) {
+    std::fprintf(stderr, "dicer %s: error: %s\n", command->name, e.what());
+    code = exit_code(e.kind(), received_signal()), caught = true;
   } catch (const std::bad_alloc&) {
     std::fprintf(stderr, "dicer %s: error: out of memory\n", command->name);
-    return kExitInternal;
+    code = kExitInternal, caught = true;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "dicer %s: internal error: %s\n", command->name, e.what());
-    return kExitInternal;
+    code = kExitInternal, caught = true;
   }
+  if (caught && mpi.active() && !dicer::mpi::error_was_agreed()) {
+    std::fflush(stderr);
+    MPI_Abort(mpi.comm(), code);
+  }
+  return code;
 }

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <numeric>
 
+#include "dicer/coarse_conformity.hpp"
 #include "dicer/error.hpp"
 #include "dicer/orientation.hpp"
 
@@ -190,6 +191,9 @@ void validate_coarse_mesh(CoarseMesh& m) {
         throw Error(ErrorKind::BadInput, f + ": side set " + std::to_string(ss.id) + ": entry " + std::to_string(i) +
                                              " is out of range");
   }
+  // Coincident and hanging vertices are accepted (an interface may be
+  // meant) but said up front, with ids, before hours of dicing.
+  for (auto& w : conformity_warnings(m, check_coarse_conformity(m, build_topology(m)))) m.warnings.push_back(std::move(w));
 }
 
 }  // namespace dicer

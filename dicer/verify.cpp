@@ -5,6 +5,7 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <unordered_map>
 
 #include "dicer/error.hpp"
 #include "dicer/orientation.hpp"
@@ -39,85 +40,29 @@ struct FaceSide {
 
 }  // namespace
 
-VerifyReport verify(const FineMesh& mesh, const std::function<void(Id, Id)>& progress) {
-  VerifyReport r;
+VerifyPart verify_part(const FineMesh& mesh, Id first, Id end, const std::function<void(Id, Id)>& progress) {
+  VerifyPart part;
+  VerifyReport& r = part.report;
   const MeshTables& t = mesh.tables();
-  const MeshInfo& info = mesh.info();
   const bool vol = mesh.mode() == Mode::Volume;
   const int nc = mesh.corners();
   MeshCursor cur;
   const RowReader R(t, cur);
-
-  // Closed formula from the edge intervals alone (not from the stored
-  // offsets, nor the faces' and elements' own interval columns).
-  {
-    __int128 nodes = info.coarse_vertices, elems = 0;
-    for (Id e = 0; e < t.edges.rows(); ++e) nodes += R.edge(e).n - 1;
-    for (Id f = 0; f < t.faces.rows(); ++f) {
-      const FaceRow fr = R.face(f);
-      nodes += static_cast<__int128>(R.edge(fr.e[0]).n - 1) * (R.edge(fr.e[2]).n - 1);
-    }
-    for (Id h = 0; h < t.elements.rows(); ++h) {
-      const ElementRow row = R.element(h);
-      const __int128 n0 = R.edge(row.edge[0]).n, n1 = R.edge(row.edge[vol ? 4 : 2]).n, n2 = vol ? R.edge(row.edge[8]).n : 1;
-      if (vol) nodes += (n0 - 1) * (n1 - 1) * (n2 - 1);
-      elems += n0 * n1 * n2;
-    }
-    auto clamp = [](__int128 v) { return v > INT64_MAX ? INT64_MAX : static_cast<Id>(v); };
-    r.nodes_formula = clamp(nodes);
-    r.elements_formula = clamp(elems);
-    r.nodes = mesh.num_nodes();
-    r.elements = mesh.num_elements();
-    __int128 by_block = 0;
-    for (Id c : info.block_fine_elements) by_block += c;
-    if (!r.counts_ok() || by_block != elems) {
-      r.id_errors += 1;
-      note(r, "counts differ from the closed formula: nodes " + std::to_string(r.nodes) + " vs " +
-                  std::to_string(r.nodes_formula) + ", elements " + std::to_string(r.elements) + " vs " +
-                  std::to_string(r.elements_formula));
-    }
-  }
-
-  // The page index of a store (the searches for ids rely on it): the first
-  // row of every page of the elements, as the index says.
-  if (!t.node_index.empty() || !t.element_index.empty()) {
-    const Id rpp = t.elements.rows_per_page(), pages = t.elements.pages();
-    const std::string store = t.origin.empty() ? std::string("in memory") : t.origin;
-    if (static_cast<Id>(t.node_index.size()) != pages || static_cast<Id>(t.element_index.size()) != pages)
-      throw Error(ErrorKind::Corrupt, store + ": numbering/element_page_node: not one entry per page of topology/elements");
-    for (Id p = 0; p < pages; ++p)
-      if (t.node_index[p] != R.node_first(p * rpp) || t.element_index[p] != R.element_first(p * rpp))
-        throw Error(ErrorKind::Corrupt, store + ": numbering/element_page_node or element_page_element entry " +
-                                            std::to_string(p) + " disagrees with the first row of its page");
-  }
-
-  // Coincident coarse vertices (the only nodes two blocks can share by position alone).
-  {
-    std::vector<std::array<double, 3>> pts(static_cast<size_t>(t.num_vertices()));
-    for (Id v = 0; v < t.num_vertices(); ++v) {
-      const Vec3 p = R.xyz(v);
-      pts[v] = {p.x, p.y, p.z};
-    }
-    std::sort(pts.begin(), pts.end());
-    for (size_t i = 1; i < pts.size(); ++i)
-      if (pts[i] == pts[i - 1]) r.coincident_coarse_vertices += (i == 1 || pts[i - 1] != pts[i - 2]) ? 2 : 1;
-  }
-
-  std::vector<FaceSide> side(static_cast<size_t>(t.faces.rows()) * 2);
-  std::vector<std::uint64_t> edge_hash(static_cast<size_t>(t.edges.rows()), 0);
-  std::vector<std::uint8_t> edge_seen(static_cast<size_t>(t.edges.rows()), 0);
-  // Surface mode: quads using each coarse edge, and the sum of their
-  // traversal directions (+1 lo -> hi in the quad's cyclic order).
-  std::vector<std::uint8_t> edge_uses;
-  std::vector<std::int8_t> edge_dir;
-  if (!vol) edge_uses.assign(static_cast<size_t>(t.edges.rows()), 0), edge_dir.assign(edge_uses.size(), 0);
+  r.nodes = mesh.num_nodes();
+  r.elements = mesh.num_elements();
+  if (end < 0) end = mesh.num_coarse_elements();
+  // What the part sees of each coarse face (two sides at most) and edge,
+  // kept only for the entities its elements use.
+  std::unordered_map<Id, std::array<FaceSide, 2>> side;
+  std::unordered_map<Id, std::uint64_t> edge_hash;
+  std::unordered_map<Id, std::array<std::int64_t, 2>> edge_use;  // surface: quads, direction sum
 
   FineBlock b;
   std::vector<std::pair<Id, Id>> ids;          // (id, point)
   std::vector<std::array<double, 4>> coords;   // (x, y, z, id)
   std::vector<std::pair<std::array<Id, 4>, int>> faces;  // sorted ids, boundary side (-1 interior)
-  const Id nh = mesh.num_coarse_elements();
-  for (Id h = 0; h < nh; ++h) {
+  const Id nh = end - first;
+  for (Id h = first; h < end; ++h) {
     mesh.fill_block(h, b);
     const auto n = b.n;
     const Id ni = n[0] + 1, nj = n[1] + 1, nk = vol ? n[2] + 1 : 1;
@@ -221,8 +166,9 @@ VerifyReport verify(const FineMesh& mesh, const std::function<void(Id, Id)>& pro
     if (vol) {
       for (int lf = 0; lf < 6; ++lf) {
         const Id f = row.face[lf];
-        FaceSide* fs = &side[2 * f];
-        if (fs->seen) fs = &side[2 * f + 1];
+        auto& both = side[f];
+        FaceSide* fs = &both[0];
+        if (fs->seen) fs = &both[1];
         if (fs->seen) {
           ++r.conformity_errors;
           note(r, "coarse face " + std::to_string(f) + " is shared by more than two coarse hexes");
@@ -248,9 +194,9 @@ VerifyReport verify(const FineMesh& mesh, const std::function<void(Id, Id)>& pro
         const Id a = row.corner[kShellSideCorners[s][0]], bb = row.corner[kShellSideCorners[s][1]];
         const int le = quad_edge_at(exodus_side_plane(Mode::Surface, s + 2).axis == 0 ? 1 : 0,
                                     exodus_side_plane(Mode::Surface, s + 2).high);
-        const Id e = row.edge[le];
-        if (edge_uses[e] < 255) ++edge_uses[e];
-        edge_dir[e] = static_cast<std::int8_t>(edge_dir[e] + (a < bb ? 1 : -1));
+        auto& u = edge_use[row.edge[le]];
+        ++u[0];
+        u[1] += a < bb ? 1 : -1;
       }
     for (int le = 0; le < epe; ++le) {
       const Id e = row.edge[le];
@@ -266,15 +212,134 @@ VerifyReport verify(const FineMesh& mesh, const std::function<void(Id, Id)>& pro
         hv = mix(mix(mix(mix(hv, static_cast<std::uint64_t>(b.node_id[g])), bits(b.x[g])), bits(b.y[g])),
                  bits(b.z[g]));
       }
-      if (!edge_seen[e]) {
-        edge_seen[e] = 1;
-        edge_hash[e] = hv;
-      } else if (edge_hash[e] != hv) {
+      const auto [it, fresh] = edge_hash.try_emplace(e, hv);
+      if (!fresh && it->second != hv) {
         ++r.conformity_errors;
         note(r, "coarse edge " + std::to_string(e) + ": neighbours disagree on its fine nodes");
       }
     }
-    if (progress) progress(h + 1, nh);
+    if (progress) progress(h + 1 - first, nh);
+  }
+  for (const auto& [f, both] : side)
+    for (const FaceSide& fs : both)
+      if (fs.seen) part.face_sides.push_back({static_cast<std::uint64_t>(f), static_cast<std::uint64_t>(fs.count), fs.hash});
+  for (const auto& [e, hv] : edge_hash) part.edge_hashes.push_back({static_cast<std::uint64_t>(e), hv});
+  for (const auto& [e, u] : edge_use) part.edge_uses.push_back({e, u[0], u[1]});
+  // Deterministic order (the maps' is not): the merge's "first seen" and its notes.
+  std::sort(part.face_sides.begin(), part.face_sides.end());
+  std::sort(part.edge_hashes.begin(), part.edge_hashes.end());
+  std::sort(part.edge_uses.begin(), part.edge_uses.end());
+  return part;
+}
+
+VerifyReport verify_finish(const FineMesh& mesh, const std::vector<VerifyPart>& parts) {
+  VerifyReport r;
+  const MeshTables& t = mesh.tables();
+  const MeshInfo& info = mesh.info();
+  const bool vol = mesh.mode() == Mode::Volume;
+  MeshCursor cur;
+  const RowReader R(t, cur);
+  // The parts' own findings.
+  for (const VerifyPart& p : parts) {
+    const VerifyReport& q = p.report;
+    r.fine_faces_checked += q.fine_faces_checked;
+    r.id_errors += q.id_errors, r.bit_identity_errors += q.bit_identity_errors;
+    r.coincident_nodes += q.coincident_nodes, r.conformity_errors += q.conformity_errors;
+    r.inverted += q.inverted;
+    r.min_scaled_jacobian = std::min(r.min_scaled_jacobian, q.min_scaled_jacobian);
+    for (const auto& s : q.problems) note(r, s);
+    for (const auto& s : q.warnings) r.warnings.push_back(s);
+  }
+
+  // Closed formula from the edge intervals alone (not from the stored
+  // offsets, nor the faces' and elements' own interval columns).
+  {
+    __int128 nodes = info.coarse_vertices, elems = 0;
+    for (Id e = 0; e < t.edges.rows(); ++e) nodes += R.edge(e).n - 1;
+    for (Id f = 0; f < t.faces.rows(); ++f) {
+      const FaceRow fr = R.face(f);
+      nodes += static_cast<__int128>(R.edge(fr.e[0]).n - 1) * (R.edge(fr.e[2]).n - 1);
+    }
+    for (Id h = 0; h < t.elements.rows(); ++h) {
+      const ElementRow row = R.element(h);
+      const __int128 n0 = R.edge(row.edge[0]).n, n1 = R.edge(row.edge[vol ? 4 : 2]).n, n2 = vol ? R.edge(row.edge[8]).n : 1;
+      if (vol) nodes += (n0 - 1) * (n1 - 1) * (n2 - 1);
+      elems += n0 * n1 * n2;
+    }
+    auto clamp = [](__int128 v) { return v > INT64_MAX ? INT64_MAX : static_cast<Id>(v); };
+    r.nodes_formula = clamp(nodes);
+    r.elements_formula = clamp(elems);
+    r.nodes = mesh.num_nodes();
+    r.elements = mesh.num_elements();
+    __int128 by_block = 0;
+    for (Id c : info.block_fine_elements) by_block += c;
+    if (!r.counts_ok() || by_block != elems) {
+      r.id_errors += 1;
+      note(r, "counts differ from the closed formula: nodes " + std::to_string(r.nodes) + " vs " +
+                  std::to_string(r.nodes_formula) + ", elements " + std::to_string(r.elements) + " vs " +
+                  std::to_string(r.elements_formula));
+    }
+  }
+
+  // The page index of a store (the searches for ids rely on it): the first
+  // row of every page of the elements, as the index says.
+  if (!t.node_index.empty() || !t.element_index.empty()) {
+    const Id rpp = t.elements.rows_per_page(), pages = t.elements.pages();
+    const std::string store = t.origin.empty() ? std::string("in memory") : t.origin;
+    if (static_cast<Id>(t.node_index.size()) != pages || static_cast<Id>(t.element_index.size()) != pages)
+      throw Error(ErrorKind::Corrupt, store + ": numbering/element_page_node: not one entry per page of topology/elements");
+    for (Id p = 0; p < pages; ++p)
+      if (t.node_index[p] != R.node_first(p * rpp) || t.element_index[p] != R.element_first(p * rpp))
+        throw Error(ErrorKind::Corrupt, store + ": numbering/element_page_node or element_page_element entry " +
+                                            std::to_string(p) + " disagrees with the first row of its page");
+  }
+
+  // Coincident coarse vertices (the only nodes two blocks can share by position alone).
+  {
+    std::vector<std::array<double, 3>> pts(static_cast<size_t>(t.num_vertices()));
+    for (Id v = 0; v < t.num_vertices(); ++v) {
+      const Vec3 p = R.xyz(v);
+      pts[v] = {p.x, p.y, p.z};
+    }
+    std::sort(pts.begin(), pts.end());
+    for (size_t i = 1; i < pts.size(); ++i)
+      if (pts[i] == pts[i - 1]) r.coincident_coarse_vertices += (i == 1 || pts[i - 1] != pts[i - 2]) ? 2 : 1;
+  }
+
+  // Coarse faces and edges as all parts together saw them.
+  std::vector<FaceSide> side(static_cast<size_t>(t.faces.rows()) * 2);
+  std::vector<std::uint64_t> edge_hash(static_cast<size_t>(t.edges.rows()), 0);
+  std::vector<std::uint8_t> edge_seen(static_cast<size_t>(t.edges.rows()), 0);
+  std::vector<std::int64_t> edge_uses, edge_dir;
+  if (!vol) edge_uses.assign(static_cast<size_t>(t.edges.rows()), 0), edge_dir.assign(edge_uses.size(), 0);
+  auto face_id = [&](std::uint64_t f) {
+    if (f >= static_cast<std::uint64_t>(t.faces.rows())) throw Error(ErrorKind::Usage, "verify_finish: face id out of range");
+    return static_cast<Id>(f);
+  };
+  for (const VerifyPart& p : parts) {
+    for (const auto& [fu, count, hash] : p.face_sides) {
+      const Id f = face_id(fu);
+      FaceSide* fs = &side[2 * f];
+      if (fs->seen) fs = &side[2 * f + 1];
+      if (fs->seen) {
+        ++r.conformity_errors;
+        note(r, "coarse face " + std::to_string(f) + " is shared by more than two coarse hexes");
+        continue;
+      }
+      *fs = FaceSide{hash, static_cast<Id>(count), true};
+    }
+    for (const auto& [eu, hv] : p.edge_hashes) {
+      if (eu >= edge_seen.size()) throw Error(ErrorKind::Usage, "verify_finish: edge id out of range");
+      if (!edge_seen[eu]) {
+        edge_seen[eu] = 1;
+        edge_hash[eu] = hv;
+      } else if (edge_hash[eu] != hv) {
+        ++r.conformity_errors;
+        note(r, "coarse edge " + std::to_string(eu) + ": neighbours disagree on its fine nodes");
+      }
+    }
+    for (const auto& [e, uses, dir] : p.edge_uses)
+      if (!vol && e >= 0 && e < t.edges.rows()) edge_uses[e] += uses, edge_dir[e] += dir;
   }
 
   if (vol) {
@@ -353,6 +418,10 @@ VerifyReport verify(const FineMesh& mesh, const std::function<void(Id, Id)>& pro
       r.warnings.push_back(std::to_string(r.near_coincident) + " fine nodes lie within 1e-9 of the diagonal of another node");
   }
   return r;
+}
+
+VerifyReport verify(const FineMesh& mesh, const std::function<void(Id, Id)>& progress) {
+  return verify_finish(mesh, {verify_part(mesh, 0, mesh.num_coarse_elements(), progress)});
 }
 
 }  // namespace dicer

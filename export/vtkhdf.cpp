@@ -63,7 +63,9 @@ hid_t file_type() {
 
 struct VtkHdfWriter::Impl {
   std::string path, tmp;
-  std::unique_ptr<AtomicOutput> out;
+  std::unique_ptr<AtomicOutput> out;  // rank 0's (or the single process's)
+  const VtkHdfCollective* par = nullptr;
+  VtkHdfCollective par_copy;
   Id partitions = 0, written = 0;
   bool finished = false, broken = false;
   Hid file, root;
@@ -108,33 +110,49 @@ struct VtkHdfWriter::Impl {
 
   // Appends `rows` rows; fill(first, n, out) writes rows [first, first + n)
   // (n * width values) into out. Converts and writes kSliceRows at a time.
+  // Collectively, every rank appends its rows after those of the ranks
+  // before it, in the same number of (possibly empty) collective writes.
   template <class T, class Fill>
   void append(Dataset& d, hsize_t rows, Fill&& fill) {
-    if (rows == 0) return;
+    hsize_t at = d.rows, total = d.rows + rows, slices = (rows + kSliceRows - 1) / kSliceRows;
+    hid_t dxpl = H5P_DEFAULT;
+    if (par) {
+      const auto all = par->allgather(static_cast<std::int64_t>(rows));
+      hsize_t before = 0, sum = 0, most = 0;
+      for (int r = 0; r < par->size; ++r) {
+        if (r < par->rank) before += static_cast<hsize_t>(all[r]);
+        sum += static_cast<hsize_t>(all[r]);
+        most = std::max<hsize_t>(most, (static_cast<hsize_t>(all[r]) + kSliceRows - 1) / kSliceRows);
+      }
+      at = d.rows + before, total = d.rows + sum, slices = most;
+      dxpl = static_cast<hid_t>(par->transfer);
+    }
+    if (total == d.rows) return;
     const int rank = d.width > 1 ? 2 : 1;
-    const hsize_t old_rows = d.rows;
-    hsize_t new_dims[2] = {old_rows + rows, d.width};
+    hsize_t new_dims[2] = {total, d.width};
     if (H5Dset_extent(d.id.get(), new_dims) < 0) io(d.name + ": cannot extend dataset");
-    d.rows = old_rows + rows;
+    d.rows = total;
     Hid fspace(H5Dget_space(d.id.get()), H5Sclose);
     if (!fspace) io(d.name + ": cannot get dataspace");
-    std::vector<T> buf(static_cast<size_t>(std::min(rows, kSliceRows) * d.width));
-    for (hsize_t first = 0; first < rows; first += kSliceRows) {
-      const hsize_t n = std::min(kSliceRows, rows - first);
-      fill(static_cast<Id>(first), static_cast<Id>(n), buf.data());
-      hsize_t start[2] = {old_rows + first, 0}, count[2] = {n, d.width};
+    std::vector<T> buf(static_cast<size_t>(std::max<hsize_t>(1, std::min(rows, kSliceRows)) * d.width));
+    for (hsize_t s = 0; s < slices; ++s) {
+      const hsize_t first = s * kSliceRows, n = first < rows ? std::min(kSliceRows, rows - first) : 0;
+      if (n > 0) fill(static_cast<Id>(first), static_cast<Id>(n), buf.data());
+      hsize_t start[2] = {at + first, 0}, count[2] = {n, d.width};
       Hid mspace(H5Screate_simple(rank, count, nullptr), H5Sclose);
-      if (!mspace || H5Sselect_hyperslab(fspace.get(), H5S_SELECT_SET, start, nullptr, count, nullptr) < 0 ||
-          H5Dwrite(d.id.get(), mem_type<T>(), mspace.get(), fspace.get(), H5P_DEFAULT, buf.data()) < 0)
-        io(d.name + ": writing rows " + std::to_string(old_rows + first) + ".." + std::to_string(old_rows + first + n) +
-           " failed");
+      const bool selected = n > 0 ? H5Sselect_hyperslab(fspace.get(), H5S_SELECT_SET, start, nullptr, count, nullptr) >= 0
+                                  : H5Sselect_none(fspace.get()) >= 0 && H5Sselect_none(mspace.get()) >= 0;
+      if (!mspace || !selected || H5Dwrite(d.id.get(), mem_type<T>(), mspace.get(), fspace.get(), dxpl, buf.data()) < 0)
+        io(d.name + ": writing rows " + std::to_string(at + first) + ".." + std::to_string(at + first + n) + " failed");
     }
   }
 
   void open() {
     h5::quiet();  // this thread's switch (hdf5_file.hpp)
-    // dicer's driver: a full disk fails the write, yet the file still closes.
-    file = Hid(h5::create_file_id(tmp, &write_errno), H5Fclose);
+    // One process: dicer's driver (a full disk fails the write, yet the
+    // file still closes). Several ranks write one file through MPI-IO.
+    file = par ? Hid(H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, static_cast<hid_t>(par->file_access)), H5Fclose)
+               : Hid(h5::create_file_id(tmp, &write_errno), H5Fclose);
     if (!file) io("cannot create " + tmp);
     root = group(file.get(), "VTKHDF");
     {  // Version = [1, 0]
@@ -180,11 +198,11 @@ struct VtkHdfWriter::Impl {
     out.reset();  // removes the uncommitted temporary
   }
 
-  void write(const ExportChunk& c) {
+  // The chunk's arrays agree with each other (before any dataset grows).
+  void validate(const ExportChunk& c) {
     const Id nn = c.num_nodes(), ne = c.num_elements();
     const int corners = c.corners();
-    const std::uint8_t cell_type = c.mode() == Mode::Volume ? kVtkHexahedron : kVtkQuad;
-    const std::string part = "partition " + std::to_string(written);
+    const std::string part = "partition " + std::to_string(par ? par->rank : written);
     if ((c.mode() == Mode::Volume && corners != 8) || (c.mode() == Mode::Surface && corners != 4))
       throw Error(ErrorKind::Usage, path + ": " + part + ": " + std::to_string(corners) + " corners per element");
     if (static_cast<Id>(c.x().size()) != nn || static_cast<Id>(c.y().size()) != nn ||
@@ -198,7 +216,13 @@ struct VtkHdfWriter::Impl {
     for (std::int32_t b : c.element_block())
       if (b < 0 || static_cast<size_t>(b) >= blocks.size())
         throw Error(ErrorKind::Usage, path + ": " + part + ": block index " + std::to_string(b) + " out of range");
+  }
 
+  void write(const ExportChunk& c) {
+    const Id nn = c.num_nodes(), ne = c.num_elements();
+    const int corners = c.corners();
+    const std::uint8_t cell_type = c.mode() == Mode::Volume ? kVtkHexahedron : kVtkQuad;
+    const auto& blocks = c.mesh().info().blocks;
     auto one = [](std::int64_t v) { return [v](Id, Id, std::int64_t* out) { out[0] = v; }; };
     append<std::int64_t>(number_of_points, 1, one(nn));
     append<std::int64_t>(number_of_cells, 1, one(ne));
@@ -248,6 +272,40 @@ VtkHdfWriter::VtkHdfWriter(const std::string& path, Id partitions) : impl_(new I
   }
 }
 
+VtkHdfWriter::VtkHdfWriter(const std::string& path, const VtkHdfCollective& c) : impl_(new Impl) {
+  std::lock_guard lock(hdf5_lock());
+  Impl& m = *impl_;
+  m.path = path;
+  m.partitions = c.size;
+  m.par_copy = c;
+  m.par = &m.par_copy;
+  try {
+    // Rank 0 owns the temporary; every rank opens the same one.
+    std::exception_ptr e;
+    std::string tmp;
+    if (c.rank == 0) try {
+        if (!std::filesystem::path(path).has_filename()) throw Error(ErrorKind::Usage, path + ": not a file name");
+        m.out = std::make_unique<AtomicOutput>(path);
+        tmp = m.out->temp_path();
+      } catch (...) {
+        e = std::current_exception();
+      }
+    c.checkpoint(e);
+    m.tmp = c.broadcast(tmp);
+    e = nullptr;
+    try {
+      m.open();
+    } catch (...) {
+      e = std::current_exception();
+    }
+    c.checkpoint(e);
+  } catch (...) {
+    m.remove_tmp();
+    delete impl_;
+    throw;
+  }
+}
+
 VtkHdfWriter::~VtkHdfWriter() {
   std::lock_guard lock(hdf5_lock());
   if (!impl_->finished) impl_->remove_tmp();
@@ -263,12 +321,28 @@ void VtkHdfWriter::write_partition(const ExportChunk& chunk) {
     throw Error(ErrorKind::Usage,
                 m.path + ": partition " + std::to_string(m.written + 1) + " of " + std::to_string(m.partitions) +
                     " declared");
+  if (m.par) {  // every rank its one partition, collectively
+    std::exception_ptr e;
+    try {
+      m.validate(chunk);
+    } catch (...) {
+      e = std::current_exception();
+    }
+    m.par->checkpoint(e);
+    e = nullptr;
+    try {
+      m.write(chunk);
+    } catch (...) {
+      m.broken = true;
+      e = std::current_exception();
+    }
+    m.par->checkpoint(e);
+    m.written = m.partitions;
+    return;
+  }
+  m.validate(chunk);  // a Usage error here leaves the file intact
   try {
     m.write(chunk);
-  } catch (const Error& e) {
-    // A Usage error thrown before any dataset grew leaves the file intact.
-    if (e.kind() != ErrorKind::Usage) m.broken = true;
-    throw;
   } catch (...) {
     m.broken = true;
     throw;
@@ -284,18 +358,25 @@ void VtkHdfWriter::finish() {
   if (m.written != m.partitions)
     throw Error(ErrorKind::Usage, m.path + ": " + std::to_string(m.written) + " of " + std::to_string(m.partitions) +
                                       " partitions written");
-  if (H5Fflush(m.file.get(), H5F_SCOPE_GLOBAL) < 0) m.io("flush failed");
-  m.close_all();
-  if (!m.file.reset() || m.write_errno) {
-    m.broken = true;
-    m.io("closing " + m.tmp + " failed");
-  }
+  std::exception_ptr e;
   try {
-    m.out->commit();
+    if (H5Fflush(m.file.get(), H5F_SCOPE_GLOBAL) < 0) m.io("flush failed");
+    m.close_all();
+    if (!m.file.reset() || m.write_errno) m.io("closing " + m.tmp + " failed");
   } catch (...) {
     m.broken = true;
-    throw;
+    e = std::current_exception();
   }
+  if (m.par) m.par->checkpoint(e);
+  else if (e) std::rethrow_exception(e);
+  try {
+    if (m.out) m.out->commit();  // rank 0's (or the single process's) temporary
+  } catch (...) {
+    m.broken = true;
+    e = std::current_exception();
+  }
+  if (m.par) m.par->checkpoint(e);
+  else if (e) std::rethrow_exception(e);
   m.finished = true;
 }
 

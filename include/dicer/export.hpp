@@ -143,9 +143,30 @@ void refuse_if_too_big(const FineMesh& mesh, const ChunkRange& range);
 //
 // VTKHDF (UnstructuredGrid 1.0, one partition per chunk): chunks are
 // appended one after another with write_vtkhdf_partition; `finish` renames.
+//
+// Collective mode (the MPI layer, include/dicer/mpi.hpp, fills this in so
+// that export/ needs no MPI header): every rank of a job writes its one
+// partition of the same parallel HDF5 file, rank r as partition r, at the
+// offsets of the partitions before it. The same datasets and values as
+// one process appending the P chunks in order.
+struct VtkHdfCollective {
+  int rank = 0, size = 1;
+  std::int64_t file_access = -1;  // hid_t: an MPI-IO file access property list
+  std::int64_t transfer = -1;     // hid_t: a collective transfer property list
+  // One value from every rank, in rank order (an allgather).
+  std::function<std::vector<std::int64_t>(std::int64_t)> allgather;
+  // Rank 0's string on every rank.
+  std::function<std::string(const std::string&)> broadcast;
+  // Every rank passes its local failure (or nullptr); throws on every rank
+  // if any failed (mpi::checkpoint).
+  std::function<void(std::exception_ptr)> checkpoint;
+};
+
 class VtkHdfWriter {
  public:
   VtkHdfWriter(const std::string& path, Id partitions);
+  // Collective: size() partitions, this rank writes partition rank().
+  VtkHdfWriter(const std::string& path, const VtkHdfCollective& collective);
   ~VtkHdfWriter();
   void write_partition(const ExportChunk& chunk);
   void finish();

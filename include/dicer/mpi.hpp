@@ -20,6 +20,7 @@
 #include "dicer/error.hpp"
 #include "dicer/export.hpp"
 #include "dicer/partition.hpp"
+#include "dicer/verify.hpp"
 
 namespace dicer::mpi {
 
@@ -65,6 +66,11 @@ class PeerFailed : public std::runtime_error {
 // Non-dicer exceptions count as internal errors (kind 0 is sent as -1).
 void checkpoint(MPI_Comm comm, std::exception_ptr local);
 
+// Whether the error this thread is handling came out of checkpoint (so
+// every rank knows of it and none waits): the CLI may then simply return;
+// otherwise it must end the job (MPI_Abort).
+bool error_was_agreed();
+
 // Runs fn on this rank, then checkpoints.
 template <class Fn>
 void collectively(MPI_Comm comm, Fn&& fn) {
@@ -84,6 +90,12 @@ std::vector<NodeRun> exchange_sharing(MPI_Comm comm, const FineMesh& mesh, const
 
 // The partition of this rank (chunk `rank` of `size`), maps exchanged.
 Partition make_partition(const FineMesh& mesh, MPI_Comm comm, const MeshSets& sets = {});
+
+// verify on every rank's chunk (verify_part), merged and finished on rank 0
+// (verify_finish): every fine element checked once, faces and edges matched
+// across ranks (shared nodes bit-identical). The full report on rank 0; the
+// other ranks get an empty one (use ok() of rank 0, e.g. broadcast).
+VerifyReport verify_distributed(MPI_Comm comm, const FineMesh& mesh, const std::function<void(Id, Id)>& progress = {});
 
 // One VTKHDF file with one partition per rank, written collectively through
 // parallel HDF5 (MPI-IO): the same datasets and values as VtkHdfWriter

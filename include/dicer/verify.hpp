@@ -28,6 +28,7 @@
 //  - node and element counts equal the closed formula of invariant 3;
 //  - minimum scaled Jacobian and the number of inverted fine elements
 //    (scaled Jacobian <= 0 at some corner).
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <string>
@@ -64,5 +65,20 @@ struct VerifyReport {
 
 // progress(done, total) is called after each coarse element when given.
 VerifyReport verify(const FineMesh& mesh, const std::function<void(Id, Id)>& progress = {});
+
+// The same in parts (MPI ranks): each part checks its range of coarse
+// elements (everything inside one element, and hashes of what it sees of
+// each coarse face and edge); verify_finish merges the parts, matches faces
+// and edges across parts, and does the global checks (closed formula, page
+// index, boundary, coincident nodes). verify() is one part + finish.
+struct VerifyPart {
+  VerifyReport report;                                       // per-element findings of the part
+  std::vector<std::array<std::uint64_t, 3>> face_sides;      // (face, fine faces seen, hash) per side seen
+  std::vector<std::array<std::uint64_t, 2>> edge_hashes;     // (edge, hash of its fine nodes)
+  std::vector<std::array<std::int64_t, 3>> edge_uses;        // surface: (edge, quads, direction sum)
+};
+VerifyPart verify_part(const FineMesh& mesh, Id first_coarse, Id end_coarse,
+                       const std::function<void(Id, Id)>& progress = {});
+VerifyReport verify_finish(const FineMesh& mesh, const std::vector<VerifyPart>& parts);
 
 }  // namespace dicer

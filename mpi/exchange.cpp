@@ -1,0 +1,96 @@
+// Who uses which node run, across ranks: two all-to-all rounds.
+#include <algorithm>
+#include <map>
+#include <optional>
+
+#include "dicer/mpi.hpp"
+
+namespace dicer::mpi {
+namespace {
+
+// All-to-all of int64 messages: send[q] to rank q, returns what each rank sent here.
+std::vector<std::vector<std::int64_t>> all_to_all(MPI_Comm comm, const std::vector<std::vector<std::int64_t>>& send) {
+  const int P = static_cast<int>(send.size());
+  std::vector<int> scount(static_cast<size_t>(P)), rcount(static_cast<size_t>(P)), sdisp(static_cast<size_t>(P)),
+      rdisp(static_cast<size_t>(P));
+  for (int q = 0; q < P; ++q) scount[q] = static_cast<int>(send[q].size());
+  if (MPI_Alltoall(scount.data(), 1, MPI_INT, rcount.data(), 1, MPI_INT, comm) != MPI_SUCCESS)
+    throw Error(ErrorKind::Io, "MPI_Alltoall failed");
+  std::vector<std::int64_t> sbuf, rbuf;
+  for (int q = 0, s = 0, r = 0; q < P; ++q) {
+    sdisp[q] = s, rdisp[q] = r;
+    s += scount[q], r += rcount[q];
+    sbuf.insert(sbuf.end(), send[q].begin(), send[q].end());
+  }
+  rbuf.resize(static_cast<size_t>(rdisp.back() + rcount.back()));
+  if (MPI_Alltoallv(sbuf.data(), scount.data(), sdisp.data(), MPI_INT64_T, rbuf.data(), rcount.data(), rdisp.data(),
+                    MPI_INT64_T, comm) != MPI_SUCCESS)
+    throw Error(ErrorKind::Io, "MPI_Alltoallv failed");
+  std::vector<std::vector<std::int64_t>> out(static_cast<size_t>(P));
+  for (int q = 0; q < P; ++q) out[q].assign(rbuf.begin() + rdisp[q], rbuf.begin() + rdisp[q] + rcount[q]);
+  return out;
+}
+
+}  // namespace
+
+std::vector<NodeRun> exchange_sharing(MPI_Comm comm, const FineMesh& mesh, const std::vector<ChunkRange>& plan) {
+  int rank = 0, P = 1;
+  MPI_Comm_rank(comm, &rank);
+  MPI_Comm_size(comm, &P);
+  if (static_cast<int>(plan.size()) != P)
+    throw Error(ErrorKind::Usage, "exchange_sharing: a plan of " + std::to_string(plan.size()) + " chunks for " +
+                                      std::to_string(P) + " ranks");
+  std::vector<NodeRun> ghosts;
+  collectively(comm, [&] { ghosts = ghost_runs(mesh, plan, rank); });
+
+  // Round 1: tell each owner which of its runs this rank uses.
+  std::vector<std::vector<std::int64_t>> to_owner(static_cast<size_t>(P));
+  for (const NodeRun& r : ghosts) to_owner[r.owner].insert(to_owner[r.owner].end(), {r.first, r.count});
+  const auto users_of_mine = all_to_all(comm, to_owner);
+  std::map<Id, NodeRun> owned;  // my runs that others use, with all users
+  for (int q = 0; q < P; ++q)
+    for (size_t i = 0; i + 1 < users_of_mine[q].size(); i += 2) {
+      auto [it, fresh] = owned.try_emplace(users_of_mine[q][i], NodeRun{users_of_mine[q][i], users_of_mine[q][i + 1], rank, {rank}});
+      auto& u = it->second.users;
+      u.insert(std::upper_bound(u.begin(), u.end(), q), q);
+    }
+  // Round 2: every user of a run learns all its users.
+  std::vector<std::vector<std::int64_t>> back(static_cast<size_t>(P));
+  for (const auto& [first, run] : owned)
+    for (std::int32_t u : run.users) {
+      if (u == rank) continue;
+      auto& m = back[u];
+      m.insert(m.end(), {run.first, run.count, static_cast<std::int64_t>(run.users.size())});
+      m.insert(m.end(), run.users.begin(), run.users.end());
+    }
+  const auto told = all_to_all(comm, back);
+  std::vector<NodeRun> out;
+  for (const auto& [first, run] : owned) out.push_back(run);
+  for (int q = 0; q < P; ++q) {
+    const auto& m = told[q];
+    for (size_t i = 0; i + 3 <= m.size();) {
+      NodeRun r{m[i], m[i + 1], static_cast<std::int32_t>(q), {}};
+      const auto n = static_cast<size_t>(m[i + 2]);
+      if (i + 3 + n > m.size()) throw Error(ErrorKind::Io, "exchange_sharing: a truncated message from rank " + std::to_string(q));
+      for (size_t k = 0; k < n; ++k) r.users.push_back(static_cast<std::int32_t>(m[i + 3 + k]));
+      out.push_back(std::move(r));
+      i += 3 + n;
+    }
+  }
+  std::sort(out.begin(), out.end(), [](const NodeRun& a, const NodeRun& b) { return a.first < b.first; });
+  return out;
+}
+
+Partition make_partition(const FineMesh& mesh, MPI_Comm comm, const MeshSets& sets) {
+  int rank = 0, P = 1;
+  MPI_Comm_rank(comm, &rank);
+  MPI_Comm_size(comm, &P);
+  std::vector<ChunkRange> plan;
+  collectively(comm, [&] { plan = plan_chunks(mesh, P); });
+  std::vector<NodeRun> sharing = exchange_sharing(comm, mesh, plan);
+  std::optional<Partition> p;
+  collectively(comm, [&] { p.emplace(mesh, plan, rank, std::move(sharing), sets); });
+  return std::move(*p);
+}
+
+}  // namespace dicer::mpi
