@@ -47,6 +47,16 @@ dicer export fine.dice.h5 --format msh --box 0,0,0,1,1,0.5 -o cut.msh --stats
 
 namespace {
 
+// The sets of the store `m` was read from: read_store_sets checks its uuid,
+// so a store replaced at `path` since (a re-dice) is Error{Io}, not mixed in.
+MeshSets sets_of(const FineMesh& m, const std::string& path) {
+  StoreSets s = read_store_sets(m, path);
+  MeshSets sets;
+  sets.side_sets = std::move(s.side_sets);
+  sets.node_sets = std::move(s.node_sets);
+  return sets;
+}
+
 // Under mpirun -n P: rank r exports chunk r of P. Exodus: the Nemesis file
 // OUT.P.r (communication maps exchanged between ranks); VTKHDF: one file,
 // written collectively; MSH: OUT.P.r. The same files as one process with
@@ -60,9 +70,7 @@ int export_ranks(const std::string& path, const std::string& out, const std::str
   std::vector<ChunkRange> plan;
   agree([&] {
     mesh.emplace(read_store(path, store.options()));
-    StoreSets s = read_store_sets(path);
-    sets.side_sets = std::move(s.side_sets);
-    sets.node_sets = std::move(s.node_sets);
+    sets = sets_of(*mesh, path);
     plan = plan_chunks(*mesh, P);
   });
   const FineMesh& m = *mesh;
@@ -140,12 +148,7 @@ int cmd_export(const std::vector<std::string>& argv) {
     throw Error(ErrorKind::Usage, "--chunks N is for --format vtkhdf, or exodus with --nemesis");
 
   const FineMesh m = read_store(path, store.options());
-  MeshSets sets;
-  {
-    StoreSets s = read_store_sets(path);
-    sets.side_sets = std::move(s.side_sets);
-    sets.node_sets = std::move(s.node_sets);
-  }
+  const MeshSets sets = sets_of(m, path);
   std::vector<ChunkRange> ranges;
   if (cmd.given(o_chunk)) {
     const auto slash = chunk.find('/');

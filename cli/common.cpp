@@ -139,7 +139,17 @@ const char* signal_name(int sig) {
 
 }  // namespace
 
+void ignore_file_size_signal() {
+  // The default action of SIGXFSZ kills without unwinding, so the temporary
+  // would stay; ignored, the write fails with EFBIG and is reported.
+  struct sigaction sa {};
+  sa.sa_handler = SIG_IGN;
+  sigemptyset(&sa.sa_mask);
+  ::sigaction(SIGXFSZ, &sa, nullptr);
+}
+
 CancelOnSignals::CancelOnSignals() {
+  ignore_file_size_signal();
   g_signal.store(0);
   struct sigaction sa {};
   sa.sa_handler = record_signal;

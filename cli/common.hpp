@@ -47,6 +47,12 @@ void check_input_file(const std::string& path, const std::string& role);
 void check_output_file(const std::string& path, const std::string& role,
                        const std::vector<std::pair<std::string, std::string>>& inputs);
 
+// SIGXFSZ (a file grown past RLIMIT_FSIZE) ignored for the rest of the
+// process: the write then fails with EFBIG, an ordinary I/O error, instead
+// of the signal killing dicer with its temporary left behind. Called by
+// CancelOnSignals (every command that writes); idempotent.
+void ignore_file_size_signal();
+
 // SIGINT, SIGTERM and SIGHUP while a command writes a file: the handler only
 // records the signal; the command polls cancel_requested() through the
 // library's progress and cancel callbacks and throws Error{Cancelled}, so

@@ -1,9 +1,15 @@
 // Chunks and box selections of the fine mesh, with local numbering: what
 // every writer consumes. Memory is bounded by the chunk.
+#include <sys/resource.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
+#include <fstream>
 #include <numeric>
+#include <sstream>
 
 #include "dicer/error.hpp"
 #include "dicer/export.hpp"
@@ -167,6 +173,7 @@ void node_set_ranges(const ElementRow& h, Mode mode, const std::vector<Id>& sort
 
 void ExportChunk::prepare(const MeshSets& sets, const std::function<void(Id, Id)>& progress,
                           const std::function<bool()>& cancel) {
+  if (!box_) refuse_if_too_big(mesh_, range_);  // a box keeps an unknown part of it
   const Mode mode = this->mode();
   const int nc = corners();
   const Id first = range_.first_coarse, end = range_.end_coarse, span = end - first;
@@ -452,6 +459,80 @@ SetCounts global_set_counts(const FineMesh& mesh, const MeshSets& sets) {
     out.node.push_back(n);
   }
   return out;
+}
+
+// ---- memory estimate ---------------------------------------------------------
+
+std::uint64_t estimate_chunk_bytes(const FineMesh& mesh, const ChunkRange& range) {
+  MeshCursor cur;
+  const RowReader R(mesh.tables(), cur);
+  const Id h = mesh.num_coarse_elements();
+  auto first_element = [&](Id e) { return e >= h ? mesh.num_elements() : R.element_first(e); };
+  const Id elements = first_element(range.end_coarse) - first_element(range.first_coarse);
+  const auto own = mesh.owned_nodes(range.first_coarse, range.end_coarse, cur);
+  // The chunk's own nodes; those it shares with lower chunks lie on one
+  // boundary surface, small beside them, and are not counted.
+  const Id nodes = own[1] - own[0];
+  // What prepare() keeps (ExportChunk's members): per element its global id,
+  // block index and connectivity; per node its global id, x, y, z, owner.
+  const unsigned __int128 per_element = 8 + 4 + 8 * static_cast<unsigned>(mesh.corners());
+  const unsigned __int128 per_node = 8 + 24 + 4;
+  const unsigned __int128 bytes = per_element * static_cast<std::uint64_t>(std::max<Id>(elements, 0)) +
+                                  per_node * static_cast<std::uint64_t>(std::max<Id>(nodes, 0));
+  return bytes > UINT64_MAX ? UINT64_MAX : static_cast<std::uint64_t>(bytes);
+}
+
+namespace {
+
+std::uint64_t kib_field(const char* file, const std::string& key) {
+  std::ifstream in(file);
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind(key, 0) == 0) return std::strtoull(line.c_str() + key.size(), nullptr, 10) * 1024;
+  return UINT64_MAX;
+}
+
+// What this process can still allocate: the memory the kernel says is
+// available, and under an address-space limit (RLIMIT_AS) what is not
+// mapped yet.
+std::uint64_t available_memory_bytes() {
+  std::uint64_t avail = kib_field("/proc/meminfo", "MemAvailable:");
+  if (avail == UINT64_MAX) {
+    const long pages = ::sysconf(_SC_AVPHYS_PAGES), size = ::sysconf(_SC_PAGESIZE);
+    if (pages > 0 && size > 0) avail = static_cast<std::uint64_t>(pages) * static_cast<std::uint64_t>(size);
+  }
+  struct rlimit rl {};
+  if (::getrlimit(RLIMIT_AS, &rl) == 0 && rl.rlim_cur != RLIM_INFINITY) {
+    const std::uint64_t mapped = kib_field("/proc/self/status", "VmSize:");
+    const std::uint64_t left = mapped == UINT64_MAX || mapped >= rl.rlim_cur ? 0 : rl.rlim_cur - mapped;
+    avail = std::min(avail, left);
+  }
+  return avail;
+}
+
+std::string gib(std::uint64_t bytes) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.1f GiB", static_cast<double>(bytes) / double(1ull << 30));
+  return buf;
+}
+
+}  // namespace
+
+// Until exports stream, a chunk lives in memory whole: one that cannot fit
+// is refused before it is built (it ran for minutes and died out of memory).
+void refuse_if_too_big(const FineMesh& mesh, const ChunkRange& range) {
+  const std::uint64_t need = estimate_chunk_bytes(mesh, range), avail = available_memory_bytes();
+  if (need <= avail) return;
+  // Chunks are balanced by elements: N chunks of the mesh, each at most
+  // half of what is available now.
+  const long double whole = static_cast<long double>(need) * static_cast<long double>(std::max<Id>(range.count, 1));
+  const long double n = std::ceil(2 * whole / std::max<long double>(static_cast<long double>(avail), 1));
+  std::ostringstream msg;
+  msg << "export: chunk " << range.index << " of " << range.count << " (coarse elements " << range.first_coarse << ".."
+      << range.end_coarse << ") needs about " << gib(need) << " of memory, more than the " << gib(avail)
+      << " available; export it in pieces: --chunks N (VTKHDF, Nemesis) or --chunk K/N for K = 0..N-1, with N >= "
+      << static_cast<unsigned long long>(std::min<long double>(n, 1e18L));
+  throw Error(ErrorKind::Usage, msg.str());
 }
 
 }  // namespace dicer

@@ -31,6 +31,7 @@
 #include "dicer/atomic_output.hpp"
 #include "dicer/error.hpp"
 #include "dicer/export.hpp"
+#include "hdf5_file.hpp"
 #include "hdf5_lock.hpp"
 
 namespace dicer {
@@ -41,38 +42,7 @@ constexpr hsize_t kChunkBytes = 512 * 1024;  // HDF5 chunk: below the default 1 
 constexpr hsize_t kSliceRows = 64 * 1024;    // rows converted and written per H5Dwrite
 constexpr unsigned kDeflateLevel = 1;
 
-void quiet_hdf5() {
-  static std::once_flag once;
-  std::call_once(once, [] { H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr); });
-}
-
-// An HDF5 identifier closed on scope exit.
-class Hid {
- public:
-  Hid() = default;
-  Hid(hid_t id, herr_t (*close)(hid_t)) : id_(id), close_(close) {}
-  Hid(Hid&& o) noexcept : id_(o.id_), close_(o.close_) { o.id_ = -1; }
-  Hid& operator=(Hid&& o) noexcept {
-    if (this != &o) reset(), id_ = o.id_, close_ = o.close_, o.id_ = -1;
-    return *this;
-  }
-  Hid(const Hid&) = delete;
-  Hid& operator=(const Hid&) = delete;
-  ~Hid() { reset(); }
-  hid_t get() const { return id_; }
-  explicit operator bool() const { return id_ >= 0; }
-  // Closes now; false when HDF5 reports a failure (e.g. the final flush of a file).
-  bool reset() {
-    bool ok = true;
-    if (id_ >= 0 && close_) ok = close_(id_) >= 0;
-    id_ = -1;
-    return ok;
-  }
-
- private:
-  hid_t id_ = -1;
-  herr_t (*close_)(hid_t) = nullptr;
-};
+using Hid = h5::Handle;  // an HDF5 identifier closed on scope exit
 
 template <class T>
 hid_t mem_type() {
@@ -109,7 +79,12 @@ struct VtkHdfWriter::Impl {
   Dataset number_of_points, number_of_cells, number_of_connectivity_ids, points, types, connectivity, offsets,
       global_node_id, global_element_id, block_id;
 
-  [[noreturn]] void io(const std::string& what) const { throw Error(ErrorKind::Io, path + ": " + what); }
+  int write_errno = 0;  // the first failed write (h5::create_file_id)
+
+  [[noreturn]] void io(const std::string& what) const {
+    const std::string reason = write_errno ? std::strerror(write_errno) : h5::error_reason();
+    throw Error(ErrorKind::Io, path + ": " + what + (reason.empty() ? "" : ": " + reason));
+  }
 
   Hid group(hid_t parent, const char* name) {
     Hid g(H5Gcreate2(parent, name, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
@@ -173,9 +148,11 @@ struct VtkHdfWriter::Impl {
   }
 
   void open() {
-    quiet_hdf5();
-    file = Hid(H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, par ? static_cast<hid_t>(par->file_access) : H5P_DEFAULT),
-               H5Fclose);
+    h5::quiet();  // this thread's switch (hdf5_file.hpp)
+    // One process: dicer's driver (a full disk fails the write, yet the
+    // file still closes). Several ranks write one file through MPI-IO.
+    file = par ? Hid(H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, static_cast<hid_t>(par->file_access)), H5Fclose)
+               : Hid(h5::create_file_id(tmp, &write_errno), H5Fclose);
     if (!file) io("cannot create " + tmp);
     root = group(file.get(), "VTKHDF");
     {  // Version = [1, 0]
@@ -385,7 +362,7 @@ void VtkHdfWriter::finish() {
   try {
     if (H5Fflush(m.file.get(), H5F_SCOPE_GLOBAL) < 0) m.io("flush failed");
     m.close_all();
-    if (!m.file.reset()) m.io("closing " + m.tmp + " failed");
+    if (!m.file.reset() || m.write_errno) m.io("closing " + m.tmp + " failed");
   } catch (...) {
     m.broken = true;
     e = std::current_exception();

@@ -4,6 +4,7 @@
 #include <hdf5.h>
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -25,9 +26,11 @@ class Handle {
   Handle(const Handle&) = delete;
   Handle& operator=(const Handle&) = delete;
   ~Handle() { reset(); }
-  void reset() {
-    if (id_ >= 0 && close_) close_(id_);
+  // True when there was nothing to close or the close succeeded.
+  bool reset() {
+    const bool ok = id_ < 0 || !close_ || close_(id_) >= 0;
     id_ = -1;
+    return ok;
   }
   hid_t get() const { return id_; }
   explicit operator bool() const { return id_ >= 0; }
@@ -37,15 +40,51 @@ class Handle {
   herr_t (*close_)(hid_t) = nullptr;
 };
 
-// Turns off HDF5's own error printing once per process (errors are ours to report).
+// Turns off HDF5's own error printing for the calling thread (errors are
+// ours to report). Thread-safe HDF5 keeps that switch per thread, the
+// others per process: call it on every thread before its first HDF5 call.
 void quiet();
+
+// This thread's HDF5 error stack, read after a failed call: the operating
+// system's reason when HDF5 or dicer's driver recorded an errno ("No space
+// left on device"), else the innermost description; "" when empty.
+std::string error_reason();
+// Whether the stack holds an error of this minor class (H5E_CANTLOCKFILE...).
+bool error_stack_has(hid_t minor);
+
+// Creates (truncates) `path` for writing and returns the file id (< 0 on
+// failure, with the reason on the error stack and in *first_errno). Files
+// are written in the HDF5 1.10 format (superblock 3: every piece of
+// metadata carries a checksum, which the store reader relies on), through
+// dicer's driver: POSIX I/O like HDF5's sec2, except that after the first
+// failed write (disk full, EFBIG) later writes go to memory. The failure
+// still reaches the caller, but HDF5 can then close the file: HDF5 1.10
+// frees a file whose close fails yet keeps its id, and crashes at exit
+// (CVE-2020-10812). *first_errno (optional; must outlive the file) gets
+// the errno of the first failed write, also of one during the close.
+hid_t create_file_id(const std::string& path, int* first_errno = nullptr);
 
 class File {
  public:
-  static File create(const std::string& path);
+  // `name` is what messages call the file (the output, not its temporary).
+  static File create(const std::string& path, const std::string& name);
+  // Opens an existing file read-only. Refused before HDF5 parses anything:
+  // a path that is missing, unreadable (permission) or not a regular file
+  // (Error{Io}); no HDF5 signature (Error{BadInput}); HDF5 metadata without
+  // checksums (superblock 0 or 1, not written by dicer: Error{BadInput}).
+  // HDF5 then opens the very file checked (through /proc/self/fd). A file
+  // locked by a writer, or marked open for writing, is Error{Io}.
   static File open_read(const std::string& path);
   const std::string& path() const { return path_; }
+  const std::string& name() const { return name_; }
   hid_t id() const { return file_.get(); }
+  std::uint64_t file_bytes() const { return file_bytes_; }
+
+  // Closes a file being written; throws Error{Io} with the reason when
+  // anything failed on the way (a failed write HDF5 swallowed included).
+  void close();
+  // The reason the last write failed ("" when none did), for messages.
+  std::string write_failure() const;
 
   void group(const std::string& name);
   template <class T>
@@ -55,12 +94,23 @@ class File {
   bool exists(const std::string& name) const;
   void write_attr(const std::string& name, std::int64_t value);
   void write_attr(const std::string& name, const std::string& value);
+  // Root attributes holding exactly one value of the right class (an
+  // integer of at most 8 bytes; a fixed-length string of at most 4096
+  // bytes), else Error{Corrupt} naming the attribute.
   std::int64_t read_attr_int(const std::string& name) const;
   std::string read_attr_string(const std::string& name) const;
 
  private:
-  std::string path_;
+  std::string path_, name_;
+  std::uint64_t file_bytes_ = 0;
+  std::unique_ptr<int> write_errno_;  // the driver's (stable address)
   Handle file_;
 };
+
+// Opens dataset `name` of `file` after checking that it is stored in the
+// file itself: chunked, no external storage (a store is one file), the
+// given rank; Error{Corrupt} naming the dataset otherwise. dims gets the
+// extent (rank values).
+Handle open_chunked_dataset(const File& file, const std::string& name, int rank, hsize_t* dims);
 
 }  // namespace dicer::h5

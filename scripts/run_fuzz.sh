@@ -31,17 +31,19 @@
 #               store::decode_page; once as given, once with the size field and
 #               checksum fixed up (reaches the LZ4 layout and data checks), and
 #               an encode_page/decode_page round trip that must be exact.
-#   fuzz_store  the store opener: a small real store (cardinal_sphere.e at
-#               interval 2) is built at start-up; the input is a list of
-#               5-byte edits (LE32 offset, XOR byte) applied only inside the
-#               byte ranges of its chunks (the LZ4 pages), then read_store, a
-#               fill_block sweep, node/element queries and read_store_sets.
-#               Only dicer::Error may come out, and any data that does come
-#               back must be bit-identical to the pristine store (unless an
-#               edit left a page's Fletcher32 valid: a checksum collision).
-#               HDF5's own metadata (superblock, object headers, B-trees) is
-#               NOT fuzzed: HDF5 1.10 is known not to survive that (it crashes
-#               or loops inside the library on damaged metadata).
+#   fuzz_store  the store opener, two kinds of input:
+#               - a whole file (it starts with the HDF5 signature): written as
+#                 is and read like a store (read_store, a fill_block sweep,
+#                 node/element queries, read_store_sets). Everything is
+#                 fuzzed, HDF5's own metadata included (superblock, object
+#                 headers, chunk indexes, attributes); only dicer::Error may
+#                 come out. Seeds: three small real stores (whole_*.dice.h5).
+#               - otherwise a list of 5-byte edits (LE32 offset, XOR byte)
+#                 applied only inside the byte ranges of the chunks (the LZ4
+#                 pages) of a small real store (cardinal_sphere.e at interval
+#                 2) built at start-up; any data that comes back must be
+#                 bit-identical to the pristine store (unless an edit left a
+#                 page's Fletcher32 valid: a checksum collision).
 # Every target: only dicer::Error may escape; any other exception
 # (std::bad_alloc included), sanitizer report, leak, timeout (> 10 s) or RSS
 # over 2 GiB is a crash.

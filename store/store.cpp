@@ -2,8 +2,11 @@
 // (see FORMAT.md).
 #include "dicer/store.hpp"
 
+#include <sys/random.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -48,12 +51,14 @@ void write_crcs(const h5::File& f, const std::string& name, const std::vector<st
   h5::Handle space(H5Screate_simple(1, dims, nullptr), H5Sclose);
   h5::Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
   if (!space || !dcpl || H5Pset_chunk(dcpl.get(), 1, chunk) < 0)
-    throw Error(ErrorKind::Io, f.path() + ": " + name + ": cannot set up dataset");
+    throw Error(ErrorKind::Io, f.name() + ": " + name + ": cannot set up dataset");
   store::add_page_filters(dcpl.get());
   h5::Handle ds(H5Dcreate2(f.id(), name.c_str(), H5T_STD_U32LE, space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT),
                 H5Dclose);
-  if (!ds || (!crcs.empty() && H5Dwrite(ds.get(), H5T_NATIVE_UINT32, H5S_ALL, H5S_ALL, H5P_DEFAULT, crcs.data()) < 0))
-    throw Error(ErrorKind::Io, f.path() + ": " + name + ": write failed");
+  // Flushed before the close, so a full disk fails here (see create_file_id).
+  if (!ds || (!crcs.empty() && H5Dwrite(ds.get(), H5T_NATIVE_UINT32, H5S_ALL, H5S_ALL, H5P_DEFAULT, crcs.data()) < 0) ||
+      H5Dflush(ds.get()) < 0)
+    throw Error(ErrorKind::Io, f.name() + ": " + name + ": write failed: " + f.write_failure());
 }
 
 // Pages written so far and in all (for write_store's progress callback).
@@ -78,12 +83,12 @@ void write_paged(const h5::File& f, const std::string& name, const T* data, std:
   h5::Handle space(H5Screate_simple(rank, dims, maxdims), H5Sclose);
   h5::Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
   if (!space || !dcpl || H5Pset_chunk(dcpl.get(), rank, chunk) < 0)
-    throw Error(ErrorKind::Io, f.path() + ": " + name + ": cannot set up dataset");
-  if (shuffle && H5Pset_shuffle(dcpl.get()) < 0) throw Error(ErrorKind::Io, f.path() + ": " + name + ": cannot add shuffle");
+    throw Error(ErrorKind::Io, f.name() + ": " + name + ": cannot set up dataset");
+  if (shuffle && H5Pset_shuffle(dcpl.get()) < 0) throw Error(ErrorKind::Io, f.name() + ": " + name + ": cannot add shuffle");
   store::add_page_filters(dcpl.get());
   h5::Handle ds(H5Dcreate2(f.id(), name.c_str(), h5_type<T>(), space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT),
                 H5Dclose);
-  if (!ds) throw Error(ErrorKind::Io, f.path() + ": " + name + ": cannot create dataset");
+  if (!ds) throw Error(ErrorKind::Io, f.name() + ": " + name + ": cannot create dataset: " + f.write_failure());
   std::vector<std::uint8_t> page(static_cast<size_t>(rpp * width) * sizeof(T));
   std::vector<std::uint32_t> crcs;
   std::vector<std::uint8_t> shuffled;
@@ -96,12 +101,14 @@ void write_paged(const h5::File& f, const std::string& name, const T* data, std:
     crcs.push_back(store::page_crc(page));
     hsize_t offset[2] = {static_cast<hsize_t>(first), 0};
     if (H5Dwrite_chunk(ds.get(), H5P_DEFAULT, 0, offset, stored.size(), stored.data()) < 0)
-      throw Error(ErrorKind::Io, f.path() + ": " + name + ": writing page " + std::to_string(first / rpp) + " failed");
+      throw Error(ErrorKind::Io, f.name() + ": " + name + ": writing page " + std::to_string(first / rpp) +
+                                     " failed: " + f.write_failure());
     if (g_write_progress && g_write_progress->fn && *g_write_progress->fn) {
       ++g_write_progress->done;
       (*g_write_progress->fn)(g_write_progress->done, std::max(g_write_progress->total, g_write_progress->done));
     }
   }
+  if (H5Dflush(ds.get()) < 0) throw Error(ErrorKind::Io, f.name() + ": " + name + ": write failed: " + f.write_failure());
   write_crcs(f, name + store::kPageCrcSuffix, crcs);
 }
 
@@ -146,6 +153,7 @@ struct OpenStore {
     std::vector<std::uint8_t> raw;
     {
       std::lock_guard lock(hdf5_mutex());
+      h5::quiet();  // this may be the cache's read-ahead thread
       hsize_t offset[2] = {key.page * static_cast<hsize_t>(a.rows_per_page), 0};
       hsize_t stored = 0;
       if (H5Dget_chunk_storage_size(a.ds.get(), offset, &stored) < 0 || stored == 0)
@@ -169,61 +177,99 @@ struct OpenStore {
   }
 };
 
+// The pipeline dice writes: [shuffle,] LZ4 (32004), Fletcher32. HDF5 runs
+// this pipeline itself when it reads a companion, so nothing else may be in
+// it (no filter of HDF5's own with parameters from the file). Returns
+// whether the byte shuffle is in it.
+bool check_pipeline(hid_t dcpl, const std::string& what, bool may_shuffle) {
+  const int n = H5Pget_nfilters(dcpl);
+  H5Z_filter_t id[3] = {-1, -1, -1};
+  for (int i = 0; i < n && i < 3; ++i)
+    id[i] = H5Pget_filter2(dcpl, static_cast<unsigned>(i), nullptr, nullptr, nullptr, 0, nullptr, nullptr);
+  const bool shuffled = may_shuffle && n == 3 && id[0] == H5Z_FILTER_SHUFFLE;
+  const int at = shuffled ? 1 : 0;
+  if (n != at + 2 || id[at] != store::kLz4FilterId || id[at + 1] != H5Z_FILTER_FLETCHER32)
+    throw Error(ErrorKind::Corrupt, what + " does not have the store's filter pipeline (" +
+                                        (may_shuffle ? "[shuffle,] " : "") + "LZ4 32004, Fletcher32)");
+  return shuffled;
+}
+
+// dice writes every page, so a dataset whose shape needs more (or fewer)
+// chunks than the file holds lies about its size: refused before that size
+// allocates anything.
+void check_chunk_count(hid_t ds, hsize_t pages, const std::string& what, hsize_t rows) {
+  h5::Handle space(H5Dget_space(ds), H5Sclose);
+  hsize_t n = 0;
+  if (!space || H5Dget_num_chunks(ds, space.get(), &n) < 0)
+    throw Error(ErrorKind::Corrupt, what + ": its page index cannot be read (damaged)");
+  if (n != pages)
+    throw Error(ErrorKind::Corrupt, what + " declares " + std::to_string(rows) + " rows in " + std::to_string(pages) +
+                                        " pages, but the file holds " + std::to_string(n) + " pages");
+}
+
+// Row count of a dataset of the store, for those no attribute declares.
+std::int64_t dataset_rows(const h5::File& f, const std::string& name) {
+  std::lock_guard lock(hdf5_mutex());
+  hsize_t dims[2] = {0, 0};
+  h5::open_chunked_dataset(f, name, 2, dims);
+  if (dims[0] > (hsize_t{1} << 48))
+    throw Error(ErrorKind::Corrupt, f.path() + ": dataset " + name + " declares " + std::to_string(dims[0]) + " rows");
+  return static_cast<std::int64_t>(dims[0]);
+}
+
 template <class T>
 std::uint32_t open_paged(OpenStore& s, const std::string& name, std::int64_t width, std::int64_t want_rows) {
   std::lock_guard lock(hdf5_mutex());  // the read-ahead thread may be loading pages
-  const std::string& path = s.file.path();
-  if (!s.file.exists(name)) throw Error(ErrorKind::Corrupt, path + ": dataset " + name + " is missing");
+  const std::string what = s.file.path() + ": dataset " + name;
   PagedDataset a;
   a.name = name;
-  a.ds = h5::Handle(H5Dopen2(s.file.id(), name.c_str(), H5P_DEFAULT), H5Dclose);
-  if (!a.ds) throw Error(ErrorKind::Corrupt, path + ": dataset " + name + " cannot be opened");
-  h5::Handle space(H5Dget_space(a.ds.get()), H5Sclose);
+  hsize_t dims[2] = {0, 0}, chunk[2] = {0, 0};
+  a.ds = h5::open_chunked_dataset(s.file, name, 2, dims);
   h5::Handle dcpl(H5Dget_create_plist(a.ds.get()), H5Pclose);
   h5::Handle type(H5Dget_type(a.ds.get()), H5Tclose);
-  hsize_t dims[2] = {0, 0}, chunk[2] = {0, 0};
-  if (H5Sget_simple_extent_ndims(space.get()) != 2 || H5Sget_simple_extent_dims(space.get(), dims, nullptr) < 0 ||
-      H5Pget_layout(dcpl.get()) != H5D_CHUNKED || H5Pget_chunk(dcpl.get(), 2, chunk) != 2)
-    throw Error(ErrorKind::Corrupt, path + ": dataset " + name + " is not a 2-D chunked dataset");
-  if (static_cast<std::int64_t>(dims[1]) != width || (want_rows >= 0 && static_cast<std::int64_t>(dims[0]) != want_rows))
-    throw Error(ErrorKind::Corrupt, path + ": dataset " + name + " has shape " + std::to_string(dims[0]) + " x " +
-                                        std::to_string(dims[1]) + ", expected " + std::to_string(want_rows) + " x " +
-                                        std::to_string(width));
+  if (!dcpl || !type || H5Pget_chunk(dcpl.get(), 2, chunk) != 2)
+    throw Error(ErrorKind::Corrupt, what + " is not a 2-D chunked dataset");
+  if (static_cast<std::int64_t>(dims[1]) != width || want_rows < 0 || dims[0] != static_cast<hsize_t>(want_rows))
+    throw Error(ErrorKind::Corrupt, what + " has shape " + std::to_string(dims[0]) + " x " + std::to_string(dims[1]) +
+                                        ", expected " + std::to_string(want_rows) + " x " + std::to_string(width));
   if (chunk[1] != dims[1] || chunk[0] == 0 || chunk[0] * dims[1] * sizeof(T) > 4 * kStorePageBytes)
-    throw Error(ErrorKind::Corrupt, path + ": dataset " + name + " has an unexpected page shape");
+    throw Error(ErrorKind::Corrupt, what + " has an unexpected page shape");
   if (H5Tget_size(type.get()) != sizeof(T) || H5Tequal(type.get(), h5_type<T>()) <= 0)
-    throw Error(ErrorKind::Corrupt, path + ": dataset " + name + " has an unexpected element type");
-  const int nfilters = H5Pget_nfilters(dcpl.get());
-  a.shuffled = nfilters >= 1 && H5Pget_filter2(dcpl.get(), 0, nullptr, nullptr, nullptr, 0, nullptr, nullptr) == H5Z_FILTER_SHUFFLE;
-  const unsigned lz4_at = a.shuffled ? 1 : 0;
-  if (nfilters < static_cast<int>(lz4_at) + 1 ||
-      H5Pget_filter2(dcpl.get(), lz4_at, nullptr, nullptr, nullptr, 0, nullptr, nullptr) != store::kLz4FilterId)
-    throw Error(ErrorKind::Corrupt, path + ": dataset " + name + " is not LZ4-paged (filter 32004)");
+    throw Error(ErrorKind::Corrupt, what + " has an unexpected element type");
+  a.shuffled = check_pipeline(dcpl.get(), what, true);
+  const hsize_t pages = (dims[0] + chunk[0] - 1) / chunk[0];
+  check_chunk_count(a.ds.get(), pages, what, dims[0]);
   a.rows = static_cast<std::int64_t>(dims[0]);
   a.width = width;
   a.rows_per_page = static_cast<std::int64_t>(chunk[0]);
   a.elem = sizeof(T);
   {
     const std::string crc_name = name + store::kPageCrcSuffix;
-    const hsize_t pages = (dims[0] + chunk[0] - 1) / chunk[0];
-    if (!s.file.exists(crc_name)) throw Error(ErrorKind::Corrupt, path + ": dataset " + crc_name + " is missing");
-    h5::Handle cds(H5Dopen2(s.file.id(), crc_name.c_str(), H5P_DEFAULT), H5Dclose);
-    h5::Handle csp(H5Dget_space(cds.get()), H5Sclose);
-    hsize_t cdims[1] = {0};
-    if (!cds || H5Sget_simple_extent_ndims(csp.get()) != 1 || H5Sget_simple_extent_dims(csp.get(), cdims, nullptr) < 0 ||
-        cdims[0] != pages)
-      throw Error(ErrorKind::Corrupt, path + ": dataset " + crc_name + " does not have one entry per page of " + name);
+    const std::string crc_what = s.file.path() + ": dataset " + crc_name;
+    hsize_t cdims[1] = {0}, cchunk[1] = {0};
+    h5::Handle cds = h5::open_chunked_dataset(s.file, crc_name, 1, cdims);
+    if (cdims[0] != pages) throw Error(ErrorKind::Corrupt, crc_what + " does not have one entry per page of " + name);
+    h5::Handle cdcpl(H5Dget_create_plist(cds.get()), H5Pclose);
+    h5::Handle ctype(H5Dget_type(cds.get()), H5Tclose);
+    // HDF5 converts while it reads: a companion of another type (a changed
+    // size byte) would be converted into a buffer sized for uint32.
+    if (!cdcpl || !ctype || H5Tequal(ctype.get(), H5T_STD_U32LE) <= 0)
+      throw Error(ErrorKind::Corrupt, crc_what + " has an unexpected element type (not uint32)");
+    if (H5Pget_chunk(cdcpl.get(), 1, cchunk) != 1 || cchunk[0] == 0 || cchunk[0] > kCrcChunk)
+      throw Error(ErrorKind::Corrupt, crc_what + " has an unexpected page shape");
+    check_pipeline(cdcpl.get(), crc_what, false);
+    check_chunk_count(cds.get(), (pages + cchunk[0] - 1) / cchunk[0], crc_what, pages);
     a.crc.resize(static_cast<size_t>(pages));
     // Read page by page of the companion (write_crcs' chunks) so that a
     // damaged one is named like any other page.
-    for (hsize_t at = 0, page = 0; at < pages; at += kCrcChunk, ++page) {
-      hsize_t start[1] = {at}, count[1] = {std::min<hsize_t>(kCrcChunk, pages - at)};
+    h5::Handle csp(H5Dget_space(cds.get()), H5Sclose);
+    for (hsize_t at = 0, page = 0; at < pages; at += cchunk[0], ++page) {
+      hsize_t start[1] = {at}, count[1] = {std::min<hsize_t>(cchunk[0], pages - at)};
       h5::Handle fsp(H5Scopy(csp.get()), H5Sclose);
       h5::Handle msp(H5Screate_simple(1, count, nullptr), H5Sclose);
       if (!fsp || !msp || H5Sselect_hyperslab(fsp.get(), H5S_SELECT_SET, start, nullptr, count, nullptr) < 0 ||
           H5Dread(cds.get(), H5T_NATIVE_UINT32, msp.get(), fsp.get(), H5P_DEFAULT, a.crc.data() + at) < 0)
-        throw Error(ErrorKind::Corrupt, path + ": dataset " + crc_name + " page " + std::to_string(page) +
-                                            ": cannot be read (damaged)");
+        throw Error(ErrorKind::Corrupt, crc_what + " page " + std::to_string(page) + ": cannot be read (damaged)");
     }
   }
   s.arrays.push_back(std::move(a));
@@ -234,7 +280,7 @@ std::uint32_t open_paged(OpenStore& s, const std::string& name, std::int64_t wid
 template <class T>
 std::vector<T> read_small(OpenStore& s, const std::shared_ptr<PageCache>& cache, const std::string& name,
                           std::int64_t rows) {
-  const std::uint32_t id = open_paged<T>(s, name, 1, rows);
+  const std::uint32_t id = open_paged<T>(s, name, 1, rows);  // rows checked against the file first
   const PagedDataset& a = s.arrays[id];
   cache->set_array_pages(id, static_cast<std::uint64_t>((a.rows + a.rows_per_page - 1) / a.rows_per_page));
   Table<T> t(1, a.rows, cache, id, a.rows_per_page);
@@ -244,6 +290,100 @@ std::vector<T> read_small(OpenStore& s, const std::shared_ptr<PageCache>& cache,
   return out;
 }
 
+// A store holds hard links only: a soft, external or user-defined link
+// could point outside the file (a FIFO would block every command), and
+// HDF5 follows them when a path is opened. Checked before any path is.
+struct LinkScan {
+  std::string bad;
+  H5L_type_t type = H5L_TYPE_HARD;
+  std::uint64_t count = 0;
+};
+constexpr std::uint64_t kMaxLinks = 100000;
+
+herr_t scan_link(hid_t, const char* name, const H5L_info_t* info, void* data) {
+  auto* scan = static_cast<LinkScan*>(data);
+  if (info->type != H5L_TYPE_HARD || ++scan->count > kMaxLinks) {
+    scan->bad = name ? name : "";
+    scan->type = info->type;
+    return 1;
+  }
+  return 0;
+}
+
+void check_links(const h5::File& f) {
+  LinkScan scan;
+  const herr_t rc = H5Lvisit(f.id(), H5_INDEX_NAME, H5_ITER_NATIVE, scan_link, &scan);
+  if (rc < 0) throw Error(ErrorKind::Corrupt, f.path() + ": its groups cannot be listed (damaged)");
+  if (rc == 0) return;
+  if (scan.count > kMaxLinks)
+    throw Error(ErrorKind::Corrupt, f.path() + ": more than " + std::to_string(kMaxLinks) + " objects (not a dicer store)");
+  const char* kind = scan.type == H5L_TYPE_SOFT       ? "a soft link"
+                     : scan.type == H5L_TYPE_EXTERNAL ? "an external link (to another file)"
+                                                      : "a user-defined link";
+  throw Error(ErrorKind::Corrupt, f.path() + ": " + scan.bad + " is " + kind +
+                                      "; a store is one file of plain objects, and it is not followed");
+}
+
+bool is_store_uuid(const std::string& u) {
+  return u.size() == 32 && u.find_first_not_of("0123456789abcdef") == std::string::npos;
+}
+
+// 128 random bits from the kernel, as 32 lowercase hex digits.
+std::string new_store_uuid() {
+  unsigned char b[16];
+  std::size_t got = 0;
+  while (got < sizeof b) {
+    const ssize_t n = ::getrandom(b + got, sizeof b - got, 0);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) throw Error(ErrorKind::Io, std::string("cannot draw a store uuid: ") + std::strerror(errno));
+    got += static_cast<std::size_t>(n);
+  }
+  static const char* kHex = "0123456789abcdef";
+  std::string s;
+  for (unsigned char c : b) s += kHex[c >> 4], s += kHex[c & 15];
+  return s;
+}
+
+// Opens the store file and reads its root attributes: format, version,
+// uuid, mode, source and the declared counts (each checked against its
+// dataset when that is opened, before it sizes anything).
+struct StoreHeader {
+  MeshInfo info;
+  std::int64_t bounding_nodes = 0;
+};
+
+std::shared_ptr<OpenStore> open_store(const std::string& path, StoreHeader& h) {
+  std::lock_guard lock(hdf5_mutex());
+  store::register_lz4_filter();
+  auto s = std::make_shared<OpenStore>();
+  s->file = h5::File::open_read(path);
+  check_links(s->file);
+  if (H5Aexists(s->file.id(), "format") <= 0 || s->file.read_attr_string("format") != kStoreFormatName)
+    throw Error(ErrorKind::BadInput, path + ": not a dicer store (format attribute missing or wrong)");
+  const std::int64_t version = s->file.read_attr_int("format_version");
+  if (version != kStoreFormatVersion)
+    throw Error(ErrorKind::Unsupported, path + ": store format version " + std::to_string(version) +
+                                            " is not known to this dicer (it reads version " +
+                                            std::to_string(kStoreFormatVersion) + ")");
+  MeshInfo& info = h.info;
+  info.uuid = s->file.read_attr_string("uuid");
+  if (!is_store_uuid(info.uuid))
+    throw Error(ErrorKind::Corrupt, path + ": attribute uuid \"" + info.uuid + "\" is not 32 lowercase hex digits");
+  const std::string mode = s->file.read_attr_string("mode");
+  if (mode != "volume" && mode != "surface") throw Error(ErrorKind::Corrupt, path + ": unknown mode \"" + mode + "\"");
+  info.mode = mode == "volume" ? Mode::Volume : Mode::Surface;
+  info.source = s->file.read_attr_string("source");
+  auto count = [&](const char* name) {
+    const std::int64_t v = s->file.read_attr_int(name);
+    if (v < 0) throw Error(ErrorKind::Corrupt, path + ": attribute " + name + " is negative");
+    return v;
+  };
+  info.coarse_vertices = count("coarse_vertices"), info.coarse_edges = count("coarse_edges");
+  info.coarse_faces = count("coarse_faces"), info.coarse_elements = count("coarse_elements");
+  info.sheets = count("sheets"), info.nodes = count("fine_nodes"), info.elements = count("fine_elements");
+  h.bounding_nodes = count("bounding_nodes");
+  return s;
+}
 }  // namespace
 
 void write_store(const FineMesh& mesh, const std::string& path,
@@ -270,9 +410,10 @@ void write_store(const FineMesh& mesh, const std::string& path,
   } reset_progress;
   {
     {
-      h5::File f = h5::File::create(tmp);
+      h5::File f = h5::File::create(tmp, path);
       f.write_attr("format", std::string(kStoreFormatName));
       f.write_attr("format_version", kStoreFormatVersion);
+      f.write_attr("uuid", new_store_uuid());
       f.write_attr("mode", std::string(mode_name(info.mode)));
       f.write_attr("source", info.source);
       f.write_attr("coarse_vertices", info.coarse_vertices);
@@ -334,8 +475,9 @@ void write_store(const FineMesh& mesh, const std::string& path,
       write_paged(f, "sets/node_set_id", ns_id), write_paged(f, "sets/node_set_offset", ns_off);
       write_paged(f, "sets/node_set_vertex", ns_vert);
       write_strings(f, "sets/node_set_name", ns_name);
-      if (H5Fflush(f.id(), H5F_SCOPE_GLOBAL) < 0) throw Error(ErrorKind::Io, tmp + ": flush failed");
-    }  // closed here, before the commit
+      if (H5Fflush(f.id(), H5F_SCOPE_GLOBAL) < 0) throw Error(ErrorKind::Io, path + ": cannot write: " + f.write_failure());
+      f.close();
+    }
     out.commit();  // an exception before this leaves the temporary to `out`, which removes it
   }
 }
@@ -343,31 +485,11 @@ void write_store(const FineMesh& mesh, const std::string& path,
 FineMesh read_store(const std::string& path, const StoreOptions& options) {
   if (options.cache_bytes < (1u << 20))
     throw Error(ErrorKind::Usage, "cache budget " + std::to_string(options.cache_bytes) + " bytes is too small (at least 1 MiB)");
+  StoreHeader header;
+  auto s = open_store(path, header);
+  MeshInfo info = std::move(header.info);
+  const std::int64_t bounding_nodes = header.bounding_nodes;
   std::unique_lock lock(hdf5_mutex());
-  store::register_lz4_filter();
-  auto s = std::make_shared<OpenStore>();
-  s->file = h5::File::open_read(path);
-  if (H5Aexists(s->file.id(), "format") <= 0 || s->file.read_attr_string("format") != kStoreFormatName)
-    throw Error(ErrorKind::BadInput, path + ": not a dicer store (format attribute missing or wrong)");
-  const std::int64_t version = s->file.read_attr_int("format_version");
-  if (version != kStoreFormatVersion)
-    throw Error(ErrorKind::Unsupported, path + ": store format version " + std::to_string(version) +
-                                            " is not known to this dicer (it reads version " +
-                                            std::to_string(kStoreFormatVersion) + ")");
-  MeshInfo info;
-  const std::string mode = s->file.read_attr_string("mode");
-  if (mode != "volume" && mode != "surface") throw Error(ErrorKind::Corrupt, path + ": unknown mode \"" + mode + "\"");
-  info.mode = mode == "volume" ? Mode::Volume : Mode::Surface;
-  info.source = s->file.read_attr_string("source");
-  auto count = [&](const char* name) {
-    const std::int64_t v = s->file.read_attr_int(name);
-    if (v < 0) throw Error(ErrorKind::Corrupt, path + ": attribute " + name + " is negative");
-    return v;
-  };
-  info.coarse_vertices = count("coarse_vertices"), info.coarse_edges = count("coarse_edges");
-  info.coarse_faces = count("coarse_faces"), info.coarse_elements = count("coarse_elements");
-  info.sheets = count("sheets"), info.nodes = count("fine_nodes"), info.elements = count("fine_elements");
-  const std::int64_t bounding_nodes = count("bounding_nodes");
 
   PageCache::Options co;
   co.budget_bytes = options.cache_bytes;
@@ -418,16 +540,9 @@ FineMesh read_store(const std::string& path, const StoreOptions& options) {
           tab.group_bounds[g + d] > tab.group_bounds[g + 3 + d])
         throw Error(ErrorKind::Corrupt, path + ": index/group_bounds row " + std::to_string(g / 6) +
                                             ": not finite or lower above upper");
-  std::int64_t nblocks = 0;
-  {
-    std::lock_guard relock(hdf5_mutex());
-    h5::Handle ds(H5Dopen2(s->file.id(), "coarse/block_id", H5P_DEFAULT), H5Dclose);
-    h5::Handle sp(H5Dget_space(ds.get()), H5Sclose);
-    hsize_t dims[2] = {0, 0};
-    if (!ds || H5Sget_simple_extent_dims(sp.get(), dims, nullptr) < 0 || dims[0] > (1u << 24))
-      throw Error(ErrorKind::Corrupt, path + ": dataset coarse/block_id is missing or implausible");
-    nblocks = static_cast<std::int64_t>(dims[0]);
-  }
+  const std::int64_t nblocks = dataset_rows(s->file, "coarse/block_id");
+  if (nblocks > (1 << 24)) throw Error(ErrorKind::Corrupt, path + ": dataset coarse/block_id holds an implausible " +
+                                                               std::to_string(nblocks) + " blocks");
   tab.blocks = nblocks;
   const auto block_id = read_small<std::int64_t>(*s, cache, "coarse/block_id", nblocks);
   const auto name_off = read_small<std::int64_t>(*s, cache, "coarse/block_name_offset", nblocks + 1);
@@ -472,27 +587,25 @@ FineMesh read_store(const std::string& path, const StoreOptions& options) {
 std::shared_ptr<PageCache> store_cache(const FineMesh& mesh) { return mesh.tables().cache; }
 
 StoreSets read_store_sets(const std::string& path) {
+  return read_store_sets(read_store(path, StoreOptions{4ull << 20, 0}), path);
+}
+
+StoreSets read_store_sets(const FineMesh& mesh, const std::string& path) {
   // Opened like a store (version checks included), then read through the
-  // same cache machinery so every page is checksummed.
-  const FineMesh probe = read_store(path, StoreOptions{4ull << 20, 0});
-  auto s = std::make_shared<OpenStore>();
-  {
-    std::lock_guard lock(hdf5_mutex());
-    s->file = h5::File::open_read(path);
-  }
+  // same cache machinery so every page is checksummed. The uuid ties it to
+  // `mesh`: a store replaced since the mesh was read is not mixed into it.
+  StoreHeader header;
+  auto s = open_store(path, header);
+  if (header.info.uuid != mesh.info().uuid)
+    throw Error(ErrorKind::Io, path + ": the store was replaced after its mesh was read (uuid " + header.info.uuid +
+                                   ", the mesh's " + (mesh.info().uuid.empty() ? "none" : mesh.info().uuid) +
+                                   "); run the command again");
   auto cache = std::make_shared<PageCache>(
       [s](PageKey key, std::vector<std::uint8_t>& out) { return s->load(key, out); }, PageCache::Options{4ull << 20, 0, false});
-  auto rows_of = [&](const std::string& name) {
-    std::lock_guard lock(hdf5_mutex());
-    h5::Handle ds(H5Dopen2(s->file.id(), name.c_str(), H5P_DEFAULT), H5Dclose);
-    if (!ds) throw Error(ErrorKind::Corrupt, path + ": dataset " + name + " is missing");
-    h5::Handle sp(H5Dget_space(ds.get()), H5Sclose);
-    hsize_t dims[2] = {0, 0};
-    H5Sget_simple_extent_dims(sp.get(), dims, nullptr);
-    return static_cast<std::int64_t>(dims[0]);
-  };
+  auto rows_of = [&](const std::string& name) { return dataset_rows(s->file, name); };
   auto strings = [&](const std::string& base, std::int64_t n) {
     const auto off = read_small<std::int64_t>(*s, cache, base + "_offset", n + 1);
+    if (off.front() != 0 || off.back() < 0) throw Error(ErrorKind::Corrupt, path + ": " + base + "_offset is inconsistent");
     const auto chars = read_small<std::int8_t>(*s, cache, base + "_chars", off.back());
     std::vector<std::string> out;
     for (std::int64_t i = 0; i < n; ++i) {
@@ -519,7 +632,7 @@ StoreSets read_store_sets(const std::string& path) {
   cache->set_array_pages(sm, static_cast<std::uint64_t>((nsm + s->arrays[sm].rows_per_page - 1) / s->arrays[sm].rows_per_page));
   Table<std::int64_t> members(2, nsm, cache, sm, s->arrays[sm].rows_per_page);
   TableCursor cur;
-  const std::int64_t nh = probe.num_coarse_elements();
+  const std::int64_t nh = mesh.num_coarse_elements();
   for (std::int64_t k = 0; k < nss; ++k) {
     SideSet set{ss_id[k], ss_names[k], {}, {}};
     for (std::int64_t i = ss_off[k]; i < ss_off[k + 1]; ++i) {
@@ -540,7 +653,7 @@ StoreSets read_store_sets(const std::string& path) {
   for (std::int64_t k = 0; k < nns; ++k) {
     NodeSet set{ns_id[k], ns_names[k], {verts.begin() + ns_off[k], verts.begin() + ns_off[k + 1]}};
     for (Id v : set.vertex)
-      if (v < 0 || v >= probe.info().coarse_vertices)
+      if (v < 0 || v >= mesh.info().coarse_vertices)
         throw Error(ErrorKind::Corrupt, path + ": node set " + std::to_string(ns_id[k]) + ": vertex out of range");
     out.node_sets.push_back(std::move(set));
   }
@@ -550,17 +663,17 @@ StoreSets read_store_sets(const std::string& path) {
 StoreSummary store_summary(const std::string& path) {
   std::lock_guard lock(hdf5_mutex());
   h5::File f = h5::File::open_read(path);
+  check_links(f);
   StoreSummary s;
-  s.format_version = static_cast<int>(f.read_attr_int("format_version"));
+  const std::int64_t version = f.read_attr_int("format_version");
+  s.format_version = static_cast<int>(std::clamp<std::int64_t>(version, -1, 1 << 30));
   if (s.format_version == kStoreFormatVersion) {
     s.bounding_nodes = f.read_attr_int("bounding_nodes");
-    for (const char* name : {"geometry/bounding", "geometry/bounding_crc"}) {
-      h5::Handle ds(H5Dopen2(f.id(), name, H5P_DEFAULT), H5Dclose);
-      if (ds) s.bounding_bytes += H5Dget_storage_size(ds.get());
-    }
+    hsize_t dims[2];
+    for (const auto& [name, rank] : {std::pair{"geometry/bounding", 2}, std::pair{"geometry/bounding_crc", 1}})
+      s.bounding_bytes += H5Dget_storage_size(h5::open_chunked_dataset(f, name, rank, dims).get());
   }
-  std::error_code ec;
-  s.file_bytes = std::filesystem::file_size(path, ec);
+  s.file_bytes = f.file_bytes();
   return s;
 }
 

@@ -131,6 +131,14 @@ class ExportChunk {
   std::vector<NodeMembers> node_sets_;
 };
 
+// Bytes an ExportChunk of `range` holds once prepared (what its comment
+// above lists), from the range's element and own node counts (O(1) rows
+// read). prepare() refuses a chunk (no box) whose estimate exceeds the
+// memory available to the process (MemAvailable, RLIMIT_AS) with
+// Error{Usage} giving the estimate and a chunk count that fits.
+std::uint64_t estimate_chunk_bytes(const FineMesh& mesh, const ChunkRange& range);
+void refuse_if_too_big(const FineMesh& mesh, const ChunkRange& range);
+
 // Writers. Each writes to `path` through a temporary name in the same
 // folder, renamed when complete (an interrupted export leaves nothing under
 // the final name). Throw Error{Io|Usage}.

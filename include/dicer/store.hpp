@@ -52,6 +52,11 @@ struct StoreSets {
   std::vector<SideSet> side_sets;
   std::vector<NodeSet> node_sets;
 };
+// The sets of `mesh`, read from `path`: Error{Io} when the store there is
+// no longer the one `mesh` was read from (another uuid: replaced since),
+// so a command never mixes two stores. Use this one when the mesh is open.
+StoreSets read_store_sets(const FineMesh& mesh, const std::string& path);
+// Opens the store once more for its mesh first.
 StoreSets read_store_sets(const std::string& path);
 
 struct StoreSummary {

@@ -51,24 +51,10 @@ std::string text_file(const test::TempDir& d, const std::string& name, const std
 }
 
 // A store to damage, made once per test process.
-const std::string& good_store() {
-  static test::TempDir dir;
-  static const std::string path = [] {
-    const std::string p = dir.path("good.dice.h5");
-    const auto r = test::run_cli({"dice", test::data_path("cardinal_sphere.e"), "--interval", "2", "-o", p});
-    if (r.exit_code != 0) throw std::runtime_error("cannot make the store: " + r.err);
-    return p;
-  }();
-  return path;
-}
+const std::string& good_store() { return test::diced_store("cardinal_sphere.e", 2); }
 
 std::string edited_store(const test::TempDir& d, const std::function<void(hid_t)>& edit) {
-  const std::string p = d.path("bad.dice.h5");
-  fs::copy_file(good_store(), p, fs::copy_options::overwrite_existing);
-  hid_t f = H5Fopen(p.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
-  edit(f);
-  H5Fclose(f);
-  return p;
+  return test::edited_copy(good_store(), d.path("bad.dice.h5"), edit);
 }
 
 // An Exodus file with one block of `type` and `nodes_per` nodes per element.

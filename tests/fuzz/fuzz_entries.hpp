@@ -46,16 +46,20 @@ void run_exodus(const std::uint8_t* data, std::size_t size);
 // the rest through encode_page/decode_page (must give the same bytes).
 void run_page(const std::uint8_t* data, std::size_t size);
 
-// Store opener: a small real store is built once per process (cardinal_sphere.e
-// diced at interval 2); the input is a list of 5-byte edits (4-byte LE offset
-// into the concatenated byte ranges of the store's chunks, modulo their total;
-// 1 XOR byte). The edited copy is opened with read_store, every block is
-// filled, a few nodes/elements are queried and the sets are read. Any result
-// that comes back must equal the pristine store's bit for bit, unless the
-// edits left some page's Fletcher32 checksum valid (a checksum collision,
-// e.g. a 0x0000 word turned 0xffff: undetectable by design), in which case
-// only "no crash, no non-dicer exception" is required.
-// HDF5's own metadata is never edited (HDF5 1.10 does not survive that).
+// Store opener, two kinds of input.
+// 1. A whole file (it starts with the HDF5 signature): written as is and
+//    read like a store (read_store, every block filled, a few node and
+//    element queries, read_store_sets). Everything is fuzzed: superblock,
+//    object headers, chunk indexes, attributes, pages. Only dicer::Error
+//    may come out. Seeds: small real stores (tests/fuzz/corpus/fuzz_store).
+// 2. Otherwise a list of 5-byte edits of a small real store built once per
+//    process (cardinal_sphere.e diced at interval 2): a 4-byte LE offset
+//    into the concatenated byte ranges of the store's chunks (modulo their
+//    total) and 1 XOR byte. Any result that comes back must equal the
+//    pristine store's bit for bit, unless the edits left some page's
+//    Fletcher32 checksum valid (a checksum collision, e.g. a 0x0000 word
+//    turned 0xffff: then the CRC-32 companion must catch it, and only "no
+//    crash, no non-dicer exception" is required of the rest).
 void run_store(const std::uint8_t* data, std::size_t size);
 
 // Where the store target's pristine store lives (built on first use);

@@ -1,5 +1,6 @@
 #include "store_forge.hpp"
 
+#include <filesystem>
 #include <stdexcept>
 
 #include "lz4_filter.hpp"
@@ -49,6 +50,16 @@ void forge_page(hid_t file, const std::string& dataset, hsize_t page,
   if (H5Dwrite(cds, H5T_NATIVE_UINT32, H5S_ALL, H5S_ALL, H5P_DEFAULT, crc.data()) < 0)
     throw std::runtime_error("forge_page: cannot rewrite " + crc_name);
   H5Sclose(sp), H5Dclose(cds);
+}
+
+std::string edited_copy(const std::string& store, const std::string& path, const std::function<void(hid_t)>& edit) {
+  std::filesystem::copy_file(store, path, std::filesystem::copy_options::overwrite_existing);
+  store::register_lz4_filter();
+  const hid_t f = H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+  if (f < 0) throw std::runtime_error("edited_copy: cannot open " + path);
+  edit(f);
+  H5Fclose(f);
+  return path;
 }
 
 }  // namespace dicer::test

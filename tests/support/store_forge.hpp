@@ -15,4 +15,8 @@ namespace dicer::test {
 void forge_page(hid_t file, const std::string& dataset, hsize_t page,
                 const std::function<void(std::vector<std::uint8_t>&)>& edit, bool keep_crc_valid);
 
+// Copies `store` to `path` (replacing it), opens the copy read-write, runs
+// edit(file) and closes it; returns path.
+std::string edited_copy(const std::string& store, const std::string& path, const std::function<void(hid_t)>& edit);
+
 }  // namespace dicer::test

@@ -7,6 +7,8 @@
 #include <algorithm>
 #include <atomic>
 #include <fstream>
+#include <map>
+#include <mutex>
 #include <random>
 #include <sstream>
 #include <stdexcept>
@@ -39,6 +41,19 @@ void write_file(const std::string& path, const std::string& bytes) {
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
   out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
   if (!out) throw std::runtime_error("cannot write " + path);
+}
+
+const std::string& diced_store(const std::string& mesh, int interval) {
+  static TempDir dir;
+  static std::map<std::pair<std::string, int>, std::string> made;
+  static std::mutex mu;
+  std::lock_guard lock(mu);
+  const auto key = std::make_pair(mesh, interval);
+  if (auto it = made.find(key); it != made.end()) return it->second;
+  const std::string p = dir.path(mesh + "." + std::to_string(interval) + ".dice.h5");
+  const auto r = run_cli({"dice", data_path(mesh), "--interval", std::to_string(interval), "-o", p});
+  if (r.exit_code != 0) throw std::runtime_error("cannot make the store: " + r.err);
+  return made.emplace(key, p).first->second;
 }
 
 CliResult run_process(const std::vector<std::string>& argv, const std::map<std::string, std::string>& set,

@@ -32,6 +32,10 @@ struct CliResult {
   std::string out, err;
 };
 
+// A store of tests/data/MESH diced at `interval` by the built binary, made
+// once per test process and kept until it exits; copy it to change it.
+const std::string& diced_store(const std::string& mesh, int interval);
+
 // Runs the built `dicer` binary with the given arguments (no shell).
 CliResult run_cli(const std::vector<std::string>& args);
 
