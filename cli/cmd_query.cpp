@@ -1,12 +1,17 @@
 // dicer query: fine nodes and elements by id.
 #include <algorithm>
+#include <cerrno>
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
 
 #include "command.hpp"
 #include "common.hpp"
 #include "dicer/error.hpp"
 #include "dicer/export.hpp"
 #include "dicer/fine_mesh.hpp"
+#include "dicer/locate.hpp"
 #include "json_out.hpp"
 
 namespace dicer::cli {
@@ -14,13 +19,15 @@ namespace dicer::cli {
 static const CommandDoc kDoc = {
     "query",
     R"(query STORE (--node ID | --nodes FIRST:END | --element ID |
-                   --elements FIRST:END | --box x0,y0,z0,x1,y1,z1 [--count])
+                   --elements FIRST:END | --box x0,y0,z0,x1,y1,z1 [--count] |
+                   --point x,y,z | --points FILE [--threads N])
                    [--json] [store options])",
-    R"(Regenerates fine nodes or elements by id; ids start at 0. Ranges are
-half-open: --nodes 1000:2000 prints ids 1000..1999, one line each. Give
-exactly one of --node, --nodes, --element, --elements, --box.
+    R"(Regenerates fine nodes or elements by id, by box or by point; ids start
+at 0. Ranges are half-open: --nodes 1000:2000 prints ids 1000..1999, one
+line each. Give exactly one of --node, --nodes, --element, --elements,
+--box, --point, --points.
 
-Node ids (store format 6, owner order): coarse element by coarse element
+Node ids (owner order, since store format 6): coarse element by coarse element
 in the store's order, the nodes of the vertices, edges and faces it owns
 (the lowest coarse element containing them), then its interior; so the
 nodes of any range of coarse elements, a chunk, are one id range. Element
@@ -31,15 +38,85 @@ shortest form that reads back exactly (JSON): both give the same bits.
     R"(dicer query sphere.dice.h5 --node 123456 --json
 dicer query sphere.dice.h5 --elements 0:500 --json
 dicer query sphere.dice.h5 --box 0,0,0,1,1,0.5 --count
+dicer query sphere.dice.h5 --point 0.1,0.2,0.3 --json
+dicer query sphere.dice.h5 --points probes.txt --threads 2 > found.txt
 )"};
 
 namespace {
+
+// Points for --point (one "x,y,z") or --points (a file or stdin, one
+// "x y z" per line, commas allowed, blank lines and # comments skipped).
+class PointReader {
+ public:
+  PointReader(const std::string& file, const std::string& one) : file_(file), one_(one) {
+    if (file_.empty()) return;
+    f_ = file_ == "-" ? stdin : std::fopen(file_.c_str(), "r");
+    if (!f_) throw Error(ErrorKind::Io, file_ + ": cannot open: " + std::strerror(errno));
+  }
+  ~PointReader() {
+    if (f_ && f_ != stdin) std::fclose(f_);
+  }
+  PointReader(const PointReader&) = delete;
+  PointReader& operator=(const PointReader&) = delete;
+
+  bool next(std::vector<double>& out, size_t max_points) {
+    out.clear();
+    if (file_.empty()) {
+      if (done_) return false;
+      done_ = true;
+      parse(one_, "--point", out);
+      return true;
+    }
+    std::string line;
+    while (out.size() < 3 * max_points && read_line(line)) {
+      ++line_no_;
+      const size_t hash = line.find('#');
+      if (hash != std::string::npos) line.resize(hash);
+      if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+      parse(line, file_ + ":" + std::to_string(line_no_), out);
+    }
+    return !out.empty();
+  }
+
+ private:
+  bool read_line(std::string& line) {
+    line.clear();
+    int c;
+    while ((c = std::fgetc(f_)) != EOF && c != '\n') {
+      if (line.size() > 4096) throw Error(ErrorKind::Usage, file_ + ":" + std::to_string(line_no_ + 1) + ": line too long");
+      line.push_back(static_cast<char>(c));
+    }
+    if (c == EOF && std::ferror(f_)) throw Error(ErrorKind::Io, file_ + ": read failed");
+    return c != EOF || !line.empty();
+  }
+  // Three finite numbers separated by spaces, tabs or commas.
+  static void parse(const std::string& text, const std::string& where, std::vector<double>& out) {
+    const char* p = text.c_str();
+    for (int k = 0; k < 3; ++k) {
+      while (*p == ' ' || *p == '\t' || *p == ',' || *p == '\r') ++p;
+      char* end = nullptr;
+      const double v = std::strtod(p, &end);
+      if (end == p || !std::isfinite(v))
+        throw Error(ErrorKind::Usage, where + ": \"" + text + "\" is not three finite numbers x y z");
+      out.push_back(v);
+      p = end;
+    }
+    while (*p == ' ' || *p == '\t' || *p == '\r') ++p;
+    if (*p != '\0') throw Error(ErrorKind::Usage, where + ": \"" + text + "\" has more than three numbers");
+  }
+
+  std::string file_, one_;
+  std::FILE* f_ = nullptr;
+  bool done_ = false;
+  long line_no_ = 0;
+};
 
 // `chunk_count`: under mpirun with --box --count, this rank's count in its
 // chunk is stored there and nothing is printed (the caller sums).
 int query(const std::vector<std::string>& argv, long long* chunk_count = nullptr, bool* as_json = nullptr) {
   Command cmd(kDoc);
-  std::string path, node, nodes, element, elements, box_text;
+  std::string path, node, nodes, element, elements, box_text, point_text, points_file;
+  std::string threads_text = "1";
   bool json = false, count_only = false;
   cmd.input("STORE", path, "the store to read");
   auto* o_node = cmd.value("--node", node, "ID", "the fine node ID: its coordinates");
@@ -51,23 +128,57 @@ int query(const std::vector<std::string>& argv, long long* chunk_count = nullptr
   auto* o_elements = cmd.value("--elements", elements, "FIRST:END", "the fine elements FIRST..END-1, one per line");
   auto* o_box = cmd.value("--box", box_text, "x0,y0,z0,x1,y1,z1",
                           "the ids of the fine elements whose centroid lies in the "
-                          "axis-aligned box (one per line); coarse elements "
-                          "whose bounding box misses it are skipped unread");
+                          "axis-aligned box (one per line); groups of coarse "
+                          "elements and coarse elements whose bounds (the "
+                          "store's spatial index) miss it are skipped unread");
   auto* o_count = cmd.flag("--count", count_only, "with --box: only the number of such elements");
+  auto* o_point = cmd.value("--point", point_text, "x,y,z",
+                            "the fine element containing the point and the point's "
+                            "local coordinates xi in it (its trilinear map at xi "
+                            "gives the point); -1 when none does; on a shared "
+                            "face, edge or node the lowest id (volume stores)");
+  auto* o_points = cmd.value("--points", points_file, "FILE",
+                             "as --point for every line \"x y z\" of FILE (- reads "
+                             "standard input), answers in input order");
+  cmd.value("--threads", threads_text, "N", "with --points: threads searching (1 to 1024, default 1)");
   cmd.flag("--json", json,
            "one JSON object per line:\n"
            "node:    {\"id\":..., \"xyz\":[x,y,z]}\n"
            "element: {\"id\":..., \"nodes\":[8 ids], \"block\":...,\n"
            "          \"coarse_element\":..., \"ijk\":[i,j,k]}\n"
            "          (surface meshes: 4 node ids and [i,j])\n"
-           "box:     {\"id\":...} per element, or {\"count\":...}");
+           "box:     {\"id\":...} per element, or {\"count\":...}\n"
+           "point:   {\"point\":[x,y,z], \"element\":..., \"xi\":[a,b,c]}");
   StoreFlags store(cmd);
   if (!cmd.parse(argv)) return 0;
-  const int chosen = cmd.given(o_node) + cmd.given(o_nodes) + cmd.given(o_element) + cmd.given(o_elements) + cmd.given(o_box);
-  if (chosen != 1) throw Error(ErrorKind::Usage, "give exactly one of --node, --nodes, --element, --elements, --box");
+  const int chosen = cmd.given(o_node) + cmd.given(o_nodes) + cmd.given(o_element) + cmd.given(o_elements) +
+                     cmd.given(o_box) + cmd.given(o_point) + cmd.given(o_points);
+  if (chosen != 1)
+    throw Error(ErrorKind::Usage, "give exactly one of --node, --nodes, --element, --elements, --box, --point, --points");
+  const Id threads = parse_int("--threads", threads_text);
+  if (threads < 1 || threads > 1024) throw Error(ErrorKind::Usage, "--threads: must be between 1 and 1024");
   if (cmd.given(o_count) && !cmd.given(o_box)) throw Error(ErrorKind::Usage, "--count goes with --box");
 
   const FineMesh m = read_store(path, store.options());
+  if (cmd.given(o_point) || cmd.given(o_points)) {
+    // Batches of 65536 points bound the memory of a long stream; answers
+    // come in input order.
+    PointReader in(cmd.given(o_point) ? std::string() : points_file, point_text);
+    std::vector<double> part;
+    while (in.next(part, 65536)) {
+      const std::vector<Located> found = locate_points(m, part, static_cast<int>(threads));
+      for (size_t i = 0; i < found.size(); ++i) {
+        const double* p = &part[3 * i];
+        const Located& l = found[i];
+        if (json)
+          print_json({{"point", {p[0], p[1], p[2]}}, {"element", l.element}, {"xi", {l.xi[0], l.xi[1], l.xi[2]}}});
+        else
+          std::printf("%lld  %.17g %.17g %.17g\n", static_cast<long long>(l.element), l.xi[0], l.xi[1], l.xi[2]);
+      }
+    }
+    store.report(m);
+    return 0;
+  }
   if (cmd.given(o_box)) {
     const Box box = parse_box(box_text);
     if (chunk_count && count_only) {  // rank r counts in chunk r

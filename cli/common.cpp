@@ -13,6 +13,7 @@
 #include <cstring>
 #include <iterator>
 #include <limits>
+#include <tuple>
 
 #include "dicer/error.hpp"
 #include "dicer/fine_mesh.hpp"
@@ -193,6 +194,23 @@ void print_cache_stats(const FineMesh& mesh, const std::string& command) {
                human_bytes(st.bytes_decompressed).c_str(), static_cast<unsigned long long>(st.hits),
                static_cast<unsigned long long>(st.misses), static_cast<unsigned long long>(st.evictions),
                human_bytes(st.peak_resident_bytes).c_str(), human_bytes(cache->budget()).c_str());
+  // The tables a query reads by element: how much of each it touched (a
+  // box query reads the pages of the groups its box meets).
+  const MeshTables& t = mesh.tables();
+  std::string per;
+  for (const auto& [name, pages, array] :
+       {std::tuple{"elements", t.elements.pages(), t.elements.array()},
+        std::tuple{"element_corners", t.corners.pages(), t.corners.array()},
+        std::tuple{"element_bounds", t.bounds.pages(), t.bounds.array()}}) {
+    if (pages <= 0) continue;
+    const auto read = cache->distinct_pages_read(array);
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "%s%s %llu of %lld pages (%.2f%%)", per.empty() ? "" : ", ", name,
+                  static_cast<unsigned long long>(read), static_cast<long long>(pages),
+                  100.0 * static_cast<double>(read) / static_cast<double>(pages));
+    per += buf;
+  }
+  if (!per.empty()) std::fprintf(stderr, "dicer %s: distinct pages read: %s\n", command.c_str(), per.c_str());
 }
 
 std::string human_bytes(std::uint64_t b) {

@@ -453,6 +453,12 @@ CacheStats PageCache::stats() const {
   return impl_->st;
 }
 
+std::uint64_t PageCache::distinct_pages_read(std::uint32_t array) const {
+  std::lock_guard lock(impl_->mu);
+  const auto it = impl_->arrays.find(array);
+  return it == impl_->arrays.end() ? 0 : static_cast<std::uint64_t>(std::count(it->second.read.begin(), it->second.read.end(), true));
+}
+
 void PageCache::reset_stats() {
   std::lock_guard lock(impl_->mu);
   const std::uint64_t resident = impl_->st.resident_bytes;

@@ -168,6 +168,9 @@ class PageCache {
   void set_array_pages(std::uint32_t array, std::uint64_t pages);
 
   CacheStats stats() const;
+  // Distinct pages of one declared array loaded since the last reset
+  // (0 for an array never declared). O(its pages / 64).
+  std::uint64_t distinct_pages_read(std::uint32_t array) const;
   // All counters to 0, except resident_bytes (kept) and peak_resident_bytes
   // (set to the current resident_bytes); distinct pages count afresh.
   // Memory: one bit per page of each declared array.

@@ -15,6 +15,7 @@
 #include "dicer/error.hpp"
 #include "dicer/export.hpp"
 #include "dicer/geometry.hpp"
+#include "dicer/locate.hpp"
 #include "dicer/rows.hpp"
 #include "dicer/quality.hpp"
 #include "dicer/store.hpp"
@@ -227,6 +228,26 @@ TEST_P(CurvedPart, FineNodesOnTheCadNoInversionConformingAndBitIdenticalThroughT
       // `walls` may be 0; the verify above checks every node against its
       // element's bounds.)
       RecordProperty("walls_beyond_corners", walls);
+    }
+    // Point location in curved elements: a point inside a fine element (xi
+    // away from its faces) comes back in it with its xi.
+    {
+      std::mt19937_64 rng(n + 100);
+      std::uniform_int_distribution<Id> pick(0, s.num_elements() - 1);
+      std::uniform_real_distribution<double> u(0.05, 0.95);
+      for (int k = 0; k < 40; ++k) {
+        const Id e = pick(rng);
+        const FineElement el = s.element(e);
+        std::array<std::array<double, 3>, 8> x;
+        for (int q = 0; q < 8; ++q) {
+          const Vec3 v = s.node(el.nodes[q]);
+          x[q] = {v.x, v.y, v.z};
+        }
+        const std::array<double, 3> xi = {u(rng), u(rng), u(rng)};
+        const Located got = locate_point(s, trilinear(x, xi));
+        EXPECT_EQ(got.element, e);
+        for (int d = 0; d < 3; ++d) EXPECT_NEAR(got.xi[d], xi[d], 1e-9);
+      }
     }
     const GeometryCheck g = check_geometry(s, cad);
     EXPECT_LE(g.max_distance, 1e-9 * g.diagonal) << "worst node " << g.worst_node << " on " << g.worst_entity;

@@ -1,6 +1,9 @@
 // The dicer command end to end: JSON contracts, exactness of printed
 // coordinates, exit codes of refusals. JSON is parsed with nlohmann::json.
 #include <gtest/gtest.h>
+
+#include <fstream>
+#include <iomanip>
 #include <hdf5.h>
 
 #include <algorithm>
@@ -71,6 +74,38 @@ TEST(Cli, DiceInfoQueryVerifyOnARealMesh) {
   EXPECT_EQ(el["coarse_element"], 255);
   EXPECT_EQ(el["ijk"], Json::array({2, 2, 2}));
   EXPECT_EQ(el["block"], m.info().blocks[0].id);
+  // --point: the element's centroid (inside it only) comes back in it at
+  // xi = (1/2, 1/2, 1/2); --points streams a file, a bad line is named.
+  {
+    double c[3] = {0, 0, 0};
+    for (int q = 0; q < 8; ++q) {
+      const Vec3 p = m.node(el["nodes"][q].get<Id>());
+      c[0] += p.x / 8, c[1] += p.y / 8, c[2] += p.z / 8;
+    }
+    char pt[200];
+    std::snprintf(pt, sizeof pt, "%.17g,%.17g,%.17g", c[0], c[1], c[2]);
+    r = run_cli({"query", store, "--point", pt, "--json"});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const Json at = Json::parse(r.out);
+    EXPECT_EQ(at["element"], last);
+    for (int d = 0; d < 3; ++d) EXPECT_NEAR(at["xi"][d].get<double>(), 0.5, 0.1);  // a curved part's centroid is near
+    const std::string pts = tmp.path("points.txt");
+    {
+      std::ofstream f(pts);
+      f << std::setprecision(17) << "# probes\n" << c[0] << " " << c[1] << " " << c[2] << "\n\n1e9 1e9 1e9\n";
+    }
+    r = run_cli({"query", store, "--points", pts, "--threads", "2"});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_EQ(r.out.substr(0, std::to_string(last).size() + 1), std::to_string(last) + " ");
+    EXPECT_NE(r.out.find("\n-1 "), std::string::npos) << r.out;
+    {
+      std::ofstream f(pts, std::ios::app);
+      f << "1 2\n";
+    }
+    r = run_cli({"query", store, "--points", pts});
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_NE(r.err.find("points.txt:5: \"1 2\" is not three finite numbers"), std::string::npos) << r.err;
+  }
   r = run_cli({"verify", store});
   EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
   EXPECT_NE(r.out.find("all checks passed"), std::string::npos);
