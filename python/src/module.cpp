@@ -23,6 +23,7 @@
 #include "dicer/export.hpp"
 #include "dicer/fine_mesh.hpp"
 #include "dicer/intervals.hpp"
+#include "dicer/locate.hpp"
 #include "dicer/mpi.hpp"
 #include "dicer/partition.hpp"
 #include "dicer/store.hpp"
@@ -245,6 +246,30 @@ py::array elements_in_box(const Store& s, const std::vector<double>& lo, const s
     for_each_in_box(*m, box, [&](const FineBlock& b, Id e) { ids.push_back(b.first_element + e); });
   }
   return owned(std::move(ids));
+}
+
+// Point location (locate.hpp): element ids (-1 outside) and xi, as
+// `dicer query --points`.
+py::tuple locate(const Store& s, const py::array_t<double, py::array::c_style | py::array::forcecast>& points,
+                 std::int64_t threads) {
+  if (threads < 1 || threads > 1024) throw Error(ErrorKind::Usage, "--threads: must be between 1 and 1024");
+  const Mesh m = s.get();
+  if (!((points.ndim() == 2 && points.shape(1) == 3) || (points.ndim() == 1 && points.shape(0) == 3)))
+    throw Error(ErrorKind::Usage, "locate: points must be an (n, 3) array (or one point of 3 numbers)");
+  const std::vector<double> xyz(points.data(), points.data() + points.size());
+  std::vector<Located> found;
+  {
+    py::gil_scoped_release release;
+    found = locate_points(*m, xyz, static_cast<int>(threads));
+  }
+  std::vector<Id> ids(found.size());
+  std::vector<double> xi(3 * found.size());
+  for (size_t i = 0; i < found.size(); ++i) {
+    ids[i] = found[i].element;
+    for (int d = 0; d < 3; ++d) xi[3 * i + d] = found[i].xi[d];
+  }
+  const auto n = static_cast<py::ssize_t>(found.size());
+  return py::make_tuple(owned(std::move(ids)), owned(std::move(xi), {n, 3}));
 }
 
 py::dict sweep_dict(const Store& s, std::int64_t threads) {
@@ -643,6 +668,9 @@ PYBIND11_MODULE(_core, m) {
            "like elements(), with block (file id), coarse_element and ijk, as `dicer query --elements --json`")
       .def("elements_in_box", &elements_in_box, py::arg("lo"), py::arg("hi"),
            "ids of the fine elements whose centroid lies in the box (`dicer query --box`)")
+      .def("locate", &locate, py::arg("points"), py::arg("threads") = 1,
+           "(element ids, xi) of an (n, 3) array of points: the fine element containing each (-1: none; the "
+           "lowest id on a shared face) and the local coordinates in it, as `dicer query --points`")
       .def("blocks", &make_blocks, py::arg("chunk") = py::none(), py::arg("connectivity") = true,
            "iterator of Batch, one per coarse element, over the mesh or over chunk (k, n)")
       .def("chunk_ranges", [](const Store& s, std::int64_t n) {

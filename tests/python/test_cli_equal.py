@@ -84,6 +84,23 @@ def test_box_equals_query_box(cli, prism_store):
     assert got.tolist() == want and 0 < len(want) < s.num_elements
 
 
+def test_locate_equals_query_points(cli, sphere_store, tmp_path):
+    """Store.locate against `dicer query --points`: the same ids and xi bit
+    for bit, element centroids found in their element, outside points -1."""
+    s = dicer.open(sphere_store)
+    conn = s.elements(0, 40)
+    pts = s.nodes(conn.ravel()).reshape(40, 8, 3).mean(axis=1)
+    pts = np.vstack([pts, [[1e6, 0, 0]]])
+    ids, xi = s.locate(pts, threads=2)
+    assert ids[:40].tolist() == list(range(40)) and ids[40] == -1
+    assert np.all((xi[:40] > 0) & (xi[:40] < 1))
+    f = tmp_path / "p.txt"
+    f.write_text("".join(f"{x!r} {y!r} {z!r}\n" for x, y, z in pts.tolist()))
+    rows = cli.json_lines("query", sphere_store, "--points", str(f))
+    assert [r["element"] for r in rows] == ids.tolist()
+    assert np.array_equal(bits(np.array([r["xi"] for r in rows])), bits(xi))
+
+
 def test_sweep_equals_cli_sweep(cli, sphere_store):
     s = dicer.open(sphere_store)
     for threads in (1, 2):
