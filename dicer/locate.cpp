@@ -81,8 +81,26 @@ bool inside(const P3& xi) {
   return true;
 }
 
+// Groups per super-group: a second level built in memory per call (the
+// union of kSuper group boxes), so a point tests O(G / kSuper + kSuper)
+// boxes, not all G.
+constexpr Id kSuper = 64;
+
+std::vector<double> super_bounds(const std::vector<double>& groups) {
+  const size_t G = groups.size() / 6, S = (G + kSuper - 1) / kSuper;
+  std::vector<double> out(S * 6);
+  for (size_t s = 0; s < S; ++s) {
+    double* o = &out[s * 6];
+    for (int d = 0; d < 3; ++d) o[d] = INFINITY, o[3 + d] = -INFINITY;
+    for (size_t g = s * kSuper; g < std::min(G, (s + 1) * kSuper); ++g)
+      for (int d = 0; d < 3; ++d) o[d] = std::min(o[d], groups[g * 6 + d]), o[3 + d] = std::max(o[3 + d], groups[g * 6 + 3 + d]);
+  }
+  return out;
+}
+
 struct Searcher {
   const FineMesh& mesh;
+  const std::vector<double>& super;
   MeshCursor cur;
 
   Corners cell_nodes(Id id) {
@@ -110,13 +128,39 @@ struct Searcher {
     for (int q = 0; q < 8; ++q) x[q] = {v[q].x, v[q].y, v[q].z};
     P3 g{0.5, 0.5, 0.5};
     const bool guessed = invert(x, p, g);
+    if (!r.curved()) {
+      // A straight element is its corners' trilinear map (TFI reproduces
+      // it) and its cell (i, j, k) that map on [i/n, (i+1)/n] x ...: the
+      // cell and xi follow from g without reading a fine node. Inside a
+      // valid straight hex Newton converges; where it does not, the point
+      // is outside. The lowest id: the lowest cell that holds the point.
+      if (!guessed) return false;
+      Id best = -1;
+      for (int mask = 0; mask < 8; ++mask) {
+        std::array<Id, 3> c;
+        P3 xi;
+        bool ok = true;
+        for (int d = 0; d < 3 && ok; ++d) {
+          const double t = g[d] * static_cast<double>(r.n[d]);
+          c[d] = std::clamp<Id>(static_cast<Id>(std::floor(t)), 0, r.n[d] - 1) - (mask >> d & 1);
+          xi[d] = t - static_cast<double>(c[d]);
+          ok = c[d] >= 0 && xi[d] >= -kLocateTolerance && xi[d] <= 1 + kLocateTolerance;
+        }
+        if (!ok) continue;
+        const Id id = r.element_first + c[0] + r.n[0] * (c[1] + r.n[1] * c[2]);
+        if (best < 0 || id < best) best = id, out.xi = xi;
+      }
+      out.element = best;
+      return best >= 0;
+    }
     std::array<Id, 3> c;
     for (int d = 0; d < 3; ++d)
       c[d] = std::clamp<Id>(static_cast<Id>(std::floor((guessed ? g[d] : 0.5) * static_cast<double>(r.n[d]))), 0, r.n[d] - 1);
     P3 xi;
     bool found = false;
     // Walk: a step towards the point along every direction it lies beyond.
-    for (Id step = 0, steps = r.n[0] + r.n[1] + r.n[2] + 3; step < steps; ++step) {
+    const Id steps = r.n[0] + r.n[1] + r.n[2] + 3;
+    for (Id step = 0; step < steps; ++step) {
       if (!invert(cell_nodes(r.element_first + c[0] + r.n[0] * (c[1] + r.n[1] * c[2])), p, xi)) break;
       if (inside(xi)) {
         found = true;
@@ -129,7 +173,7 @@ struct Searcher {
       }
       if (!moved) break;
     }
-    if (!found && (r.curved() || !guessed)) {
+    if (!found) {
       // A curved element's cells are not where its corners' map says and a
       // walk can stall at a concave wall: every cell, in id order.
       auto scan = [&] {
@@ -169,22 +213,27 @@ struct Searcher {
     const RowReader R(t, cur);
     const Id H = mesh.num_coarse_elements();
     Located out;
-    for (Id g = 0; g * kBoundsGroup < H; ++g) {
-      const double* q = &t.group_bounds[static_cast<size_t>(g) * 6];
-      bool in = true;
+    auto hit = [&](const double* q) {
       for (int d = 0; d < 3; ++d) {
         const double pad = kLocateTolerance * (q[3 + d] - q[d] + std::abs(q[d]) + std::abs(q[3 + d]));
-        if (p[d] < q[d] - pad || p[d] > q[3 + d] + pad) in = false;
+        if (p[d] < q[d] - pad || p[d] > q[3 + d] + pad) return false;
       }
-      if (!in) continue;
-      // Coarse elements in order: element ids grow with them, so the first
-      // one that contains the point holds the lowest id.
-      for (Id h = g * kBoundsGroup; h < std::min(H, (g + 1) * kBoundsGroup); ++h) {
-        const ElementBounds b = R.bounds(h);
-        double ext = 0;
-        for (int d = 0; d < 3; ++d) ext = std::max({ext, b.hi[d] - b.lo[d], std::abs(b.lo[d]), std::abs(b.hi[d])});
-        if (!b.contains({p[0], p[1], p[2]}, kLocateTolerance * ext)) continue;
-        if (in_element(h, p, out)) return out;
+      return true;
+    };
+    const Id G = (H + kBoundsGroup - 1) / kBoundsGroup;
+    for (Id sg = 0; sg * kSuper < G; ++sg) {
+      if (!hit(&super[static_cast<size_t>(sg) * 6])) continue;
+      for (Id g = sg * kSuper; g < std::min(G, (sg + 1) * kSuper); ++g) {
+        if (!hit(&t.group_bounds[static_cast<size_t>(g) * 6])) continue;
+        // Coarse elements in order: element ids grow with them, so the
+        // first one that contains the point holds the lowest id.
+        for (Id h = g * kBoundsGroup; h < std::min(H, (g + 1) * kBoundsGroup); ++h) {
+          const ElementBounds b = R.bounds(h);
+          double ext = 0;
+          for (int d = 0; d < 3; ++d) ext = std::max({ext, b.hi[d] - b.lo[d], std::abs(b.lo[d]), std::abs(b.hi[d])});
+          if (!b.contains({p[0], p[1], p[2]}, kLocateTolerance * ext)) continue;
+          if (in_element(h, p, out)) return out;
+        }
       }
     }
     return out;
@@ -203,7 +252,8 @@ void require_volume(const FineMesh& mesh) {
 
 Located locate_point(const FineMesh& mesh, const std::array<double, 3>& p) {
   require_volume(mesh);
-  Searcher s{mesh, {}};
+  const std::vector<double> super = super_bounds(mesh.tables().group_bounds);
+  Searcher s{mesh, super, {}};
   return s.locate(p);
 }
 
@@ -213,8 +263,9 @@ std::vector<Located> locate_points(const FineMesh& mesh, const std::vector<doubl
   const size_t n = xyz.size() / 3;
   std::vector<Located> out(n);
   threads = std::max(1, std::min<int>(threads, static_cast<int>(std::max<size_t>(1, n / 64))));
+  const std::vector<double> super = super_bounds(mesh.tables().group_bounds);
   auto work = [&](size_t first, size_t end) {
-    Searcher s{mesh, {}};
+    Searcher s{mesh, super, {}};
     for (size_t i = first; i < end; ++i) out[i] = s.locate({xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]});
   };
   if (threads == 1) {

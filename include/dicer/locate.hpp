@@ -1,12 +1,13 @@
 // Point location: which fine element contains a point, and where in it.
 //
-// The search never materialises the mesh: the spatial index (groups of
-// kBoundsGroup coarse elements, in memory) and each candidate's bounds row
-// (rows.hpp ElementBounds) select coarse elements; a Newton solve of the
-// coarse element's trilinear corner map guesses the fine cell (exact for a
-// straight element: its fine nodes are that map at i/n, j/n, k/n); the
-// fine cell's own trilinear map (its 8 nodes, as node(id) gives them) is
-// inverted; a curved element is walked cell to cell from the guess, then
+// The search never materialises the mesh: the spatial index (boxes of
+// kBoundsGroup coarse elements, in memory, under a second level of 64
+// groups built per call) and each candidate's bounds row (rows.hpp
+// ElementBounds) select coarse elements. A straight element is its corners'
+// trilinear map (TFI reproduces it): one Newton solve of that map gives the
+// fine cell and xi without reading a fine node. A curved element (moved
+// onto the CAD) is walked cell to cell from that guess, inverting each fine
+// cell's own trilinear map (its 8 nodes, as node(id) gives them), then
 // scanned whole if the walk fails.
 //
 // Invariants: a found element's trilinear map at xi returns the point to
@@ -15,9 +16,11 @@
 // a shared face, edge or node), the lowest id is returned. Volume stores
 // only (Error{Usage} for a surface store).
 //
-// Cost: O(groups) box tests per point (in memory), then for each candidate
-// coarse element one bounds row, a few fine elements and their nodes;
-// pages come through the store's cache. Thread-safe (a cursor per call).
+// Cost per point: O(G / 64 + 64) box tests in memory (G groups), a bounds
+// row per coarse element of the groups that hold the point, and for each
+// candidate one element row, its corners and a 3x3 Newton solve (curved:
+// plus a few fine cells). Pages come through the store's cache; a call
+// builds the second index level, O(G). Thread-safe (a cursor per thread).
 #pragma once
 
 #include <array>

@@ -121,7 +121,7 @@ inline const T* Table<T>::row(std::int64_t i, TableCursor& cur) const {
 }
 
 // Coarse elements per group of the spatial index (MeshTables::group_bounds).
-inline constexpr Id kBoundsGroup = 256;
+inline constexpr Id kBoundsGroup = 32;
 
 struct MeshTables {
   Mode mode = Mode::Volume;
@@ -138,7 +138,7 @@ struct MeshTables {
   Table<double> bounds;               // [H x 6]
   // The spatial index: the union of the bounds of elements
   // [g kBoundsGroup, (g + 1) kBoundsGroup), 6 values (lo, hi) per group g,
-  // always in memory (48 B per 256 coarse elements). Store order is a
+  // always in memory (48 B per 32 coarse elements). Store order is a
   // Morton curve, so a group is a compact cluster.
   std::vector<double> group_bounds;
   Table<std::int64_t> bounding;       // [N x 3], N = 0 without moved nodes
