@@ -159,7 +159,12 @@ struct Searcher {
     P3 xi;
     bool found = false;
     // Walk: a step towards the point along every direction it lies beyond.
+    // Blocked: the point lies beyond a boundary cell's outer face (the
+    // element's boundary, locally nearly flat at a fine cell's scale): it is
+    // outside. The walk ends undecided only when a cell's map cannot be
+    // inverted or the steps run out (a cycle).
     const Id steps = r.n[0] + r.n[1] + r.n[2] + 3;
+    bool blocked = false;
     for (Id step = 0; step < steps; ++step) {
       if (!invert(cell_nodes(r.element_first + c[0] + r.n[0] * (c[1] + r.n[1] * c[2])), p, xi)) break;
       if (inside(xi)) {
@@ -171,11 +176,13 @@ struct Searcher {
         if (xi[d] < -kLocateTolerance && c[d] > 0) --c[d], moved = true;
         else if (xi[d] > 1 + kLocateTolerance && c[d] < r.n[d] - 1) ++c[d], moved = true;
       }
-      if (!moved) break;
+      if (!moved) {
+        blocked = true;
+        break;
+      }
     }
-    if (!found) {
-      // A curved element's cells are not where its corners' map says and a
-      // walk can stall at a concave wall: every cell, in id order.
+    if (!found && !blocked) {
+      // Undecided: every cell, in id order.
       auto scan = [&] {
         for (Id k = 0; k < r.n[2]; ++k)
           for (Id j = 0; j < r.n[1]; ++j)

@@ -6,9 +6,13 @@ always come from the same files:
   side-by-side, store-target, targets   from side_by_side.json
   run-1e10                               from run_1e10.json (scripts/bench_1e10.sh), if present
   cache                                  from cache.json (bench_cache), if present
+  box-query                              from box_query.json (scripts/bench_queries.py), if present
+  locate                                 from locate.json (bench/bench_locate), if present
+  mpi, project-ranks                     from mpi.json, project_ranks.json (scripts/bench_mpi.py), if present
 
 usage: /usr/bin/python3 scripts/bench_plot.py [bench/results/side_by_side.json]
-                                              [--png PATH] [--no-readme]
+                                              [--png PATH] [--no-readme] [--tables-only]
+(--tables-only: the README tables without the picture; no matplotlib needed)
 Needs matplotlib (Debian: python3-matplotlib, scripts/bench_deps.sh).
 """
 import argparse
@@ -239,6 +243,86 @@ def table_cache(cache):
     return "\n".join(rows)
 
 
+def table_box_query(j):
+    if not j:
+        return "(not run yet: `/usr/bin/python3 scripts/bench_queries.py`)"
+    rows = ["| box (share of the domain) | elements found | wall (median) | peak RSS | element pages read | corner pages | bounds pages |",
+            "|---|---|---|---|---|---|---|"]
+    for q in j["queries"]:
+        pg = q["pages"]
+
+        def cell(k):
+            return "%d of %d (%.2f%%)" % (pg[k]["read"], pg[k]["of"], 100.0 * pg[k]["read"] / pg[k]["of"]) if k in pg else "n/a"
+        rows.append("| %.1f%% | %s | %s | %s | %s | %s | %s |" % (100 * q["fraction"], fmt(q["count"]), secs(q["wall_s"]),
+                                                            mib(q["peak_rss_mib"]), cell("elements"), cell("element_corners"),
+                                                            cell("element_bounds")))
+    rows.append("")
+    rows.append("Store %s, commit %s, %s; `dicer query --box ... --count --stats`, medians of %d runs."
+                % (j["store"], j["commit"], j["date"], len(j["queries"][0]["all_wall_s"])))
+    return "\n".join(rows)
+
+
+def table_locate(j):
+    if not j:
+        return "(not run yet: see the command above)"
+    b = {x["name"]: x for x in j["benchmarks"]}
+    rows = ["| case | per point / query | note |", "|---|---|---|"]
+    for name, label in (("BM_Locate/1/iterations:1/real_time", "locate, 1 thread"),
+                        ("BM_Locate/2/iterations:1/real_time", "locate, 2 threads")):
+        if name in b:
+            rows.append("| %s | %.2f us | %s points, %.4f in the element they were made in (the rest in a lower-id element sharing the face) |"
+                        % (label, b[name]["ns_per_point"] * 1e6, fmt(b[name]["points"]), b[name]["in_their_element"]))
+    if "BM_ElementQuery/iterations:1/real_time" in b:
+        rows.append("| baseline: element(id), same ids | %.2f us | the id query of the same store and cache |"
+                    % (b["BM_ElementQuery/iterations:1/real_time"]["ns_per_query"] * 1e6))
+    if "BM_BruteForce/real_time" in b:
+        x = b["BM_BruteForce/real_time"]
+        rows.append("| baseline: brute force, %s elements in memory | %.2f us | box test of every element, no inversion (a lower bound) |"
+                    % (fmt(x["elements"]), x["ns_per_point"] * 1e6))
+    ctx = j.get("context", {})
+    rows.append("")
+    rows.append("%s, %s CPUs, %s." % (ctx.get("host_name", "?"), ctx.get("num_cpus", "?"), ctx.get("date", "?")))
+    return "\n".join(rows)
+
+
+def table_mpi(j):
+    if not j:
+        return "(not run yet: `/usr/bin/python3 scripts/bench_mpi.py`)"
+    rows = ["| ranks | what | elements | seconds (median) | elements/s | efficiency | note |", "|---|---|---|---|---|---|---|"]
+    for r in j["runs"]:
+        note = ("imbalance %.2f, %s pages read, checksum %s" % (r["imbalance"], fmt(r["pages_read"]), r["checksum"])
+                if r["what"] == "sweep" else "")
+        rows.append("| %d | %s | %s | %s | %s | %.2f | %s |" % (r["P"], r["what"], fmt(r["elements"]), secs(r["seconds"]),
+                                                           fmt(r["elements_per_s"]), r["efficiency"], note))
+    rows.append("")
+    rows.append("Commit %s, %s, %d cores; one thread per rank; efficiency = rate(P) / (P x rate(1))." % (j["commit"], j["date"], j["machine"]))
+    return "\n".join(rows)
+
+
+def table_project(j):
+    if not j:
+        return "(not run yet: `/usr/bin/python3 scripts/bench_mpi.py`)"
+    rows = ["| ranks | build (one process) | elements per rank | ghost nodes (mean / max) | neighbours (mean / max) | shared nodes (mean / max) | maps, largest rank |",
+            "|---|---|---|---|---|---|---|"]
+    for p in j["partitions"]:
+        rows.append("| %s | %s | %s | %s / %s | %.1f / %d | %s / %s | %s |" % (
+            fmt(p["P"]), secs(p["seconds"]), fmt(p["elements"][1]), fmt(p["ghost_nodes"][0]), fmt(p["ghost_nodes"][1]),
+            p["neighbors"][0], p["neighbors"][1], fmt(p["shared_nodes"][0]), fmt(p["shared_nodes"][1]),
+            mib(p["comm_entries"][1] * 8 / 2**20)))
+    rows.append("")
+    rows.append("| sampled rank (of P) | elements | sweep, 1 thread | elements/s | pages read | bytes read | cache peak |")
+    rows.append("|---|---|---|---|---|---|---|")
+    for x in j["samples"]:
+        rows.append("| %d of %s | %s | %s | %s | %d | %s | %s |" % (x["rank"], fmt(x["P"]), fmt(x["elements"]), secs(x["seconds"]),
+                                                               fmt(x["elements"] / x["seconds"]), x["pages_read"],
+                                                               fmt(x["bytes_read"], "B"), fmt(x["cache_peak"], "B")))
+    rows.append("")
+    rows.append("Store %s: %s fine elements (%s on disk), peak RSS of the sampling process %s; commit %s, %s."
+                % (os.path.basename(j["store"]), fmt(j["elements"]), fmt(j.get("store_bytes"), "B"),
+                   mib(j["rank_peak_rss"] / 2**20), j.get("commit", "?"), j.get("date", "?")))
+    return "\n".join(rows)
+
+
 def replace_block(text, name, body):
     pat = re.compile(r"(<!-- BEGIN %s -->\n).*?(<!-- END %s -->)" % (name, name), re.S)
     if not pat.search(text):
@@ -362,19 +446,26 @@ def main():
     ap.add_argument("--cache", default=os.path.join(RESULTS, "cache.json"))
     ap.add_argument("--readme", default=os.path.join(ROOT, "bench", "README.md"))
     ap.add_argument("--no-readme", action="store_true")
+    ap.add_argument("--tables-only", action="store_true")
     a = ap.parse_args()
     res = load(a.json)
     run = load(a.run1e10)
-    plot(res, run, a.png)
+    if not a.tables_only:
+        plot(res, run, a.png)
     if a.no_readme:
         return
     with open(a.readme) as f:
         text = f.read()
-    text = replace_block(text, "side-by-side", table_side_by_side(res))
-    text = replace_block(text, "store-target", table_store_target(res))
-    text = replace_block(text, "targets", table_targets(res))
+    if res:
+        text = replace_block(text, "side-by-side", table_side_by_side(res))
+        text = replace_block(text, "store-target", table_store_target(res))
+        text = replace_block(text, "targets", table_targets(res))
     text = replace_block(text, "run-1e10", table_1e10(run))
     text = replace_block(text, "cache", table_cache(load(a.cache)))
+    text = replace_block(text, "box-query", table_box_query(load(os.path.join(RESULTS, "box_query.json"))))
+    text = replace_block(text, "locate", table_locate(load(os.path.join(RESULTS, "locate.json"))))
+    text = replace_block(text, "mpi", table_mpi(load(os.path.join(RESULTS, "mpi.json"))))
+    text = replace_block(text, "project-ranks", table_project(load(os.path.join(RESULTS, "project_ranks.json"))))
     with open(a.readme, "w") as f:
         f.write(text)
     print("updated", a.readme)

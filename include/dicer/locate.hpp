@@ -7,8 +7,10 @@
 // trilinear map (TFI reproduces it): one Newton solve of that map gives the
 // fine cell and xi without reading a fine node. A curved element (moved
 // onto the CAD) is walked cell to cell from that guess, inverting each fine
-// cell's own trilinear map (its 8 nodes, as node(id) gives them), then
-// scanned whole if the walk fails.
+// cell's own trilinear map (its 8 nodes, as node(id) gives them); a walk
+// that reaches the element's boundary with the point beyond it answers
+// "not here", one that cannot decide (a cell map not invertible, a cycle)
+// scans the element's cells.
 //
 // Invariants: a found element's trilinear map at xi returns the point to
 // kLocateTolerance of the element's size, and xi lies in [0,1]^3 within

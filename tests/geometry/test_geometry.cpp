@@ -17,6 +17,7 @@
 #include "dicer/geometry.hpp"
 #include "dicer/locate.hpp"
 #include "dicer/rows.hpp"
+#include "dicer/orientation.hpp"
 #include "dicer/quality.hpp"
 #include "dicer/store.hpp"
 #include "dicer/sweep.hpp"
@@ -170,14 +171,21 @@ TEST_P(CurvedPart, FineNodesOnTheCadNoInversionConformingAndBitIdenticalThroughT
       const int nc = s.corners();
       std::vector<std::array<double, 3>> cen(static_cast<size_t>(s.num_elements()));
       double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
-      for (Id e = 0; e < s.num_elements(); ++e) {
-        const FineElement el = s.element(e);
-        std::array<double, 3> c{0, 0, 0};
-        for (int q = 0; q < nc; ++q) {
-          const Vec3 p = s.node(el.nodes[q]);
-          c[0] += p.x / nc, c[1] += p.y / nc, c[2] += p.z / nc;
+      {  // block by block: node(id) gives the same bits (verify checks it)
+        FineBlock blk;
+        for (Id h = 0; h < s.num_coarse_elements(); ++h) {
+          s.fill_block(h, blk);
+          for (Id e = 0; e < blk.num_elements(); ++e) {
+            const Id i = e % blk.n[0], j = (e / blk.n[0]) % blk.n[1], k = e / (blk.n[0] * blk.n[1]);
+            std::array<double, 3> c{0, 0, 0};
+            for (int q = 0; q < nc; ++q) {
+              const Id g = blk.point_index(i + kHexCorner[q][0], j + kHexCorner[q][1], k + kHexCorner[q][2]);
+              c[0] += blk.x[g], c[1] += blk.y[g], c[2] += blk.z[g];
+            }
+            for (double& v : c) v /= nc;  // as for_each_in_box computes it
+            cen[blk.first_element + e] = c;
+          }
         }
-        cen[e] = c;
       }
       for (const auto& c : cen)
         for (int d = 0; d < 3; ++d) lo[d] = std::min(lo[d], c[d]), hi[d] = std::max(hi[d], c[d]);
