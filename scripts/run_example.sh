@@ -14,6 +14,7 @@ build/dicer dice examples/cardinal_sphere.e --interval 16 --sheet-interval 0=24 
 build/dicer info "$out/sphere.dice.h5"
 build/dicer query "$out/sphere.dice.h5" --element 123456 --json
 build/dicer query "$out/sphere.dice.h5" --nodes 1000:1003 --json
+build/dicer query "$out/sphere.dice.h5" --point 0.1,0.2,0.3 --json
 build/dicer verify "$out/sphere.dice.h5" --stats
 build/dicer footprint "$out/sphere.dice.h5"
 build/dicer export "$out/sphere.dice.h5" --format vtkhdf --chunks 4 -o "$out/sphere.vtkhdf"
