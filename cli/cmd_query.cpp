@@ -12,6 +12,7 @@
 #include "dicer/export.hpp"
 #include "dicer/fine_mesh.hpp"
 #include "dicer/locate.hpp"
+#include "dicer/neighbors.hpp"
 #include "json_out.hpp"
 
 namespace dicer::cli {
@@ -20,12 +21,13 @@ static const CommandDoc kDoc = {
     "query",
     R"(query STORE (--node ID | --nodes FIRST:END | --element ID |
                    --elements FIRST:END | --box x0,y0,z0,x1,y1,z1 [--count] |
-                   --point x,y,z | --points FILE [--threads N])
+                   --point x,y,z | --points FILE [--threads N] |
+                   --element-neighbors ID | --node-elements ID)
                    [--json] [store options])",
     R"(Regenerates fine nodes or elements by id, by box or by point; ids start
 at 0. Ranges are half-open: --nodes 1000:2000 prints ids 1000..1999, one
 line each. Give exactly one of --node, --nodes, --element, --elements,
---box, --point, --points.
+--box, --point, --points, --element-neighbors, --node-elements.
 
 Node ids (owner order, since store format 6): coarse element by coarse element
 in the store's order, the nodes of the vertices, edges and faces it owns
@@ -115,7 +117,7 @@ class PointReader {
 // chunk is stored there and nothing is printed (the caller sums).
 int query(const std::vector<std::string>& argv, long long* chunk_count = nullptr, bool* as_json = nullptr) {
   Command cmd(kDoc);
-  std::string path, node, nodes, element, elements, box_text, point_text, points_file;
+  std::string path, node, nodes, element, elements, box_text, point_text, points_file, neighbors_of, elements_of;
   std::string threads_text = "1";
   bool json = false, count_only = false;
   cmd.input("STORE", path, "the store to read");
@@ -141,6 +143,11 @@ int query(const std::vector<std::string>& argv, long long* chunk_count = nullptr
                              "as --point for every line \"x y z\" of FILE (- reads "
                              "standard input), answers in input order");
   cmd.value("--threads", threads_text, "N", "with --points: threads searching (1 to 1024, default 1)");
+  auto* o_neighbors = cmd.value("--element-neighbors", neighbors_of, "ID",
+                                "the fine elements across each side of element ID "
+                                "in Exodus side order (HEX8: 6 faces, QUAD4: 4 "
+                                "edges), -1 on the boundary");
+  auto* o_node_elements = cmd.value("--node-elements", elements_of, "ID", "the fine elements that use node ID, ascending");
   cmd.flag("--json", json,
            "one JSON object per line:\n"
            "node:    {\"id\":..., \"xyz\":[x,y,z]}\n"
@@ -148,18 +155,51 @@ int query(const std::vector<std::string>& argv, long long* chunk_count = nullptr
            "          \"coarse_element\":..., \"ijk\":[i,j,k]}\n"
            "          (surface meshes: 4 node ids and [i,j])\n"
            "box:     {\"id\":...} per element, or {\"count\":...}\n"
-           "point:   {\"point\":[x,y,z], \"element\":..., \"xi\":[a,b,c]}");
+           "point:   {\"point\":[x,y,z], \"element\":..., \"xi\":[a,b,c]}\n"
+           "neighbors: {\"id\":..., \"neighbors\":[6 or 4 ids]}\n"
+           "node elements: {\"node\":..., \"elements\":[ids]}");
   StoreFlags store(cmd);
   if (!cmd.parse(argv)) return 0;
   const int chosen = cmd.given(o_node) + cmd.given(o_nodes) + cmd.given(o_element) + cmd.given(o_elements) +
-                     cmd.given(o_box) + cmd.given(o_point) + cmd.given(o_points);
+                     cmd.given(o_box) + cmd.given(o_point) + cmd.given(o_points) + cmd.given(o_neighbors) +
+                     cmd.given(o_node_elements);
   if (chosen != 1)
-    throw Error(ErrorKind::Usage, "give exactly one of --node, --nodes, --element, --elements, --box, --point, --points");
+    throw Error(ErrorKind::Usage,
+                "give exactly one of --node, --nodes, --element, --elements, --box, --point, --points, "
+                "--element-neighbors, --node-elements");
   const Id threads = parse_int("--threads", threads_text);
   if (threads < 1 || threads > 1024) throw Error(ErrorKind::Usage, "--threads: must be between 1 and 1024");
   if (cmd.given(o_count) && !cmd.given(o_box)) throw Error(ErrorKind::Usage, "--count goes with --box");
 
   const FineMesh m = read_store(path, store.options());
+  if (cmd.given(o_node_elements)) {
+    const auto [a, b] = parse_range("--node-elements", elements_of);
+    if (b != a + 1) throw Error(ErrorKind::Usage, "--node-elements takes one node id");
+    const std::vector<Id> els = node_elements(m, a);
+    if (json) {
+      print_json({{"node", a}, {"elements", els}});
+    } else {
+      std::printf("node %lld elements", static_cast<long long>(a));
+      for (Id e : els) std::printf(" %lld", static_cast<long long>(e));
+      std::printf("\n");
+    }
+    store.report(m);
+    return 0;
+  }
+  if (cmd.given(o_neighbors)) {
+    const auto [a, b] = parse_range("--element-neighbors", neighbors_of);
+    if (b != a + 1) throw Error(ErrorKind::Usage, "--element-neighbors takes one element id");
+    const std::vector<Id> nb = element_neighbors(m, a);
+    if (json) {
+      print_json({{"id", a}, {"neighbors", nb}});
+    } else {
+      std::printf("element %lld neighbors", static_cast<long long>(a));
+      for (Id n : nb) std::printf(" %lld", static_cast<long long>(n));
+      std::printf("\n");
+    }
+    store.report(m);
+    return 0;
+  }
   if (cmd.given(o_point) || cmd.given(o_points)) {
     // Batches of 65536 points bound the memory of a long stream; answers
     // come in input order.

@@ -24,6 +24,7 @@
 #include "dicer/fine_mesh.hpp"
 #include "dicer/intervals.hpp"
 #include "dicer/locate.hpp"
+#include "dicer/neighbors.hpp"
 #include "dicer/mpi.hpp"
 #include "dicer/partition.hpp"
 #include "dicer/store.hpp"
@@ -668,6 +669,15 @@ PYBIND11_MODULE(_core, m) {
            "like elements(), with block (file id), coarse_element and ijk, as `dicer query --elements --json`")
       .def("elements_in_box", &elements_in_box, py::arg("lo"), py::arg("hi"),
            "ids of the fine elements whose centroid lies in the box (`dicer query --box`)")
+      .def("element_neighbors", [](const Store& s, std::int64_t id) {
+        const Mesh m = s.get();
+        return owned(element_neighbors(*m, id));
+      }, py::arg("id"), "the fine elements across each side of element id in Exodus side order, -1 on the boundary "
+                        "(`dicer query --element-neighbors`)")
+      .def("node_elements", [](const Store& s, std::int64_t id) {
+        const Mesh m = s.get();
+        return owned(node_elements(*m, id));
+      }, py::arg("id"), "the fine elements using node id, ascending (`dicer query --node-elements`)")
       .def("locate", &locate, py::arg("points"), py::arg("threads") = 1,
            "(element ids, xi) of an (n, 3) array of points: the fine element containing each (-1: none; the "
            "lowest id on a shared face) and the local coordinates in it, as `dicer query --points`")

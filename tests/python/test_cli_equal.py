@@ -101,6 +101,16 @@ def test_locate_equals_query_points(cli, sphere_store, tmp_path):
     assert np.array_equal(bits(np.array([r["xi"] for r in rows])), bits(xi))
 
 
+def test_element_neighbors_equal_query(cli, sphere_store):
+    s = dicer.open(sphere_store)
+    for e in (0, 17, s.num_elements - 1):
+        want = cli.json("query", sphere_store, "--element-neighbors", e)["neighbors"]
+        assert s.element_neighbors(e).tolist() == want
+    for n in (0, 5, s.num_nodes - 1):
+        want = cli.json("query", sphere_store, "--node-elements", n)["elements"]
+        assert s.node_elements(n).tolist() == want and len(want) >= 1
+
+
 def test_sweep_equals_cli_sweep(cli, sphere_store):
     s = dicer.open(sphere_store)
     for threads in (1, 2):

@@ -106,6 +106,26 @@ TEST(Cli, DiceInfoQueryVerifyOnARealMesh) {
     EXPECT_EQ(r.exit_code, 2);
     EXPECT_NE(r.err.find("points.txt:5: \"1 2\" is not three finite numbers"), std::string::npos) << r.err;
   }
+  // --element-neighbors: 6 sides, the boundary -1, each neighbour names it back.
+  r = run_cli({"query", store, "--element-neighbors", std::to_string(last), "--json"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const Json nb = Json::parse(r.out);
+  ASSERT_EQ(nb["neighbors"].size(), 6u);
+  int inside = 0;
+  for (const auto& n : nb["neighbors"]) {
+    if (n.get<Id>() < 0) continue;
+    ++inside;
+    const auto back = run_cli({"query", store, "--element-neighbors", std::to_string(n.get<Id>()), "--json"});
+    ASSERT_EQ(back.exit_code, 0) << back.err;
+    const Json b = Json::parse(back.out)["neighbors"];
+    EXPECT_NE(std::find(b.begin(), b.end(), Json(last)), b.end()) << n;
+  }
+  EXPECT_GE(inside, 3);
+  // --node-elements: the last element's first node is used by it.
+  r = run_cli({"query", store, "--node-elements", std::to_string(el["nodes"][0].get<Id>()), "--json"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const Json ne = Json::parse(r.out)["elements"];
+  EXPECT_NE(std::find(ne.begin(), ne.end(), Json(last)), ne.end()) << r.out;
   r = run_cli({"verify", store});
   EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
   EXPECT_NE(r.out.find("all checks passed"), std::string::npos);
