@@ -47,13 +47,15 @@ dicer query sphere.dice.h5 --points probes.txt --threads 2 > found.txt
 namespace {
 
 // Points for --point (one "x,y,z") or --points (a file or stdin, one
-// "x y z" per line, commas allowed, blank lines and # comments skipped).
+// "x y z" per line, commas allowed, blank lines and # comments skipped; or
+// a NumPy .npy file of shape (n, 3), float64 or float32, C order).
 class PointReader {
  public:
   PointReader(const std::string& file, const std::string& one) : file_(file), one_(one) {
     if (file_.empty()) return;
-    f_ = file_ == "-" ? stdin : std::fopen(file_.c_str(), "r");
+    f_ = file_ == "-" ? stdin : std::fopen(file_.c_str(), "rb");
     if (!f_) throw Error(ErrorKind::Io, file_ + ": cannot open: " + std::strerror(errno));
+    if (file_.size() > 4 && file_.compare(file_.size() - 4, 4, ".npy") == 0) open_npy();
   }
   ~PointReader() {
     if (f_ && f_ != stdin) std::fclose(f_);
@@ -67,6 +69,23 @@ class PointReader {
       if (done_) return false;
       done_ = true;
       parse(one_, "--point", out);
+      return true;
+    }
+    if (npy_) {
+      // The header gave the count: read what is left, a batch at a time.
+      const size_t take = static_cast<size_t>(std::min<std::uint64_t>(npy_left_, max_points)) * 3;
+      if (take == 0) return false;
+      out.resize(take);
+      if (npy_f4_) {
+        std::vector<float> f(take);
+        if (std::fread(f.data(), 4, take, f_) != take) throw Error(ErrorKind::BadInput, file_ + ": truncated .npy data");
+        for (size_t i = 0; i < take; ++i) out[i] = f[i];
+      } else if (std::fread(out.data(), 8, take, f_) != take) {
+        throw Error(ErrorKind::BadInput, file_ + ": truncated .npy data");
+      }
+      for (double v : out)
+        if (!std::isfinite(v)) throw Error(ErrorKind::BadInput, file_ + ": a coordinate is not finite");
+      npy_left_ -= take / 3;
       return true;
     }
     std::string line;
@@ -107,8 +126,46 @@ class PointReader {
     if (*p != '\0') throw Error(ErrorKind::Usage, where + ": \"" + text + "\" has more than three numbers");
   }
 
+  // NumPy format 1.0-3.0: magic, version, header length, a Python dict
+  // literal; NumPy's own reader is not available from C++, and the header
+  // is a fixed, documented form.
+  void open_npy() {
+    unsigned char head[10];
+    if (std::fread(head, 1, 8, f_) != 8 || std::memcmp(head, "\x93NUMPY", 6) != 0)
+      throw Error(ErrorKind::BadInput, file_ + ": not a .npy file (no \\x93NUMPY magic)");
+    std::uint32_t len = 0;
+    if (head[6] == 1) {
+      if (std::fread(head + 8, 1, 2, f_) != 2) throw Error(ErrorKind::BadInput, file_ + ": truncated .npy header");
+      len = head[8] | (head[9] << 8);
+    } else if (head[6] == 2 || head[6] == 3) {
+      unsigned char l[4];
+      if (std::fread(l, 1, 4, f_) != 4) throw Error(ErrorKind::BadInput, file_ + ": truncated .npy header");
+      len = l[0] | (l[1] << 8) | (l[2] << 16) | (static_cast<std::uint32_t>(l[3]) << 24);
+    } else {
+      throw Error(ErrorKind::BadInput, file_ + ": .npy format version " + std::to_string(head[6]) + " is not read");
+    }
+    if (len > 65536) throw Error(ErrorKind::BadInput, file_ + ": .npy header of " + std::to_string(len) + " bytes");
+    std::string h(len, '\0');
+    if (std::fread(h.data(), 1, len, f_) != len) throw Error(ErrorKind::BadInput, file_ + ": truncated .npy header");
+    h.erase(std::remove(h.begin(), h.end(), ' '), h.end());
+    if (h.find("'fortran_order':False") == std::string::npos)
+      throw Error(ErrorKind::BadInput, file_ + ": a Fortran-order .npy array (save it with C order)");
+    if (h.find("'descr':'<f8'") != std::string::npos) npy_f4_ = false;
+    else if (h.find("'descr':'<f4'") != std::string::npos) npy_f4_ = true;
+    else throw Error(ErrorKind::BadInput, file_ + ": .npy points must be little-endian float64 or float32 ('<f8', '<f4')");
+    const size_t at = h.find("'shape':(");
+    char* end = nullptr;
+    const unsigned long long n = at == std::string::npos ? 0 : std::strtoull(h.c_str() + at + 9, &end, 10);
+    if (at == std::string::npos || !end || std::strncmp(end, ",3)", 3) != 0)
+      throw Error(ErrorKind::BadInput, file_ + ": .npy points must have shape (n, 3)");
+    npy_ = true;
+    npy_left_ = n;
+  }
+
   std::string file_, one_;
   std::FILE* f_ = nullptr;
+  bool npy_ = false, npy_f4_ = false;
+  std::uint64_t npy_left_ = 0;
   bool done_ = false;
   long line_no_ = 0;
 };
@@ -141,7 +198,8 @@ int query(const std::vector<std::string>& argv, long long* chunk_count = nullptr
                             "face, edge or node the lowest id (volume stores)");
   auto* o_points = cmd.value("--points", points_file, "FILE",
                              "as --point for every line \"x y z\" of FILE (- reads "
-                             "standard input), answers in input order");
+                             "standard input) or every row of an (n, 3) .npy "
+                             "array, answers in input order");
   cmd.value("--threads", threads_text, "N", "with --points: threads searching (1 to 1024, default 1)");
   auto* o_neighbors = cmd.value("--element-neighbors", neighbors_of, "ID",
                                 "the fine elements across each side of element ID "

@@ -99,6 +99,13 @@ def test_locate_equals_query_points(cli, sphere_store, tmp_path):
     rows = cli.json_lines("query", sphere_store, "--points", str(f))
     assert [r["element"] for r in rows] == ids.tolist()
     assert np.array_equal(bits(np.array([r["xi"] for r in rows])), bits(xi))
+    # The same points as .npy (float64), and a refused shape.
+    np.save(tmp_path / "p.npy", pts)
+    rows = cli.json_lines("query", sphere_store, "--points", str(tmp_path / "p.npy"))
+    assert [r["element"] for r in rows] == ids.tolist()
+    np.save(tmp_path / "bad.npy", pts[:, :2])
+    code, msg = cli.error("query", sphere_store, "--points", str(tmp_path / "bad.npy"))
+    assert code == 3 and "must have shape (n, 3)" in msg
 
 
 def test_element_neighbors_equal_query(cli, sphere_store):
