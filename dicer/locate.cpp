@@ -6,6 +6,7 @@
 #include <thread>
 
 #include "dicer/error.hpp"
+#include "dicer/numbering.hpp"
 #include "dicer/orientation.hpp"
 #include "dicer/rows.hpp"
 
@@ -115,7 +116,7 @@ struct Searcher {
 
   // The cell (i, j, k) of coarse element row r contains p: xi of it.
   bool in_cell(const ElementRow& r, const std::array<Id, 3>& c, const P3& p, P3& xi) {
-    return invert(cell_nodes(r.element_first + c[0] + r.n[0] * (c[1] + r.n[1] * c[2])), p, xi) && inside(xi);
+    return invert(cell_nodes(ids::element(r.element_first, r.n, c[0], c[1], c[2])), p, xi) && inside(xi);
   }
 
   // Lowest-id cell of coarse element h containing p.
@@ -147,7 +148,7 @@ struct Searcher {
           ok = c[d] >= 0 && xi[d] >= -kLocateTolerance && xi[d] <= 1 + kLocateTolerance;
         }
         if (!ok) continue;
-        const Id id = r.element_first + c[0] + r.n[0] * (c[1] + r.n[1] * c[2]);
+        const Id id = ids::element(r.element_first, r.n, c[0], c[1], c[2]);
         if (best < 0 || id < best) best = id, out.xi = xi;
       }
       out.element = best;
@@ -166,7 +167,7 @@ struct Searcher {
     const Id steps = r.n[0] + r.n[1] + r.n[2] + 3;
     bool blocked = false;
     for (Id step = 0; step < steps; ++step) {
-      if (!invert(cell_nodes(r.element_first + c[0] + r.n[0] * (c[1] + r.n[1] * c[2])), p, xi)) break;
+      if (!invert(cell_nodes(ids::element(r.element_first, r.n, c[0], c[1], c[2])), p, xi)) break;
       if (inside(xi)) {
         found = true;
         break;
@@ -195,7 +196,7 @@ struct Searcher {
     if (!found) return false;
     // On a face, edge or node shared with lower cells of this element: the
     // lowest id among them (lower i, j or k is a lower id).
-    Id best = r.element_first + c[0] + r.n[0] * (c[1] + r.n[1] * c[2]);
+    Id best = ids::element(r.element_first, r.n, c[0], c[1], c[2]);
     P3 best_xi = xi;
     for (int mask = 1; mask < 8; ++mask) {
       std::array<Id, 3> c2 = c;
@@ -207,7 +208,7 @@ struct Searcher {
         }
       if (!ok) continue;
       P3 xi2;
-      const Id id = r.element_first + c2[0] + r.n[0] * (c2[1] + r.n[1] * c2[2]);
+      const Id id = ids::element(r.element_first, r.n, c2[0], c2[1], c2[2]);
       if (id < best && in_cell(r, c2, p, xi2)) best = id, best_xi = xi2;
     }
     out.element = best;
