@@ -225,38 +225,29 @@ int query(const std::vector<std::string>& argv, long long* chunk_count = nullptr
     throw Error(ErrorKind::Usage,
                 "give exactly one of --node, --nodes, --element, --elements, --box, --point, --points, "
                 "--element-neighbors, --node-elements");
-  const Id threads = parse_int("--threads", threads_text);
-  if (threads < 1 || threads > 1024) throw Error(ErrorKind::Usage, "--threads: must be between 1 and 1024");
+  const Id threads = parse_threads(threads_text);
   if (cmd.given(o_count) && !cmd.given(o_box)) throw Error(ErrorKind::Usage, "--count goes with --box");
 
   const FineMesh m = read_store(path, store.options());
-  if (cmd.given(o_node_elements)) {
-    const auto [a, b] = parse_range("--node-elements", elements_of);
-    if (b != a + 1) throw Error(ErrorKind::Usage, "--node-elements takes one node id");
-    const std::vector<Id> els = node_elements(m, a);
+  // --node-elements / --element-neighbors: one id in, a list of ids out.
+  auto print_list = [&](const char* what, const char* key, Id id, const char* list, const std::vector<Id>& ids) {
     if (json) {
-      print_json({{"node", a}, {"elements", els}});
+      print_json({{key, id}, {list, ids}});
     } else {
-      std::printf("node %lld elements", static_cast<long long>(a));
-      for (Id e : els) std::printf(" %lld", static_cast<long long>(e));
+      std::printf("%s %lld %s", what, static_cast<long long>(id), list);
+      for (Id e : ids) std::printf(" %lld", static_cast<long long>(e));
       std::printf("\n");
     }
     store.report(m);
     return 0;
-  }
-  if (cmd.given(o_neighbors)) {
-    const auto [a, b] = parse_range("--element-neighbors", neighbors_of);
-    if (b != a + 1) throw Error(ErrorKind::Usage, "--element-neighbors takes one element id");
-    const std::vector<Id> nb = element_neighbors(m, a);
-    if (json) {
-      print_json({{"id", a}, {"neighbors", nb}});
-    } else {
-      std::printf("element %lld neighbors", static_cast<long long>(a));
-      for (Id n : nb) std::printf(" %lld", static_cast<long long>(n));
-      std::printf("\n");
-    }
-    store.report(m);
-    return 0;
+  };
+  if (cmd.given(o_node_elements) || cmd.given(o_neighbors)) {
+    const bool of_node = cmd.given(o_node_elements);
+    const std::string flag = of_node ? "--node-elements" : "--element-neighbors";
+    const auto [a, b] = parse_range(flag, of_node ? elements_of : neighbors_of);
+    if (b != a + 1) throw Error(ErrorKind::Usage, flag + " takes one " + (of_node ? "node" : "element") + " id");
+    return of_node ? print_list("node", "node", a, "elements", node_elements(m, a))
+                   : print_list("element", "id", a, "neighbors", element_neighbors(m, a));
   }
   if (cmd.given(o_point) || cmd.given(o_points)) {
     // Batches of 65536 points bound the memory of a long stream; answers

@@ -113,8 +113,7 @@ int cmd_sweep(const std::vector<std::string>& argv) {
   agree([&] {
     run = cmd.parse(argv);
     if (!run) return;
-    threads = parse_int("--threads", threads_text);
-    if (threads < 1 || threads > 1024) throw Error(ErrorKind::Usage, "--threads: must be between 1 and 1024");
+    threads = parse_threads(threads_text);
     mesh.emplace(read_store(path, store.options()));
     if (mpi.active()) range = plan_chunks(*mesh, mpi.size())[static_cast<size_t>(mpi.rank())];
     else range = ChunkRange{0, 1, 0, mesh->num_coarse_elements(), mesh->num_elements()};

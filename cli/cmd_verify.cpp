@@ -53,7 +53,7 @@ int cmd_verify(const std::vector<std::string>& argv) {
            "elements, elements_formula, fine_faces_checked, "
            "boundary_fine_faces, id_errors, bit_identity_errors, "
            "coincident_nodes, conformity_errors, inverted, "
-           "min_scaled_jacobian, problems [text], and with --geometry "
+           "index_errors, min_scaled_jacobian, problems [text], and with --geometry "
            "geometry {max_distance, tolerance, diagonal, worst_node, "
            "worst_entity, nodes_checked}");
   cmd.flag("--quiet", quiet, "no progress bar");

@@ -213,6 +213,12 @@ void print_cache_stats(const FineMesh& mesh, const std::string& command) {
   if (!per.empty()) std::fprintf(stderr, "dicer %s: distinct pages read: %s\n", command.c_str(), per.c_str());
 }
 
+std::int64_t parse_threads(const std::string& text) {
+  const std::int64_t t = parse_int("--threads", text);
+  if (t < 1 || t > 1024) throw Error(ErrorKind::Usage, "--threads: must be between 1 and 1024");
+  return t;
+}
+
 std::string human_bytes(std::uint64_t b) {
   const char* unit[] = {"B", "KiB", "MiB", "GiB", "TiB", "PiB"};
   double v = static_cast<double>(b);

@@ -32,6 +32,8 @@ void agree(const std::function<void()>& fn);
 void hand_over_if_cad(char** argv, const std::vector<std::string>& args);
 
 std::int64_t parse_int(const std::string& what, const std::string& text);
+// A --threads value: 1 to 1024 (Error{Usage} otherwise).
+std::int64_t parse_threads(const std::string& text);
 double parse_double(const std::string& what, const std::string& text);
 // "a:b" -> [a, b); "a" -> [a, a+1).
 std::pair<std::int64_t, std::int64_t> parse_range(const std::string& what, const std::string& text);
