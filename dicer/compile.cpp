@@ -143,16 +143,18 @@ FineMesh FineMesh::dice(CoarseMesh coarse, const IntervalRequest& request, std::
   if (notes) *notes = plan.notes;
   // Store order (Morton, or the file's), vertices in first use, then the
   // owner-order topology the fine mesh is numbered by.
-  std::vector<Id> old_vertex;
-  auto ordered = std::make_shared<CoarseMesh>(sfc_order(coarse, &old_vertex, nullptr, locality_order));
+  std::vector<Id> old_element;
+  auto ordered = std::make_shared<CoarseMesh>(sfc_order(coarse, nullptr, &old_element, locality_order));
   Topology t = build_topology(*ordered);
   to_owner_order(t, ordered->conn);
-  std::vector<Id> edge_sheet(static_cast<size_t>(t.num_edges())), edge_n(static_cast<size_t>(t.num_edges()));
-  for (Id e = 0; e < t.num_edges(); ++e) {
-    const Id old = find_edge(t0, old_vertex[t.edge_v[2 * e]], old_vertex[t.edge_v[2 * e + 1]]);
-    edge_sheet[e] = s0.edge_sheet[old];
-    edge_n[e] = plan.sheet_interval[edge_sheet[e]];
-  }
+  // sfc_order keeps each element's corner order, so local edge k of new
+  // element h is local edge k of the input's element old_element[h].
+  std::vector<Id> edge_sheet(static_cast<size_t>(t.num_edges()), -1), edge_n(static_cast<size_t>(t.num_edges()));
+  const int epe = t.edges_per_element();
+  for (size_t h = 0; h < old_element.size(); ++h)
+    for (int k = 0; k < epe; ++k)
+      edge_sheet[t.elem_edge[h * epe + k]] = s0.edge_sheet[t0.elem_edge[static_cast<size_t>(old_element[h]) * epe + k]];
+  for (Id e = 0; e < t.num_edges(); ++e) edge_n[e] = plan.sheet_interval[edge_sheet[e]];
   const Numbering num(t, std::move(edge_n));
   FineMesh f = compile(ordered, t, num, edge_sheet, s0.num_sheets());
   f.sheet_intervals_ = std::move(plan.sheet_interval);

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cstdint>
 #include <string>
 #include <tuple>
 
@@ -34,25 +35,18 @@ Topology build_topology(const CoarseMesh& m) {
   const bool vol = m.mode == Mode::Volume;
   auto local_edge = [&](int k, int end) { return vol ? kHexEdge[k][end] : kQuadEdge[k][end]; };
 
-  // Edges: sort (lo, hi, slot) triples.
-  {
-    std::vector<std::tuple<Id, Id, Id>> keys;
-    keys.reserve(static_cast<size_t>(ne) * epe);
-    for (Id e = 0; e < ne; ++e) {
-      const Id* c = &m.conn[static_cast<size_t>(e) * nc];
-      for (int k = 0; k < epe; ++k) {
-        const Id a = c[local_edge(k, 0)], b = c[local_edge(k, 1)];
-        keys.emplace_back(std::min(a, b), std::max(a, b), e * epe + k);
-      }
-    }
+  // Edges: sort (lo, hi, slot) keys. With fewer than 2^32 vertices, lo and
+  // hi pack into one word: 16-byte keys sort ~1.5x faster than 24-byte
+  // triples, in the same order.
+  auto number_edges = [&](auto& keys, auto a_of, auto b_of, auto slot_of) {
     std::sort(keys.begin(), keys.end());
     t.elem_edge.resize(keys.size());
     t.elem_edge_rev.resize(keys.size());
     Id id = -1;
     size_t first = 0;  // first key of the current edge
     for (size_t i = 0; i < keys.size(); ++i) {
-      const auto& [a, b, slot] = keys[i];
-      if (i == 0 || std::get<0>(keys[i - 1]) != a || std::get<1>(keys[i - 1]) != b) {
+      const Id a = a_of(keys[i]), b = b_of(keys[i]), slot = slot_of(keys[i]);
+      if (i == 0 || a_of(keys[i - 1]) != a || b_of(keys[i - 1]) != b) {
         ++id;
         first = i;
         t.edge_v.push_back(a);
@@ -61,8 +55,8 @@ Topology build_topology(const CoarseMesh& m) {
         // A surface edge has one quad (boundary) or two; three or more is a
         // T-junction of shells, which no single sheet can dice.
         std::string quads;
-        for (size_t j = first; j < keys.size() && std::get<0>(keys[j]) == a && std::get<1>(keys[j]) == b; ++j)
-          quads += (j == first ? "" : ", ") + std::to_string(m.element_file_id[std::get<2>(keys[j]) / epe]);
+        for (size_t j = first; j < keys.size() && a_of(keys[j]) == a && b_of(keys[j]) == b; ++j)
+          quads += (j == first ? "" : ", ") + std::to_string(m.element_file_id[slot_of(keys[j]) / epe]);
         throw Error(ErrorKind::BadInput, m.source + ": non-manifold edge (nodes " +
                                              std::to_string(m.vertex_file_id[a]) + " " +
                                              std::to_string(m.vertex_file_id[b]) +
@@ -73,6 +67,32 @@ Topology build_topology(const CoarseMesh& m) {
       const int k = static_cast<int>(slot % epe);
       t.elem_edge_rev[slot] = m.conn[static_cast<size_t>(e) * nc + local_edge(k, 0)] > a ? 1 : 0;
     }
+  };
+  auto for_each_edge = [&](auto&& add) {
+    for (Id e = 0; e < ne; ++e) {
+      const Id* c = &m.conn[static_cast<size_t>(e) * nc];
+      for (int k = 0; k < epe; ++k) {
+        const Id a = c[local_edge(k, 0)], b = c[local_edge(k, 1)];
+        add(std::min(a, b), std::max(a, b), e * epe + k);
+      }
+    }
+  };
+  if (t.num_vertices <= Id{0xffffffff}) {
+    std::vector<std::pair<std::uint64_t, Id>> keys;
+    keys.reserve(static_cast<size_t>(ne) * epe);
+    for_each_edge([&](Id a, Id b, Id slot) {
+      keys.emplace_back(static_cast<std::uint64_t>(a) << 32 | static_cast<std::uint64_t>(b), slot);
+    });
+    number_edges(
+        keys, [](const auto& k) { return static_cast<Id>(k.first >> 32); },
+        [](const auto& k) { return static_cast<Id>(k.first & 0xffffffffu); }, [](const auto& k) { return k.second; });
+  } else {
+    std::vector<std::tuple<Id, Id, Id>> keys;
+    keys.reserve(static_cast<size_t>(ne) * epe);
+    for_each_edge([&](Id a, Id b, Id slot) { keys.emplace_back(a, b, slot); });
+    number_edges(
+        keys, [](const auto& k) { return std::get<0>(k); }, [](const auto& k) { return std::get<1>(k); },
+        [](const auto& k) { return std::get<2>(k); });
   }
 
   // Faces.
@@ -127,12 +147,27 @@ Topology build_topology(const CoarseMesh& m) {
     }
   }
 
-  // Face -> edges in the canonical frame.
+  // Face -> edges in the canonical frame, from the edges of an element that
+  // has the face (its local edges are already numbered): O(1) per face where
+  // a search of the sorted edges cost O(log n) (a sixth of dice's time).
   const Id nf = t.num_faces();
-  t.face_edge.resize(static_cast<size_t>(nf) * 4);
-  for (Id f = 0; f < nf; ++f)
-    for (int k = 0; k < 4; ++k)
-      t.face_edge[4 * f + k] = find_edge(t, t.face_v[4 * f + kQuadEdge[k][0]], t.face_v[4 * f + kQuadEdge[k][1]]);
+  t.face_edge.assign(static_cast<size_t>(nf) * 4, -1);
+  const size_t fpe = vol ? 6 : 1;
+  for (size_t slot = 0; slot < t.elem_face.size(); ++slot) {
+    const Id f = t.elem_face[slot];
+    if (t.face_edge[4 * f] >= 0) continue;
+    const Id e = static_cast<Id>(slot / fpe);
+    const Id* c = &m.conn[static_cast<size_t>(e) * nc];
+    for (int q = 0; q < 4; ++q) {
+      const Id a = t.face_v[4 * f + kQuadEdge[q][0]], b = t.face_v[4 * f + kQuadEdge[q][1]];
+      Id edge = -1;
+      for (int k = 0; k < epe && edge < 0; ++k) {
+        const Id x = c[local_edge(k, 0)], y = c[local_edge(k, 1)];
+        if ((x == a && y == b) || (x == b && y == a)) edge = t.elem_edge[static_cast<size_t>(e) * epe + k];
+      }
+      t.face_edge[4 * f + q] = edge >= 0 ? edge : find_edge(t, a, b);
+    }
+  }
   return t;
 }
 
