@@ -21,7 +21,12 @@ Vec3 FineMesh::node(Id id, MeshCursor& cur) const {
   if (id < 0 || id >= num_nodes())
     throw Error(ErrorKind::Usage, "node id " + std::to_string(id) + " is out of range (the mesh has " +
                                       std::to_string(num_nodes()) + " nodes)");
-  return node(locate_node(id, cur), cur);
+  ElementRow row;
+  const NodeRef ref = dicer::locate_node(tables_, id, cur, &row);
+  const detail::Evaluator E(tables_, cur);
+  // Most nodes are cell interiors: their owner's row is already decoded.
+  if (ref.kind == EntityKind::Cell) return E.cell_point(row, ref.entity, ref.local[0], ref.local[1], ref.local[2]);
+  return E.node(ref);
 }
 
 Vec3 FineMesh::node(const NodeRef& ref, MeshCursor& cur) const { return detail::Evaluator(tables_, cur).node(ref); }
@@ -57,9 +62,9 @@ FineElement FineMesh::element(Id id, MeshCursor& cur) const {
                                       std::to_string(num_elements()) + " elements)");
   FineElement el;
   el.id = id;
-  el.coarse_element = dicer::locate_element(tables_, id, el.ijk, cur);
+  ElementRow h;
+  el.coarse_element = dicer::locate_element(tables_, id, el.ijk, cur, &h);
   const detail::Evaluator E(tables_, cur);
-  const ElementRow h = E.R.element(el.coarse_element);
   el.block = h.block;
   const auto [i, j, k] = el.ijk;
   const bool vol = mode() == Mode::Volume;

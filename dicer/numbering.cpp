@@ -117,10 +117,12 @@ Id owner_element(const MeshTables& t, Id id, MeshCursor& cur) {
   return h;
 }
 
-NodeRef locate_node(const MeshTables& t, Id id, MeshCursor& cur) {
+NodeRef locate_node(const MeshTables& t, Id id, MeshCursor& cur, ElementRow* owner_row) {
   const Id hid = owner_element(t, id, cur);
   const RowReader R(t, cur);
-  const ElementRow h = R.element(hid);
+  ElementRow local;
+  ElementRow& h = owner_row ? *owner_row : local;
+  h = R.element(hid);
   const bool vol = t.mode == Mode::Volume;
   NodeRef r;
   if (vol && id >= h.cell_node && id - h.cell_node < ids::cell_nodes(h.n)) {
@@ -161,11 +163,13 @@ Id node_id(const MeshTables& t, const NodeRef& r, MeshCursor& cur) {
   return -1;
 }
 
-Id locate_element(const MeshTables& t, Id id, std::array<Id, 3>& ijk, MeshCursor& cur) {
+Id locate_element(const MeshTables& t, Id id, std::array<Id, 3>& ijk, MeshCursor& cur, ElementRow* row_out) {
   const Id h = search_elements(t, id, false, cur);
   const RowReader R(t, cur);
   if (h < 0) R.corrupt(RowTable::Elements, 0, "no coarse element holds fine element " + std::to_string(id));
-  const ElementRow row = R.element(h);
+  ElementRow local;
+  ElementRow& row = row_out ? *row_out : local;
+  row = R.element(h);
   const Id l = id - row.element_first;
   if (l < 0 || l >= row.n[0] * row.n[1] * row.n[2])
     R.corrupt(RowTable::Elements, h, "fine element " + std::to_string(id) + " lies past the element's own");

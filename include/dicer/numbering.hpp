@@ -102,10 +102,12 @@ class Numbering {
 
 // Lookups over the tables; ids must be in range (callers check: FineMesh
 // does). A row that contradicts the numbering is Error{Corrupt}.
-NodeRef locate_node(const MeshTables& t, Id id, MeshCursor& cur);
+// `owner_row`, when given, receives the owner element's validated row (the
+// caller then need not decode it again: a random query's largest cost).
+NodeRef locate_node(const MeshTables& t, Id id, MeshCursor& cur, ElementRow* owner_row = nullptr);
 Id node_id(const MeshTables& t, const NodeRef& r, MeshCursor& cur);
-// Fine element id -> coarse element h and (i, j, k).
-Id locate_element(const MeshTables& t, Id id, std::array<Id, 3>& ijk, MeshCursor& cur);
+// Fine element id -> coarse element h and (i, j, k); `row` as above.
+Id locate_element(const MeshTables& t, Id id, std::array<Id, 3>& ijk, MeshCursor& cur, ElementRow* row = nullptr);
 // The coarse element owning node `id` (the last with node_first <= id).
 Id owner_element(const MeshTables& t, Id id, MeshCursor& cur);
 
