@@ -40,41 +40,11 @@ void NodeCursor::enter(Id id) {
   const detail::Evaluator E(mesh_.tables(), cur_);
   const ElementRow h = E.R.element(hid);
   const bool vol = mesh_.mode() == Mode::Volume;
-  const int nc = E.R.corners(), ne = E.R.edges(), nf = E.R.faces();
   elem_ = hid, n_ = h.n;
   own_first_ = h.node_first;
-  own_end_ = vol ? h.cell_node : h.cell_node + ids::face_nodes(h.n[0], h.n[1]);
+  own_end_ = detail::own_boundary_nodes(E, h, hid, scratch_, own_);
   cell_first_ = vol ? h.cell_node : own_end_;
   cell_end_ = vol ? h.cell_node + ids::cell_nodes(h.n) : own_end_;
-  bool want_edge[12] = {}, want_face[6] = {};
-  for (int k = 0; k < ne; ++k) want_edge[k] = h.owns(h.edge_node[k]) && h.n[vol ? k / 4 : k / 2] > 1;
-  for (int k = 0; k < nf; ++k) want_face[k] = h.owns(h.face_node[k]);
-  detail::element_boundary(E, h, hid, scratch_, want_edge, want_face);
-  const size_t size = static_cast<size_t>(own_end_ - own_first_);
-  for (auto& a : own_) a.resize(size);
-  size_t filled = 0;
-  auto put = [&](Id node, Id count, const double* x, const double* y, const double* z) {
-    if (node < own_first_ || node - own_first_ + count > static_cast<Id>(size))
-      E.R.corrupt(RowTable::Elements, hid, "an owned entity's node ids lie outside the element's own range");
-    const double* src[3] = {x, y, z};
-    for (int d = 0; d < 3; ++d) std::copy_n(src[d], count, own_[d].data() + (node - own_first_));
-    filled += static_cast<size_t>(count);
-  };
-  for (int k = 0; k < nc; ++k)
-    if (h.owns(h.corner_node[k]))
-      put(h.corner_node[k], 1, &scratch_.corner[k].x, &scratch_.corner[k].y, &scratch_.corner[k].z);
-  for (int k = 0; k < ne; ++k)
-    if (want_edge[k]) {
-      const auto& e = scratch_.edge[k];
-      put(h.edge_node[k], ids::edge_nodes(h.n[vol ? k / 4 : k / 2]), e[0].data(), e[1].data(), e[2].data());
-    }
-  for (int k = 0; k < nf; ++k)
-    if (want_face[k]) {
-      const auto [nu, nv] = face_intervals(h, k, mesh_.mode());
-      const auto& f = scratch_.face[k];
-      put(h.face_node[k], ids::face_nodes(nu, nv), f[0].data(), f[1].data(), f[2].data());
-    }
-  if (filled != size) E.R.corrupt(RowTable::Elements, hid, "the element's own node ids are not all its entities'");
   if ((id < own_first_ || id >= own_end_) && (id < cell_first_ || id >= cell_end_))
     E.R.corrupt(RowTable::Elements, hid, "node " + std::to_string(id) + " is in none of the entities it owns");
 }

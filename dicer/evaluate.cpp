@@ -2,6 +2,7 @@
 // frame, from validated rows (see evaluate.hpp).
 #include "evaluate.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include "dicer/error.hpp"
@@ -339,6 +340,45 @@ void facet_points(const Evaluator& E, const ElementRow& h, Id hid, int slot, Fin
       put(p[0], p[1], 0);
     }
   }
+}
+
+Id own_boundary_nodes(const Evaluator& E, const ElementRow& h, Id hid, FineBlock::Scratch& s,
+                      std::vector<double> (&out)[3], bool evaluated) {
+  const Mode mode = E.mode();
+  const bool vol = mode == Mode::Volume;
+  const int nc = E.R.corners(), ne = E.R.edges(), nf = E.R.faces();
+  const Id first = h.node_first;
+  const Id end = vol ? h.cell_node : h.cell_node + ids::face_nodes(h.n[0], h.n[1]);
+  bool want_edge[12] = {}, want_face[6] = {};
+  for (int k = 0; k < ne; ++k) want_edge[k] = h.owns(h.edge_node[k]) && h.n[vol ? k / 4 : k / 2] > 1;
+  for (int k = 0; k < nf; ++k) want_face[k] = h.owns(h.face_node[k]);
+  if (!evaluated) element_boundary(E, h, hid, s, want_edge, want_face);
+  if (end < first) E.R.corrupt(RowTable::Elements, hid, "the element's own node ids run backwards");
+  const size_t size = static_cast<size_t>(end - first);
+  for (auto& a : out) a.resize(size);
+  size_t filled = 0;
+  auto put = [&](Id node, Id count, const double* x, const double* y, const double* z) {
+    if (node < first || node - first + count > static_cast<Id>(size))
+      E.R.corrupt(RowTable::Elements, hid, "an owned entity's node ids lie outside the element's own range");
+    const double* src[3] = {x, y, z};
+    for (int d = 0; d < 3; ++d) std::copy_n(src[d], count, out[d].data() + (node - first));
+    filled += static_cast<size_t>(count);
+  };
+  for (int k = 0; k < nc; ++k)
+    if (h.owns(h.corner_node[k])) put(h.corner_node[k], 1, &s.corner[k].x, &s.corner[k].y, &s.corner[k].z);
+  for (int k = 0; k < ne; ++k)
+    if (want_edge[k]) {
+      const auto& e = s.edge[k];
+      put(h.edge_node[k], ids::edge_nodes(h.n[vol ? k / 4 : k / 2]), e[0].data(), e[1].data(), e[2].data());
+    }
+  for (int k = 0; k < nf; ++k)
+    if (want_face[k]) {
+      const auto [nu, nv] = face_intervals(h, k, mode);
+      const auto& f = s.face[k];
+      put(h.face_node[k], ids::face_nodes(nu, nv), f[0].data(), f[1].data(), f[2].data());
+    }
+  if (filled != size) E.R.corrupt(RowTable::Elements, hid, "the element's own node ids are not all its entities'");
+  return end;
 }
 
 }  // namespace dicer::detail

@@ -49,6 +49,17 @@ struct Evaluator {
 void element_boundary(const Evaluator& E, const ElementRow& h, Id hid, FineBlock::Scratch& out,
                       const bool* want_edge = nullptr, const bool* want_face = nullptr);
 
+// The coordinates of the nodes element h owns outside its interior
+// (volume: ids [node_first, cell_node); surface: [node_first, cell_node +
+// its face's nodes)), in id order, into out[d][id - node_first]: its owned
+// corners, edges and faces, each filled whole in its canonical frame.
+// Returns the end of that id range. Uses `s`; `evaluated`: s already holds
+// element h's whole boundary (fill_slab with coordinates just filled it),
+// so it is copied, not computed again. Error{Corrupt} when the row's owned
+// entities do not tile the range exactly.
+Id own_boundary_nodes(const Evaluator& E, const ElementRow& h, Id hid, FineBlock::Scratch& s,
+                      std::vector<double> (&out)[3], bool evaluated = false);
+
 // Every grid point of one facet of element h: local face `slot` (volume)
 // or local edge `slot` (surface), with its node id and coordinates, each
 // computed by its owner as everywhere else. O(facet points); uses `s`.

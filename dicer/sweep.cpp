@@ -1,20 +1,26 @@
 #include "dicer/sweep.hpp"
 
+#include <cstring>
+
 #include <algorithm>
 #include <atomic>
 #include <bit>
 #include <chrono>
+#include <condition_variable>
+#include <mutex>
 #include <exception>
 #include <thread>
 #include <vector>
 
+#include "dicer/batch.hpp"
 #include "dicer/error.hpp"
 #include "dicer/rows.hpp"
 
 namespace dicer {
 namespace {
 
-std::uint64_t mix(std::uint64_t h) {
+// murmur3's 64-bit finaliser: a bijection, every input bit reaches every output bit.
+inline std::uint64_t fmix(std::uint64_t h) {
   h ^= h >> 33;
   h *= 0xff51afd7ed558ccdull;
   h ^= h >> 33;
@@ -23,18 +29,69 @@ std::uint64_t mix(std::uint64_t h) {
   return h;
 }
 
+constexpr const std::uint64_t* K = kChecksumKeys;
+
+inline std::uint64_t node_term(std::uint64_t id, std::uint64_t x, std::uint64_t y, std::uint64_t z) {
+  return fmix((id * K[0]) ^ (x * K[1]) ^ (y * K[2]) ^ (z * K[3]));
+}
+
+template <int C>
+inline std::uint64_t element_term(std::uint64_t id, const Id* nodes) {
+  std::uint64_t h = id * K[4];
+  for (int q = 0; q < C; ++q) h += static_cast<std::uint64_t>(nodes[q]) * K[5 + q];
+  return fmix(h);
+}
+
+// The loops over a batch: independent terms, no branch, so the compiler
+// vectorises them (AVX2 / AVX-512 clones; integer arithmetic, so every
+// clone gives the same sum). Not under ThreadSanitizer (see fill.cpp).
+#if defined(__SANITIZE_THREAD__)
+#define DICER_HASH_CLONES
+#else
+#define DICER_HASH_CLONES __attribute__((target_clones("arch=x86-64-v4", "avx2", "default")))
+#endif
+
+DICER_HASH_CLONES std::uint64_t sum_nodes(std::uint64_t first, const double* x, const double* y, const double* z,
+                                          std::int64_t n) {
+  std::uint64_t sum = 0;
+  for (std::int64_t i = 0; i < n; ++i) {
+    std::uint64_t bx, by, bz;
+    std::memcpy(&bx, x + i, 8), std::memcpy(&by, y + i, 8), std::memcpy(&bz, z + i, 8);
+    sum += node_term(first + static_cast<std::uint64_t>(i), bx, by, bz);
+  }
+  return sum;
+}
+
+template <int C>
+DICER_HASH_CLONES std::uint64_t sum_elements(std::uint64_t first, const Id* conn, std::int64_t n) {
+  std::uint64_t sum = 0;
+  for (std::int64_t e = 0; e < n; ++e) sum += element_term<C>(first + static_cast<std::uint64_t>(e), conn + C * e);
+  return sum;
+}
+
 }  // namespace
 
 std::uint64_t node_checksum_term(Id id, const Vec3& x) {
-  return mix(static_cast<std::uint64_t>(id) ^ mix(std::bit_cast<std::uint64_t>(x.x) ^
-                                                  mix(std::bit_cast<std::uint64_t>(x.y) ^
-                                                      mix(std::bit_cast<std::uint64_t>(x.z)))));
+  return node_term(static_cast<std::uint64_t>(id), std::bit_cast<std::uint64_t>(x.x), std::bit_cast<std::uint64_t>(x.y),
+                   std::bit_cast<std::uint64_t>(x.z));
 }
 
 std::uint64_t element_checksum_term(const FineElement& e) {
-  std::uint64_t h = mix(static_cast<std::uint64_t>(e.id) + 0x9e3779b97f4a7c15ull);
-  for (int q = 0; q < e.num_nodes; ++q) h = mix(h ^ static_cast<std::uint64_t>(e.nodes[q]));
-  return h;
+  return e.num_nodes == 8 ? element_term<8>(static_cast<std::uint64_t>(e.id), e.nodes.data())
+                          : element_term<4>(static_cast<std::uint64_t>(e.id), e.nodes.data());
+}
+
+std::uint64_t checksum_nodes(Id first, std::span<const double> x, std::span<const double> y,
+                             std::span<const double> z) {
+  DICER_ASSERT(x.size() == y.size() && x.size() == z.size(), "checksum_nodes: x, y, z of one length");
+  return sum_nodes(static_cast<std::uint64_t>(first), x.data(), y.data(), z.data(), static_cast<std::int64_t>(x.size()));
+}
+
+std::uint64_t checksum_elements(Id first, int corners, std::span<const Id> conn) {
+  DICER_ASSERT(corners == 8 || corners == 4, "checksum_elements: 8 or 4 corners");
+  const auto n = static_cast<std::int64_t>(conn.size()) / corners;
+  return corners == 8 ? sum_elements<8>(static_cast<std::uint64_t>(first), conn.data(), n)
+                      : sum_elements<4>(static_cast<std::uint64_t>(first), conn.data(), n);
 }
 
 namespace {
@@ -92,46 +149,21 @@ SweepResult sweep(const FineMesh& mesh, unsigned threads, const std::function<vo
   }
   const Id total = nn + ne;
   const std::vector<Id> split = split_work(mesh, threads, first_coarse, end_coarse);
-  const bool vol = mesh.mode() == Mode::Volume;
   std::atomic<Id> done{0};
   std::vector<std::uint64_t> sums(threads, 0);
   std::vector<std::exception_ptr> errors(threads);
-  // One pass over coarse elements in store order: a block's own nodes (ids
-  // >= node_first) and its elements, slab by slab; so each page of the
-  // store is read once per sweep.
+  // One pass over coarse elements in store order, a batch (slab) at a
+  // time: each page of the store is read once per sweep.
   auto work = [&](unsigned t) {
     try {
       std::uint64_t sum = 0;
       Id local = 0;
-      FineBlock b;
-      for (Id h = split[t]; h < split[t + 1]; ++h) {
-        const std::array<Id, 3> n = RowReader(mesh.tables(), b.cursor).element(h).n;
-        const Id n2 = vol ? n[2] : 0;
-        const Id step = std::max<Id>(1, kCursorSlabPoints / ((n[0] + 1) * (n[1] + 1)));
-        for (Id k0 = 0; k0 < std::max<Id>(n2, 1); k0 += step) {
-          const Id k1 = vol ? std::min(k0 + step, n2) : 0;
-          mesh.fill_slab(h, k0, k1, b, true, true);
-          // Nodes of planes k0 .. k1 - 1, and k1 on the last slab.
-          const Id plane = (n[0] + 1) * (n[1] + 1);
-          const Id points = (k1 == n2 ? k1 - k0 + 1 : k1 - k0) * plane;
-          Id own = 0;
-          for (Id g = 0; g < points; ++g) {
-            const Id id = b.node_id[g];
-            if (id < b.node_first) continue;
-            sum += node_checksum_term(id, {b.x[g], b.y[g], b.z[g]});
-            ++own;
-          }
-          FineElement el;
-          el.num_nodes = mesh.corners();
-          const Id m = b.num_elements();
-          for (Id e = 0; e < m; ++e) {
-            el.id = b.first_element + e;
-            std::copy_n(&b.conn[static_cast<size_t>(e) * el.num_nodes], el.num_nodes, el.nodes.begin());
-            sum += element_checksum_term(el);
-          }
-          local += m + own;
-          if (local >= 65536) done += local, local = 0;
-        }
+      BatchCursor batches(mesh, split[t], split[t + 1]);
+      FineBatch b;
+      while (batches.next(b)) {
+        sum += checksum_nodes(b.node_begin, b.x, b.y, b.z) + checksum_elements(b.element_begin, b.corners, b.conn);
+        local += b.num_nodes() + b.num_elements();
+        if (local >= 65536) done += local, local = 0;
       }
       done += local;
       sums[t] = sum;
@@ -139,20 +171,32 @@ SweepResult sweep(const FineMesh& mesh, unsigned threads, const std::function<vo
       errors[t] = std::current_exception();
     }
   };
-  std::vector<std::thread> pool;
-  for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work, t);
-  if (progress) {
-    std::thread first(work, 0u);
-    while (done.load() < total && first.joinable()) {
-      progress(std::min(done.load(), total), total);
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));
-      bool all_errored = false;
-      for (auto& e : errors) all_errored = all_errored || e;
-      if (all_errored) break;
+  // Workers count themselves out, so the progress loop wakes the moment the
+  // last one ends (a fixed sleep added up to 100 ms to every sweep) and
+  // never waits on work that an exception cut short.
+  std::mutex m;
+  std::condition_variable cv;
+  unsigned finished = 0;
+  auto run = [&](unsigned t) {
+    work(t);
+    {
+      std::lock_guard lock(m);
+      ++finished;
     }
-    first.join();
+    cv.notify_one();
+  };
+  std::vector<std::thread> pool;
+  for (unsigned t = 1; t < threads; ++t) pool.emplace_back(run, t);
+  if (progress) {
+    pool.emplace_back(run, 0u);
+    std::unique_lock lock(m);
+    while (!cv.wait_for(lock, std::chrono::milliseconds(100), [&] { return finished == threads; })) {
+      lock.unlock();
+      progress(std::min(done.load(), total), total);
+      lock.lock();
+    }
   } else {
-    work(0);
+    run(0);
   }
   for (auto& th : pool) th.join();
   for (auto& e : errors)

@@ -1,11 +1,25 @@
 #pragma once
-// Sweep: visit every fine node and element once through the public cursors
-// (NodeCursor, ElementCursor), split into contiguous id ranges over threads,
+// Sweep: visit every fine node and element once, a batch at a time
+// (batch.hpp), coarse elements split into contiguous ranges over threads,
 // and fold them into an order-independent checksum: the same for every
 // thread count and cache budget (a test pins it), so two sweeps, two
 // machines or two stores of the same mesh can be compared by one number.
+//
+// The checksum (since 0.3: cheaper than the chained mixes before, so the
+// values differ from earlier versions'), all arithmetic mod 2^64:
+//   fmix(h)      = murmur3's 64-bit finaliser: h ^= h >> 33; h *= 0xff51afd7ed558ccd;
+//                  h ^= h >> 33; h *= 0xc4ceb9fe1a85ec53; h ^= h >> 33
+//   node term    = fmix(id*K0 ^ bits(x)*K1 ^ bits(y)*K2 ^ bits(z)*K3)
+//   element term = fmix(id*K4 + node[0]*K5 + ... + node[c-1]*K(4+c)), c = 8 or 4 corners
+//   checksum     = sum of every node's and every element's term
+// with bits() the IEEE-754 bit pattern and K = kChecksumKeys (odd, so each
+// product is a bijection of its input: a change in any one id, coordinate
+// bit or corner always changes the term). Terms are independent, so the
+// sum vectorises; the final fmix ties the id to its coordinates (a node's
+// coordinates given to another id change the sum).
 #include <cstdint>
 #include <functional>
+#include <span>
 
 #include "dicer/fine_mesh.hpp"
 #include "dicer/store.hpp"
@@ -32,8 +46,17 @@ inline constexpr unsigned kSweepPagesPerThread = 20;
 SweepResult sweep(const FineMesh& mesh, unsigned threads, const std::function<void(Id, Id)>& progress = {},
                   Id first_coarse = 0, Id end_coarse = -1);
 
-// The checksum terms, exposed so tests can compute the same sum independently.
+inline constexpr std::uint64_t kChecksumKeys[13] = {
+    0x9e3779b97f4a7c15ull, 0xbf58476d1ce4e5b9ull, 0x94d049bb133111ebull, 0xd6e8feb86659fd93ull,
+    0xa0761d6478bd642full, 0xe7037ed1a0b428dbull, 0x8ebc6af09c88c6e3ull, 0x589965cc75374cc3ull,
+    0x1d8e4e27c47d124full, 0x2545f4914f6cdd1dull, 0x5851f42d4c957f2dull, 0x14057b7ef767814full,
+    0x9fb21c651e98df25ull};
+
+// One term, and the sums over a batch's arrays (nodes first, first + 1, ...;
+// elements likewise, `corners` node ids each). O(n), vectorised.
 std::uint64_t node_checksum_term(Id id, const Vec3& x);
 std::uint64_t element_checksum_term(const FineElement& e);
+std::uint64_t checksum_nodes(Id first, std::span<const double> x, std::span<const double> y, std::span<const double> z);
+std::uint64_t checksum_elements(Id first, int corners, std::span<const Id> conn);
 
 }  // namespace dicer

@@ -2,11 +2,65 @@
 // equal to the same sum computed through node(id) and element(id).
 #include <gtest/gtest.h>
 
+#include <bit>
+
 #include "dicer/store.hpp"
 #include "dicer/sweep.hpp"
 #include "test_support.hpp"
 
 using namespace dicer;
+
+namespace {
+
+// The checksum as sweep.hpp documents it, written here from that text
+// (not by calling the library's terms).
+std::uint64_t fmix(std::uint64_t h) {
+  h ^= h >> 33;
+  h *= 0xff51afd7ed558ccdull;
+  h ^= h >> 33;
+  h *= 0xc4ceb9fe1a85ec53ull;
+  h ^= h >> 33;
+  return h;
+}
+std::uint64_t bits(double x) { return std::bit_cast<std::uint64_t>(x); }
+std::uint64_t node_term(Id id, const Vec3& p) {
+  const std::uint64_t* K = kChecksumKeys;
+  return fmix(static_cast<std::uint64_t>(id) * K[0] ^ bits(p.x) * K[1] ^ bits(p.y) * K[2] ^ bits(p.z) * K[3]);
+}
+std::uint64_t element_term(const FineElement& e) {
+  const std::uint64_t* K = kChecksumKeys;
+  std::uint64_t h = static_cast<std::uint64_t>(e.id) * K[4];
+  for (int q = 0; q < e.num_nodes; ++q) h += static_cast<std::uint64_t>(e.nodes[q]) * K[5 + q];
+  return fmix(h);
+}
+
+}  // namespace
+
+TEST(Sweep, ChecksumKeysAreOddAndDistinct) {
+  for (int i = 0; i < 13; ++i) {
+    EXPECT_EQ(kChecksumKeys[i] & 1, 1u) << i;
+    for (int j = 0; j < i; ++j) EXPECT_NE(kChecksumKeys[i], kChecksumKeys[j]);
+  }
+}
+
+TEST(Sweep, ChecksumSeesEveryFieldAndWhichIdHasWhichCoordinates) {
+  const Vec3 a{1.0, 2.0, 3.0}, b{1.0, 2.0, 3.0000000000000004};
+  EXPECT_NE(node_checksum_term(5, a), node_checksum_term(5, b)) << "last bit of z";
+  EXPECT_NE(node_checksum_term(5, a), node_checksum_term(6, a)) << "id";
+  EXPECT_NE(node_checksum_term(5, a) + node_checksum_term(6, b), node_checksum_term(5, b) + node_checksum_term(6, a))
+      << "two nodes' coordinates swapped";
+  EXPECT_NE(node_checksum_term(5, {1.0, 2.0, 3.0}), node_checksum_term(5, {2.0, 1.0, 3.0})) << "x and y swapped";
+  FineElement e;
+  e.id = 9, e.num_nodes = 8, e.nodes = {1, 2, 3, 4, 5, 6, 7, 8};
+  FineElement r = e;
+  std::swap(r.nodes[0], r.nodes[1]);
+  EXPECT_NE(element_checksum_term(e), element_checksum_term(r)) << "corner order";
+  // The library's terms are the documented formula.
+  EXPECT_EQ(node_checksum_term(5, b), node_term(5, b));
+  EXPECT_EQ(element_checksum_term(e), element_term(e));
+  e.num_nodes = 4;
+  EXPECT_EQ(element_checksum_term(e), element_term(e));
+}
 
 TEST(Sweep, ChecksumIsTheSameForEveryThreadCountAndCacheBudget) {
   IntervalRequest r;
@@ -14,8 +68,8 @@ TEST(Sweep, ChecksumIsTheSameForEveryThreadCountAndCacheBudget) {
   const FineMesh mem = FineMesh::dice(read_coarse_mesh(test::data_path("vtkdata_mug.e")), r);
   // Independent: the sum over node(id) and element(id), in id order.
   std::uint64_t expected = 0;
-  for (Id id = 0; id < mem.num_nodes(); ++id) expected += node_checksum_term(id, mem.node(id));
-  for (Id id = 0; id < mem.num_elements(); ++id) expected += element_checksum_term(mem.element(id));
+  for (Id id = 0; id < mem.num_nodes(); ++id) expected += node_term(id, mem.node(id));
+  for (Id id = 0; id < mem.num_elements(); ++id) expected += element_term(mem.element(id));
   test::TempDir tmp;
   write_store(mem, tmp.path("m.dice.h5"));
   for (unsigned threads : {1u, 2u, 3u, 7u}) {

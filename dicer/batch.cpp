@@ -1,0 +1,85 @@
+// Batch iteration (batch.hpp): a coarse element's own boundary nodes once
+// (own_boundary_nodes), then its slabs through fill_slab, the interior
+// planes of each slab copied out row by row.
+#include "dicer/batch.hpp"
+
+#include <algorithm>
+
+#include "dicer/error.hpp"
+#include "evaluate.hpp"
+
+namespace dicer {
+
+BatchCursor::BatchCursor(const FineMesh& mesh, Id first, Id end, BatchOptions options)
+    : mesh_(mesh), h_(first), end_(end < 0 ? mesh.num_coarse_elements() : end), opt_(options) {
+  if (first < 0 || first > end_ || end_ > mesh.num_coarse_elements())
+    throw Error(ErrorKind::Usage, "batches: coarse elements " + std::to_string(first) + ".." + std::to_string(end_) +
+                                      " outside the mesh (" + std::to_string(mesh.num_coarse_elements()) + ")");
+}
+
+void BatchCursor::enter() {
+  const detail::Evaluator E(mesh_.tables(), block_.cursor);
+  const ElementRow h = E.R.element(h_);
+  const bool vol = mesh_.mode() == Mode::Volume;
+  n_ = h.n;
+  n2_ = vol ? n_[2] : 0;
+  step_ = std::max<Id>(1, opt_.slab_points / ((n_[0] + 1) * (n_[1] + 1)));
+  node_first_ = h.node_first, cell_node_ = h.cell_node, element_first_ = h.element_first;
+  own_end_ = vol ? h.cell_node : h.cell_node + ids::face_nodes(n_[0], n_[1]);
+  k0_ = 0;
+  entered_ = true;
+}
+
+bool BatchCursor::next(FineBatch& out) {
+  if (h_ >= end_) return false;
+  if (!entered_) enter();
+  const bool vol = n2_ > 0;
+  const Id k0 = k0_, k1 = vol ? std::min(k0 + step_, n2_) : 0;
+  if (opt_.conn || opt_.coords) mesh_.fill_slab(h_, k0, k1, block_, opt_.coords, opt_.conn);
+  out.coarse_element = h_;
+  out.corners = mesh_.corners();
+  // Nodes: the own boundary on the first slab (already in xyz_), then the
+  // interior planes k in (k0, k1], k < n2 (ids follow cell_node in plane order).
+  const Id in = (n_[0] - 1) * (n_[1] - 1);
+  const Id p_lo = vol ? k0 + 1 : 1, p_hi = vol ? std::min(k1, n2_ - 1) : 0;  // interior planes held
+  out.node_begin = k0 == 0 ? node_first_ : cell_node_ + in * (p_lo - 1);
+  out.node_end = vol ? cell_node_ + in * std::max<Id>(p_hi, p_lo - 1) : own_end_;
+  if (opt_.coords) {
+    if (k0 == 0) {
+      // fill_slab has just evaluated the element's whole boundary into the
+      // block's scratch (edges and faces in their canonical frames).
+      const detail::Evaluator E(mesh_.tables(), block_.cursor);
+      const Id end = detail::own_boundary_nodes(E, E.R.element(h_), h_, block_.scratch, xyz_, true);
+      DICER_ASSERT(end == own_end_, "batches: the own range of the row");
+    } else {
+      for (auto& a : xyz_) a.clear();
+    }
+    const std::vector<double>* src[3] = {&block_.x, &block_.y, &block_.z};
+    for (Id k = p_lo; k <= p_hi; ++k)
+      for (Id j = 1; j < n_[1]; ++j) {
+        const auto g = static_cast<std::ptrdiff_t>(block_.point_index(1, j, k));
+        for (int d = 0; d < 3; ++d)
+          xyz_[d].insert(xyz_[d].end(), src[d]->begin() + g, src[d]->begin() + g + (n_[0] - 1));
+      }
+    DICER_ASSERT(static_cast<Id>(xyz_[0].size()) == out.node_end - out.node_begin,
+                 "batches: a slab's node count matches its id range");
+    out.x = xyz_[0], out.y = xyz_[1], out.z = xyz_[2];
+  } else {
+    out.x = out.y = out.z = {};
+  }
+  // Elements: layers [k0, k1) (surface: the element's one layer).
+  const Id layer = n_[0] * n_[1];
+  out.element_begin = element_first_ + layer * k0;
+  out.element_end = element_first_ + layer * (vol ? k1 : 1);
+  out.conn = opt_.conn ? std::span<const Id>(block_.conn) : std::span<const Id>();
+  // Advance.
+  if (vol && k1 < n2_) {
+    k0_ = k1;
+  } else {
+    ++h_;
+    entered_ = false;
+  }
+  return true;
+}
+
+}  // namespace dicer

@@ -1,0 +1,70 @@
+#pragma once
+// Batch iteration: the fine mesh a slab at a time, as contiguous arrays.
+//
+// BatchCursor visits coarse elements [first, end) in store order and, for
+// each, hands out slabs of its grid planes. A batch holds
+//  - nodes [node_begin, node_end): consecutive ids, the ones the coarse
+//    element owns (owner order, numbering.hpp), coordinates at index
+//    id - node_begin. The first batch of an element holds its own vertices,
+//    edges and faces, then interior planes; later batches interior planes;
+//  - elements [element_begin, element_end): consecutive ids, connectivity
+//    in global node ids, `corners` per element (VTK/Exodus HEX8 or QUAD4
+//    order).
+// Over [first, end) every fine element and every node those coarse elements
+// own comes exactly once, in increasing id order; over coarse elements
+// [0, H) that is the whole mesh in id order. The bits equal node(id),
+// element(id) and the cursors' (property tests compare them).
+//
+// Cost: O(slab) per batch, no per-node call; the arrays are reused, so a
+// warm cursor allocates nothing. Memory: one slab (about `slab_points`
+// grid points, whole planes) plus an element's boundary (O(interval^2)).
+// Thread safety: one BatchCursor per thread (each holds its own page pins);
+// the mesh may be shared. Errors: a corrupt row is Error{Corrupt}; a range
+// outside the mesh is Error{Usage}.
+#include <array>
+#include <span>
+#include <vector>
+
+#include "dicer/fine_mesh.hpp"
+
+namespace dicer {
+
+struct FineBatch {
+  Id coarse_element = -1;
+  Id node_begin = 0, node_end = 0;        // consecutive node ids
+  std::span<const double> x, y, z;        // node_end - node_begin each (empty without coordinates)
+  Id element_begin = 0, element_end = 0;  // consecutive element ids
+  int corners = 8;
+  std::span<const Id> conn;               // corners * (element_end - element_begin) (empty without connectivity)
+  Id num_nodes() const { return node_end - node_begin; }
+  Id num_elements() const { return element_end - element_begin; }
+};
+
+struct BatchOptions {
+  bool coords = true;  // node coordinates
+  bool conn = true;    // element connectivity
+  Id slab_points = kCursorSlabPoints;
+};
+
+class BatchCursor {
+ public:
+  // Coarse elements [first, end); end = -1: to the last.
+  BatchCursor(const FineMesh& mesh, Id first = 0, Id end = -1, BatchOptions options = {});
+  // The next batch (valid until the next call); false at the end.
+  bool next(FineBatch& out);
+
+ private:
+  void enter();
+  const FineMesh& mesh_;
+  Id h_, end_;
+  BatchOptions opt_;
+  Id k0_ = 0, step_ = 1, n2_ = 0;  // next slab starts at layer k0_ of element h_; n2_ layers (0: surface)
+  bool entered_ = false;
+  std::array<Id, 3> n_{};
+  Id node_first_ = 0, cell_node_ = 0, own_end_ = 0;  // the element's own range; interior from cell_node_
+  Id element_first_ = 0;
+  FineBlock block_;
+  std::vector<double> xyz_[3];  // the batch's nodes
+};
+
+}  // namespace dicer

@@ -1,0 +1,121 @@
+// Batch iteration (batch.hpp) over random coarse meshes: consecutive id
+// ranges that tile the chunk's own nodes and its elements exactly, and the
+// same bits as node(id) and element(id), for every slab size, sub-range of
+// coarse elements and choice of arrays.
+#include <gtest/gtest.h>
+
+#include <bit>
+#include <random>
+
+#include "dicer/batch.hpp"
+#include "dicer/error.hpp"
+#include "dicer/numbering.hpp"
+#include "random_mesh.hpp"
+
+using namespace dicer;
+
+namespace {
+
+bool same_bits(double a, double b) { return std::bit_cast<std::uint64_t>(a) == std::bit_cast<std::uint64_t>(b); }
+
+void check_batches(const FineMesh& f, Id first, Id end, BatchOptions opt) {
+  MeshCursor cur;
+  const auto own = f.owned_nodes(first, end, cur);
+  Id node = own[0];
+  Id element = -1;
+  Id prev_coarse = first - 1;
+  BatchCursor c(f, first, end, opt);
+  FineBatch b;
+  while (c.next(b)) {
+    ASSERT_GE(b.coarse_element, prev_coarse);
+    ASSERT_LT(b.coarse_element, end);
+    prev_coarse = b.coarse_element;
+    ASSERT_EQ(b.node_begin, node) << "nodes follow on without a gap";
+    ASSERT_GE(b.node_end, b.node_begin);
+    node = b.node_end;
+    if (element < 0) element = f.element(b.element_begin).id;
+    ASSERT_EQ(b.element_begin, element) << "elements follow on without a gap";
+    element = b.element_end;
+    ASSERT_EQ(b.corners, f.corners());
+    ASSERT_EQ(b.x.size(), opt.coords ? static_cast<size_t>(b.num_nodes()) : 0u);
+    ASSERT_EQ(b.conn.size(), opt.conn ? static_cast<size_t>(b.num_elements() * b.corners) : 0u);
+    for (Id id = b.node_begin; id < b.node_end && opt.coords; ++id) {
+      const Vec3 p = f.node(id);
+      const auto q = static_cast<size_t>(id - b.node_begin);
+      ASSERT_TRUE(same_bits(p.x, b.x[q]) && same_bits(p.y, b.y[q]) && same_bits(p.z, b.z[q])) << "node " << id;
+      ASSERT_EQ(owner_element(f.tables(), id, cur), b.coarse_element) << "node " << id << " in its owner's batch";
+    }
+    for (Id e = b.element_begin; e < b.element_end && opt.conn; ++e) {
+      const FineElement el = f.element(e);
+      ASSERT_EQ(el.coarse_element, b.coarse_element);
+      for (int q = 0; q < b.corners; ++q)
+        ASSERT_EQ(el.nodes[q], b.conn[static_cast<size_t>((e - b.element_begin) * b.corners + q)]) << "element " << e;
+    }
+  }
+  EXPECT_EQ(node, own[1]) << "the batches end where the chunk's own nodes end";
+  if (first < end) {
+    // Elements [first fine element of `first`, first fine element of `end`).
+    std::array<Id, 3> ijk;
+    Id lo = 0, hi = f.num_elements();
+    for (Id e = 0; e < f.num_elements(); ++e) {
+      if (f.locate_element(e, ijk, cur) == first) {
+        lo = e;
+        break;
+      }
+    }
+    for (Id e = lo; e < f.num_elements(); ++e)
+      if (f.locate_element(e, ijk, cur) >= end) {
+        hi = e;
+        break;
+      }
+    EXPECT_EQ(element, hi) << "the batches end where the chunk's elements end";
+    EXPECT_GE(lo, 0);
+  }
+}
+
+}  // namespace
+
+TEST(Batches, TileTheChunkInIdOrderWithTheBitsOfNodeAndElement) {
+  std::mt19937_64 rng(7);
+  for (int trial = 0; trial < 3; ++trial) {
+    test::BoxSpec spec;
+    spec.a = 2 + trial, spec.b = 2, spec.c = 1 + trial % 2, spec.blocks = 2;
+    const CoarseMesh m = test::random_box(spec, rng);
+    IntervalRequest req;
+    req.global = 3;
+    req.sheets = {{0, 1}, {1, 4}, {2, 2}};
+    const FineMesh f = FineMesh::dice(m, req);
+    const Id H = f.num_coarse_elements();
+    for (const Id slab : {Id{1}, Id{30}, kCursorSlabPoints}) {
+      for (const auto& [coords, conn] : {std::pair{true, true}, std::pair{true, false}, std::pair{false, true}}) {
+        BatchOptions opt;
+        opt.coords = coords, opt.conn = conn, opt.slab_points = slab;
+        check_batches(f, 0, H, opt);
+        check_batches(f, 1, H - 1, opt);
+        check_batches(f, H / 2, H / 2, opt);
+      }
+    }
+  }
+}
+
+TEST(Batches, SurfaceMeshesToo) {
+  std::mt19937_64 rng(11);
+  const CoarseMesh m = test::random_quad_sheet(4, 3, true, rng);
+  IntervalRequest req;
+  req.global = 3;
+  const FineMesh f = FineMesh::dice(m, req);
+  for (const auto& [coords, conn] : {std::pair{true, true}, std::pair{false, true}, std::pair{true, false}}) {
+    BatchOptions opt;
+    opt.coords = coords, opt.conn = conn;
+    check_batches(f, 0, f.num_coarse_elements(), opt);
+    check_batches(f, 2, 5, opt);
+  }
+}
+
+TEST(Batches, RangeOutsideTheMeshIsAUsageError) {
+  std::mt19937_64 rng(3);
+  const FineMesh f = FineMesh::dice(test::random_box({}, rng), IntervalRequest{});
+  EXPECT_THROW(BatchCursor(f, 0, f.num_coarse_elements() + 1), Error);
+  EXPECT_THROW(BatchCursor(f, 2, 1), Error);
+  EXPECT_THROW(BatchCursor(f, -1, 1), Error);
+}
