@@ -3,9 +3,13 @@
 #include <gtest/gtest.h>
 
 #include <bit>
+#include <random>
 
+#include "dicer/error.hpp"
 #include "dicer/store.hpp"
 #include "dicer/sweep.hpp"
+#include "random_mesh.hpp"
+#include "store_forge.hpp"
 #include "test_support.hpp"
 
 using namespace dicer;
@@ -93,5 +97,34 @@ TEST(Sweep, ChecksumIsTheSameForEveryThreadCountAndCacheBudget) {
     ASSERT_EQ(c.exit_code, 0) << c.err;
     EXPECT_NE(c.out.find(std::string("\"checksum\":\"") + hex + "\""), std::string::npos) << c.out;
     EXPECT_NE(c.out.find("\"nodes_per_s\":"), std::string::npos);
+  }
+}
+
+// One thread fails (its half of the store has a damaged page), the other
+// finishes: the sweep reports the error at once, with or without a progress
+// callback (it used to wait for the failed thread's work forever).
+TEST(Sweep, AFailingThreadEndsTheSweepWithItsError) {
+  std::mt19937_64 rng(5);
+  test::BoxSpec spec;
+  spec.a = 10, spec.b = 10, spec.c = 6;  // 600 coarse hexes: 5 pages of element rows
+  IntervalRequest r;
+  r.global = 2;
+  test::TempDir tmp;
+  const std::string store = tmp.path("box.dice.h5");
+  write_store(FineMesh::dice(test::random_box(spec, rng), r), store);
+  // Page 3 of 5: only the second thread's half reads it (opening reads the last).
+  const std::string bad = test::edited_copy(store, tmp.path("bad.dice.h5"), [](hid_t f) {
+    test::forge_page(f, "topology/elements", 3, [](std::vector<std::uint8_t>& page) { page[8] ^= 0x10; }, false);
+  });
+  for (const bool with_progress : {false, true}) {
+    const FineMesh s = read_store(bad);
+    ASSERT_EQ((s.tables().elements.rows() + s.tables().elements.rows_per_page() - 1) / s.tables().elements.rows_per_page(), 5);
+    try {
+      sweep(s, 2, with_progress ? std::function<void(Id, Id)>([](Id, Id) {}) : nullptr);
+      ADD_FAILURE() << "the damaged page went unnoticed";
+    } catch (const Error& e) {
+      EXPECT_EQ(e.kind(), ErrorKind::Corrupt) << e.what();
+      EXPECT_NE(std::string(e.what()).find("topology/elements page 3"), std::string::npos) << e.what();
+    }
   }
 }
