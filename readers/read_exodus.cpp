@@ -31,6 +31,7 @@
 #include "dicer/error.hpp"
 #include "exodus_errors.hpp"
 #include "input_file.hpp"
+#include "isolated.hpp"
 #include "netcdf_checks.hpp"
 
 namespace dicer {
@@ -210,6 +211,8 @@ std::string describe_type(const BlockInfo& b) {
   return t;
 }
 
+CoarseMesh read_exodus_here(const std::string& path, std::int64_t file_size);
+
 }  // namespace
 
 CoarseMesh read_exodus(const std::string& path) {
@@ -229,7 +232,16 @@ CoarseMesh read_exodus(const std::string& path) {
                (file_size == 0 ? "the file is empty" : "no netCDF or HDF5 signature") + ")");
     // netCDF's own header parser trusts the header: check it first.
     if (classic) check_classic_header(input, path);
+    // HDF5 parses a netCDF-4 file's metadata as it is: read it in a child
+    // process, so that a crash or a runaway allocation there is an error here.
+    if (hdf5) return read_isolated(path, file_size, [&] { return read_exodus_here(path, file_size); });
   }
+  return read_exodus_here(path, file_size);
+}
+
+namespace {
+
+CoarseMesh read_exodus_here(const std::string& path, std::int64_t file_size) {
 
   // Let netCDF try first: when it cannot open the file, ex_open prints its
   // own guess (a misleading "netcdf-4 not supported") straight to stderr.
@@ -525,5 +537,7 @@ CoarseMesh read_exodus(const std::string& path) {
 
   return mesh;
 }
+
+}  // namespace
 
 }  // namespace dicer

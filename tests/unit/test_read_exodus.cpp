@@ -17,6 +17,7 @@
 #include "dicer/coarse_mesh.hpp"
 #include "dicer/error.hpp"
 #include "exodus_fixture.hpp"
+#include "isolated.hpp"
 #include "test_support.hpp"
 
 namespace {
@@ -477,3 +478,67 @@ TEST(ReadExodus, PlanarQuad4FileIsSurfaceWithZeroZ) {
 }
 
 }  // namespace
+
+// netCDF-4 (HDF5) files are read in a child process (readers/isolated.hpp):
+// the mesh that comes back is the one an in-process read gives, every field.
+TEST(ReadExodus, Netcdf4ReadInAChildEqualsTheReadInProcess) {
+  TempDir tmp;
+  const std::string path = tmp.path("hdf5.e");
+  Fixture f = two_hexes();
+  f.create_mode = EX_CLOBBER | EX_NETCDF4;
+  f.blocks[0].name = "steel";
+  f.side_sets.push_back({4, {2, 1}, {2, 5}});
+  f.node_sets.push_back({7, {1, 2, 12}});
+  f.node_map = {11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22};
+  write_exodus(path, f);
+  const CoarseMesh child = dicer::read_exodus(path);
+  ::setenv("DICER_READER_IN_PROCESS", "1", 1);
+  const CoarseMesh here = dicer::read_exodus(path);
+  ::unsetenv("DICER_READER_IN_PROCESS");
+  expect_consistent(child);
+  EXPECT_EQ(child.conn, here.conn);
+  EXPECT_EQ(child.x, here.x);
+  EXPECT_EQ(child.vertex_file_id, here.vertex_file_id);
+  EXPECT_EQ(child.vertex_file_id[0], 11);
+  ASSERT_EQ(child.blocks.size(), 1u);
+  EXPECT_EQ(child.blocks[0].name, "steel");
+  ASSERT_EQ(child.side_sets.size(), 1u);
+  EXPECT_EQ(child.side_sets[0].element, here.side_sets[0].element);
+  EXPECT_EQ(child.side_sets[0].side, here.side_sets[0].side);
+  ASSERT_EQ(child.node_sets.size(), 1u);
+  EXPECT_EQ(child.node_sets[0].vertex, here.node_sets[0].vertex);
+  EXPECT_EQ(dicer::pack_mesh(child), dicer::pack_mesh(here)) << "some other field differs";
+}
+
+TEST(ReadExodus, TheIsolatedReadersStreamRoundTripsAndRefusesTruncation) {
+  CoarseMesh m;
+  m.source = "a.e";
+  m.mode = Mode::Surface;
+  m.x = {0, 1, 1, 0}, m.y = {0, 0, 1, 1}, m.z = {0, 0, 0, 0.5};
+  m.vertex_file_id = {5, 6, 7, 8};
+  m.conn = {0, 1, 2, 3};
+  m.element_file_id = {9};
+  m.element_block = {0};
+  m.blocks = {{3, "skin"}};
+  m.side_sets = {{2, "edge", {0}, {3}}};
+  m.node_sets = {{4, "", {1, 2}}};
+  m.vertex_geo_dim = {0, 1, 2, 2};
+  m.vertex_geo_tag = {1, 2, 3, 3};
+  m.warnings = {"reoriented 1 element"};
+  const std::string bytes = dicer::pack_mesh(m);
+  const CoarseMesh back = dicer::unpack_mesh(bytes, "a.e");
+  EXPECT_EQ(dicer::pack_mesh(back), bytes);
+  EXPECT_EQ(back.mode, Mode::Surface);
+  EXPECT_EQ(back.side_sets[0].side, (std::vector<std::int8_t>{3}));
+  EXPECT_EQ(back.warnings, m.warnings);
+  EXPECT_EQ(back.vertex_geo_tag, m.vertex_geo_tag);
+  for (std::size_t cut : {std::size_t{0}, std::size_t{7}, bytes.size() / 2, bytes.size() - 1}) {
+    try {
+      dicer::unpack_mesh(bytes.substr(0, cut), "a.e");
+      ADD_FAILURE() << "truncated at " << cut;
+    } catch (const dicer::Error& e) {
+      EXPECT_EQ(e.kind(), dicer::ErrorKind::BadInput);
+    }
+  }
+  EXPECT_THROW(dicer::unpack_mesh(bytes + "x", "a.e"), dicer::Error);
+}
