@@ -4,6 +4,8 @@
 // (3) that no output file, not even a temporary, is left behind.
 // Fixtures are made by the test from small texts or by editing real files.
 #include <exodusII.h>
+#include <netcdf.h>
+#include <sys/stat.h>
 #include <gtest/gtest.h>
 #include <hdf5.h>
 
@@ -256,6 +258,73 @@ std::vector<Case> catalogue() {
            "--cache-mb"},
       Case{"node id out of range", [](const test::TempDir&) { return good_store(); },
            {"query", "IN", "--node", "123456789"}, 2, "out of range"},
+      // ---- one per class of the hostile-input campaign (issue 18); the
+      // dedicated suites (test_hostile_store, test_bad_exodus,
+      // test_file_faults, test_bad_readers) hold the variants.
+      Case{"store attribute holding 1000 values",
+           [](const test::TempDir& d) {
+             return edited_store(d, [](hid_t f) {
+               const hsize_t n = 1000;
+               std::vector<std::int64_t> v(n, 7);
+               H5Adelete(f, "format_version");
+               const hid_t sp = H5Screate_simple(1, &n, nullptr);
+               const hid_t a = H5Acreate2(f, "format_version", H5T_NATIVE_INT64, sp, H5P_DEFAULT, H5P_DEFAULT);
+               H5Awrite(a, H5T_NATIVE_INT64, v.data());
+               H5Aclose(a), H5Sclose(sp);
+             });
+           },
+           {"info", "IN"}, 8, "exactly one value"},
+      Case{"store count attribute that its tables contradict",
+           [](const test::TempDir& d) {
+             return edited_store(d, [](hid_t f) {
+               const hid_t a = H5Aopen(f, "fine_elements", H5P_DEFAULT);
+               std::int64_t v = 0;
+               H5Aread(a, H5T_NATIVE_INT64, &v);
+               ++v;
+               H5Awrite(a, H5T_NATIVE_INT64, &v);
+               H5Aclose(a);
+             });
+           },
+           {"info", "IN"}, 8, "fine_elements"},
+      Case{"store table replaced by a link to another file",
+           [](const test::TempDir& d) {
+             return edited_store(d, [](hid_t f) {
+               H5Ldelete(f, "sheets/sheet_interval", H5P_DEFAULT);
+               H5Lcreate_external("elsewhere.h5", "/x", f, "sheets/sheet_interval", H5P_DEFAULT, H5P_DEFAULT);
+             });
+           },
+           {"info", "IN"}, 8, "external link"},
+      mesh_case("exodus elem_type longer than the Exodus library's buffer",
+                [](const test::TempDir& d) {
+                  const std::string p = exodus_block(d, "HEX8", 8);
+                  int ncid = -1, var = -1;
+                  nc_open(p.c_str(), NC_WRITE, &ncid);
+                  nc_redef(ncid);
+                  nc_inq_varid(ncid, "connect1", &var);
+                  const std::string type = "HEX8" + std::string(496, 'X');
+                  nc_put_att_text(ncid, var, "elem_type", type.size(), type.data());
+                  nc_close(ncid);
+                  return p;
+                },
+                3, "elem_type attribute is 500 characters"),
+      Case{"export onto its own store",
+           [](const test::TempDir& d) {
+             fs::copy_file(good_store(), d.path("s.dice.h5"));
+             return d.path("s.dice.h5");
+           },
+           {"export", "IN", "--format", "msh", "-o", "IN"}, 2, "is the same file as"},
+      Case{"output that is an existing directory",
+           [](const test::TempDir& d) {
+             fs::create_directory(d.path("out.dice.h5"));
+             return d.path("out.dice.h5");
+           },
+           {"dice", sphere, "--interval", "2", "-o", "IN"}, 2, "is a directory"},
+      mesh_case("FIFO given as the mesh",
+                [](const test::TempDir& d) {
+                  ::mkfifo(d.path("pipe.msh").c_str(), 0600);
+                  return d.path("pipe.msh");
+                },
+                2, "is a FIFO (named pipe), not a regular file"),
   };
   return c;
 }
