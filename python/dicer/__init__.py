@@ -7,6 +7,7 @@
     xyz = store.nodes(0, 1000)      # float64 (1000, 3), bit-equal to `dicer query`
     conn = store.elements([5, 17])  # int64 (2, 8), VTK/Exodus HEX8 order
     for ids, points, conn in store.blocks(): ...   # one batch per coarse element
+    for n0, points, e0, conn in store.batches(): ...  # slabs, consecutive ids, each node once
     chunk = store.chunk(3, 16)      # chunk 3 of 16, local numbering, global ids
     mesh = chunk.to_meshio()        # a meshio.Mesh, one cell block per element block
     store.sweep(threads=2)          # as `dicer sweep --json`
@@ -29,6 +30,7 @@ import warnings as _warnings
 from . import _core
 from ._core import (  # noqa: F401  (the public names)
     Batch,
+    IdBatch,
     BadInputError,
     CancelledError,
     Chunk,
@@ -49,7 +51,7 @@ from ._paths import DICER_CAD_CANDIDATES as _DICER_CAD_CANDIDATES
 __version__ = _core.__version__
 
 __all__ = [
-    "dice", "open", "mesh_coarse", "Store", "Chunk", "Partition", "Batch", "Error", "UsageError", "BadInputError",
+    "dice", "open", "mesh_coarse", "Store", "Chunk", "Partition", "Batch", "IdBatch", "Error", "UsageError", "BadInputError",
     "UnsupportedError", "IoError", "IdOverflowError", "GeometryError", "CorruptError", "CancelledError",
     "InternalError", "DicerWarning", "STORE_FORMAT_VERSION",
 ]

@@ -29,6 +29,7 @@
 #include "dicer/partition.hpp"
 #include "dicer/store.hpp"
 #include "dicer/sweep.hpp"
+#include "dicer/batch.hpp"
 #include "dicer/version.hpp"
 #include "errors.hpp"
 
@@ -480,6 +481,59 @@ BlockIterator make_blocks(const Store& s, const py::object& chunk, bool connecti
   return it;
 }
 
+// ---- batches(): the batch iteration of include/dicer/batch.hpp.
+
+struct IdBatch {
+  Id coarse_element = 0, node_begin = 0, node_end = 0, element_begin = 0, element_end = 0;
+  py::array points, connectivity;
+};
+
+struct BatchIterator {
+  Mesh mesh;
+  std::unique_ptr<BatchCursor> cursor;
+
+  IdBatch step() {
+    FineBatch b;
+    std::vector<double> xyz;
+    std::vector<Id> conn;
+    bool more = false;
+    {
+      py::gil_scoped_release release;
+      more = cursor->next(b);
+      if (more) {
+        xyz.resize(3 * b.x.size());
+        for (size_t i = 0; i < b.x.size(); ++i) xyz[3 * i] = b.x[i], xyz[3 * i + 1] = b.y[i], xyz[3 * i + 2] = b.z[i];
+        conn.assign(b.conn.begin(), b.conn.end());
+      }
+    }
+    if (!more) throw py::stop_iteration();
+    IdBatch r;
+    r.coarse_element = b.coarse_element;
+    r.node_begin = b.node_begin, r.node_end = b.node_end;
+    r.element_begin = b.element_begin, r.element_end = b.element_end;
+    r.points = owned(std::move(xyz), {static_cast<py::ssize_t>(b.num_nodes()), 3});
+    r.connectivity = owned(std::move(conn), {static_cast<py::ssize_t>(b.num_elements()), b.corners});
+    return r;
+  }
+};
+
+BatchIterator make_batches(const Store& s, const py::object& chunk, std::int64_t slab_points) {
+  BatchIterator it;
+  it.mesh = s.get();
+  Id first = 0, end = it.mesh->num_coarse_elements();
+  if (!chunk.is_none()) {
+    const auto kn = chunk.cast<std::pair<std::int64_t, std::int64_t>>();
+    const std::vector<ChunkRange> plan = checked_plan(*it.mesh, kn.first, kn.second);
+    first = plan[static_cast<size_t>(kn.first)].first_coarse;
+    end = plan[static_cast<size_t>(kn.first)].end_coarse;
+  }
+  if (slab_points < 1) throw Error(ErrorKind::Usage, "batches: slab_points must be >= 1");
+  BatchOptions opt;
+  opt.slab_points = slab_points;
+  it.cursor = std::make_unique<BatchCursor>(*it.mesh, first, end, opt);
+  return it;
+}
+
 // ---- dice (without CAD: the package runs dicer-cad for --geometry)
 
 py::dict dice_to_store(const std::string& mesh_path, const std::string& out, std::optional<std::int64_t> interval,
@@ -558,6 +612,30 @@ PYBIND11_MODULE(_core, m) {
         return "<dicer.Batch coarse element " + std::to_string(b.coarse_element) + ": " +
                std::to_string(b.node_ids.size()) + " points, " + std::to_string(b.connectivity.shape(0)) + " elements>";
       });
+
+  py::class_<IdBatch>(m, "IdBatch",
+                      "Consecutive fine ids of one slab (Store.batches): nodes node_begin..node_end-1 with "
+                      "points (n, 3); elements element_begin..element_end-1 with connectivity (e, 8|4) in "
+                      "global node ids. Unpacks as (node_begin, points, element_begin, connectivity).")
+      .def_readonly("coarse_element", &IdBatch::coarse_element)
+      .def_readonly("node_begin", &IdBatch::node_begin)
+      .def_readonly("node_end", &IdBatch::node_end)
+      .def_readonly("element_begin", &IdBatch::element_begin)
+      .def_readonly("element_end", &IdBatch::element_end)
+      .def_readonly("points", &IdBatch::points)
+      .def_readonly("connectivity", &IdBatch::connectivity)
+      .def("__iter__", [](const IdBatch& b) {
+        return py::iter(py::make_tuple(b.node_begin, b.points, b.element_begin, b.connectivity));
+      })
+      .def("__repr__", [](const IdBatch& b) {
+        return "<dicer.IdBatch coarse element " + std::to_string(b.coarse_element) + ": nodes " +
+               std::to_string(b.node_begin) + ".." + std::to_string(b.node_end) + ", elements " +
+               std::to_string(b.element_begin) + ".." + std::to_string(b.element_end) + ">";
+      });
+
+  py::class_<BatchIterator>(m, "BatchIterator")
+      .def("__iter__", [](BatchIterator& it) -> BatchIterator& { return it; })
+      .def("__next__", &BatchIterator::step);
 
   py::class_<BlockIterator>(m, "BlockIterator")
       .def("__iter__", [](BlockIterator& it) -> BlockIterator& { return it; })
@@ -683,6 +761,10 @@ PYBIND11_MODULE(_core, m) {
            "lowest id on a shared face) and the local coordinates in it, as `dicer query --points`")
       .def("blocks", &make_blocks, py::arg("chunk") = py::none(), py::arg("connectivity") = true,
            "iterator of Batch, one per coarse element, over the mesh or over chunk (k, n)")
+      .def("batches", &make_batches, py::arg("chunk") = py::none(), py::arg("slab_points") = kCursorSlabPoints,
+           "iterator of IdBatch over the mesh (or chunk (k, n)) in id order, a slab of a coarse element at a "
+           "time: the nodes node_begin..node_end-1 (points, (n, 3)) and elements element_begin..element_end-1 "
+           "(connectivity, (e, 8|4), global node ids); every node and element exactly once, consecutive ids")
       .def("chunk_ranges", [](const Store& s, std::int64_t n) {
         const Mesh m = s.get();
         py::list out;

@@ -258,3 +258,64 @@ def test_partition_in_one_process(prism_store):
             back = q.shared_nodes[q.neighbors.index(p.rank)]
             assert np.array_equal(g[shared], q.node_global[back])
     assert begin == s.num_nodes
+
+
+# The sweep checksum of include/dicer/sweep.hpp, written here in numpy from
+# the header's text (uint64 arithmetic wraps mod 2^64, as the C++ does).
+_K = np.array([0x9e3779b97f4a7c15, 0xbf58476d1ce4e5b9, 0x94d049bb133111eb, 0xd6e8feb86659fd93,
+               0xa0761d6478bd642f, 0xe7037ed1a0b428db, 0x8ebc6af09c88c6e3, 0x589965cc75374cc3,
+               0x1d8e4e27c47d124f, 0x2545f4914f6cdd1d, 0x5851f42d4c957f2d, 0x14057b7ef767814f,
+               0x9fb21c651e98df25], dtype=np.uint64)
+
+
+def _fmix(h):
+    h = h ^ (h >> np.uint64(33))
+    h = h * np.uint64(0xff51afd7ed558ccd)
+    h = h ^ (h >> np.uint64(33))
+    h = h * np.uint64(0xc4ceb9fe1a85ec53)
+    return h ^ (h >> np.uint64(33))
+
+
+def _numpy_checksum(node_ids, xyz, element_ids, conn):
+    with np.errstate(over="ignore"):
+        b = np.ascontiguousarray(xyz).view(np.uint64)
+        nodes = _fmix((node_ids.astype(np.uint64) * _K[0]) ^ (b[:, 0] * _K[1]) ^ (b[:, 1] * _K[2]) ^ (b[:, 2] * _K[3]))
+        h = element_ids.astype(np.uint64) * _K[4]
+        for q in range(conn.shape[1]):
+            h = h + conn[:, q].astype(np.uint64) * _K[5 + q]
+        return int(nodes.sum(dtype=np.uint64)) + int(_fmix(h).sum(dtype=np.uint64))
+
+
+@pytest.mark.parametrize("fixture", ["sphere_store", "shell_store"])
+def test_batches_are_consecutive_ids_with_the_bits_of_nodes_and_elements(request, fixture):
+    s = dicer.open(request.getfixturevalue(fixture))
+    nodes = s.nodes(0, s.num_nodes)
+    elements = s.elements(0, s.num_elements)
+    next_node = next_element = 0
+    total = 0
+    for slab in (1, 50, 1 << 16):
+        next_node = next_element = 0
+        for b in s.batches(slab_points=slab):
+            n0, xyz, e0, conn = b
+            assert n0 == next_node and e0 == next_element
+            assert xyz.shape == (b.node_end - n0, 3) and conn.shape[0] == b.element_end - e0
+            assert np.array_equal(bits(xyz), bits(nodes[n0:b.node_end]))
+            assert np.array_equal(conn, elements[e0:b.element_end])
+            next_node, next_element = b.node_end, b.element_end
+            if slab == 1 << 16:
+                total += _numpy_checksum(np.arange(n0, b.node_end), xyz, np.arange(e0, b.element_end), conn)
+        assert (next_node, next_element) == (s.num_nodes, s.num_elements)
+    # The checksum, computed independently from the documented formula, is the sweep's.
+    assert "%016x" % (total % (1 << 64)) == s.sweep(threads=2)["checksum"]
+
+
+def test_batches_of_a_chunk_are_the_chunks_elements(sphere_store):
+    s = dicer.open(sphere_store)
+    for k in range(3):
+        r = s.chunk_ranges(3)[k]
+        got = list(s.batches(chunk=(k, 3)))
+        assert got[0].node_begin == r["node_begin"] and got[-1].node_end == r["node_end"]
+        elems = np.concatenate([np.arange(b.element_begin, b.element_end) for b in got])
+        assert np.array_equal(elems, s.chunk(k, 3).global_element_ids)
+    with pytest.raises(dicer.UsageError):
+        s.batches(slab_points=0)
