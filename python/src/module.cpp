@@ -15,6 +15,7 @@
 #include <optional>
 #include <string>
 #include <utility>
+#include <tuple>
 #include <vector>
 
 #include "arrays.hpp"
@@ -467,17 +468,19 @@ struct BlockIterator {
   }
 };
 
+// Coarse elements [first, end) of chunk (k, n), or of the whole mesh (None).
+std::pair<Id, Id> coarse_range(const FineMesh& m, const py::object& chunk) {
+  if (chunk.is_none()) return {0, m.num_coarse_elements()};
+  const auto kn = chunk.cast<std::pair<std::int64_t, std::int64_t>>();
+  const ChunkRange r = checked_plan(m, kn.first, kn.second)[static_cast<size_t>(kn.first)];
+  return {r.first_coarse, r.end_coarse};
+}
+
 BlockIterator make_blocks(const Store& s, const py::object& chunk, bool connectivity) {
   BlockIterator it;
   it.mesh = s.get();
   it.connectivity = connectivity;
-  it.end = it.mesh->num_coarse_elements();
-  if (!chunk.is_none()) {
-    const auto kn = chunk.cast<std::pair<std::int64_t, std::int64_t>>();
-    const std::vector<ChunkRange> plan = checked_plan(*it.mesh, kn.first, kn.second);
-    it.next = plan[static_cast<size_t>(kn.first)].first_coarse;
-    it.end = plan[static_cast<size_t>(kn.first)].end_coarse;
-  }
+  std::tie(it.next, it.end) = coarse_range(*it.mesh, chunk);
   return it;
 }
 
@@ -520,13 +523,7 @@ struct BatchIterator {
 BatchIterator make_batches(const Store& s, const py::object& chunk, std::int64_t slab_points) {
   BatchIterator it;
   it.mesh = s.get();
-  Id first = 0, end = it.mesh->num_coarse_elements();
-  if (!chunk.is_none()) {
-    const auto kn = chunk.cast<std::pair<std::int64_t, std::int64_t>>();
-    const std::vector<ChunkRange> plan = checked_plan(*it.mesh, kn.first, kn.second);
-    first = plan[static_cast<size_t>(kn.first)].first_coarse;
-    end = plan[static_cast<size_t>(kn.first)].end_coarse;
-  }
+  const auto [first, end] = coarse_range(*it.mesh, chunk);
   if (slab_points < 1) throw Error(ErrorKind::Usage, "batches: slab_points must be >= 1");
   BatchOptions opt;
   opt.slab_points = slab_points;
