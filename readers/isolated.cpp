@@ -38,7 +38,7 @@ struct Packer {
   template <class T>
   void vec(const std::vector<T>& v) {
     u64(v.size());
-    out.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
+    if (!v.empty()) out.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
   }
 };
 
@@ -68,7 +68,7 @@ struct Unpacker {
     const std::uint64_t n = u64();
     if (n > (in.size() - at) / sizeof(T)) fail();
     std::vector<T> v(n);
-    std::memcpy(v.data(), in.data() + at, n * sizeof(T));
+    if (n) std::memcpy(v.data(), in.data() + at, n * sizeof(T));  // data() of an empty vector may be null
     at += n * sizeof(T);
     return v;
   }
