@@ -122,7 +122,7 @@ NodeRef locate_node(const MeshTables& t, Id id, MeshCursor& cur, ElementRow* own
   const RowReader R(t, cur);
   ElementRow local;
   ElementRow& h = owner_row ? *owner_row : local;
-  h = R.element(hid);
+  R.element(hid, h);
   const bool vol = t.mode == Mode::Volume;
   NodeRef r;
   if (vol && id >= h.cell_node && id - h.cell_node < ids::cell_nodes(h.n)) {
@@ -169,7 +169,7 @@ Id locate_element(const MeshTables& t, Id id, std::array<Id, 3>& ijk, MeshCursor
   if (h < 0) R.corrupt(RowTable::Elements, 0, "no coarse element holds fine element " + std::to_string(id));
   ElementRow local;
   ElementRow& row = row_out ? *row_out : local;
-  row = R.element(h);
+  R.element(h, row);
   const Id l = id - row.element_first;
   if (l < 0 || l >= row.n[0] * row.n[1] * row.n[2])
     R.corrupt(RowTable::Elements, h, "fine element " + std::to_string(id) + " lies past the element's own");

@@ -500,8 +500,7 @@ PageCache::Handle& PageCache::Handle::operator=(Handle&& other) noexcept {
   return *this;
 }
 
-void PageCache::Handle::reset() noexcept {
-  if (entry_ == nullptr) return;
+void PageCache::Handle::release() noexcept {
   cache_->unpin(std::exchange(entry_, nullptr));
   cache_ = nullptr;
   data_ = nullptr;

@@ -149,11 +149,11 @@ FaceRow RowReader::face(Id f) const {
   return o;
 }
 
-ElementRow RowReader::element(Id h) const {
+void RowReader::element(Id h, ElementRow& o) const {
   if (h < 0 || h >= t_.elements.rows()) corrupt(RowTable::Elements, h, "element id out of range");
   const ElementCols L = ElementCols::of(t_.mode);
   const std::int64_t* r = t_.elements.row(h, c_.elements);
-  ElementRow o;
+  if (L.c < 8) o = ElementRow{};  // surface rows leave the volume-only entries zero
   for (int k = 0; k < L.c; ++k) o.corner[k] = r[L.corner() + k], o.corner_node[k] = r[L.corner_node() + k];
   for (int k = 0; k < L.e; ++k) o.edge[k] = r[L.edge() + k], o.edge_node[k] = r[L.edge_node() + k];
   for (int k = 0; k < L.f; ++k) o.face[k] = r[L.face() + k], o.face_node[k] = r[L.face_node() + k];
@@ -192,7 +192,6 @@ ElementRow RowReader::element(Id h) const {
     corrupt(RT, h, "owned node ids out of range");
   if (!range_ok(o.element_first, i128{o.n[0]} * o.n[1] * o.n[2], t_.fine_elements))
     corrupt(RT, h, "fine element ids outside the mesh");
-  return o;
 }
 
 void RowReader::corner_xyz(Id h, Vec3* out) const {

@@ -135,7 +135,14 @@ class RowReader {
   VertexRow vertex(Id v) const;
   EdgeRow edge(Id e) const;
   FaceRow face(Id f) const;
-  ElementRow element(Id h) const;
+  ElementRow element(Id h) const {
+    ElementRow o;
+    element(h, o);
+    return o;
+  }
+  // The same into `o` (every field written; no copy of the ~450-byte row:
+  // random queries decode one per call).
+  void element(Id h, ElementRow& o) const;
   // The element's corner coordinates (corners() of them), as `corners`
   // stores them: bit-identical to xyz() of its corner vertices.
   void corner_xyz(Id h, Vec3* out) const;
