@@ -25,8 +25,15 @@ void BatchCursor::enter() {
   n2_ = vol ? n_[2] : 0;
   step_ = std::max<Id>(1, opt_.slab_points / ((n_[0] + 1) * (n_[1] + 1)));
   node_first_ = h.node_first, cell_node_ = h.cell_node, element_first_ = h.element_first;
+  block_index_ = h.block;
   own_end_ = vol ? h.cell_node : h.cell_node + ids::face_nodes(n_[0], n_[1]);
   k0_ = 0;
+  if (opt_.first_layer != 0) {
+    if (opt_.first_layer < 0 || opt_.first_layer >= std::max<Id>(n2_, 1))
+      throw Error(ErrorKind::Usage, "batches: first layer " + std::to_string(opt_.first_layer) + " outside the element");
+    k0_ = opt_.first_layer;
+    opt_.first_layer = 0;  // the first element only
+  }
   entered_ = true;
 }
 
@@ -37,6 +44,9 @@ bool BatchCursor::next(FineBatch& out) {
   const Id k0 = k0_, k1 = vol ? std::min(k0 + step_, n2_) : 0;
   if (opt_.conn || opt_.coords) mesh_.fill_slab(h_, k0, k1, block_, opt_.coords, opt_.conn);
   out.coarse_element = h_;
+  out.block = block_index_;
+  out.n = n_;
+  out.first_layer = k0;
   out.corners = mesh_.corners();
   // Nodes: the own boundary on the first slab (already in xyz_), then the
   // interior planes k in (k0, k1], k < n2 (ids follow cell_node in plane order).
@@ -49,7 +59,7 @@ bool BatchCursor::next(FineBatch& out) {
       // fill_slab has just evaluated the element's whole boundary into the
       // block's scratch (edges and faces in their canonical frames).
       const detail::Evaluator E(mesh_.tables(), block_.cursor);
-      const Id end = detail::own_boundary_nodes(E, E.R.element(h_), h_, block_.scratch, xyz_, true);
+      const Id end = detail::own_boundary_nodes(E, E.R.element(h_), h_, block_.scratch, xyz_);
       DICER_ASSERT(end == own_end_, "batches: the own range of the row");
     } else {
       for (auto& a : xyz_) a.clear();

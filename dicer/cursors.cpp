@@ -1,80 +1,82 @@
-// Whole-mesh iteration in id order over the block fills (fill.cpp).
+// Whole-mesh iteration in id order, one node or element per call, over the
+// batches of batch.cpp (one place for the slab walk).
 #include <algorithm>
 
+#include "dicer/batch.hpp"
 #include "dicer/error.hpp"
 #include "dicer/fine_mesh.hpp"
 #include "dicer/numbering.hpp"
-#include "evaluate.hpp"
 
 namespace dicer {
-namespace {
-// Grid planes per cursor slab: O(interval^2) values, never a whole block.
-Id slab_planes(const std::array<Id, 3>& n, Id points) { return std::max<Id>(1, points / ((n[0] + 1) * (n[1] + 1))); }
-}  // namespace
 
 NodeCursor::NodeCursor(const FineMesh& mesh, Id begin, Id end, Id slab_points)
     : mesh_(mesh), next_(std::max<Id>(begin, 0)), end_(std::min(end, mesh.num_nodes())), slab_points_(slab_points) {}
 
+NodeCursor::~NodeCursor() = default;
+
 bool NodeCursor::next(Id& id, Vec3& xyz) {
   if (next_ >= end_) return false;
-  id = next_++;
-  if ((id < own_first_ || id >= own_end_) && (id < cell_first_ || id >= cell_end_)) enter(id);
-  if (id < own_end_ && id >= own_first_) {
-    const auto q = static_cast<size_t>(id - own_first_);
-    xyz = {own_[0][q], own_[1][q], own_[2][q]};
-    return true;
+  if (!batches_) {
+    // The owner of the first node, from the slab holding its grid plane.
+    MeshCursor cur;
+    const RowReader R(mesh_.tables(), cur);
+    const Id h = owner_element(mesh_.tables(), next_, cur);
+    const ElementRow row = R.element(h);
+    BatchOptions opt;
+    opt.conn = false, opt.slab_points = slab_points_;
+    const Id in = (row.n[0] - 1) * (row.n[1] - 1);
+    if (mesh_.mode() == Mode::Volume && in > 0 && next_ >= row.cell_node)
+      opt.first_layer = std::min((next_ - row.cell_node) / in, row.n[2] - 1);  // the slab before plane k holds it
+    batches_ = std::make_unique<BatchCursor>(mesh_, h, mesh_.num_coarse_elements(), opt);
+    batch_ = std::make_unique<FineBatch>();
   }
-  // Interior: (i, j, k) from the local index, then the slab holding plane k.
-  const auto [i, j, k] = ids::cell_local(id - cell_first_, n_);
-  if (k < block_.plane0 || k >= block_.plane0 + block_.planes || block_.coarse_element != elem_)
-    mesh_.fill_slab(elem_, k, std::min(k + slab_planes(n_, slab_points_) - 1, n_[2] - 1), block_, true, false);
-  const Id g = block_.point_index(i, j, k);
-  xyz = {block_.x[g], block_.y[g], block_.z[g]};
+  while (next_ >= batch_->node_end)
+    if (!batches_->next(*batch_))
+      throw Error(ErrorKind::Corrupt, mesh_.tables().origin + ": node " + std::to_string(next_) +
+                                          " lies past the last coarse element's own nodes");
+  // A lying page index can start the walk past the node (its owner found too late).
+  if (next_ < batch_->node_begin)
+    throw Error(ErrorKind::Corrupt, mesh_.tables().origin + ": numbering/element_page_node: node " +
+                                        std::to_string(next_) + " is not where the page index puts it");
+  id = next_++;
+  const auto q = static_cast<size_t>(id - batch_->node_begin);
+  xyz = {batch_->x[q], batch_->y[q], batch_->z[q]};
   return true;
-}
-
-// The coarse element owning node `id`: the points of everything it owns
-// but its interior, at once (each entity filled whole in its frame).
-void NodeCursor::enter(Id id) {
-  const Id hid = owner_element(mesh_.tables(), id, cur_);
-  const detail::Evaluator E(mesh_.tables(), cur_);
-  const ElementRow h = E.R.element(hid);
-  const bool vol = mesh_.mode() == Mode::Volume;
-  elem_ = hid, n_ = h.n;
-  own_first_ = h.node_first;
-  own_end_ = detail::own_boundary_nodes(E, h, hid, scratch_, own_);
-  cell_first_ = vol ? h.cell_node : own_end_;
-  cell_end_ = vol ? h.cell_node + ids::cell_nodes(h.n) : own_end_;
-  if ((id < own_first_ || id >= own_end_) && (id < cell_first_ || id >= cell_end_))
-    E.R.corrupt(RowTable::Elements, hid, "node " + std::to_string(id) + " is in none of the entities it owns");
 }
 
 ElementCursor::ElementCursor(const FineMesh& mesh, Id begin, Id end, Id slab_points)
     : mesh_(mesh), next_(std::max<Id>(begin, 0)), end_(std::min(end, mesh.num_elements())), slab_points_(slab_points) {}
 
+ElementCursor::~ElementCursor() = default;
+
 bool ElementCursor::next(FineElement& el) {
   if (next_ >= end_) return false;
-  el.id = next_++;
-  const bool held = !block_.conn.empty() && el.id >= block_.first_element &&
-                    el.id < block_.first_element + block_.num_elements();
-  if (!held) {
-    // A slab of element layers, ids and connectivity only (no coordinates).
+  if (!batches_) {
     std::array<Id, 3> ijk;
-    const Id h = mesh_.locate_element(el.id, ijk, cur_);
-    if (mesh_.mode() == Mode::Volume) {
-      const std::array<Id, 3> n = RowReader(mesh_.tables(), cur_).element(h).n;
-      mesh_.fill_slab(h, ijk[2], std::min(ijk[2] + slab_planes(n, slab_points_), n[2]), block_, false, true);
-    } else {
-      mesh_.fill_slab(h, 0, 0, block_, false, true);
-    }
+    MeshCursor cur;
+    const Id h = mesh_.locate_element(next_, ijk, cur);
+    BatchOptions opt;
+    opt.coords = false, opt.slab_points = slab_points_;
+    opt.first_layer = mesh_.mode() == Mode::Volume ? ijk[2] : 0;
+    batches_ = std::make_unique<BatchCursor>(mesh_, h, mesh_.num_coarse_elements(), opt);
+    batch_ = std::make_unique<FineBatch>();
   }
-  const Id l = el.id - block_.first_element;
-  el.coarse_element = block_.coarse_element;
-  el.ijk = ids::element_local(l, block_.n);
-  el.ijk[2] += block_.plane0;
-  el.block = block_.block;
-  el.num_nodes = mesh_.corners();
-  std::copy_n(&block_.conn[static_cast<size_t>(l) * el.num_nodes], el.num_nodes, el.nodes.begin());
+  while (next_ >= batch_->element_end)
+    if (!batches_->next(*batch_))
+      throw Error(ErrorKind::Corrupt, mesh_.tables().origin + ": element " + std::to_string(next_) +
+                                          " lies past the last coarse element's elements");
+  if (next_ < batch_->element_begin)
+    throw Error(ErrorKind::Corrupt, mesh_.tables().origin + ": numbering/element_page_element: element " +
+                                        std::to_string(next_) + " is not where the page index puts it");
+  el.id = next_++;
+  const FineBatch& b = *batch_;
+  const Id l = el.id - b.element_begin;
+  el.coarse_element = b.coarse_element;
+  el.ijk = ids::element_local(l, b.n);
+  el.ijk[2] += b.first_layer;
+  el.block = b.block;
+  el.num_nodes = b.corners;
+  std::copy_n(&b.conn[static_cast<size_t>(l) * b.corners], b.corners, el.nodes.begin());
   return true;
 }
 

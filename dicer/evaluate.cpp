@@ -342,8 +342,8 @@ void facet_points(const Evaluator& E, const ElementRow& h, Id hid, int slot, Fin
   }
 }
 
-Id own_boundary_nodes(const Evaluator& E, const ElementRow& h, Id hid, FineBlock::Scratch& s,
-                      std::vector<double> (&out)[3], bool evaluated) {
+Id own_boundary_nodes(const Evaluator& E, const ElementRow& h, Id hid, const FineBlock::Scratch& s,
+                      std::vector<double> (&out)[3]) {
   const Mode mode = E.mode();
   const bool vol = mode == Mode::Volume;
   const int nc = E.R.corners(), ne = E.R.edges(), nf = E.R.faces();
@@ -352,7 +352,6 @@ Id own_boundary_nodes(const Evaluator& E, const ElementRow& h, Id hid, FineBlock
   bool want_edge[12] = {}, want_face[6] = {};
   for (int k = 0; k < ne; ++k) want_edge[k] = h.owns(h.edge_node[k]) && h.n[vol ? k / 4 : k / 2] > 1;
   for (int k = 0; k < nf; ++k) want_face[k] = h.owns(h.face_node[k]);
-  if (!evaluated) element_boundary(E, h, hid, s, want_edge, want_face);
   if (end < first) E.R.corrupt(RowTable::Elements, hid, "the element's own node ids run backwards");
   const size_t size = static_cast<size_t>(end - first);
   for (auto& a : out) a.resize(size);

@@ -31,6 +31,9 @@ namespace dicer {
 
 struct FineBatch {
   Id coarse_element = -1;
+  std::int32_t block = -1;                // index into MeshInfo::blocks
+  std::array<Id, 3> n{};                  // the coarse element's intervals (n[2] = 1 in surface mode)
+  Id first_layer = 0;                     // element layer k of element_begin (its ijk is (0, 0, first_layer))
   Id node_begin = 0, node_end = 0;        // consecutive node ids
   std::span<const double> x, y, z;        // node_end - node_begin each (empty without coordinates)
   Id element_begin = 0, element_end = 0;  // consecutive element ids
@@ -44,6 +47,11 @@ struct BatchOptions {
   bool coords = true;  // node coordinates
   bool conn = true;    // element connectivity
   Id slab_points = kCursorSlabPoints;
+  // The first coarse element's batches start at element layer first_layer
+  // (0 <= first_layer < n[2]; surface mode: 0): its elements before that
+  // layer and its nodes up to grid plane first_layer (its own boundary
+  // included) are skipped. The cursors start mid-element with it.
+  Id first_layer = 0;
 };
 
 class BatchCursor {
@@ -63,6 +71,7 @@ class BatchCursor {
   std::array<Id, 3> n_{};
   Id node_first_ = 0, cell_node_ = 0, own_end_ = 0;  // the element's own range; interior from cell_node_
   Id element_first_ = 0;
+  std::int32_t block_index_ = -1;
   FineBlock block_;
   std::vector<double> xyz_[3];  // the batch's nodes
 };

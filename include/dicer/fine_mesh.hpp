@@ -201,44 +201,46 @@ class FineMesh {
 // one): 2^16 points are ~2 MiB of ids and coordinates at any interval.
 inline constexpr Id kCursorSlabPoints = Id{1} << 16;
 
-// Whole-mesh node iteration in id order [begin, end): coarse element by
-// coarse element (owner order), the nodes of the vertices, edges and faces
-// it owns computed whole on entry, its interior slab by slab:
-// O(interval^2) memory.
+class BatchCursor;
+struct FineBatch;
+
+// Whole-mesh node iteration in id order [begin, end), one node per call,
+// over the batches of batch.hpp (a coarse element's own boundary nodes,
+// then its interior slab by slab): O(interval^2) memory. Starting mid-way
+// costs at most one slab before `begin`.
 class NodeCursor {
  public:
   NodeCursor(const FineMesh& mesh, Id begin, Id end, Id slab_points = kCursorSlabPoints);
   explicit NodeCursor(const FineMesh& mesh) : NodeCursor(mesh, 0, mesh.num_nodes()) {}
+  ~NodeCursor();
+  NodeCursor(const NodeCursor&) = delete;
+  NodeCursor& operator=(const NodeCursor&) = delete;
   // Next node; false at the end.
   bool next(Id& id, Vec3& xyz);
 
  private:
-  void enter(Id id);
   const FineMesh& mesh_;
   Id next_, end_, slab_points_;
-  MeshCursor cur_;
-  FineBlock block_;                 // the slab of interior planes in use
-  FineBlock::Scratch scratch_;      // the element's boundary
-  std::vector<double> own_[3];      // its own boundary nodes, at id - own_first_
-  Id elem_ = -1;                    // the coarse element entered
-  Id own_first_ = 0, own_end_ = 0;  // ids held in own_
-  Id cell_first_ = 0, cell_end_ = 0;
-  std::array<Id, 3> n_{};
+  std::unique_ptr<BatchCursor> batches_;  // made at the first call
+  std::unique_ptr<FineBatch> batch_;      // the batch holding next_
 };
 
-// Whole-mesh element iteration in id order [begin, end), slab by slab
-// (connectivity only, no coordinates).
+// Whole-mesh element iteration in id order [begin, end), over the batches
+// of batch.hpp (connectivity only, no coordinates).
 class ElementCursor {
  public:
   ElementCursor(const FineMesh& mesh, Id begin, Id end, Id slab_points = kCursorSlabPoints);
   explicit ElementCursor(const FineMesh& mesh) : ElementCursor(mesh, 0, mesh.num_elements()) {}
+  ~ElementCursor();
+  ElementCursor(const ElementCursor&) = delete;
+  ElementCursor& operator=(const ElementCursor&) = delete;
   bool next(FineElement& out);
 
  private:
   const FineMesh& mesh_;
   Id next_, end_, slab_points_;
-  MeshCursor cur_;
-  FineBlock block_;
+  std::unique_ptr<BatchCursor> batches_;
+  std::unique_ptr<FineBatch> batch_;
 };
 
 }  // namespace dicer

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <bit>
+#include <algorithm>
 #include <random>
 
 #include "dicer/batch.hpp"
@@ -118,4 +119,46 @@ TEST(Batches, RangeOutsideTheMeshIsAUsageError) {
   EXPECT_THROW(BatchCursor(f, 0, f.num_coarse_elements() + 1), Error);
   EXPECT_THROW(BatchCursor(f, 2, 1), Error);
   EXPECT_THROW(BatchCursor(f, -1, 1), Error);
+}
+
+// The cursors run on the batches and may start anywhere: inside a coarse
+// element's own boundary nodes, inside its interior (mid-slab), at the last
+// node or element; each gives node(id) and element(id), bit for bit.
+TEST(Batches, CursorsFromAnyIdEqualTheQueries) {
+  std::mt19937_64 rng(21);
+  test::BoxSpec spec;
+  spec.a = 2, spec.b = 3, spec.c = 2;
+  IntervalRequest req;
+  req.global = 4;
+  req.sheets = {{0, 5}, {1, 3}};
+  const FineMesh f = FineMesh::dice(test::random_box(spec, rng), req);
+  std::uniform_int_distribution<Id> pick_node(0, f.num_nodes() - 1), pick_element(0, f.num_elements() - 1);
+  for (const Id slab : {Id{1}, Id{40}, kCursorSlabPoints}) {
+    for (int trial = 0; trial < 12; ++trial) {
+      const Id a = trial == 0 ? f.num_nodes() - 1 : pick_node(rng), b = std::min(f.num_nodes(), a + 1 + pick_node(rng) % 400);
+      NodeCursor c(f, a, b, slab);
+      Id id, want = a;
+      Vec3 p;
+      while (c.next(id, p)) {
+        ASSERT_EQ(id, want++);
+        const Vec3 q = f.node(id);
+        ASSERT_TRUE(same_bits(p.x, q.x) && same_bits(p.y, q.y) && same_bits(p.z, q.z)) << "node " << id << " from " << a;
+      }
+      EXPECT_EQ(want, b);
+      const Id e0 = trial == 0 ? f.num_elements() - 1 : pick_element(rng),
+               e1 = std::min(f.num_elements(), e0 + 1 + pick_element(rng) % 300);
+      ElementCursor ec(f, e0, e1, slab);
+      FineElement el;
+      Id next = e0;
+      while (ec.next(el)) {
+        ASSERT_EQ(el.id, next++);
+        const FineElement ref = f.element(el.id);
+        ASSERT_EQ(el.nodes, ref.nodes) << "element " << el.id << " from " << e0;
+        ASSERT_EQ(el.ijk, ref.ijk);
+        ASSERT_EQ(el.coarse_element, ref.coarse_element);
+        ASSERT_EQ(el.block, ref.block);
+      }
+      EXPECT_EQ(next, e1);
+    }
+  }
 }
