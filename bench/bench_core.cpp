@@ -5,6 +5,8 @@
 //   BM_NodeQuery         node(id) at random ids: Time = ns per query (warm caches)
 //   BM_ElementQuery      element(id) at random ids: Time = ns per query
 //   BM_NodeCursor        whole-mesh node iteration in id order
+//   BM_Batches           the batch API: every node (coordinates) and element
+//                        (connectivity) once, slab by slab (batch.hpp)
 // Mesh: the CUBIT sphere (256 hexes) at interval N (arg), so ~256 N^3 elements.
 #include <benchmark/benchmark.h>
 
@@ -12,6 +14,7 @@
 #include <vector>
 
 #include "bench_util.hpp"
+#include "dicer/batch.hpp"
 #include "dicer/fine_mesh.hpp"
 
 using namespace dicer;
@@ -100,6 +103,23 @@ void BM_NodeCursor(benchmark::State& st) {
   st.counters["nodes_per_s"] = benchmark::Counter(static_cast<double>(nodes), benchmark::Counter::kIsRate);
 }
 
+// The batch API alone (batch.hpp): every node once with coordinates and
+// every element with its connectivity, slab by slab, no checksum.
+void BM_Batches(benchmark::State& st) {
+  const FineMesh& m = sphere(st.range(0));
+  Id nodes = 0;
+  for (auto _ : st) {
+    BatchCursor c(m);
+    FineBatch b;
+    while (c.next(b)) {
+      benchmark::DoNotOptimize(b.x.data());
+      benchmark::DoNotOptimize(b.conn.data());
+    }
+    nodes += m.num_nodes();
+  }
+  st.counters["nodes_per_s"] = benchmark::Counter(static_cast<double>(nodes), benchmark::Counter::kIsRate);
+}
+
 }  // namespace
 
 BENCHMARK(BM_WriteBandwidth)->Arg(8)->Arg(32)->Unit(benchmark::kMillisecond);
@@ -107,4 +127,5 @@ BENCHMARK(BM_BlockIteration)->Args({8, 1})->Args({32, 1})->Args({8, 0})->Args({3
 BENCHMARK(BM_NodeQuery)->Arg(8)->Arg(32);
 BENCHMARK(BM_ElementQuery)->Arg(8)->Arg(32);
 BENCHMARK(BM_NodeCursor)->Arg(8)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Batches)->Arg(8)->Arg(32)->Unit(benchmark::kMillisecond);
 BENCHMARK_MAIN();
