@@ -1,14 +1,13 @@
 #include "dicer/sweep.hpp"
 
-#include <cstring>
-
 #include <algorithm>
 #include <atomic>
 #include <bit>
 #include <chrono>
 #include <condition_variable>
-#include <mutex>
+#include <cstring>
 #include <exception>
+#include <mutex>
 #include <thread>
 #include <vector>
 
