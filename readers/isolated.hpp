@@ -9,7 +9,7 @@
 // mesh comes back through a pipe. A crash (signal) or an allocation failure
 // in the child becomes Error{BadInput} naming the file, never the end of
 // the calling process. Cost: one fork and one copy of the coarse mesh
-// through a pipe (~1% of a dice).
+// through a pipe, O(coarse mesh).
 //
 // DICER_READER_IN_PROCESS=1 reads in process (debuggers, profilers);
 // DICER_READER_MEMORY_MB=N limits the child to N MiB of address space
