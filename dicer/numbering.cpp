@@ -113,7 +113,15 @@ Id search_elements(const MeshTables& t, Id x, bool by_node, MeshCursor& cur) {
 
 Id owner_element(const MeshTables& t, Id id, MeshCursor& cur) {
   const Id h = search_elements(t, id, true, cur);
-  if (h < 0) RowReader(t, cur).corrupt(RowTable::Elements, 0, "no element owns node " + std::to_string(id));
+  const RowReader R(t, cur);
+  if (h < 0) R.corrupt(RowTable::Elements, 0, "no element owns node " + std::to_string(id));
+  // The page index chose the page: the next row must start after the node,
+  // or the index lied (a node found "in" the wrong element may still match
+  // one of its corners, a right answer by accident, not by the numbering).
+  if (h + 1 < t.elements.rows() && R.node_first(h + 1) <= id)
+    R.corrupt(RowTable::Elements, h + 1,
+              "node " + std::to_string(id) + " lies past the element the page index (numbering/element_page_node) "
+              "leads to");
   return h;
 }
 
