@@ -18,14 +18,12 @@ BatchCursor::BatchCursor(const FineMesh& mesh, Id first, Id end, BatchOptions op
 }
 
 void BatchCursor::enter() {
-  const detail::Evaluator E(mesh_.tables(), block_.cursor);
-  const ElementRow h = E.R.element(h_);
+  RowReader(mesh_.tables(), block_.cursor).element(h_, row_);
+  const ElementRow& h = row_;
   const bool vol = mesh_.mode() == Mode::Volume;
   n_ = h.n;
   n2_ = vol ? n_[2] : 0;
   step_ = std::max<Id>(1, opt_.slab_points / ((n_[0] + 1) * (n_[1] + 1)));
-  node_first_ = h.node_first, cell_node_ = h.cell_node, element_first_ = h.element_first;
-  block_index_ = h.block;
   own_end_ = vol ? h.cell_node : h.cell_node + ids::face_nodes(n_[0], n_[1]);
   k0_ = 0;
   if (opt_.first_layer != 0) {
@@ -44,7 +42,7 @@ bool BatchCursor::next(FineBatch& out) {
   const Id k0 = k0_, k1 = vol ? std::min(k0 + step_, n2_) : 0;
   if (opt_.conn || opt_.coords) mesh_.fill_slab(h_, k0, k1, block_, opt_.coords, opt_.conn);
   out.coarse_element = h_;
-  out.block = block_index_;
+  out.block = row_.block;
   out.n = n_;
   out.first_layer = k0;
   out.corners = mesh_.corners();
@@ -52,14 +50,14 @@ bool BatchCursor::next(FineBatch& out) {
   // interior planes k in (k0, k1], k < n2 (ids follow cell_node in plane order).
   const Id in = (n_[0] - 1) * (n_[1] - 1);
   const Id p_lo = vol ? k0 + 1 : 1, p_hi = vol ? std::min(k1, n2_ - 1) : 0;  // interior planes held
-  out.node_begin = k0 == 0 ? node_first_ : cell_node_ + in * (p_lo - 1);
-  out.node_end = vol ? cell_node_ + in * std::max<Id>(p_hi, p_lo - 1) : own_end_;
+  out.node_begin = k0 == 0 ? row_.node_first : row_.cell_node + in * (p_lo - 1);
+  out.node_end = vol ? row_.cell_node + in * std::max<Id>(p_hi, p_lo - 1) : own_end_;
   if (opt_.coords) {
     if (k0 == 0) {
       // fill_slab has just evaluated the element's whole boundary into the
       // block's scratch (edges and faces in their canonical frames).
       const detail::Evaluator E(mesh_.tables(), block_.cursor);
-      const Id end = detail::own_boundary_nodes(E, E.R.element(h_), h_, block_.scratch, xyz_);
+      const Id end = detail::own_boundary_nodes(E, row_, h_, block_.scratch, xyz_);
       DICER_ASSERT(end == own_end_, "batches: the own range of the row");
     } else {
       for (auto& a : xyz_) a.clear();
@@ -79,8 +77,8 @@ bool BatchCursor::next(FineBatch& out) {
   }
   // Elements: layers [k0, k1) (surface: the element's one layer).
   const Id layer = n_[0] * n_[1];
-  out.element_begin = element_first_ + layer * k0;
-  out.element_end = element_first_ + layer * (vol ? k1 : 1);
+  out.element_begin = row_.element_first + layer * k0;
+  out.element_end = row_.element_first + layer * (vol ? k1 : 1);
   out.conn = opt_.conn ? std::span<const Id>(block_.conn) : std::span<const Id>();
   // Advance.
   if (vol && k1 < n2_) {

@@ -128,25 +128,23 @@ std::uint64_t child_budget(std::int64_t file_size) {
   (void)file_size;
 #endif
   std::string out;
+  auto error = [&](ErrorKind kind, const std::string& what) {
+    Packer p;
+    p.u64(static_cast<std::uint64_t>(kind));
+    p.str(what);
+    out = std::string(1, kErrorTag) + p.out;
+  };
   try {
     const CoarseMesh m = read();
     out = std::string(1, kMeshTag) + pack_mesh(m);
   } catch (const Error& e) {
-    Packer p;
-    p.u64(static_cast<std::uint64_t>(e.kind()));
-    p.str(e.what());
-    out = std::string(1, kErrorTag) + p.out;
+    error(e.kind(), e.what());
   } catch (const std::bad_alloc&) {
-    Packer p;
-    p.u64(static_cast<std::uint64_t>(ErrorKind::BadInput));
-    p.str("needs more memory than the reader allows (" + std::to_string(child_budget(file_size) >> 20) +
-          " MiB; DICER_READER_MEMORY_MB raises it): damaged or hostile sizes");
-    out = std::string(1, kErrorTag) + p.out;
+    error(ErrorKind::BadInput, "needs more memory than the reader allows (" +
+                                   std::to_string(child_budget(file_size) >> 20) +
+                                   " MiB; DICER_READER_MEMORY_MB raises it): damaged or hostile sizes");
   } catch (const std::exception& e) {
-    Packer p;
-    p.u64(static_cast<std::uint64_t>(ErrorKind::BadInput));
-    p.str(std::string("the reader failed: ") + e.what());
-    out = std::string(1, kErrorTag) + p.out;
+    error(ErrorKind::BadInput, std::string("the reader failed: ") + e.what());
   }
   _exit(write_all(fd, out) ? 0 : 1);
 }

@@ -69,9 +69,8 @@ class BatchCursor {
   Id k0_ = 0, step_ = 1, n2_ = 0;  // next slab starts at layer k0_ of element h_; n2_ layers (0: surface)
   bool entered_ = false;
   std::array<Id, 3> n_{};
-  Id node_first_ = 0, cell_node_ = 0, own_end_ = 0;  // the element's own range; interior from cell_node_
-  Id element_first_ = 0;
-  std::int32_t block_index_ = -1;
+  Id own_end_ = 0;  // the element's own boundary nodes end here (its interior follows)
+  ElementRow row_;  // the element's validated row, decoded once on entry
   FineBlock block_;
   std::vector<double> xyz_[3];  // the batch's nodes
 };
