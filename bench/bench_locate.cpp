@@ -9,6 +9,8 @@
 //       (cardinal_sphere, 256 hexes, at interval 2: 2048 elements), each
 //       tested against the box of every fine element, nodes in memory (a
 //       lower bound of a brute-force search): ns per point
+//   BM_LocateSurface/<threads>  the nearest quad of a surface store (in
+//       memory): 1e5 points near the libMesh cylinder shell at interval 100
 // DICER_BENCH_POINTS overrides the number of points (default 1e6).
 #include <benchmark/benchmark.h>
 #include <unistd.h>
@@ -145,8 +147,59 @@ void BM_BruteForce(benchmark::State& st) {
   st.counters["found"] = static_cast<double>(found);
 }
 
+// Surface stores: the nearest quad, best-first over the same tree. The
+// libMesh cylinder shell at interval 100 (quads on a curved CAD-free skin:
+// straight coarse quads), points made at random xi in random fine quads and
+// moved off the surface by up to 1% of the shell's size in a random
+// direction: ns per point, and the share whose nearest quad is the one
+// they were made in (points moved off near an edge may be nearer another).
+void BM_LocateSurface(benchmark::State& st) {
+  static const auto* s = [] {
+    struct S {
+      FineMesh mesh;
+      std::vector<double> xyz;
+      std::vector<Id> element;
+    };
+    IntervalRequest r;
+    r.global = 100;
+    auto* out = new S{FineMesh::dice(read_coarse_mesh(data("libmesh_cylinder_shell.exo")), r), {}, {}};
+    std::mt19937_64 rng(3);
+    std::uniform_int_distribution<Id> pick(0, out->mesh.num_elements() - 1);
+    std::uniform_real_distribution<double> u(0.01, 0.99), off(-1e-4, 1e-4);
+    MeshCursor cur;
+    for (size_t i = 0; i < num_points() / 10; ++i) {
+      const Id e = pick(rng);
+      const FineElement el = out->mesh.element(e, cur);
+      std::array<std::array<double, 3>, 4> x;
+      for (int q = 0; q < 4; ++q) {
+        const Vec3 v = out->mesh.node(el.nodes[q], cur);
+        x[q] = {v.x, v.y, v.z};
+      }
+      const auto p = bilinear(x, {u(rng), u(rng), 0});
+      for (int d = 0; d < 3; ++d) out->xyz.push_back(p[d] + off(rng));
+      out->element.push_back(e);
+    }
+    return out;
+  }();
+  const int threads = static_cast<int>(st.range(0));
+  Id found = 0;
+  for (auto _ : st) {
+    const std::vector<Located> out = locate_points(s->mesh, s->xyz, threads);
+    found = 0;
+    for (size_t i = 0; i < out.size(); ++i) found += out[i].element == s->element[i];
+    benchmark::DoNotOptimize(out.data());
+  }
+  const double n = static_cast<double>(s->element.size());
+  st.counters["ns_per_point"] = benchmark::Counter(n * static_cast<double>(st.iterations()),
+                                                   benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+  st.counters["points"] = n;
+  st.counters["elements"] = static_cast<double>(s->mesh.num_elements());
+  st.counters["in_their_element"] = static_cast<double>(found) / n;
+}
+
 }  // namespace
 
+BENCHMARK(BM_LocateSurface)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->Iterations(3)->UseRealTime();
 BENCHMARK(BM_Locate)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->Iterations(1)->UseRealTime();
 BENCHMARK(BM_ElementQuery)->Unit(benchmark::kMillisecond)->Iterations(1)->UseRealTime();
 BENCHMARK(BM_BruteForce)->Unit(benchmark::kMillisecond)->UseRealTime();

@@ -21,7 +21,8 @@ static const CommandDoc kDoc = {
     "query",
     R"(query STORE (--node ID | --nodes FIRST:END | --element ID |
                    --elements FIRST:END | --box x0,y0,z0,x1,y1,z1 [--count] |
-                   --point x,y,z | --points FILE [--threads N] |
+                   --point x,y,z | --points FILE [--threads N]
+                   [--max-distance D] |
                    --element-neighbors ID | --node-elements ID)
                    [--json] [store options])",
     R"(Regenerates fine nodes or elements by id, by box or by point; ids start
@@ -42,6 +43,7 @@ dicer query sphere.dice.h5 --elements 0:500 --json
 dicer query sphere.dice.h5 --box 0,0,0,1,1,0.5 --count
 dicer query sphere.dice.h5 --point 0.1,0.2,0.3 --json
 dicer query sphere.dice.h5 --points probes.txt --threads 2 > found.txt
+dicer query skin.dice.h5 --point 0.1,0.2,0.3 --max-distance 0.05 --json
 )"};
 
 namespace {
@@ -175,7 +177,7 @@ class PointReader {
 int query(const std::vector<std::string>& argv, long long* chunk_count = nullptr, bool* as_json = nullptr) {
   Command cmd(kDoc);
   std::string path, node, nodes, element, elements, box_text, point_text, points_file, neighbors_of, elements_of;
-  std::string threads_text = "1";
+  std::string threads_text = "1", max_distance_text;
   bool json = false, count_only = false;
   cmd.input("STORE", path, "the store to read");
   auto* o_node = cmd.value("--node", node, "ID", "the fine node ID: its coordinates");
@@ -192,15 +194,22 @@ int query(const std::vector<std::string>& argv, long long* chunk_count = nullptr
                           "store's spatial index) miss it are skipped unread");
   auto* o_count = cmd.flag("--count", count_only, "with --box: only the number of such elements");
   auto* o_point = cmd.value("--point", point_text, "x,y,z",
-                            "the fine element containing the point and the point's "
-                            "local coordinates xi in it (its trilinear map at xi "
-                            "gives the point); -1 when none does; on a shared "
-                            "face, edge or node the lowest id (volume stores)");
+                            "volume stores: the fine element containing the point "
+                            "and the point's local coordinates xi in it (its "
+                            "trilinear map at xi gives the point), -1 when none "
+                            "does; on a shared face, edge or node the lowest id. "
+                            "Surface stores: the nearest fine quad, xi of the "
+                            "nearest point on it (its bilinear map at xi) and "
+                            "the distance; the lowest id among quads as near");
   auto* o_points = cmd.value("--points", points_file, "FILE",
                              "as --point for every line \"x y z\" of FILE (- reads "
                              "standard input) or every row of an (n, 3) .npy "
                              "array, answers in input order");
   cmd.value("--threads", threads_text, "N", "with --points: threads searching (1 to 1024, default 1)");
+  auto* o_max_distance = cmd.value("--max-distance", max_distance_text, "D",
+                                   "surface stores, with --point or --points: -1 for "
+                                   "points farther than D from every quad (default: "
+                                   "no limit; the search reads less the smaller D is)");
   auto* o_neighbors = cmd.value("--element-neighbors", neighbors_of, "ID",
                                 "the fine elements across each side of element ID "
                                 "in Exodus side order (HEX8: 6 faces, QUAD4: 4 "
@@ -214,6 +223,7 @@ int query(const std::vector<std::string>& argv, long long* chunk_count = nullptr
            "          (surface meshes: 4 node ids and [i,j])\n"
            "box:     {\"id\":...} per element, or {\"count\":...}\n"
            "point:   {\"point\":[x,y,z], \"element\":..., \"xi\":[a,b,c]}\n"
+           "         (surface: \"xi\":[a,b], \"distance\":d)\n"
            "neighbors: {\"id\":..., \"neighbors\":[6 or 4 ids]}\n"
            "node elements: {\"node\":..., \"elements\":[ids]}");
   StoreFlags store(cmd);
@@ -227,6 +237,10 @@ int query(const std::vector<std::string>& argv, long long* chunk_count = nullptr
                 "--element-neighbors, --node-elements");
   const Id threads = parse_threads(threads_text);
   if (cmd.given(o_count) && !cmd.given(o_box)) throw Error(ErrorKind::Usage, "--count goes with --box");
+  if (cmd.given(o_max_distance) && !cmd.given(o_point) && !cmd.given(o_points))
+    throw Error(ErrorKind::Usage, "--max-distance goes with --point or --points");
+  const double max_distance = cmd.given(o_max_distance) ? parse_double("--max-distance", max_distance_text) : INFINITY;
+  if (!(max_distance >= 0)) throw Error(ErrorKind::Usage, "--max-distance: must be 0 or more");
 
   const FineMesh m = read_store(path, store.options());
   // --node-elements / --element-neighbors: one id in, a list of ids out.
@@ -255,12 +269,17 @@ int query(const std::vector<std::string>& argv, long long* chunk_count = nullptr
     PointReader in(cmd.given(o_point) ? std::string() : points_file, point_text);
     std::vector<double> part;
     while (in.next(part, 65536)) {
-      const std::vector<Located> found = locate_points(m, part, static_cast<int>(threads));
+      const std::vector<Located> found = locate_points(m, part, static_cast<int>(threads), max_distance);
+      const bool surface = m.mode() == Mode::Surface;
       for (size_t i = 0; i < found.size(); ++i) {
         const double* p = &part[3 * i];
         const Located& l = found[i];
-        if (json)
+        if (json && surface)
+          print_json({{"point", {p[0], p[1], p[2]}}, {"element", l.element}, {"xi", {l.xi[0], l.xi[1]}}, {"distance", l.distance}});
+        else if (json)
           print_json({{"point", {p[0], p[1], p[2]}}, {"element", l.element}, {"xi", {l.xi[0], l.xi[1], l.xi[2]}}});
+        else if (surface)
+          std::printf("%lld  %.17g %.17g  %.17g\n", static_cast<long long>(l.element), l.xi[0], l.xi[1], l.distance);
         else
           std::printf("%lld  %.17g %.17g %.17g\n", static_cast<long long>(l.element), l.xi[0], l.xi[1], l.xi[2]);
       }

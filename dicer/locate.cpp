@@ -1,4 +1,5 @@
-// Point location (locate.hpp): index -> bounds -> corner map -> fine cell.
+// Point location (locate.hpp): box tree -> group bounds rows -> corner map
+// -> fine cell.
 #include "dicer/locate.hpp"
 
 #include <algorithm>
@@ -12,8 +13,9 @@
 
 namespace dicer {
 
-using Corners = std::array<std::array<double, 3>, 8>;
 using P3 = std::array<double, 3>;
+using Corners = std::array<P3, 8>;
+using Quad = std::array<P3, 4>;
 
 P3 trilinear(const Corners& x, const P3& xi) {
   P3 out{0, 0, 0};
@@ -25,55 +27,83 @@ P3 trilinear(const Corners& x, const P3& xi) {
   return out;
 }
 
+P3 bilinear(const Quad& x, const P3& xi) {
+  P3 out{0, 0, 0};
+  for (int q = 0; q < 4; ++q) {
+    double w = 1;
+    for (int d = 0; d < 2; ++d) w *= kHexCorner[q][d] ? xi[d] : 1 - xi[d];
+    for (int d = 0; d < 3; ++d) out[d] += w * x[q][d];
+  }
+  return out;
+}
+
 namespace {
 
-double size_of(const Corners& x) {
+template <size_t N>
+double size_of(const std::array<P3, N>& x) {
   double s = 0;
-  for (int d = 0; d < 3; ++d) s = std::max(s, std::abs(x[6][d] - x[0][d]));
-  for (int q = 1; q < 8; ++q)
+  for (size_t q = 1; q < N; ++q)
     for (int d = 0; d < 3; ++d) s = std::max(s, std::abs(x[q][d] - x[0][d]));
   return s;
 }
 
 // Newton on the trilinear map: xi with map(xi) = p, false when it does not
-// converge (degenerate or far outside). Plain 3x3 solve by Cramer's rule.
+// converge (degenerate or far outside). The map minus p is written once as
+// a polynomial in xi from corner differences: cheaper per iteration than
+// the 8 shape functions, and its residual is computed about p, not about
+// the origin (no cancellation of large coordinates).
 bool invert(const Corners& x, const P3& p, P3& xi) {
-  xi = {0.5, 0.5, 0.5};
   const double h = size_of(x);
   if (!(h > 0)) return false;
-  for (int it = 0; it < 40; ++it) {
-    P3 r = trilinear(x, xi);
-    for (int d = 0; d < 3; ++d) r[d] -= p[d];
-    double J[3][3] = {};  // J[d][a] = dx_d / dxi_a
-    for (int q = 0; q < 8; ++q)
-      for (int a = 0; a < 3; ++a) {
-        double w = kHexCorner[q][a] ? 1.0 : -1.0;
-        for (int b = 0; b < 3; ++b)
-          if (b != a) w *= kHexCorner[q][b] ? xi[b] : 1 - xi[b];
-        for (int d = 0; d < 3; ++d) J[d][a] += w * x[q][d];
-      }
-    const double det = J[0][0] * (J[1][1] * J[2][2] - J[1][2] * J[2][1]) -
-                       J[0][1] * (J[1][0] * J[2][2] - J[1][2] * J[2][0]) +
-                       J[0][2] * (J[1][0] * J[2][1] - J[1][1] * J[2][0]);
-    if (!(std::abs(det) > 1e-300)) return false;
-    P3 dx;
-    for (int a = 0; a < 3; ++a) {
-      double M[3][3];
-      for (int d = 0; d < 3; ++d)
-        for (int b = 0; b < 3; ++b) M[d][b] = b == a ? r[d] : J[d][b];
-      dx[a] = (M[0][0] * (M[1][1] * M[2][2] - M[1][2] * M[2][1]) - M[0][1] * (M[1][0] * M[2][2] - M[1][2] * M[2][0]) +
-               M[0][2] * (M[1][0] * M[2][1] - M[1][1] * M[2][0])) /
-              det;
-    }
-    double step = 0;
-    for (int a = 0; a < 3; ++a) xi[a] -= dx[a], step = std::max(step, std::abs(dx[a]));
-    if (!std::isfinite(step) || step > 1e6) return false;
-    if (step < 1e-15) break;
+  // HEX8 corners at (i,j,k): 0 000, 1 100, 2 110, 3 010, 4 001, 5 101, 6 111, 7 011.
+  double c[8][3];  // 1, a, b, c, ab, bc, ac, abc
+  for (int d = 0; d < 3; ++d) {
+    const double v000 = x[0][d], v100 = x[1][d], v110 = x[2][d], v010 = x[3][d];
+    const double v001 = x[4][d], v101 = x[5][d], v111 = x[6][d], v011 = x[7][d];
+    c[0][d] = v000 - p[d];
+    c[1][d] = v100 - v000;
+    c[2][d] = v010 - v000;
+    c[3][d] = v001 - v000;
+    c[4][d] = (v110 - v100) - (v010 - v000);
+    c[5][d] = (v011 - v010) - (v001 - v000);
+    c[6][d] = (v101 - v100) - (v001 - v000);
+    c[7][d] = ((v111 - v110) - (v101 - v100)) - ((v011 - v010) - (v001 - v000));
   }
-  P3 r = trilinear(x, xi);
-  double err = 0;
-  for (int d = 0; d < 3; ++d) err = std::max(err, std::abs(r[d] - p[d]));
-  return err <= kLocateTolerance * h;
+  auto residual = [&](const P3& s, double* r) {
+    for (int d = 0; d < 3; ++d)
+      r[d] = c[0][d] + c[1][d] * s[0] + c[2][d] * s[1] + c[3][d] * s[2] + c[4][d] * s[0] * s[1] +
+             c[5][d] * s[1] * s[2] + c[6][d] * s[0] * s[2] + c[7][d] * s[0] * s[1] * s[2];
+  };
+  xi = {0.5, 0.5, 0.5};
+  for (int it = 0; it < 40; ++it) {
+    const double a = xi[0], b = xi[1], g = xi[2];
+    double r[3], J[3][3];  // J[d][k] = dx_d / dxi_k
+    residual(xi, r);
+    for (int d = 0; d < 3; ++d) {
+      J[d][0] = c[1][d] + c[4][d] * b + c[6][d] * g + c[7][d] * b * g;
+      J[d][1] = c[2][d] + c[4][d] * a + c[5][d] * g + c[7][d] * a * g;
+      J[d][2] = c[3][d] + c[5][d] * b + c[6][d] * a + c[7][d] * a * b;
+    }
+    // dx = J^-1 r by cofactors.
+    const double A00 = J[1][1] * J[2][2] - J[1][2] * J[2][1], A01 = J[0][2] * J[2][1] - J[0][1] * J[2][2],
+                 A02 = J[0][1] * J[1][2] - J[0][2] * J[1][1];
+    const double A10 = J[1][2] * J[2][0] - J[1][0] * J[2][2], A11 = J[0][0] * J[2][2] - J[0][2] * J[2][0],
+                 A12 = J[0][2] * J[1][0] - J[0][0] * J[1][2];
+    const double A20 = J[1][0] * J[2][1] - J[1][1] * J[2][0], A21 = J[0][1] * J[2][0] - J[0][0] * J[2][1],
+                 A22 = J[0][0] * J[1][1] - J[0][1] * J[1][0];
+    const double det = J[0][0] * A00 + J[0][1] * A10 + J[0][2] * A20;
+    if (!(std::abs(det) > 1e-300)) return false;
+    const double dx[3] = {(A00 * r[0] + A01 * r[1] + A02 * r[2]) / det, (A10 * r[0] + A11 * r[1] + A12 * r[2]) / det,
+                          (A20 * r[0] + A21 * r[1] + A22 * r[2]) / det};
+    double step = 0;
+    for (int k = 0; k < 3; ++k) xi[k] -= dx[k], step = std::max(step, std::abs(dx[k]));
+    if (!std::isfinite(step) || step > 1e6) return false;
+    // Quadratic convergence: the step after one of 1e-12 is below rounding.
+    if (step < 1e-12) break;
+  }
+  double r[3];
+  residual(xi, r);
+  return std::max({std::abs(r[0]), std::abs(r[1]), std::abs(r[2])}) <= kLocateTolerance * h;
 }
 
 bool inside(const P3& xi) {
@@ -82,41 +112,163 @@ bool inside(const P3& xi) {
   return true;
 }
 
-// Groups per super-group: a second level built in memory per call (the
-// union of kSuper group boxes), so a point tests O(G / kSuper + kSuper)
-// boxes, not all G.
-constexpr Id kSuper = 64;
+// The nearest point of a bilinear patch (QUAD4 corners) to p: xi in
+// [0,1]^2 and the squared distance. Inside: Newton on the gradient of
+// |x(xi) - p|^2 / 2 (where its Hessian is positive definite); the border:
+// the four edges, straight segments of the patch, exactly.
+struct Nearest {
+  P3 xi{};
+  double d2 = INFINITY;
+};
 
-std::vector<double> super_bounds(const std::vector<double>& groups) {
-  const size_t G = groups.size() / 6, S = (G + kSuper - 1) / kSuper;
-  std::vector<double> out(S * 6);
-  for (size_t s = 0; s < S; ++s) {
-    double* o = &out[s * 6];
-    for (int d = 0; d < 3; ++d) o[d] = INFINITY, o[3 + d] = -INFINITY;
-    for (size_t g = s * kSuper; g < std::min(G, (s + 1) * kSuper); ++g)
-      for (int d = 0; d < 3; ++d) o[d] = std::min(o[d], groups[g * 6 + d]), o[3 + d] = std::max(o[3 + d], groups[g * 6 + 3 + d]);
+Nearest closest_bilinear(const Quad& x, const P3& p) {
+  double c0[3], c1[3], c2[3], c3[3];  // x - p = c0 + c1 u + c2 v + c3 u v
+  for (int d = 0; d < 3; ++d) {
+    c0[d] = x[0][d] - p[d];
+    c1[d] = x[1][d] - x[0][d];
+    c2[d] = x[3][d] - x[0][d];
+    c3[d] = (x[2][d] - x[1][d]) - (x[3][d] - x[0][d]);
   }
-  return out;
+  Nearest best;
+  auto consider = [&](double u, double v) {
+    double d2 = 0;
+    for (int d = 0; d < 3; ++d) {
+      const double r = c0[d] + c1[d] * u + c2[d] * v + c3[d] * u * v;
+      d2 += r * r;
+    }
+    if (d2 < best.d2) best = {{u, v, 0}, d2};
+  };
+  // Newton where the Hessian is positive definite, Gauss-Newton (its
+  // J^T J part, a descent direction) where it is not (far from the patch
+  // of a twisted quad), each step kept in [0,1]^2. Any point of the patch
+  // is a valid candidate; the edges below catch a minimum on the border.
+  double u = 0.5, v = 0.5;
+  for (int it = 0; it < 40; ++it) {
+    double g0 = 0, g1 = 0, huu = 0, huv = 0, hvv = 0, rc = 0;
+    for (int d = 0; d < 3; ++d) {
+      const double r = c0[d] + c1[d] * u + c2[d] * v + c3[d] * u * v, xu = c1[d] + c3[d] * v, xv = c2[d] + c3[d] * u;
+      g0 += r * xu, g1 += r * xv;
+      huu += xu * xu, hvv += xv * xv, huv += xu * xv, rc += r * c3[d];
+    }
+    double det = huu * hvv - (huv + rc) * (huv + rc);
+    if (det > 0 && huu > 0) huv += rc;
+    else det = huu * hvv - huv * huv;
+    if (!(det > 0)) break;
+    const double du = (hvv * g0 - huv * g1) / det, dv = (huu * g1 - huv * g0) / det;
+    if (!std::isfinite(du) || !std::isfinite(dv)) break;
+    const double un = std::clamp(u - du, 0.0, 1.0), vn = std::clamp(v - dv, 0.0, 1.0);
+    const double step = std::max(std::abs(un - u), std::abs(vn - v));
+    u = un, v = vn;
+    if (step < 1e-12) break;
+  }
+  consider(u, v);
+  // Edge from (u0, v0) to (u1, v1): the nearest point of a segment.
+  auto edge = [&](double u0, double v0, double u1, double v1) {
+    double ra[3], e[3], re = 0, ee = 0;
+    for (int d = 0; d < 3; ++d) {
+      ra[d] = c0[d] + c1[d] * u0 + c2[d] * v0 + c3[d] * u0 * v0;
+      const double rb = c0[d] + c1[d] * u1 + c2[d] * v1 + c3[d] * u1 * v1;
+      e[d] = rb - ra[d];
+      re += ra[d] * e[d], ee += e[d] * e[d];
+    }
+    const double s = ee > 0 ? std::clamp(-re / ee, 0.0, 1.0) : 0.0;
+    consider(u0 + s * (u1 - u0), v0 + s * (v1 - v0));
+  };
+  edge(0, 0, 1, 0), edge(0, 1, 1, 1), edge(0, 0, 0, 1), edge(1, 0, 1, 1);
+  return best;
 }
+
+// Boxes (lo, hi) padded by kLocateTolerance of their largest extent or
+// coordinate magnitude, the same pad as each element's bounds gets: a
+// point an element's test accepts is inside every box above it.
+double pad_of(const double* q) {
+  double ext = 0;
+  for (int d = 0; d < 3; ++d) ext = std::max({ext, q[3 + d] - q[d], std::abs(q[d]), std::abs(q[3 + d])});
+  return kLocateTolerance * ext;
+}
+
+bool holds(const double* q, const P3& p) {
+  return p[0] >= q[0] && p[0] <= q[3] && p[1] >= q[1] && p[1] <= q[4] && p[2] >= q[2] && p[2] <= q[5];
+}
+
+double dist2(const double* q, const P3& p) {
+  double s = 0;
+  for (int d = 0; d < 3; ++d) {
+    const double e = std::max({q[d] - p[d], 0.0, p[d] - q[3 + d]});
+    s += e * e;
+  }
+  return s;
+}
+
+// A tree of boxes over the groups: level 0 holds the padded group boxes,
+// level l + 1 the union of each kFan consecutive boxes of level l, up to a
+// level of at most kFan boxes. Consecutive groups are neighbours along the
+// store's space-filling-curve order, so the unions stay compact, and a
+// walk of the children in order visits coarse elements in id order.
+constexpr size_t kFan = 8;
+
+struct Tree {
+  std::vector<std::vector<double>> level;
+
+  explicit Tree(const MeshTables& t) {
+    const size_t G = t.group_bounds.size() / 6;
+    std::vector<double> boxes(t.group_bounds);
+    for (size_t g = 0; g < G; ++g) {
+      double* q = &boxes[g * 6];
+      for (int d = 0; d < 3; ++d)
+        if (!std::isfinite(q[d]) || !std::isfinite(q[3 + d]) || q[d] > q[3 + d])
+          throw Error(ErrorKind::Corrupt, (t.origin.empty() ? std::string("in memory") : t.origin) +
+                                              ": index/group_bounds row " + std::to_string(g) +
+                                              ": bounds not finite or lower above upper");
+      const double pad = pad_of(q);
+      for (int d = 0; d < 3; ++d) q[d] -= pad, q[3 + d] += pad;
+    }
+    level.push_back(std::move(boxes));
+    while (level.back().size() / 6 > kFan) {
+      const std::vector<double>& below = level.back();
+      const size_t n = below.size() / 6, m = (n + kFan - 1) / kFan;
+      std::vector<double> up(m * 6);
+      for (size_t i = 0; i < m; ++i) {
+        double* o = &up[i * 6];
+        for (int d = 0; d < 3; ++d) o[d] = INFINITY, o[3 + d] = -INFINITY;
+        for (size_t c = i * kFan; c < std::min(n, (i + 1) * kFan); ++c)
+          for (int d = 0; d < 3; ++d) o[d] = std::min(o[d], below[c * 6 + d]), o[3 + d] = std::max(o[3 + d], below[c * 6 + 3 + d]);
+      }
+      level.push_back(std::move(up));
+    }
+  }
+};
 
 struct Searcher {
   const FineMesh& mesh;
-  const std::vector<double>& super;
+  const Tree& tree;
+  double max_distance = INFINITY;
   MeshCursor cur;
+  struct Queued {
+    double d2;
+    size_t level, index;
+    bool operator>(const Queued& o) const { return d2 > o.d2; }
+  };
+  std::vector<Queued> heap;  // reused: no allocation per point once warm
+  std::vector<std::pair<double, Id>> near;
 
-  Corners cell_nodes(Id id) {
-    const FineElement el = mesh.element(id, cur);
-    Corners x;
-    for (int q = 0; q < 8; ++q) {
-      const Vec3 v = mesh.node(el.nodes[q], cur);
+  // Nodes of fine cell (i, j, k) of coarse element h (surface: the first 4,
+  // k = 0): the grid points as their owners give them, as node(id) does.
+  template <size_t N>
+  std::array<P3, N> cell_nodes(Id h, const std::array<Id, 3>& c) {
+    std::array<P3, N> x;
+    for (size_t q = 0; q < N; ++q) {
+      const Vec3 v = mesh.node(mesh.grid_node(h, c[0] + kHexCorner[q][0], c[1] + kHexCorner[q][1], c[2] + kHexCorner[q][2], cur), cur);
       x[q] = {v.x, v.y, v.z};
     }
     return x;
   }
 
-  // The cell (i, j, k) of coarse element row r contains p: xi of it.
-  bool in_cell(const ElementRow& r, const std::array<Id, 3>& c, const P3& p, P3& xi) {
-    return invert(cell_nodes(ids::element(r.element_first, r.n, c[0], c[1], c[2])), p, xi) && inside(xi);
+  // --- volume: containment ---
+
+  // The cell (i, j, k) of coarse element h contains p: xi of it.
+  bool in_cell(Id h, const std::array<Id, 3>& c, const P3& p, P3& xi) {
+    return invert(cell_nodes<8>(h, c), p, xi) && inside(xi);
   }
 
   // Lowest-id cell of coarse element h containing p.
@@ -167,7 +319,7 @@ struct Searcher {
     const Id steps = r.n[0] + r.n[1] + r.n[2] + 3;
     bool blocked = false;
     for (Id step = 0; step < steps; ++step) {
-      if (!invert(cell_nodes(ids::element(r.element_first, r.n, c[0], c[1], c[2])), p, xi)) break;
+      if (!invert(cell_nodes<8>(h, c), p, xi)) break;
       if (inside(xi)) {
         found = true;
         break;
@@ -188,7 +340,7 @@ struct Searcher {
         for (Id k = 0; k < r.n[2]; ++k)
           for (Id j = 0; j < r.n[1]; ++j)
             for (Id i = 0; i < r.n[0]; ++i)
-              if (c = {i, j, k}; in_cell(r, c, p, xi)) return true;
+              if (c = {i, j, k}; in_cell(h, c, p, xi)) return true;
         return false;
       };
       found = scan();
@@ -209,48 +361,198 @@ struct Searcher {
       if (!ok) continue;
       P3 xi2;
       const Id id = ids::element(r.element_first, r.n, c2[0], c2[1], c2[2]);
-      if (id < best && in_cell(r, c2, p, xi2)) best = id, best_xi = xi2;
+      if (id < best && in_cell(h, c2, p, xi2)) best = id, best_xi = xi2;
     }
     out.element = best;
     out.xi = best_xi;
     return true;
   }
 
-  Located locate(const P3& p) {
-    const MeshTables& t = mesh.tables();
-    const RowReader R(t, cur);
-    const Id H = mesh.num_coarse_elements();
-    Located out;
-    auto hit = [&](const double* q) {
-      for (int d = 0; d < 3; ++d) {
-        const double pad = kLocateTolerance * (q[3 + d] - q[d] + std::abs(q[d]) + std::abs(q[3 + d]));
-        if (p[d] < q[d] - pad || p[d] > q[3 + d] + pad) return false;
+  // Coarse elements of group g in order (element ids grow with them, so
+  // the first that contains p holds the lowest id).
+  // The elements' boxes are tested with the group's pad, which is no less
+  // than their own (a test a little looser: it only filters).
+  bool scan_group(Id g, const P3& p, Located& out) {
+    const RowReader R(mesh.tables(), cur);
+    const Id end = std::min(mesh.num_coarse_elements(), (g + 1) * kBoundsGroup);
+    const double pad = pad_of(&mesh.tables().group_bounds[static_cast<size_t>(g) * 6]);
+    const P3 lo{p[0] + pad, p[1] + pad, p[2] + pad}, hi{p[0] - pad, p[1] - pad, p[2] - pad};
+    for (Id h = g * kBoundsGroup; h < end;) {
+      const double* rows;
+      const Id k = R.bounds_rows(h, end - h, rows);
+      Id i = 0;
+      for (; i < k; ++i) {
+        const double* b = rows + 6 * i;
+        if (lo[0] >= b[0] && hi[0] <= b[3] && lo[1] >= b[1] && hi[1] <= b[4] && lo[2] >= b[2] && hi[2] <= b[5]) break;
       }
-      return true;
-    };
-    const Id G = (H + kBoundsGroup - 1) / kBoundsGroup;
-    for (Id sg = 0; sg * kSuper < G; ++sg) {
-      if (!hit(&super[static_cast<size_t>(sg) * 6])) continue;
-      for (Id g = sg * kSuper; g < std::min(G, (sg + 1) * kSuper); ++g) {
-        if (!hit(&t.group_bounds[static_cast<size_t>(g) * 6])) continue;
-        // Coarse elements in order: element ids grow with them, so the
-        // first one that contains the point holds the lowest id.
-        for (Id h = g * kBoundsGroup; h < std::min(H, (g + 1) * kBoundsGroup); ++h) {
-          const ElementBounds b = R.bounds(h);
-          double ext = 0;
-          for (int d = 0; d < 3; ++d) ext = std::max({ext, b.hi[d] - b.lo[d], std::abs(b.lo[d]), std::abs(b.hi[d])});
-          if (!b.contains({p[0], p[1], p[2]}, kLocateTolerance * ext)) continue;
-          if (in_element(h, p, out)) return out;
+      h += i;
+      if (i == k) continue;
+      // `rows` may be unpinned by the element's reads: the scan resumes
+      // from a fresh pointer.
+      if (in_element(h, p, out)) return true;
+      ++h;
+    }
+    return false;
+  }
+
+  // Children of box `index` of level `l + 1` (the top: index 0), in order.
+  bool descend(size_t l, size_t index, const P3& p, Located& out) {
+    const std::vector<double>& L = tree.level[l];
+    const size_t n = L.size() / 6;
+    for (size_t c = index * kFan; c < std::min(n, (index + 1) * kFan); ++c) {
+      if (!holds(&L[c * 6], p)) continue;
+      if (l == 0 ? scan_group(static_cast<Id>(c), p, out) : descend(l - 1, c, p, out)) return true;
+    }
+    return false;
+  }
+
+  // --- surface: nearest ---
+
+  // Offer element `id` at distance d: nearer by more than the tolerance, or
+  // as near with a lower id.
+  static void offer(Located& best, Id id, const P3& xi, double d, double tol) {
+    if (best.element < 0 || d < best.distance - tol || (d <= best.distance + tol && id < best.element))
+      best.element = id, best.xi = xi, best.distance = d;
+  }
+
+  double bound(const Located& best) const { return best.element < 0 ? max_distance : std::min(max_distance, best.distance); }
+
+  void nearest_in_element(Id h, const P3& p, Located& best) {
+    const RowReader R(mesh.tables(), cur);
+    Vec3 v[4];
+    R.corner_xyz(h, v);
+    Quad x;
+    for (int q = 0; q < 4; ++q) x[q] = {v[q].x, v[q].y, v[q].z};
+    const double tol = kLocateTolerance * size_of(x);
+    const Nearest g = closest_bilinear(x, p);
+    const double limit = bound(best) + tol;
+    // A straight quad farther than the answer: no row to decode.
+    const bool curved = R.curved(h);
+    if (!curved && !(std::sqrt(g.d2) <= limit)) return;
+    const ElementRow r = R.element(h);
+    if (r.curved() != curved) R.corrupt(RowTable::Elements, h, "flags read twice differ");
+    if (!curved) {
+      // A straight quad is its corners' bilinear map, cell (i, j) that map
+      // on [i/n, (i+1)/n] x [j/n, (j+1)/n]: the cell from g, no fine node
+      // read; on a line shared with lower cells, the lowest of them.
+      const double d = std::sqrt(g.d2);
+      if (!(d <= limit)) return;
+      for (int mask = 3; mask >= 0; --mask) {  // higher masks: lower ids first
+        std::array<Id, 3> c{0, 0, 0};
+        P3 xi{0, 0, 0};
+        bool ok = true;
+        for (int k = 0; k < 2 && ok; ++k) {
+          const double t = g.xi[k] * static_cast<double>(r.n[k]);
+          c[k] = std::clamp<Id>(static_cast<Id>(std::floor(t)), 0, r.n[k] - 1) - (mask >> k & 1);
+          xi[k] = std::clamp(t - static_cast<double>(c[k]), 0.0, 1.0);
+          ok = c[k] >= 0 && t - static_cast<double>(c[k]) <= 1 + kLocateTolerance;
         }
+        if (ok && d <= max_distance) offer(best, ids::element(r.element_first, r.n, c[0], c[1], 0), xi, d, tol);
+      }
+      return;
+    }
+    // Curved: descend from the guess to a strictly nearer neighbouring
+    // cell while there is one (no cycle: the distance falls each step).
+    std::array<Id, 3> c{0, 0, 0};
+    for (int k = 0; k < 2; ++k)
+      c[k] = std::clamp<Id>(static_cast<Id>(std::floor(g.xi[k] * static_cast<double>(r.n[k]))), 0, r.n[k] - 1);
+    Nearest at = closest_bilinear(cell_nodes<4>(h, c), p);
+    for (Id step = 0; step < r.n[0] * r.n[1]; ++step) {
+      std::array<Id, 3> next = c;
+      Nearest near = at;
+      for (int du = -1; du <= 1; ++du)
+        for (int dv = -1; dv <= 1; ++dv) {
+          const std::array<Id, 3> c2{c[0] + du, c[1] + dv, 0};
+          // Only towards a side the nearest point lies on.
+          if ((du == 0 && dv == 0) || c2[0] < 0 || c2[0] >= r.n[0] || c2[1] < 0 || c2[1] >= r.n[1]) continue;
+          if ((du < 0 && at.xi[0] > kLocateTolerance) || (du > 0 && at.xi[0] < 1 - kLocateTolerance) ||
+              (dv < 0 && at.xi[1] > kLocateTolerance) || (dv > 0 && at.xi[1] < 1 - kLocateTolerance))
+            continue;
+          const Nearest q = closest_bilinear(cell_nodes<4>(h, c2), p);
+          if (std::sqrt(q.d2) < std::sqrt(near.d2) - 1e-3 * tol) next = c2, near = q;
+        }
+      if (next == c) break;
+      c = next, at = near;
+    }
+    const double d = std::sqrt(at.d2);
+    if (!(d <= limit) || d > max_distance) return;
+    offer(best, ids::element(r.element_first, r.n, c[0], c[1], 0), at.xi, d, tol);
+    // As near in a lower neighbouring cell (the point's nearest is on a
+    // shared line): the lower id.
+    for (int mask = 1; mask < 4; ++mask) {
+      std::array<Id, 3> c2 = c;
+      bool ok = true;
+      for (int k = 0; k < 2; ++k)
+        if (mask >> k & 1) {
+          ok = ok && c[k] > 0 && at.xi[k] <= kLocateTolerance;
+          --c2[k];
+        }
+      if (!ok) continue;
+      const Nearest q = closest_bilinear(cell_nodes<4>(h, c2), p);
+      const double dq = std::sqrt(q.d2);
+      if (dq <= max_distance) offer(best, ids::element(r.element_first, r.n, c2[0], c2[1], 0), q.xi, dq, tol);
+    }
+  }
+
+  // The group's elements nearest box first, while a box is nearer than
+  // the answer (its pad, 2x the group's, no less than any element's: a
+  // filter a little looser than exact).
+  void nearest_in_group(Id g, const P3& p, Located& best) {
+    const RowReader R(mesh.tables(), cur);
+    const Id end = std::min(mesh.num_coarse_elements(), (g + 1) * kBoundsGroup);
+    const double pad = 2 * pad_of(&mesh.tables().group_bounds[static_cast<size_t>(g) * 6]);
+    near.clear();
+    for (Id h = g * kBoundsGroup; h < end;) {
+      const double* rows;
+      const Id k = R.bounds_rows(h, end - h, rows);
+      const double lim = bound(best) + pad, lim2 = lim * lim;
+      for (Id i = 0; i < k; ++i)
+        if (const double d2 = dist2(rows + 6 * i, p); d2 <= lim2) near.push_back({d2, h + i});
+      h += k;
+    }
+    std::sort(near.begin(), near.end());
+    for (const auto& [d2, h] : near) {
+      const double lim = bound(best) + pad;
+      if (d2 > lim * lim) break;
+      nearest_in_element(h, p, best);
+    }
+  }
+
+  Located nearest(const P3& p) {
+    Located best;
+    heap.clear();
+    const size_t top = tree.level.size() - 1;
+    auto push = [&](size_t l, size_t i) {
+      const double d2 = dist2(&tree.level[l][i * 6], p), lim = bound(best);
+      if (d2 <= lim * lim) heap.push_back({d2, l, i}), std::push_heap(heap.begin(), heap.end(), std::greater<>());
+    };
+    for (size_t i = 0; i < tree.level[top].size() / 6; ++i) push(top, i);
+    while (!heap.empty()) {
+      std::pop_heap(heap.begin(), heap.end(), std::greater<>());
+      const Queued q = heap.back();
+      heap.pop_back();
+      const double lim = bound(best);
+      if (q.d2 > lim * lim) break;  // every box left is farther than the answer
+      if (q.level == 0) {
+        nearest_in_group(static_cast<Id>(q.index), p, best);
+      } else {
+        const size_t n = tree.level[q.level - 1].size() / 6;
+        for (size_t c = q.index * kFan; c < std::min(n, (q.index + 1) * kFan); ++c) push(q.level - 1, c);
       }
     }
-    return out;
+    return best;
+  }
+
+  Located locate(const P3& p) {
+    if (mesh.mode() == Mode::Surface) return nearest(p);
+    Located out;
+    if (descend(tree.level.size() - 1, 0, p, out)) return out;
+    return Located{};
   }
 };
 
-void require_volume(const FineMesh& mesh) {
-  if (mesh.mode() != Mode::Volume)
-    throw Error(ErrorKind::Usage, "point location reads volume (hex) stores; this one is a surface (quad) store");
+void require_index(const FineMesh& mesh, double max_distance) {
+  if (!(max_distance >= 0)) throw Error(ErrorKind::Usage, "point location: the maximum distance must be 0 or more");
   const size_t groups = static_cast<size_t>((mesh.num_coarse_elements() + kBoundsGroup - 1) / kBoundsGroup);
   if (mesh.tables().group_bounds.size() != groups * 6)
     throw Error(ErrorKind::Corrupt, "the spatial index does not have one box per group of coarse elements");
@@ -258,22 +560,24 @@ void require_volume(const FineMesh& mesh) {
 
 }  // namespace
 
-Located locate_point(const FineMesh& mesh, const std::array<double, 3>& p) {
-  require_volume(mesh);
-  const std::vector<double> super = super_bounds(mesh.tables().group_bounds);
-  Searcher s{mesh, super, {}};
+Located locate_point(const FineMesh& mesh, const std::array<double, 3>& p, double max_distance) {
+  require_index(mesh, max_distance);
+  if (mesh.num_coarse_elements() == 0) return Located{};
+  const Tree tree(mesh.tables());
+  Searcher s{mesh, tree, max_distance, {}, {}};
   return s.locate(p);
 }
 
-std::vector<Located> locate_points(const FineMesh& mesh, const std::vector<double>& xyz, int threads) {
-  require_volume(mesh);
+std::vector<Located> locate_points(const FineMesh& mesh, const std::vector<double>& xyz, int threads, double max_distance) {
+  require_index(mesh, max_distance);
   if (xyz.size() % 3 != 0) throw Error(ErrorKind::Usage, "locate_points: coordinates are not a multiple of 3");
   const size_t n = xyz.size() / 3;
   std::vector<Located> out(n);
+  if (mesh.num_coarse_elements() == 0) return out;
   threads = std::max(1, std::min<int>(threads, static_cast<int>(std::max<size_t>(1, n / 64))));
-  const std::vector<double> super = super_bounds(mesh.tables().group_bounds);
+  const Tree tree(mesh.tables());
   auto work = [&](size_t first, size_t end) {
-    Searcher s{mesh, super, {}};
+    Searcher s{mesh, tree, max_distance, {}, {}};
     for (size_t i = first; i < end; ++i) out[i] = s.locate({xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]});
   };
   if (threads == 1) {

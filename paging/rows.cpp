@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "dicer/error.hpp"
 
@@ -216,6 +217,22 @@ ElementBounds RowReader::bounds(Id h) const {
   return b;
 }
 
+Id RowReader::bounds_rows(Id h, Id count, const double*& rows) const {
+  if (h < 0 || h >= t_.bounds.rows() || count < 1) corrupt(RowTable::Bounds, h, "element id out of range");
+  const Id k = std::min({count, t_.bounds.rows() - h, t_.bounds.run(h)});
+  rows = t_.bounds.row(h, c_.bounds);
+  // One pass without branches; the bad row is looked for only when there is one.
+  // (NaN fails lo <= hi; an infinity fails |x| <= max.)
+  constexpr double big = std::numeric_limits<double>::max();
+  bool ok = true;
+  for (Id i = 0; i < 6 * k; i += 6)
+    for (int d = 0; d < 3; ++d)
+      ok &= (rows[i + d] <= rows[i + 3 + d]) & (std::abs(rows[i + d]) <= big) & (std::abs(rows[i + 3 + d]) <= big);
+  if (!ok)
+    for (Id i = 0; i < k; ++i) bounds(h + i);
+  return k;
+}
+
 std::array<std::int64_t, 3> RowReader::bounding(Id row) const {
   if (row < 0 || row >= t_.bounding.rows())
     throw Error(ErrorKind::Corrupt, (t_.origin.empty() ? std::string("in memory") : t_.origin) +
@@ -237,6 +254,12 @@ Id RowReader::node_first(Id h) const {
 }
 Id RowReader::element_first(Id h) const {
   return t_.elements.row(h, c_.elements)[ElementCols::of(t_.mode).element_first()];
+}
+
+bool RowReader::curved(Id h) const {
+  if (h < 0 || h >= t_.elements.rows()) corrupt(RowTable::Elements, h, "element id out of range");
+  const auto flags = static_cast<std::uint64_t>(t_.elements.row(h, c_.elements)[ElementCols::of(t_.mode).flags()]);
+  return (flags >> ElementRow::kCurvedBit) & 1;
 }
 
 // ---------------------------------------------------------------- writers

@@ -148,6 +148,11 @@ class RowReader {
   void corner_xyz(Id h, Vec3* out) const;
   // Element h's bounds: finite, lo <= hi (Corrupt otherwise).
   ElementBounds bounds(Id h) const;
+  // Bounds rows h, h + 1, ... as one pointer (6 values per row, lo then
+  // hi), validated like bounds(): at most `count` rows, as many as share h's
+  // page (at least 1); returns how many. Valid until the cursor's bounds
+  // page moves (a scan of a group of rows reads each page once).
+  Id bounds_rows(Id h, Id count, const double*& rows) const;
   // Row `row` of the bounding arrays: the three codes of one moved node.
   std::array<std::int64_t, 3> bounding(Id row) const;
   // Geometric owner of vertex v (pack_owner), -1 unknown.
@@ -156,6 +161,9 @@ class RowReader {
   // row found is read with element() afterwards).
   Id node_first(Id h) const;
   Id element_first(Id h) const;
+  // Element h's curved flag alone (ElementRow::curved()), h checked: lets a
+  // search skip elements without decoding their rows.
+  bool curved(Id h) const;
 
   // Error{Corrupt}: "<store>: <dataset> row <row>: <what>".
   [[noreturn]] void corrupt(RowTable table, Id row, const std::string& what) const;

@@ -64,6 +64,9 @@ class Table {
   std::int64_t rows_per_page() const { return rows_per_page_; }
   std::int64_t pages() const { return rows_per_page_ > 0 ? (rows_ + rows_per_page_ - 1) / rows_per_page_ : 0; }
   std::uint32_t array() const { return array_; }
+  // Rows from row i to the end of its page (in memory: to the end of the
+  // table): what one row() pointer covers.
+  std::int64_t run(std::int64_t i) const { return cache_ ? rows_per_page_ - i % rows_per_page_ : rows_ - i; }
 
   // Pointer to row i (width() values), valid until cur moves to another page.
   inline const T* row(std::int64_t i, TableCursor& cur) const;

@@ -251,10 +251,11 @@ py::array elements_in_box(const Store& s, const std::vector<double>& lo, const s
   return owned(std::move(ids));
 }
 
-// Point location (locate.hpp): element ids (-1 outside) and xi, as
-// `dicer query --points`.
+// Point location (locate.hpp), as `dicer query --points`: volume stores
+// give (element ids, xi (n, 3)), surface stores (element ids, xi (n, 2),
+// distances).
 py::tuple locate(const Store& s, const py::array_t<double, py::array::c_style | py::array::forcecast>& points,
-                 std::int64_t threads) {
+                 std::int64_t threads, const std::optional<double>& max_distance) {
   if (threads < 1 || threads > 1024) throw Error(ErrorKind::Usage, "--threads: must be between 1 and 1024");
   const Mesh m = s.get();
   if (!((points.ndim() == 2 && points.shape(1) == 3) || (points.ndim() == 1 && points.shape(0) == 3)))
@@ -263,15 +264,19 @@ py::tuple locate(const Store& s, const py::array_t<double, py::array::c_style | 
   std::vector<Located> found;
   {
     py::gil_scoped_release release;
-    found = locate_points(*m, xyz, static_cast<int>(threads));
+    found = locate_points(*m, xyz, static_cast<int>(threads), max_distance.value_or(INFINITY));
   }
+  const bool surface = m->mode() == Mode::Surface;
+  const int dims = surface ? 2 : 3;
   std::vector<Id> ids(found.size());
-  std::vector<double> xi(3 * found.size());
+  std::vector<double> xi(static_cast<size_t>(dims) * found.size()), distance(found.size());
   for (size_t i = 0; i < found.size(); ++i) {
     ids[i] = found[i].element;
-    for (int d = 0; d < 3; ++d) xi[3 * i + d] = found[i].xi[d];
+    for (int d = 0; d < dims; ++d) xi[dims * i + d] = found[i].xi[d];
+    distance[i] = found[i].distance;
   }
   const auto n = static_cast<py::ssize_t>(found.size());
+  if (surface) return py::make_tuple(owned(std::move(ids)), owned(std::move(xi), {n, 2}), owned(std::move(distance)));
   return py::make_tuple(owned(std::move(ids)), owned(std::move(xi), {n, 3}));
 }
 
@@ -753,9 +758,11 @@ PYBIND11_MODULE(_core, m) {
         const Mesh m = s.get();
         return owned(node_elements(*m, id));
       }, py::arg("id"), "the fine elements using node id, ascending (`dicer query --node-elements`)")
-      .def("locate", &locate, py::arg("points"), py::arg("threads") = 1,
-           "(element ids, xi) of an (n, 3) array of points: the fine element containing each (-1: none; the "
-           "lowest id on a shared face) and the local coordinates in it, as `dicer query --points`")
+      .def("locate", &locate, py::arg("points"), py::arg("threads") = 1, py::arg("max_distance") = py::none(),
+           "as `dicer query --points`. Volume stores: (element ids, xi (n, 3)) of an (n, 3) array of points: "
+           "the fine element containing each (-1: none; the lowest id on a shared face) and the local "
+           "coordinates in it. Surface stores: (element ids, xi (n, 2), distances): the nearest fine quad "
+           "(-1: none within max_distance), the nearest point's xi on it and its distance")
       .def("blocks", &make_blocks, py::arg("chunk") = py::none(), py::arg("connectivity") = true,
            "iterator of Batch, one per coarse element, over the mesh or over chunk (k, n)")
       .def("batches", &make_batches, py::arg("chunk") = py::none(), py::arg("slab_points") = kCursorSlabPoints,

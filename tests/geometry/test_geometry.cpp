@@ -391,6 +391,42 @@ TEST(Geometry, SurfaceModeOnACurvedShell) {
   EXPECT_TRUE(verify(s).ok());
   EXPECT_EQ(sweep(s, 1).checksum, sweep(fine, 1).checksum);
   EXPECT_LE(check_geometry(s, cad).max_distance, 1e-9 * cylinder().diagonal);
+  // Point location on the curved skin (its quads are moved onto the CAD:
+  // found by descent over fine cells): a point made at xi of a fine quad,
+  // on it or moved a little along its normal, comes back there.
+  std::mt19937_64 rng(4);
+  std::uniform_int_distribution<Id> pick(0, s.num_elements() - 1);
+  std::uniform_real_distribution<double> in(0.25, 0.75), off(-0.01, 0.01);
+  int on_curved = 0;
+  for (int k = 0; k < 200; ++k) {
+    const Id e = pick(rng);
+    const FineElement el = s.element(e);
+    std::array<std::array<double, 3>, 4> x;
+    for (int q = 0; q < 4; ++q) {
+      const Vec3 v = s.node(el.nodes[q]);
+      x[q] = {v.x, v.y, v.z};
+    }
+    const std::array<double, 3> xi = {in(rng), in(rng), 0}, p0 = bilinear(x, xi);
+    double xu[3], xv[3];
+    for (int d = 0; d < 3; ++d) {
+      xu[d] = (x[1][d] - x[0][d]) * (1 - xi[1]) + (x[2][d] - x[3][d]) * xi[1];
+      xv[d] = (x[3][d] - x[0][d]) * (1 - xi[0]) + (x[2][d] - x[1][d]) * xi[0];
+    }
+    const std::array<double, 3> n = {xu[1] * xv[2] - xu[2] * xv[1], xu[2] * xv[0] - xu[0] * xv[2], xu[0] * xv[1] - xu[1] * xv[0]};
+    const double len = std::hypot(n[0], n[1], n[2]), h = std::hypot(xu[0], xu[1], xu[2]);
+    const double delta = k % 2 ? off(rng) * h : 0.0;
+    std::array<double, 3> p;
+    for (int d = 0; d < 3; ++d) p[d] = p0[d] + delta * n[d] / len;
+    const Located got = locate_point(s, p);
+    ASSERT_EQ(got.element, e) << "point " << k;
+    EXPECT_NEAR(got.xi[0], xi[0], 1e-8);
+    EXPECT_NEAR(got.xi[1], xi[1], 1e-8);
+    EXPECT_NEAR(got.distance, std::abs(delta), 1e-9 * h);
+    bool side = true;  // a quad of the cylinder's side, not of its flat ends
+    for (const auto& c : x) side = side && std::abs(c[2]) > 1e-9 && std::abs(c[2] - 2) > 1e-9;
+    on_curved += side;
+  }
+  EXPECT_GT(on_curved, 50);
 }
 
 TEST(Geometry, BoundingCodeIsLosslessForEveryPair) {

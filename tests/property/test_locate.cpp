@@ -4,6 +4,8 @@
 // contains it (a shared face); points outside every element come back -1.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <map>
 #include <random>
 
@@ -17,10 +19,12 @@ using namespace dicer;
 
 namespace {
 
-std::array<std::array<double, 3>, 8> nodes_of(const FineMesh& m, Id e) {
+// The first N nodes of element e (8: HEX8, 4: QUAD4), as node(id) gives them.
+template <size_t N = 8>
+std::array<std::array<double, 3>, N> nodes_of(const FineMesh& m, Id e) {
   const FineElement el = m.element(e);
-  std::array<std::array<double, 3>, 8> x;
-  for (int q = 0; q < 8; ++q) {
+  std::array<std::array<double, 3>, N> x;
+  for (size_t q = 0; q < N; ++q) {
     const Vec3 v = m.node(el.nodes[q]);
     x[q] = {v.x, v.y, v.z};
   }
@@ -118,10 +122,130 @@ TEST(Locate, ANodeSharedByEightElementsGivesTheLowestId) {
   }
 }
 
-TEST(Locate, SurfaceStoresAreRefused) {
+// Surface stores: the nearest fine quad. The cylinder-facet sheets have
+// planar rectangular quads (TFI of a rectangle is a grid of rectangles), so
+// the nearest point of every fine quad has a closed form, independent of
+// the library's Newton solve: project onto the quad's two edge directions
+// and clamp. A brute force over every fine quad is the reference.
+namespace {
+
+double rect_distance(const std::array<std::array<double, 3>, 4>& x, const std::array<double, 3>& p) {
+  double e1[3], e2[3], r[3], a = 0, b = 0, l1 = 0, l2 = 0;
+  for (int d = 0; d < 3; ++d) {
+    e1[d] = x[1][d] - x[0][d], e2[d] = x[3][d] - x[0][d], r[d] = p[d] - x[0][d];
+    a += r[d] * e1[d], b += r[d] * e2[d], l1 += e1[d] * e1[d], l2 += e2[d] * e2[d];
+  }
+  const double s = std::clamp(a / l1, 0.0, 1.0), t = std::clamp(b / l2, 0.0, 1.0);
+  double d2 = 0;
+  for (int d = 0; d < 3; ++d) d2 += std::pow(x[0][d] + s * e1[d] + t * e2[d] - p[d], 2);
+  return std::sqrt(d2);
+}
+
+}  // namespace
+
+TEST(Locate, SurfacePointsGetTheNearestQuadAsABruteForceDoes) {
+  std::mt19937_64 rng(5);
+  test::TempDir tmp;
+  for (int trial = 0; trial < 4; ++trial) {
+    IntervalRequest req;
+    req.global = 2 + trial % 3;
+    const FineMesh mem = FineMesh::dice(test::random_quad_sheet(3 + trial % 2, 2 + trial % 2, trial > 0, rng), req);
+    const std::string path = tmp.path("s" + std::to_string(trial) + ".dice.h5");
+    write_store(mem, path);
+    const FineMesh store = read_store(path);
+    std::vector<std::array<std::array<double, 3>, 4>> quads;
+    for (Id e = 0; e < mem.num_elements(); ++e) quads.push_back(nodes_of<4>(mem, e));
+    // Points anywhere around the sheet (a cylinder part of radius 3,
+    // height about 1): inside, outside, beyond its ends.
+    std::uniform_real_distribution<double> u(-4, 4), z(-1, 2.5);
+    std::vector<double> batch;
+    for (int k = 0; k < 150; ++k) {
+      const std::array<double, 3> p = {u(rng), u(rng), z(rng)};
+      batch.insert(batch.end(), p.begin(), p.end());
+      double nearest = INFINITY;
+      for (const auto& q : quads) nearest = std::min(nearest, rect_distance(q, p));
+      const Located got = locate_point(mem, p);
+      ASSERT_GE(got.element, 0);
+      const double tol = 1e-9 * 4;
+      EXPECT_NEAR(got.distance, nearest, tol) << "point " << k;
+      // Its xi gives the point at that distance, on its quad.
+      const auto at = bilinear(quads[static_cast<size_t>(got.element)], got.xi);
+      double d2 = 0;
+      for (int d = 0; d < 3; ++d) d2 += std::pow(at[d] - p[d], 2);
+      EXPECT_NEAR(std::sqrt(d2), got.distance, tol);
+      EXPECT_EQ(got.xi[2], 0);
+      for (int d = 0; d < 2; ++d) EXPECT_TRUE(got.xi[d] >= 0 && got.xi[d] <= 1) << got.xi[d];
+      // The lowest id among the quads as near.
+      for (Id e = 0; e < got.element; ++e)
+        EXPECT_GT(rect_distance(quads[static_cast<size_t>(e)], p), nearest + 1e-12) << "element " << e << " is as near";
+      // A limit below the distance finds nothing; at it, the same answer.
+      EXPECT_EQ(locate_point(mem, p, nearest * (1 - 1e-6)).element, nearest > 1e-9 ? -1 : got.element);
+      EXPECT_EQ(locate_point(mem, p, nearest * (1 + 1e-6) + 1e-12).element, got.element);
+    }
+    // Store, threads and memory agree bit for bit.
+    const std::vector<Located> a = locate_points(store, batch, 2), b = locate_points(mem, batch, 1);
+    for (size_t i = 0; i < a.size(); ++i) {
+      EXPECT_EQ(a[i].element, b[i].element);
+      EXPECT_EQ(a[i].xi, b[i].xi);
+      EXPECT_EQ(a[i].distance, b[i].distance);
+    }
+  }
+}
+
+TEST(Locate, SurfacePointsOnAndOffTwistedQuadsComeBackWithTheirXi) {
+  // Non-planar coarse quads (each vertex lifted at random): bilinear
+  // patches, not planes. A point made at xi of a fine quad, moved along the
+  // quad's normal there by less than its size, has that foot point as its
+  // nearest: the same element and xi, at the distance moved.
+  std::mt19937_64 rng(11);
+  for (int trial = 0; trial < 3; ++trial) {
+    CoarseMesh cm = test::random_quad_sheet(3, 3, true, rng);
+    std::uniform_real_distribution<double> lift(-0.15, 0.15);
+    for (Id v = 0; v < cm.num_vertices(); ++v) {
+      const double r = 1 + lift(rng);
+      cm.x[v] *= r, cm.y[v] *= r;
+    }
+    IntervalRequest req;
+    req.global = 2 + trial;
+    const FineMesh m = FineMesh::dice(cm, req);
+    std::uniform_int_distribution<Id> pick(0, m.num_elements() - 1);
+    std::uniform_real_distribution<double> in(0.25, 0.75), off(-0.02, 0.02);
+    for (int k = 0; k < 80; ++k) {
+      const Id e = pick(rng);
+      const auto x = nodes_of<4>(m, e);
+      const std::array<double, 3> xi = {in(rng), in(rng), 0};
+      const auto p0 = bilinear(x, xi);
+      // The normal: the cross product of the map's derivatives at xi.
+      double xu[3], xv[3];
+      for (int d = 0; d < 3; ++d) {
+        xu[d] = (x[1][d] - x[0][d]) * (1 - xi[1]) + (x[2][d] - x[3][d]) * xi[1];
+        xv[d] = (x[3][d] - x[0][d]) * (1 - xi[0]) + (x[2][d] - x[1][d]) * xi[0];
+      }
+      std::array<double, 3> n = {xu[1] * xv[2] - xu[2] * xv[1], xu[2] * xv[0] - xu[0] * xv[2], xu[0] * xv[1] - xu[1] * xv[0]};
+      const double len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]), h = std::sqrt(xu[0] * xu[0] + xu[1] * xu[1] + xu[2] * xu[2]);
+      const double delta = k % 4 == 0 ? 0.0 : off(rng) * h;
+      std::array<double, 3> p;
+      for (int d = 0; d < 3; ++d) p[d] = p0[d] + delta * n[d] / len;
+      const Located got = locate_point(m, p);
+      ASSERT_EQ(got.element, e) << "point " << k << " made in element " << e;
+      EXPECT_NEAR(got.xi[0], xi[0], 1e-8);
+      EXPECT_NEAR(got.xi[1], xi[1], 1e-8);
+      EXPECT_NEAR(got.distance, std::abs(delta), 1e-10 * h);
+    }
+  }
+}
+
+TEST(Locate, ANegativeOrNanLimitIsAUsageError) {
   std::mt19937_64 rng(5);
   IntervalRequest req;
   req.global = 2;
   const FineMesh m = FineMesh::dice(test::random_quad_sheet(2, 2, true, rng), req);
-  EXPECT_THROW(locate_point(m, {0, 0, 0}), Error);
+  for (double bad : {-1.0, std::nan("")}) {
+    try {
+      locate_point(m, {0, 0, 0}, bad);
+      ADD_FAILURE() << "limit " << bad << " accepted";
+    } catch (const Error& e) {
+      EXPECT_EQ(e.kind(), ErrorKind::Usage);
+    }
+  }
 }

@@ -108,6 +108,43 @@ def test_locate_equals_query_points(cli, sphere_store, tmp_path):
     assert code == 3 and "must have shape (n, 3)" in msg
 
 
+def test_locate_on_a_surface_is_the_nearest_quad(cli, shell_store, tmp_path):
+    """A surface store: Store.locate gives the nearest fine quad, its xi and
+    the distance. Checked against numpy: the bilinear map of the quad's
+    nodes at xi lies at that distance from the point, and no quad has a
+    node much nearer (a lower bound that needs no closest-point solver);
+    the CLI prints the same bits; max_distance cuts."""
+    s = dicer.open(shell_store)
+    rng = np.random.default_rng(3)
+    conn = s.elements(0, s.num_elements)
+    nodes = s.nodes(np.arange(s.num_nodes))
+    lo, hi = nodes.min(axis=0), nodes.max(axis=0)
+    pts = lo + (hi - lo) * rng.uniform(-0.2, 1.2, size=(60, 3))
+    ids, xi, dist = s.locate(pts, threads=2)
+    assert xi.shape == (60, 2) and dist.shape == (60,) and np.all(ids >= 0)
+    assert np.all((xi >= 0) & (xi <= 1))
+    x = nodes[conn[ids]]  # (60, 4, 3), QUAD4 order
+    u, v = xi[:, :1], xi[:, 1:]
+    at = (1 - u) * (1 - v) * x[:, 0] + u * (1 - v) * x[:, 1] + u * v * x[:, 2] + (1 - u) * v * x[:, 3]
+    assert np.allclose(np.linalg.norm(at - pts, axis=1), dist, rtol=0, atol=1e-9)
+    # Every node is a point of the surface: none is nearer than the answer.
+    nearest_node = np.min(np.linalg.norm(nodes[None, :, :] - pts[:, None, :], axis=2), axis=1)
+    assert np.all(dist <= nearest_node + 1e-12)
+    f = tmp_path / "p.txt"
+    f.write_text("".join(f"{a!r} {b!r} {c!r}\n" for a, b, c in pts.tolist()))
+    rows = cli.json_lines("query", shell_store, "--points", str(f))
+    assert [r["element"] for r in rows] == ids.tolist()
+    assert np.array_equal(bits(np.array([r["xi"] for r in rows])), bits(xi))
+    assert np.array_equal(bits(np.array([r["distance"] for r in rows])), bits(dist))
+    limit = float(np.median(dist))
+    ids2, _, dist2 = s.locate(pts, max_distance=limit)
+    assert np.array_equal(ids2 >= 0, dist <= limit) and np.array_equal(ids2[dist <= limit], ids[dist <= limit])
+    rows = cli.json_lines("query", shell_store, "--points", str(f), "--max-distance", repr(limit))
+    assert [r["element"] for r in rows] == ids2.tolist()
+    code, msg = cli.error("query", shell_store, "--point", "0,0,0", "--max-distance", "-1")
+    assert code == 2 and "--max-distance" in msg
+
+
 def test_element_neighbors_equal_query(cli, sphere_store):
     s = dicer.open(sphere_store)
     for e in (0, 17, s.num_elements - 1):
