@@ -274,14 +274,18 @@ struct Searcher {
   // Lowest-id cell of coarse element h containing p.
   bool in_element(Id h, const P3& p, Located& out) {
     const RowReader R(mesh.tables(), cur);
-    const ElementRow r = R.element(h);
     Vec3 v[8];
     R.corner_xyz(h, v);
     Corners x;
     for (int q = 0; q < 8; ++q) x[q] = {v[q].x, v[q].y, v[q].z};
     P3 g{0.5, 0.5, 0.5};
     const bool guessed = invert(x, p, g);
-    if (!r.curved()) {
+    // A straight element that does not hold the point: no row to decode.
+    const bool curved = R.curved(h);
+    if (!curved && !(guessed && inside(g))) return false;
+    const ElementRow r = R.element(h);
+    if (r.curved() != curved) R.corrupt(RowTable::Elements, h, "flags read twice differ");
+    if (!curved) {
       // A straight element is its corners' trilinear map (TFI reproduces
       // it) and its cell (i, j, k) that map on [i/n, (i+1)/n] x ...: the
       // cell and xi follow from g without reading a fine node. Inside a

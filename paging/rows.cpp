@@ -222,12 +222,11 @@ Id RowReader::bounds_rows(Id h, Id count, const double*& rows) const {
   const Id k = std::min({count, t_.bounds.rows() - h, t_.bounds.run(h)});
   rows = t_.bounds.row(h, c_.bounds);
   // One pass without branches; the bad row is looked for only when there is one.
-  // (NaN fails lo <= hi; an infinity fails |x| <= max.)
+  // -max <= lo <= hi <= max: both finite, ordered (NaN fails every test).
   constexpr double big = std::numeric_limits<double>::max();
   bool ok = true;
   for (Id i = 0; i < 6 * k; i += 6)
-    for (int d = 0; d < 3; ++d)
-      ok &= (rows[i + d] <= rows[i + 3 + d]) & (std::abs(rows[i + d]) <= big) & (std::abs(rows[i + 3 + d]) <= big);
+    for (int d = 0; d < 3; ++d) ok &= (rows[i + d] >= -big) & (rows[i + d] <= rows[i + 3 + d]) & (rows[i + 3 + d] <= big);
   if (!ok)
     for (Id i = 0; i < k; ++i) bounds(h + i);
   return k;
