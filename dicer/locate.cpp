@@ -284,7 +284,6 @@ struct Searcher {
     const bool curved = R.curved(h);
     if (!curved && !(guessed && inside(g))) return false;
     const ElementRow r = R.element(h);
-    if (r.curved() != curved) R.corrupt(RowTable::Elements, h, "flags read twice differ");
     if (!curved) {
       // A straight element is its corners' trilinear map (TFI reproduces
       // it) and its cell (i, j, k) that map on [i/n, (i+1)/n] x ...: the
@@ -434,7 +433,6 @@ struct Searcher {
     const bool curved = R.curved(h);
     if (!curved && !(std::sqrt(g.d2) <= limit)) return;
     const ElementRow r = R.element(h);
-    if (r.curved() != curved) R.corrupt(RowTable::Elements, h, "flags read twice differ");
     if (!curved) {
       // A straight quad is its corners' bilinear map, cell (i, j) that map
       // on [i/n, (i+1)/n] x [j/n, (j+1)/n]: the cell from g, no fine node
@@ -568,7 +566,7 @@ Located locate_point(const FineMesh& mesh, const std::array<double, 3>& p, doubl
   require_index(mesh, max_distance);
   if (mesh.num_coarse_elements() == 0) return Located{};
   const Tree tree(mesh.tables());
-  Searcher s{mesh, tree, max_distance, {}, {}};
+  Searcher s{mesh, tree, max_distance, {}, {}, {}};
   return s.locate(p);
 }
 
@@ -581,7 +579,7 @@ std::vector<Located> locate_points(const FineMesh& mesh, const std::vector<doubl
   threads = std::max(1, std::min<int>(threads, static_cast<int>(std::max<size_t>(1, n / 64))));
   const Tree tree(mesh.tables());
   auto work = [&](size_t first, size_t end) {
-    Searcher s{mesh, tree, max_distance, {}, {}};
+    Searcher s{mesh, tree, max_distance, {}, {}, {}};
     for (size_t i = first; i < end; ++i) out[i] = s.locate({xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]});
   };
   if (threads == 1) {

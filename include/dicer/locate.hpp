@@ -36,8 +36,8 @@
 // Cost per point: O(log G) tree boxes and the few groups whose boxes hold
 // the point (surface: whose boxes are nearer than the answer), a bounds row
 // per coarse element of those groups, and for each candidate one element
-// row, its corners and a Newton solve (curved: plus a few fine cells, 9
-// (5) node(id) calls each). Pages come through the store's cache.
+// row, its corners and a Newton solve (curved: plus a few fine cells, 8
+// (4) grid nodes each). Pages come through the store's cache.
 // Thread-safe (a cursor per thread).
 //
 // Errors: Usage for a negative or NaN max_distance, or coordinates not a
