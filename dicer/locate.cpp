@@ -17,25 +17,24 @@ using P3 = std::array<double, 3>;
 using Corners = std::array<P3, 8>;
 using Quad = std::array<P3, 4>;
 
-P3 trilinear(const Corners& x, const P3& xi) {
+namespace {
+
+// The multilinear map of N = 8 (HEX8) or 4 (QUAD4) corners at xi.
+template <size_t N>
+P3 corner_map(const std::array<P3, N>& x, const P3& xi) {
   P3 out{0, 0, 0};
-  for (int q = 0; q < 8; ++q) {
+  for (size_t q = 0; q < N; ++q) {
     double w = 1;
-    for (int d = 0; d < 3; ++d) w *= kHexCorner[q][d] ? xi[d] : 1 - xi[d];
+    for (int d = 0; d < (N == 8 ? 3 : 2); ++d) w *= kHexCorner[q][d] ? xi[d] : 1 - xi[d];
     for (int d = 0; d < 3; ++d) out[d] += w * x[q][d];
   }
   return out;
 }
 
-P3 bilinear(const Quad& x, const P3& xi) {
-  P3 out{0, 0, 0};
-  for (int q = 0; q < 4; ++q) {
-    double w = 1;
-    for (int d = 0; d < 2; ++d) w *= kHexCorner[q][d] ? xi[d] : 1 - xi[d];
-    for (int d = 0; d < 3; ++d) out[d] += w * x[q][d];
-  }
-  return out;
-}
+}  // namespace
+
+P3 trilinear(const Corners& x, const P3& xi) { return corner_map(x, xi); }
+P3 bilinear(const Quad& x, const P3& xi) { return corner_map(x, xi); }
 
 namespace {
 
@@ -187,8 +186,9 @@ double pad_of(const double* q) {
   return kLocateTolerance * ext;
 }
 
-bool holds(const double* q, const P3& p) {
-  return p[0] >= q[0] && p[0] <= q[3] && p[1] >= q[1] && p[1] <= q[4] && p[2] >= q[2] && p[2] <= q[5];
+bool holds(const double* q, const P3& p, double pad = 0) {
+  return p[0] >= q[0] - pad && p[0] <= q[3] + pad && p[1] >= q[1] - pad && p[1] <= q[4] + pad && p[2] >= q[2] - pad &&
+         p[2] <= q[5] + pad;
 }
 
 double dist2(const double* q, const P3& p) {
@@ -379,15 +379,11 @@ struct Searcher {
     const RowReader R(mesh.tables(), cur);
     const Id end = std::min(mesh.num_coarse_elements(), (g + 1) * kBoundsGroup);
     const double pad = pad_of(&mesh.tables().group_bounds[static_cast<size_t>(g) * 6]);
-    const P3 lo{p[0] + pad, p[1] + pad, p[2] + pad}, hi{p[0] - pad, p[1] - pad, p[2] - pad};
     for (Id h = g * kBoundsGroup; h < end;) {
       const double* rows;
       const Id k = R.bounds_rows(h, end - h, rows);
       Id i = 0;
-      for (; i < k; ++i) {
-        const double* b = rows + 6 * i;
-        if (lo[0] >= b[0] && hi[0] <= b[3] && lo[1] >= b[1] && hi[1] <= b[4] && lo[2] >= b[2] && hi[2] <= b[5]) break;
-      }
+      while (i < k && !holds(rows + 6 * i, p, pad)) ++i;
       h += i;
       if (i == k) continue;
       // `rows` may be unpinned by the element's reads: the scan resumes
