@@ -3,6 +3,7 @@
 #include "dicer/locate.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <thread>
 
@@ -186,9 +187,11 @@ double pad_of(const double* q) {
   return kLocateTolerance * ext;
 }
 
+// Without branches (& not &&): scans test many boxes in a row, and which
+// hold a random point is unpredictable.
 bool holds(const double* q, const P3& p, double pad = 0) {
-  return p[0] >= q[0] - pad && p[0] <= q[3] + pad && p[1] >= q[1] - pad && p[1] <= q[4] + pad && p[2] >= q[2] - pad &&
-         p[2] <= q[5] + pad;
+  return (p[0] >= q[0] - pad) & (p[0] <= q[3] + pad) & (p[1] >= q[1] - pad) & (p[1] <= q[4] + pad) &
+         (p[2] >= q[2] - pad) & (p[2] <= q[5] + pad);
 }
 
 double dist2(const double* q, const P3& p) {
@@ -205,7 +208,7 @@ double dist2(const double* q, const P3& p) {
 // level of at most kFan boxes. Consecutive groups are neighbours along the
 // store's space-filling-curve order, so the unions stay compact, and a
 // walk of the children in order visits coarse elements in id order.
-constexpr size_t kFan = 8;
+constexpr size_t kFan = 8;  // <= 32: a child mask fits an unsigned
 
 struct Tree {
   std::vector<std::vector<double>> level;
@@ -251,6 +254,7 @@ struct Searcher {
   };
   std::vector<Queued> heap;  // reused: no allocation per point once warm
   std::vector<std::pair<double, Id>> near;
+  std::vector<std::uint8_t> checked;  // per group: bounds rows validated
 
   // Nodes of fine cell (i, j, k) of coarse element h (surface: the first 4,
   // k = 0): the grid points as their owners give them, as node(id) does.
@@ -280,10 +284,11 @@ struct Searcher {
     for (int q = 0; q < 8; ++q) x[q] = {v[q].x, v[q].y, v[q].z};
     P3 g{0.5, 0.5, 0.5};
     const bool guessed = invert(x, p, g);
-    // A straight element that does not hold the point: no row to decode.
-    const bool curved = R.curved(h);
+    // A straight element that does not hold the point: nothing more to read
+    // (its grid and flag are a few fields of its row).
+    const RowReader::Cells r = R.cells(h);
+    const bool curved = r.curved;
     if (!curved && !(guessed && inside(g))) return false;
-    const ElementRow r = R.element(h);
     if (!curved) {
       // A straight element is its corners' trilinear map (TFI reproduces
       // it) and its cell (i, j, k) that map on [i/n, (i+1)/n] x ...: the
@@ -379,27 +384,42 @@ struct Searcher {
     const RowReader R(mesh.tables(), cur);
     const Id end = std::min(mesh.num_coarse_elements(), (g + 1) * kBoundsGroup);
     const double pad = pad_of(&mesh.tables().group_bounds[static_cast<size_t>(g) * 6]);
+    check_group(R, g);
     for (Id h = g * kBoundsGroup; h < end;) {
       const double* rows;
-      const Id k = R.bounds_rows(h, end - h, rows);
-      Id i = 0;
-      while (i < k && !holds(rows + 6 * i, p, pad)) ++i;
-      h += i;
-      if (i == k) continue;
-      // `rows` may be unpinned by the element's reads: the scan resumes
-      // from a fresh pointer.
-      if (in_element(h, p, out)) return true;
-      ++h;
+      const Id k = R.bounds_rows(h, end - h, rows, /*checked=*/true);
+      static_assert(kBoundsGroup <= 64);
+      std::uint64_t hit = 0;
+      for (Id i = 0; i < k; ++i) hit |= std::uint64_t{holds(rows + 6 * i, p, pad)} << i;
+      // `rows` may be unpinned by the elements' reads: only `hit` is used.
+      for (; hit; hit &= hit - 1)
+        if (in_element(h + std::countr_zero(hit), p, out)) return true;
+      h += k;
     }
     return false;
+  }
+
+  // Validates group g's bounds rows the first time this searcher meets it:
+  // a store is immutable, so a row re-read after its page left the cache is
+  // the same bytes.
+  void check_group(const RowReader& R, Id g) {
+    if (checked.empty()) checked.assign(mesh.tables().group_bounds.size() / 6, 0);
+    if (!checked[static_cast<size_t>(g)]) {
+      const Id end = std::min(mesh.num_coarse_elements(), (g + 1) * kBoundsGroup);
+      const double* rows;
+      for (Id h = g * kBoundsGroup; h < end;) h += R.bounds_rows(h, end - h, rows);
+      checked[static_cast<size_t>(g)] = 1;
+    }
   }
 
   // Children of box `index` of level `l + 1` (the top: index 0), in order.
   bool descend(size_t l, size_t index, const P3& p, Located& out) {
     const std::vector<double>& L = tree.level[l];
-    const size_t n = L.size() / 6;
-    for (size_t c = index * kFan; c < std::min(n, (index + 1) * kFan); ++c) {
-      if (!holds(&L[c * 6], p)) continue;
+    const size_t first = index * kFan, last = std::min(L.size() / 6, first + kFan);
+    unsigned hit = 0;
+    for (size_t c = first; c < last; ++c) hit |= unsigned{holds(&L[c * 6], p)} << (c - first);
+    for (; hit; hit &= hit - 1) {
+      const size_t c = first + static_cast<size_t>(std::countr_zero(hit));
       if (l == 0 ? scan_group(static_cast<Id>(c), p, out) : descend(l - 1, c, p, out)) return true;
     }
     return false;
@@ -426,9 +446,9 @@ struct Searcher {
     const Nearest g = closest_bilinear(x, p);
     const double limit = bound(best) + tol;
     // A straight quad farther than the answer: no row to decode.
-    const bool curved = R.curved(h);
+    const RowReader::Cells r = R.cells(h);
+    const bool curved = r.curved;
     if (!curved && !(std::sqrt(g.d2) <= limit)) return;
-    const ElementRow r = R.element(h);
     if (!curved) {
       // A straight quad is its corners' bilinear map, cell (i, j) that map
       // on [i/n, (i+1)/n] x [j/n, (j+1)/n]: the cell from g, no fine node
@@ -500,9 +520,10 @@ struct Searcher {
     const Id end = std::min(mesh.num_coarse_elements(), (g + 1) * kBoundsGroup);
     const double pad = 2 * pad_of(&mesh.tables().group_bounds[static_cast<size_t>(g) * 6]);
     near.clear();
+    check_group(R, g);
     for (Id h = g * kBoundsGroup; h < end;) {
       const double* rows;
-      const Id k = R.bounds_rows(h, end - h, rows);
+      const Id k = R.bounds_rows(h, end - h, rows, /*checked=*/true);
       const double lim = bound(best) + pad, lim2 = lim * lim;
       for (Id i = 0; i < k; ++i)
         if (const double d2 = dist2(rows + 6 * i, p); d2 <= lim2) near.push_back({d2, h + i});
@@ -562,7 +583,7 @@ Located locate_point(const FineMesh& mesh, const std::array<double, 3>& p, doubl
   require_index(mesh, max_distance);
   if (mesh.num_coarse_elements() == 0) return Located{};
   const Tree tree(mesh.tables());
-  Searcher s{mesh, tree, max_distance, {}, {}, {}};
+  Searcher s{mesh, tree, max_distance, {}, {}, {}, {}};
   return s.locate(p);
 }
 
@@ -575,7 +596,7 @@ std::vector<Located> locate_points(const FineMesh& mesh, const std::vector<doubl
   threads = std::max(1, std::min<int>(threads, static_cast<int>(std::max<size_t>(1, n / 64))));
   const Tree tree(mesh.tables());
   auto work = [&](size_t first, size_t end) {
-    Searcher s{mesh, tree, max_distance, {}, {}, {}};
+    Searcher s{mesh, tree, max_distance, {}, {}, {}, {}};
     for (size_t i = first; i < end; ++i) out[i] = s.locate({xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]});
   };
   if (threads == 1) {

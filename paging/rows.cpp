@@ -217,10 +217,11 @@ ElementBounds RowReader::bounds(Id h) const {
   return b;
 }
 
-Id RowReader::bounds_rows(Id h, Id count, const double*& rows) const {
+Id RowReader::bounds_rows(Id h, Id count, const double*& rows, bool checked) const {
   if (h < 0 || h >= t_.bounds.rows() || count < 1) corrupt(RowTable::Bounds, h, "element id out of range");
   const Id k = std::min({count, t_.bounds.rows() - h, t_.bounds.run(h)});
   rows = t_.bounds.row(h, c_.bounds);
+  if (checked) return k;
   // One pass without branches; the bad row is looked for only when there is one.
   // -max <= lo <= hi <= max: both finite, ordered (NaN fails every test).
   constexpr double big = std::numeric_limits<double>::max();
@@ -255,10 +256,25 @@ Id RowReader::element_first(Id h) const {
   return t_.elements.row(h, c_.elements)[ElementCols::of(t_.mode).element_first()];
 }
 
-bool RowReader::curved(Id h) const {
+RowReader::Cells RowReader::cells(Id h) const {
   if (h < 0 || h >= t_.elements.rows()) corrupt(RowTable::Elements, h, "element id out of range");
-  const auto flags = static_cast<std::uint64_t>(t_.elements.row(h, c_.elements)[ElementCols::of(t_.mode).flags()]);
-  return (flags >> ElementRow::kCurvedBit) & 1;
+  const ElementCols L = ElementCols::of(t_.mode);
+  const std::int64_t* r = t_.elements.row(h, c_.elements);
+  Cells o;
+  o.n = {r[L.n()], r[L.n() + 1], r[L.n() + 2]};
+  o.element_first = r[L.element_first()];
+  const auto flags = static_cast<std::uint64_t>(r[L.flags()]);
+  o.curved = (flags >> ElementRow::kCurvedBit) & 1;
+  i128 points = 1, cells = 1;
+  for (int k = 0; k < 3; ++k) {
+    if (!interval_ok(o.n[k])) corrupt(RowTable::Elements, h, "interval " + std::to_string(o.n[k]) + " out of range");
+    points *= o.n[k] + 1, cells *= o.n[k];
+  }
+  if (points > kMaxElementPoints || (t_.mode == Mode::Surface && o.n[2] != 1))
+    corrupt(RowTable::Elements, h, "intervals out of range");
+  if (flags >= (std::uint64_t{1} << (ElementRow::kCurvedBit + 1))) corrupt(RowTable::Elements, h, "unknown flag bits");
+  if (!range_ok(o.element_first, cells, t_.fine_elements)) corrupt(RowTable::Elements, h, "fine element ids outside the mesh");
+  return o;
 }
 
 // ---------------------------------------------------------------- writers

@@ -152,7 +152,10 @@ class RowReader {
   // hi), validated like bounds(): at most `count` rows, as many as share h's
   // page (at least 1); returns how many. Valid until the cursor's bounds
   // page moves (a scan of a group of rows reads each page once).
-  Id bounds_rows(Id h, Id count, const double*& rows) const;
+  // `checked`: this reader's caller validated these rows before, through
+  // this call (a store is immutable: a row re-read after its page left the
+  // cache is the same CRC-checked bytes); the validation pass is skipped.
+  Id bounds_rows(Id h, Id count, const double*& rows, bool checked = false) const;
   // Row `row` of the bounding arrays: the three codes of one moved node.
   std::array<std::int64_t, 3> bounding(Id row) const;
   // Geometric owner of vertex v (pack_owner), -1 unknown.
@@ -161,9 +164,15 @@ class RowReader {
   // row found is read with element() afterwards).
   Id node_first(Id h) const;
   Id element_first(Id h) const;
-  // Element h's curved flag alone (ElementRow::curved()), h checked: lets a
-  // search skip elements without decoding their rows.
-  bool curved(Id h) const;
+  // What a search needs of element h (its fine grid and curved flag),
+  // validated like element() validates these fields, without decoding the
+  // rest of the ~450-byte row.
+  struct Cells {
+    std::array<Id, 3> n{1, 1, 1};
+    Id element_first = 0;
+    bool curved = false;
+  };
+  Cells cells(Id h) const;
 
   // Error{Corrupt}: "<store>: <dataset> row <row>: <what>".
   [[noreturn]] void corrupt(RowTable table, Id row, const std::string& what) const;

@@ -12,6 +12,8 @@
 #include <string>
 #include <vector>
 
+#include "dicer/rows.hpp"
+#include "dicer/store.hpp"
 #include "store_forge.hpp"
 #include "test_support.hpp"
 
@@ -143,6 +145,24 @@ void run_all(bool volume) {
     EXPECT_EQ(r.exit_code, 8) << r.err;
     EXPECT_NE(r.err.find(c.dataset + " row " + std::to_string(row) + ":"), std::string::npos) << r.err;
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    if (c.dataset == "topology/elements" && (c.what == std::string("element_first") || c.what == std::string("flags") ||
+                                              c.what == std::string("interval"))) {
+      // Point location reads these of every candidate element (its grid
+      // and curved flag) without decoding the whole row: the centre of
+      // coarse element `row` is a point whose search reaches that row.
+      FineMesh m = read_store(s.path);
+      MeshCursor cur;
+      Vec3 v[8];
+      const RowReader R(m.tables(), cur);
+      R.corner_xyz(row, v);
+      double x = 0, y = 0, z = 0;
+      for (int q = 0; q < R.corners(); ++q) x += v[q].x / R.corners(), y += v[q].y / R.corners(), z += v[q].z / R.corners();
+      char pt[128];
+      std::snprintf(pt, sizeof pt, "%.17g,%.17g,%.17g", x, y, z);
+      const test::CliResult q = test::run_cli({"query", bad, "--point", pt});
+      EXPECT_EQ(q.exit_code, 8) << q.err;
+      EXPECT_NE(q.err.find(c.dataset + " row " + std::to_string(row) + ":"), std::string::npos) << q.err;
+    }
     if (c.dataset == "topology/element_bounds") {
       // Point location scans the rows of a group from their page: it checks
       // them too (a NaN would hide its element, a silent -1). Node 0 is a
