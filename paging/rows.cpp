@@ -150,6 +150,20 @@ FaceRow RowReader::face(Id f) const {
   return o;
 }
 
+// The fields of an element row that say where its fine grid is: element()
+// and cells() check them here, the same way.
+void RowReader::check_grid(Id h, const std::array<Id, 3>& n, Id element_first, std::uint64_t flags) const {
+  i128 points = 1, cells = 1;
+  for (int k = 0; k < 3; ++k) {
+    if (!interval_ok(n[k])) corrupt(RowTable::Elements, h, "interval " + std::to_string(n[k]) + " out of range");
+    points *= n[k] + 1, cells *= n[k];
+  }
+  if (points > kMaxElementPoints || (t_.mode == Mode::Surface && n[2] != 1))
+    corrupt(RowTable::Elements, h, "intervals out of range");
+  if (flags >= (std::uint64_t{1} << (ElementRow::kCurvedBit + 1))) corrupt(RowTable::Elements, h, "unknown flag bits");
+  if (!range_ok(element_first, cells, t_.fine_elements)) corrupt(RowTable::Elements, h, "fine element ids outside the mesh");
+}
+
 void RowReader::element(Id h, ElementRow& o) const {
   if (h < 0 || h >= t_.elements.rows()) corrupt(RowTable::Elements, h, "element id out of range");
   const ElementCols L = ElementCols::of(t_.mode);
@@ -166,15 +180,9 @@ void RowReader::element(Id h, ElementRow& o) const {
 
   const bool vol = t_.mode == Mode::Volume;
   const auto RT = RowTable::Elements;
-  i128 points = 1;
-  for (int k = 0; k < 3; ++k) {
-    if (!interval_ok(o.n[k])) corrupt(RT, h, "interval " + std::to_string(o.n[k]) + " out of range");
-    points *= o.n[k] + 1;
-  }
-  if (points > kMaxElementPoints || (!vol && o.n[2] != 1)) corrupt(RT, h, "intervals out of range");
+  check_grid(h, o.n, o.element_first, o.flags);
   if (block < 0 || block >= t_.blocks) corrupt(RT, h, "block index " + std::to_string(block) + " out of range");
   o.block = static_cast<std::int32_t>(block);
-  if (o.flags >= (std::uint64_t{1} << (ElementRow::kCurvedBit + 1))) corrupt(RT, h, "unknown flag bits");
   for (int k = 0; k < L.c; ++k)
     if (o.corner[k] < 0 || o.corner[k] >= t_.num_vertices() || o.corner_node[k] < 0 || o.corner_node[k] >= t_.fine_nodes)
       corrupt(RT, h, "corner " + std::to_string(k) + " out of range");
@@ -191,8 +199,6 @@ void RowReader::element(Id h, ElementRow& o) const {
   const i128 interior = vol ? i128{o.n[0] - 1} * (o.n[1] - 1) * (o.n[2] - 1) : i128{o.n[0] - 1} * (o.n[1] - 1);
   if (!range_ok(o.cell_node, interior, t_.fine_nodes) || o.node_first < 0 || o.node_first > o.cell_node)
     corrupt(RT, h, "owned node ids out of range");
-  if (!range_ok(o.element_first, i128{o.n[0]} * o.n[1] * o.n[2], t_.fine_elements))
-    corrupt(RT, h, "fine element ids outside the mesh");
 }
 
 void RowReader::corner_xyz(Id h, Vec3* out) const {
@@ -265,15 +271,7 @@ RowReader::Cells RowReader::cells(Id h) const {
   o.element_first = r[L.element_first()];
   const auto flags = static_cast<std::uint64_t>(r[L.flags()]);
   o.curved = (flags >> ElementRow::kCurvedBit) & 1;
-  i128 points = 1, cells = 1;
-  for (int k = 0; k < 3; ++k) {
-    if (!interval_ok(o.n[k])) corrupt(RowTable::Elements, h, "interval " + std::to_string(o.n[k]) + " out of range");
-    points *= o.n[k] + 1, cells *= o.n[k];
-  }
-  if (points > kMaxElementPoints || (t_.mode == Mode::Surface && o.n[2] != 1))
-    corrupt(RowTable::Elements, h, "intervals out of range");
-  if (flags >= (std::uint64_t{1} << (ElementRow::kCurvedBit + 1))) corrupt(RowTable::Elements, h, "unknown flag bits");
-  if (!range_ok(o.element_first, cells, t_.fine_elements)) corrupt(RowTable::Elements, h, "fine element ids outside the mesh");
+  check_grid(h, o.n, o.element_first, flags);
   return o;
 }
 

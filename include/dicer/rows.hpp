@@ -178,6 +178,8 @@ class RowReader {
   [[noreturn]] void corrupt(RowTable table, Id row, const std::string& what) const;
 
  private:
+  void check_grid(Id h, const std::array<Id, 3>& n, Id element_first, std::uint64_t flags) const;
+
   const MeshTables& t_;
   MeshCursor& c_;
 };
