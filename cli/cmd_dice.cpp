@@ -1,4 +1,6 @@
 // dicer dice: read a coarse mesh, resolve intervals, write the store.
+#include <malloc.h>
+
 #include <cstdio>
 
 #include "command.hpp"
@@ -61,6 +63,13 @@ int cmd_dice(const std::vector<std::string>& argv) {
   if (cmd.given(o_tol) && !cmd.given(o_cad)) throw Error(ErrorKind::Usage, "--geometry-tol needs --geometry CAD");
   copt.tolerance = parse_double("--geometry-tol", tolerance);
   const CancelOnSignals cancel_on_signals;
+  // Dicing allocates and frees arrays of hundreds of MB in turn (sort keys,
+  // permutations, tables). glibc maps every block over 32 MiB on its own,
+  // so each is fresh memory the kernel zeroes page by page (a third of the
+  // time of a dice of 1e6 hexes); in the heap, freed pages are reused.
+  // Peak memory stays the same; it returns to the system at exit.
+  mallopt(M_MMAP_THRESHOLD, 1 << 30);
+  mallopt(M_TRIM_THRESHOLD, 1 << 30);
   const std::string nothing_written = "nothing written to " + out;
   CoarseMesh mesh = read_coarse_mesh(in);
   for (const auto& w : mesh.warnings) std::fprintf(stderr, "dicer dice: warning: %s: %s\n", in.c_str(), w.c_str());

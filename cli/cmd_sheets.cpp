@@ -40,7 +40,8 @@ int cmd_sheets(const std::vector<std::string>& argv) {
   IntervalFlags intervals(cmd);
   if (!cmd.parse(argv)) return 0;
   const CoarseMesh mesh = read_coarse_mesh(path);
-  const Topology topo = build_topology(mesh);
+  const auto topo_kept = topology_of(mesh);
+  const Topology& topo = *topo_kept;
   const Sheets sheets = find_sheets(mesh, topo);
   const IntervalPlan plan = resolve_intervals(mesh, topo, sheets, intervals.request());
   for (const auto& w : mesh.warnings) std::fprintf(stderr, "dicer sheets: warning: %s: %s\n", mesh.source.c_str(), w.c_str());

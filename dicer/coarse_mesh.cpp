@@ -10,6 +10,7 @@
 #include "dicer/coarse_conformity.hpp"
 #include "dicer/error.hpp"
 #include "dicer/orientation.hpp"
+#include "dicer/topology.hpp"
 
 namespace dicer {
 namespace {
@@ -193,7 +194,10 @@ void validate_coarse_mesh(CoarseMesh& m) {
   }
   // Coincident and hanging vertices are accepted (an interface may be
   // meant) but said up front, with ids, before hours of dicing.
-  for (auto& w : conformity_warnings(m, check_coarse_conformity(m, build_topology(m)))) m.warnings.push_back(std::move(w));
+  // The topology is kept for dicing (topology_of), which would build it again.
+  auto topo = std::make_shared<const Topology>(build_topology(m));
+  for (auto& w : conformity_warnings(m, check_coarse_conformity(m, *topo))) m.warnings.push_back(std::move(w));
+  keep_topology(m, std::move(topo));
 }
 
 }  // namespace dicer

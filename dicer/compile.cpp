@@ -136,11 +136,19 @@ FineMesh compile(std::shared_ptr<const CoarseMesh> cm, const Topology& t, const 
 
 FineMesh FineMesh::dice(CoarseMesh coarse, const IntervalRequest& request, std::vector<std::string>* notes,
                         bool locality_order) {
-  // Sheets and intervals on the input numbering, so sheet ids are the input file's.
-  const Topology t0 = build_topology(coarse);
-  const Sheets s0 = find_sheets(coarse, t0);
-  IntervalPlan plan = resolve_intervals(coarse, t0, s0, request);
+  // Sheets and intervals on the input numbering, so sheet ids are the input
+  // file's (the topology validation built, when the mesh is unchanged).
+  std::shared_ptr<const Topology> t0 = topology_of(coarse);
+  coarse.topology.reset();
+  const Sheets s0 = find_sheets(coarse, *t0);
+  IntervalPlan plan = resolve_intervals(coarse, *t0, s0, request);
   if (notes) *notes = plan.notes;
+  // The sheet of each element's local edges; then t0 can go before the
+  // second topology is built (peak memory).
+  const int epe = t0->edges_per_element();
+  std::vector<Id> slot_sheet(t0->elem_edge.size());
+  for (size_t i = 0; i < slot_sheet.size(); ++i) slot_sheet[i] = s0.edge_sheet[t0->elem_edge[i]];
+  t0.reset();
   // Store order (Morton, or the file's), vertices in first use, then the
   // owner-order topology the fine mesh is numbered by.
   std::vector<Id> old_element;
@@ -150,10 +158,10 @@ FineMesh FineMesh::dice(CoarseMesh coarse, const IntervalRequest& request, std::
   // sfc_order keeps each element's corner order, so local edge k of new
   // element h is local edge k of the input's element old_element[h].
   std::vector<Id> edge_sheet(static_cast<size_t>(t.num_edges()), -1), edge_n(static_cast<size_t>(t.num_edges()));
-  const int epe = t.edges_per_element();
   for (size_t h = 0; h < old_element.size(); ++h)
     for (int k = 0; k < epe; ++k)
-      edge_sheet[t.elem_edge[h * epe + k]] = s0.edge_sheet[t0.elem_edge[static_cast<size_t>(old_element[h]) * epe + k]];
+      edge_sheet[t.elem_edge[h * epe + k]] = slot_sheet[static_cast<size_t>(old_element[h]) * epe + k];
+  slot_sheet = {};
   for (Id e = 0; e < t.num_edges(); ++e) edge_n[e] = plan.sheet_interval[edge_sheet[e]];
   const Numbering num(t, std::move(edge_n));
   FineMesh f = compile(ordered, t, num, edge_sheet, s0.num_sheets());

@@ -18,6 +18,7 @@
 //  - element_block[e] indexes blocks.
 // Cost: memory is O(coarse mesh); nothing here grows with the fine mesh.
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -25,6 +26,8 @@
 #include "dicer/types.hpp"
 
 namespace dicer {
+
+struct Topology;
 
 struct Block {
   std::int64_t id = 0;   // as in the file (Exodus block id, MSH physical tag)
@@ -65,6 +68,12 @@ struct CoarseMesh {
   // Quirks accepted (reoriented, dropped nodes, skipped blocks): one sentence
   // each, WITHOUT the file path; whoever prints them prefixes `source`.
   std::vector<std::string> warnings;
+  // The topology validate_coarse_mesh built for its conformity check, kept
+  // so that dicing need not build it again (topology_of, topology.hpp,
+  // hands it out only while `conn` is what it was built from). A cache:
+  // copies share it, and nothing else reads it.
+  std::shared_ptr<const Topology> topology;
+  std::uint64_t topology_key = 0;
 
   int corners_per_element() const { return mode == Mode::Volume ? 8 : 4; }
   Id num_vertices() const { return static_cast<Id>(x.size()); }

@@ -20,8 +20,10 @@
 //   vertex_owner_elem[v], edge_owner_elem[e], face_owner_elem[f]
 //                           the lowest element containing the entity (its
 //                           owner in the numbering); filled by to_owner_order
-// Cost: O(n log n) time to build (sorting keys), O(n) memory.
+// Cost: O(n + V) time to build (keys grouped by their lowest vertex, each
+// group sorted on its own), O(n) memory.
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "dicer/coarse_mesh.hpp"
@@ -53,6 +55,14 @@ struct Topology {
 // Throws Error{BadInput} for a face shared by more than two hexes
 // (non-manifold), naming the face's nodes and the hexes.
 Topology build_topology(const CoarseMesh& mesh);
+
+// The mesh's topology as build_topology makes it: the one
+// validate_coarse_mesh kept (CoarseMesh::topology) when the mesh's
+// connectivity, vertex count and mode are still those it was built from
+// (checked by a hash of them, O(n)), else a new one. keep_topology stores
+// one in the mesh for later calls.
+std::shared_ptr<const Topology> topology_of(const CoarseMesh& mesh);
+void keep_topology(CoarseMesh& mesh, std::shared_ptr<const Topology> t);
 
 // Edge id of (a, b) in either order, or -1: binary search, O(log E).
 // Only on a topology as build_topology made it (Error{Usage} after
