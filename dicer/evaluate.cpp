@@ -27,15 +27,6 @@ Vec3 coons_point(Id nu, Id nv, Id u, Id v, const Vec3* s, const Vec3* p) {
 
 }  // namespace
 
-std::array<int, 4> face_canonical_corners(Mode mode, int lf, FaceCode code) {
-  std::array<int, 4> out{};
-  for (int m = 0; m < 4; ++m) out[code_corner(code, m)] = mode == Mode::Volume ? kHexFace[lf][m] : m;
-  return out;
-}
-
-int face_side_edge(Mode mode, int lf, FaceCode code, int side) {
-  return mode == Mode::Volume ? hex_face_side_edge(lf, code, side) : quad_side_edge(code, side);
-}
 
 Vec3 Evaluator::moved(const Vec3& p, Id row) const {
   const auto c = R.bounding(row);
@@ -196,6 +187,36 @@ Id Evaluator::grid_node_id(const ElementRow& h, Id i, Id j, Id k) const {
     case EntityKind::Cell: break;
   }
   return ids::cell_node(h.cell_node, h.n, i, j, k);
+}
+
+Vec3 Evaluator::straight_owned_point(const ElementRow& h, Id hid, int slot, const NodeRef& r) const {
+  DICER_ASSERT(!h.curved() && r.kind != EntityKind::Cell, "straight_owned_point: a straight element's own boundary");
+  const Mode m = mode();
+  const bool vol = m == Mode::Volume;
+  Vec3 corner[8];
+  R.corner_xyz(hid, corner);
+  if (r.kind == EntityKind::Vertex) return corner[slot];
+  // Local edge k at canonical t, as edge_point: lo -> hi vertex id.
+  auto edge_at = [&](int k, Id t) {
+    const int a = vol ? kHexEdge[k][0] : kQuadEdge[k][0], b = vol ? kHexEdge[k][1] : kQuadEdge[k][1];
+    const Id n = h.n[vol ? k / 4 : k / 2];
+    return lerp(corner[h.rev(k) ? b : a], corner[h.rev(k) ? a : b], tfi::weight(t, n));
+  };
+  if (r.kind == EntityKind::Edge) return edge_at(slot, r.local[0]);
+  // Face: interior point (u, v), as face_point: its sides at the point's
+  // parameters, each from its edge in that edge's canonical direction.
+  const FaceCode code = h.code(slot);
+  const auto [nu, nv] = face_intervals(h, slot, m);
+  const auto cc = face_canonical_corners(m, slot, code);
+  const Id u = r.local[0], v = r.local[1];
+  Vec3 sides[4];
+  for (int side = 0; side < 4; ++side) {
+    const Id len = side < 2 ? nu : nv, s = side < 2 ? u : v;
+    const bool forward = h.corner[cc[kQuadEdge[side][0]]] < h.corner[cc[kQuadEdge[side][1]]];
+    sides[side] = edge_at(face_side_edge(m, slot, code, side), forward ? s : len - s);
+  }
+  const Vec3 p[4] = {corner[cc[0]], corner[cc[1]], corner[cc[2]], corner[cc[3]]};
+  return coons_point(nu, nv, u, v, sides, p);
 }
 
 Vec3 Evaluator::node(const NodeRef& r) const {

@@ -29,6 +29,12 @@ struct Evaluator {
   Vec3 face_point(const FaceRow& f, Id u, Id v) const;
   // Interior point (i, j, k) of element h, row hid (0 < i < n1 ...).
   Vec3 cell_point(const ElementRow& h, Id hid, Id i, Id j, Id k) const;
+  // A vertex, edge or face node that straight element h owns, at local
+  // slot `slot` (NodeOwner), from h's corners alone: the values and bits
+  // of node(r) (a straight element's edges and faces are straight: the
+  // inputs are copies of the same corner coordinates), without reading the
+  // entity's rows or its vertices' owners.
+  Vec3 straight_owned_point(const ElementRow& h, Id hid, int slot, const NodeRef& r) const;
   // The owner's view of grid point (i, j, k) of element h.
   NodeRef grid_node(const ElementRow& h, Id hid, Id i, Id j, Id k) const;
   // Its node id, from the element row alone.
@@ -65,10 +71,9 @@ Id own_boundary_nodes(const Evaluator& E, const ElementRow& h, Id hid, const Fin
 void facet_points(const Evaluator& E, const ElementRow& h, Id hid, int slot, FineBlock::Scratch& s,
                   std::vector<Id>& ids, std::vector<Vec3>& xyz);
 
-// Canonical corners of local face lf of a coarse element: the element's
-// corner indices (kHexCorner numbering; surface: the quad's) of v0..v3.
-std::array<int, 4> face_canonical_corners(Mode mode, int lf, FaceCode code);
 // Local edge of the element carrying canonical side `side` of local face lf.
-int face_side_edge(Mode mode, int lf, FaceCode code, int side);
+inline int face_side_edge(Mode mode, int lf, FaceCode code, int side) {
+  return mode == Mode::Volume ? hex_face_side_edge(lf, code, side) : quad_side_edge(code, side);
+}
 
 }  // namespace dicer::detail

@@ -22,10 +22,13 @@ Vec3 FineMesh::node(Id id, MeshCursor& cur) const {
     throw Error(ErrorKind::Usage, "node id " + std::to_string(id) + " is out of range (the mesh has " +
                                       std::to_string(num_nodes()) + " nodes)");
   ElementRow row;
-  const NodeRef ref = dicer::locate_node(tables_, id, cur, &row);
+  NodeOwner owner;
+  const NodeRef ref = dicer::locate_node(tables_, id, cur, &row, &owner);
   const detail::Evaluator E(tables_, cur);
-  // Most nodes are cell interiors: their owner's row is already decoded.
+  // The owner's row is decoded already: cell interiors, and the boundary
+  // of a straight owner, come from it and its corners alone.
   if (ref.kind == EntityKind::Cell) return E.cell_point(row, ref.entity, ref.local[0], ref.local[1], ref.local[2]);
+  if (!row.curved()) return E.straight_owned_point(row, owner.element, owner.slot, ref);
   return E.node(ref);
 }
 

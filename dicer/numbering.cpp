@@ -101,12 +101,15 @@ Id search_elements(const MeshTables& t, Id x, bool by_node, MeshCursor& cur) {
     lo = p * rpp;
     hi = std::min(t.elements.rows(), lo + rpp);
   }
-  while (lo < hi) {
-    const Id mid = lo + (hi - lo) / 2;
-    if ((by_node ? R.node_first(mid) : R.element_first(mid)) <= x) lo = mid + 1;
-    else hi = mid;
+  if (index.empty() && hi - lo > t.elements.run(lo)) {  // paged without an index: not a store we write
+    while (lo < hi) {
+      const Id mid = lo + (hi - lo) / 2;
+      if ((by_node ? R.node_first(mid) : R.element_first(mid)) <= x) lo = mid + 1;
+      else hi = mid;
+    }
+    return lo - 1;
   }
-  return lo - 1;
+  return R.search_first(lo, hi, x, by_node) - 1;
 }
 
 }  // namespace
@@ -125,30 +128,31 @@ Id owner_element(const MeshTables& t, Id id, MeshCursor& cur) {
   return h;
 }
 
-NodeRef locate_node(const MeshTables& t, Id id, MeshCursor& cur, ElementRow* owner_row) {
+NodeRef locate_node(const MeshTables& t, Id id, MeshCursor& cur, ElementRow* owner_row, NodeOwner* owner) {
   const Id hid = owner_element(t, id, cur);
   const RowReader R(t, cur);
   ElementRow local;
   ElementRow& h = owner_row ? *owner_row : local;
   R.element(hid, h);
   const bool vol = t.mode == Mode::Volume;
-  NodeRef r;
-  if (vol && id >= h.cell_node && id - h.cell_node < ids::cell_nodes(h.n)) {
-    r.kind = EntityKind::Cell, r.entity = hid, r.local = ids::cell_local(id - h.cell_node, h.n);
+  auto at = [&](int slot, NodeRef r) {
+    if (owner) *owner = NodeOwner{hid, slot};
     return r;
-  }
+  };
+  if (vol && id >= h.cell_node && id - h.cell_node < ids::cell_nodes(h.n))
+    return at(-1, NodeRef{EntityKind::Cell, hid, ids::cell_local(id - h.cell_node, h.n)});
   for (int k = 0; k < R.corners(); ++k)
-    if (h.corner_node[k] == id) return NodeRef{EntityKind::Vertex, h.corner[k], {0, 0, 0}};
+    if (h.corner_node[k] == id) return at(k, NodeRef{EntityKind::Vertex, h.corner[k], {0, 0, 0}});
   for (int k = 0; k < R.edges(); ++k) {
     const Id n = h.n[vol ? k / 4 : k / 2];
     if (h.owns(h.edge_node[k]) && id >= h.edge_node[k] && id - h.edge_node[k] < ids::edge_nodes(n))
-      return NodeRef{EntityKind::Edge, h.edge[k], {id - h.edge_node[k] + 1, 0, 0}};
+      return at(k, NodeRef{EntityKind::Edge, h.edge[k], {id - h.edge_node[k] + 1, 0, 0}});
   }
   for (int k = 0; k < R.faces(); ++k) {
     const auto [nu, nv] = face_intervals(h, k, t.mode);
     if (h.owns(h.face_node[k]) && id >= h.face_node[k] && id - h.face_node[k] < ids::face_nodes(nu, nv)) {
       const auto uv = ids::face_local(id - h.face_node[k], nu);
-      return NodeRef{EntityKind::Face, h.face[k], {uv[0], uv[1], 0}};
+      return at(k, NodeRef{EntityKind::Face, h.face[k], {uv[0], uv[1], 0}});
     }
   }
   R.corrupt(RowTable::Elements, hid, "node " + std::to_string(id) + " is in none of the entities the element owns");

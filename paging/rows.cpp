@@ -178,11 +178,37 @@ void RowReader::element(Id h, ElementRow& o) const {
   o.flags = static_cast<std::uint64_t>(r[L.flags()]);
   o.n = {r[L.n()], r[L.n() + 1], r[L.n() + 2]};
 
+  check_grid(h, o.n, o.element_first, o.flags);
+  // The other fields in one pass without branches (random queries decode a
+  // row per call); which field failed is looked for only when one did. The
+  // grid is valid now, so every count below is under kMaxElementPoints.
+  const bool vol = t_.mode == Mode::Volume;
+  const Id V = t_.num_vertices(), N = t_.fine_nodes;
+  auto below = [](Id x, Id limit) { return static_cast<std::uint64_t>(x) < static_cast<std::uint64_t>(limit); };
+  // [first, first + count) in [0, N): first < 2^63 and count < 2^40, so the sum cannot wrap.
+  auto run = [N](Id first, Id count) {
+    return (first >= 0) & (static_cast<std::uint64_t>(first) + static_cast<std::uint64_t>(count) <= static_cast<std::uint64_t>(N));
+  };
+  bool ok = below(block, t_.blocks);
+  for (int k = 0; k < L.c; ++k) ok &= below(o.corner[k], V) & below(o.corner_node[k], N);
+  for (int k = 0; k < L.e; ++k) ok &= below(o.edge[k], t_.edges.rows()) & run(o.edge_node[k], o.n[vol ? k / 4 : k / 2] - 1);
+  for (int k = 0; k < L.f; ++k) {
+    const Id a = o.n[vol ? kHexFaceAxes[k][0] : 0] - 1, b = o.n[vol ? kHexFaceAxes[k][1] : 1] - 1;
+    ok &= below(o.face[k], t_.faces.rows()) & run(o.face_node[k], a * b);
+  }
+  const Id interior = (o.n[0] - 1) * (o.n[1] - 1) * (vol ? o.n[2] - 1 : 1);
+  ok &= run(o.cell_node, interior) & (o.node_first >= 0) & (o.node_first <= o.cell_node);
+  if (!ok) element_failure(h, o, block);
+  o.block = static_cast<std::int32_t>(block);
+}
+
+// The checks of element() one by one, for the message: which field of row
+// h is wrong. Only called when one is.
+void RowReader::element_failure(Id h, const ElementRow& o, std::int64_t block) const {
+  const ElementCols L = ElementCols::of(t_.mode);
   const bool vol = t_.mode == Mode::Volume;
   const auto RT = RowTable::Elements;
-  check_grid(h, o.n, o.element_first, o.flags);
   if (block < 0 || block >= t_.blocks) corrupt(RT, h, "block index " + std::to_string(block) + " out of range");
-  o.block = static_cast<std::int32_t>(block);
   for (int k = 0; k < L.c; ++k)
     if (o.corner[k] < 0 || o.corner[k] >= t_.num_vertices() || o.corner_node[k] < 0 || o.corner_node[k] >= t_.fine_nodes)
       corrupt(RT, h, "corner " + std::to_string(k) + " out of range");
@@ -199,6 +225,7 @@ void RowReader::element(Id h, ElementRow& o) const {
   const i128 interior = vol ? i128{o.n[0] - 1} * (o.n[1] - 1) * (o.n[2] - 1) : i128{o.n[0] - 1} * (o.n[1] - 1);
   if (!range_ok(o.cell_node, interior, t_.fine_nodes) || o.node_first < 0 || o.node_first > o.cell_node)
     corrupt(RT, h, "owned node ids out of range");
+  DICER_ASSERT(false, "element(): the branch-free checks and these agree");
 }
 
 void RowReader::corner_xyz(Id h, Vec3* out) const {
@@ -260,6 +287,23 @@ Id RowReader::node_first(Id h) const {
 }
 Id RowReader::element_first(Id h) const {
   return t_.elements.row(h, c_.elements)[ElementCols::of(t_.mode).element_first()];
+}
+
+Id RowReader::search_first(Id lo, Id hi, Id x, bool by_node) const {
+  if (lo >= hi) return lo;
+  const ElementCols L = ElementCols::of(t_.mode);
+  const int col = by_node ? L.node_first() : L.element_first();
+  const std::int64_t w = t_.elements.width();
+  // One row pointer for the run [lo, hi) on one page (or in memory).
+  DICER_ASSERT(lo >= 0 && hi <= t_.elements.rows() && hi - lo <= t_.elements.run(lo), "search_first: one page");
+  const std::int64_t* base = t_.elements.row(lo, c_.elements) + col;
+  Id a = lo, b = hi;
+  while (a < b) {
+    const Id mid = a + (b - a) / 2;
+    if (base[(mid - lo) * w] <= x) a = mid + 1;
+    else b = mid;
+  }
+  return a;
 }
 
 RowReader::Cells RowReader::cells(Id h) const {

@@ -100,11 +100,20 @@ class Numbering {
   Id num_nodes_ = 0;
 };
 
+// Where a node sits in the coarse element that owns it: the element and
+// the local corner, edge or face (orientation.hpp numbering; -1: interior).
+struct NodeOwner {
+  Id element = -1;
+  int slot = -1;
+};
+
 // Lookups over the tables; ids must be in range (callers check: FineMesh
 // does). A row that contradicts the numbering is Error{Corrupt}.
 // `owner_row`, when given, receives the owner element's validated row (the
-// caller then need not decode it again: a random query's largest cost).
-NodeRef locate_node(const MeshTables& t, Id id, MeshCursor& cur, ElementRow* owner_row = nullptr);
+// caller then need not decode it again: a random query's largest cost),
+// `owner` the element and the slot.
+NodeRef locate_node(const MeshTables& t, Id id, MeshCursor& cur, ElementRow* owner_row = nullptr,
+                    NodeOwner* owner = nullptr);
 Id node_id(const MeshTables& t, const NodeRef& r, MeshCursor& cur);
 // Fine element id -> coarse element h and (i, j, k); `row` as above.
 Id locate_element(const MeshTables& t, Id id, std::array<Id, 3>& ijk, MeshCursor& cur, ElementRow* row = nullptr);

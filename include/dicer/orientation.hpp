@@ -138,14 +138,75 @@ struct FaceMap {
   constexpr std::int64_t u(std::int64_t p, std::int64_t q) const { return u0 + up * p + uq * q; }
   constexpr std::int64_t v(std::int64_t p, std::int64_t q) const { return v0 + vp * p + vq * q; }
 };
-FaceMap face_map(FaceCode code, std::int64_t nu, std::int64_t nv);
+
+namespace detail {
+// Everything below that depends only on (face, code), tabulated once at
+// compile time: random queries look these up per face of every point.
+struct FaceTables {
+  int hex_side_edge[6][8][4], quad_side_edge[8][4];  // see hex_face_side_edge
+  int hex_canonical[6][8][4], quad_canonical[8][4];  // see face_canonical_corners
+  int unit_map[8][6];  // face_map(code, 1, 1): u0, v0, up, uq, vp, vq
+};
+constexpr FaceTables make_face_tables() {
+  FaceTables t{};
+  constexpr int quad_corners[4] = {0, 1, 2, 3};
+  // The local edge joining the local corners that hold the canonical ends
+  // of `side` (kQuadEdge gives a side's canonical corners).
+  auto side_edge = [](const int* face_corners, const int (*edges)[2], int num_edges, int code, int side) {
+    int lc[2] = {-1, -1};
+    for (int end = 0; end < 2; ++end)
+      for (int m = 0; m < 4; ++m)
+        if (code_corner(static_cast<FaceCode>(code), m) == kQuadEdge[side][end]) lc[end] = face_corners[m];
+    for (int e = 0; e < num_edges; ++e)
+      if ((edges[e][0] == lc[0] && edges[e][1] == lc[1]) || (edges[e][0] == lc[1] && edges[e][1] == lc[0])) return e;
+    return -1;
+  };
+  for (int c = 0; c < 8; ++c) {
+    for (int side = 0; side < 4; ++side) {
+      for (int f = 0; f < 6; ++f) t.hex_side_edge[f][c][side] = side_edge(kHexFace[f], kHexEdge, 12, c, side);
+      t.quad_side_edge[c][side] = side_edge(quad_corners, kQuadEdge, 4, c, side);
+    }
+    for (int m = 0; m < 4; ++m) {
+      for (int f = 0; f < 6; ++f) t.hex_canonical[f][c][code_corner(static_cast<FaceCode>(c), m)] = kHexFace[f][m];
+      t.quad_canonical[c][code_corner(static_cast<FaceCode>(c), m)] = m;
+    }
+    // Canonical grid position of local corners 0, 1 and 3 on a unit face.
+    int u[4], v[4];
+    for (int m : {0, 1, 3}) {
+      const int k = code_corner(static_cast<FaceCode>(c), m);
+      u[m] = (k == 1 || k == 2) ? 1 : 0;
+      v[m] = (k == 2 || k == 3) ? 1 : 0;
+    }
+    const int row[6] = {u[0], v[0], u[1] - u[0], u[3] - u[0], v[1] - v[0], v[3] - v[0]};
+    for (int i = 0; i < 6; ++i) t.unit_map[c][i] = row[i];
+  }
+  return t;
+}
+inline constexpr FaceTables kFaceTables = make_face_tables();
+}  // namespace detail
+
+// The map of a face with code `code` and canonical intervals (nu, nv): the
+// unit face's, scaled (each step is +-1 along one canonical axis).
+constexpr FaceMap face_map(FaceCode code, std::int64_t nu, std::int64_t nv) {
+  const int* m = detail::kFaceTables.unit_map[code];
+  return FaceMap{m[0] * nu, m[1] * nv, m[2], m[3], m[4], m[5]};
+}
 
 // Local hex edge (kHexEdge index) that carries canonical side `side` of hex
 // face `face` under `code`; sides as in Topology::face_edge: 0 v0v1, 1 v3v2,
 // 2 v0v3, 3 v1v2. Table lookup.
-int hex_face_side_edge(int face, FaceCode code, int side);
+constexpr int hex_face_side_edge(int face, FaceCode code, int side) {
+  return detail::kFaceTables.hex_side_edge[face][code][side];
+}
 // The same for a quad (surface mode), whose one face is itself: the local
 // quad edge (kQuadEdge index) carrying canonical side `side`.
-int quad_side_edge(FaceCode code, int side);
+constexpr int quad_side_edge(FaceCode code, int side) { return detail::kFaceTables.quad_side_edge[code][side]; }
+
+// Canonical corners of local face lf of an element under `code`: the
+// element's local corner indices (kHexCorner numbering; surface mode: the
+// quad's, lf = 0) of canonical v0..v3. Table lookup.
+constexpr const int (&face_canonical_corners(Mode mode, int lf, FaceCode code))[4] {
+  return mode == Mode::Volume ? detail::kFaceTables.hex_canonical[lf][code] : detail::kFaceTables.quad_canonical[code];
+}
 
 }  // namespace dicer

@@ -164,6 +164,10 @@ class RowReader {
   // row found is read with element() afterwards).
   Id node_first(Id h) const;
   Id element_first(Id h) const;
+  // The first row in [lo, hi) whose node_first (by_node) or element_first
+  // exceeds x (hi if none): a binary search over rows that share one page
+  // (Table::run), through one row pointer. Unvalidated like the two above.
+  Id search_first(Id lo, Id hi, Id x, bool by_node) const;
   // What a search needs of element h (its fine grid and curved flag),
   // validated like element() validates these fields, without decoding the
   // rest of the ~450-byte row.
@@ -179,6 +183,7 @@ class RowReader {
 
  private:
   void check_grid(Id h, const std::array<Id, 3>& n, Id element_first, std::uint64_t flags) const;
+  [[noreturn]] void element_failure(Id h, const ElementRow& o, std::int64_t block) const;
 
   const MeshTables& t_;
   MeshCursor& c_;
