@@ -29,18 +29,22 @@
 // Coincident nodes are bit-identical between nested stores (TFI weights
 // double(m t) / double(m n) are the same correctly rounded quotients as
 // double(t) / double(n); nodes moved onto the CAD are stored losslessly),
-// so P's unit rows pick exactly the coarse node's coordinates. Nodes
-// moved onto a CAD are identical when both stores were diced with the same
-// CAD and the conformer chose the same placement at both levels;
-// check_nesting compares every moved coarse-store node with its fine-store
-// twin and reports the first that differs (Nesting::moved_nodes_differ).
+// so P's unit rows pick exactly the coarse node's coordinates. Nodes moved
+// onto a CAD are identical when both stores were diced with the same CAD:
+// the conformer chooses each entity's placement from probes at fixed
+// parameters, not from its interval (geometry.hpp). check_nesting still
+// compares every moved coarse-store node with its fine-store twin and
+// reports the first that differs (Nesting::moved_nodes_differ): stores
+// written by a dicer before that choice can differ there.
 //
 // Cost. check_nesting and the constructor read every coarse table row of
 // both stores once (O(coarse mesh)). P is never formed: rows are generated
-// a coarse element at a time, its owned boundary in one batch (O(fine
-// n^2)), its interior a slab of grid planes at a time, in id order. apply
-// and apply_transpose hold one slab per thread plus one coarse element's
-// boundary (O(coarse n^2)) of partial sums; a thread's contributions to
+// a coarse element at a time, its owned boundary in one batch, its
+// interior a slab of grid planes at a time (at most kCursorSlabPoints
+// rows of at most 8 entries), in id order. A generator holds one slab and
+// both grids' boundary ids of one element (O(fine n^2), as a BatchCursor
+// does); apply_transpose adds one element's boundary of partial sums
+// (O(coarse n^2)) per thread; a thread's contributions to
 // coarse nodes owned by earlier threads are kept, one per coarse element
 // and node (O(the boundary of its range)), and added after the join in
 // thread order, so P^T y is bit-identical for every thread count, and
