@@ -102,9 +102,10 @@ CLI::Option* Command::input_value(const std::string& names, std::string& into, c
   return o;
 }
 
-void Command::output(std::string& into, const char* value_name, const char* description) {
+CLI::Option* Command::output(std::string& into, const char* value_name, const char* description, bool required) {
   output_ = value("-o,--output", into, value_name, description);
-  require(output_, "the output file");
+  if (required) require(output_, "the output file");
+  return output_;
 }
 
 void Command::require(CLI::Option* o, const std::string& what) { required_.emplace_back(o, what); }

@@ -40,9 +40,9 @@ class Command {
   // A value option naming another file the command reads: checked by parse().
   CLI::Option* input_value(const std::string& names, std::string& into, const char* value_name, const char* description,
                            const std::string& group = "Options");
-  // -o, --output FILE: required; parse() refuses a directory, a non-regular
-  // file and the same file as any input.
-  void output(std::string& into, const char* value_name, const char* description);
+  // -o, --output FILE: required unless `required` is false; parse() refuses
+  // a directory, a non-regular file and the same file as any input.
+  CLI::Option* output(std::string& into, const char* value_name, const char* description, bool required = true);
   // parse() refuses the command line without `o` ("missing --format FMT (what)").
   void require(CLI::Option* o, const std::string& what);
 

@@ -107,5 +107,6 @@ int cmd_footprint(const std::vector<std::string>& argv);
 int cmd_export(const std::vector<std::string>& argv);
 int cmd_sweep(const std::vector<std::string>& argv);
 int cmd_mesh_coarse(const std::vector<std::string>& argv);
+int cmd_transfer(const std::vector<std::string>& argv);
 
 }  // namespace dicer::cli

@@ -17,7 +17,7 @@ struct Row {
 
 constexpr Row kTable[] = {
     {kExitSuccess, std::nullopt, 0, "success"},
-    {kExitDefect, std::nullopt, 0, "verify found a defect"},
+    {kExitDefect, std::nullopt, 0, "verify found a defect; transfer --check: not nested"},
     {2, ErrorKind::Usage, 0, "bad command-line usage: an unknown option, a bad value, a\n"
      "directory or FIFO given as a file, an output that is an input"},
     {3, ErrorKind::BadInput, 0, "bad input file"},

@@ -9,7 +9,7 @@
 namespace dicer::cli {
 
 inline constexpr int kExitSuccess = 0;
-inline constexpr int kExitDefect = 1;     // verify found a defect (an outcome, not an error)
+inline constexpr int kExitDefect = 1;     // verify found a defect, transfer --check no nesting (outcomes, not errors)
 inline constexpr int kExitInternal = 70;  // a bug or out of memory: anything not a dicer::Error
 
 // Cancelled: 128 + the signal (130 SIGINT, 143 SIGTERM, 129 SIGHUP); 130

@@ -39,6 +39,9 @@ const CommandEntry kCommands[] = {
     {"export", "STORE", "a chunk, a box or the whole mesh to VTKHDF, MSH 4.1\nor Exodus II", dicer::cli::cmd_export,
      true},
     {"sweep", "STORE", "every fine node and element in N threads, rate and\nchecksum", dicer::cli::cmd_sweep, true},
+    {"transfer", "COARSE FINE",
+     "whether two stores are nested, and the prolongation\nbetween them (CSR in HDF5, PETSc binary)",
+     dicer::cli::cmd_transfer},
 };
 
 std::string usage() {

@@ -14,6 +14,7 @@
 #include "dicer/batch.hpp"
 #include "dicer/error.hpp"
 #include "dicer/rows.hpp"
+#include "work_split.hpp"
 
 namespace dicer {
 namespace {
@@ -102,11 +103,8 @@ std::uint64_t checksum_elements(Id first, int corners, std::span<const Id> conn)
                       : sum_quads(static_cast<std::uint64_t>(first), conn.data(), n);
 }
 
-namespace {
+namespace detail {
 
-// Coarse elements [first, end) split into `parts` ranges of about equal work
-// (owned nodes + fine elements: node_first + element_first rises by exactly
-// that from one element to the next). O(parts log H) rows.
 std::vector<Id> split_work(const FineMesh& mesh, unsigned parts, Id first, Id end) {
   const Id H = mesh.num_coarse_elements();
   MeshCursor cur;
@@ -131,7 +129,16 @@ std::vector<Id> split_work(const FineMesh& mesh, unsigned parts, Id first, Id en
   return at;
 }
 
-}  // namespace
+unsigned threads_for_cache(const FineMesh& mesh, unsigned threads) {
+  threads = std::max(1u, threads);
+  if (const auto& cache = mesh.tables().cache) {
+    const std::uint64_t per_thread = 2ull * kSweepPagesPerThread * kStorePageBytes;
+    threads = static_cast<unsigned>(std::clamp<std::uint64_t>(cache->budget() / per_thread, 1, threads));
+  }
+  return threads;
+}
+
+}  // namespace detail
 
 SweepResult sweep(const FineMesh& mesh, unsigned threads, const std::function<void(Id, Id)>& progress, Id first_coarse,
                   Id end_coarse) {
@@ -140,11 +147,7 @@ SweepResult sweep(const FineMesh& mesh, unsigned threads, const std::function<vo
   if (first_coarse < 0 || first_coarse > end_coarse || end_coarse > H)
     throw Error(ErrorKind::Usage, "sweep: coarse elements " + std::to_string(first_coarse) + ".." +
                                       std::to_string(end_coarse) + " outside the mesh");
-  threads = std::max(1u, threads);
-  if (const auto& cache = mesh.tables().cache) {
-    const std::uint64_t per_thread = 2ull * kSweepPagesPerThread * kStorePageBytes;
-    threads = static_cast<unsigned>(std::clamp<std::uint64_t>(cache->budget() / per_thread, 1, threads));
-  }
+  threads = detail::threads_for_cache(mesh, threads);
   const auto start = std::chrono::steady_clock::now();
   Id nn = 0, ne = 0;
   {
@@ -156,7 +159,7 @@ SweepResult sweep(const FineMesh& mesh, unsigned threads, const std::function<vo
     ne = efirst(end_coarse) - efirst(first_coarse);
   }
   const Id total = nn + ne;
-  const std::vector<Id> split = split_work(mesh, threads, first_coarse, end_coarse);
+  const std::vector<Id> split = detail::split_work(mesh, threads, first_coarse, end_coarse);
   std::atomic<Id> done{0};
   std::vector<std::uint64_t> sums(threads, 0);
   std::vector<std::exception_ptr> errors(threads);

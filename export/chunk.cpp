@@ -47,6 +47,31 @@ void centroid(const FineBlock& b, Id e, int corners, double c[3]) {
 
 }  // namespace
 
+namespace {
+
+// The chunks whose coarse element ranges start at start[c] (start[count] =
+// H), with mesh's fine element and node counts.
+std::vector<ChunkRange> chunks_from(const FineMesh& mesh, const std::vector<Id>& start) {
+  const Id nh = mesh.num_coarse_elements(), total = mesh.num_elements(), count = static_cast<Id>(start.size()) - 1;
+  MeshCursor cur;
+  const RowReader R(mesh.tables(), cur);
+  auto first_element = [&](Id h) { return h < nh ? R.element(h).element_first : total; };
+  auto first_node = [&](Id h) { return h < nh ? R.element(h).node_first : mesh.num_nodes(); };
+  std::vector<ChunkRange> out;
+  for (Id c = 0; c < count; ++c) {
+    ChunkRange r{c, count, start[c], std::max(start[c], start[c + 1]), 0, 0, 0};
+    r.fine_elements = first_element(r.end_coarse) - first_element(r.first_coarse);
+    r.node_begin = first_node(r.first_coarse);
+    r.node_end = first_node(r.end_coarse);
+    if (r.fine_elements < 0 || r.node_end < r.node_begin)
+      R.corrupt(RowTable::Elements, r.first_coarse, "element or node ids do not rise with the elements");
+    out.push_back(r);
+  }
+  return out;
+}
+
+}  // namespace
+
 std::vector<ChunkRange> plan_chunks(const FineMesh& mesh, Id count) {
   if (count < 1) throw Error(ErrorKind::Usage, "chunk count must be at least 1 (got " + std::to_string(count) + ")");
   const Id nh = mesh.num_coarse_elements(), total = mesh.num_elements();
@@ -66,19 +91,23 @@ std::vector<ChunkRange> plan_chunks(const FineMesh& mesh, Id count) {
     }
     start[k] = lo;
   }
-  auto first_element = [&](Id h) { return h < nh ? R.element(h).element_first : total; };
-  auto first_node = [&](Id h) { return h < nh ? R.element(h).node_first : mesh.num_nodes(); };
-  std::vector<ChunkRange> out;
-  for (Id c = 0; c < count; ++c) {
-    ChunkRange r{c, count, start[c], std::max(start[c], start[c + 1]), 0, 0, 0};
-    r.fine_elements = first_element(r.end_coarse) - first_element(r.first_coarse);
-    r.node_begin = first_node(r.first_coarse);
-    r.node_end = first_node(r.end_coarse);
-    if (r.fine_elements < 0 || r.node_end < r.node_begin)
-      R.corrupt(RowTable::Elements, r.first_coarse, "element or node ids do not rise with the elements");
-    out.push_back(r);
+  return chunks_from(mesh, start);
+}
+
+std::vector<ChunkRange> plan_like(const FineMesh& mesh, const std::vector<ChunkRange>& plan) {
+  std::vector<Id> start;
+  for (size_t c = 0; c < plan.size(); ++c) {
+    const ChunkRange& r = plan[c];
+    if (r.first_coarse != (c ? plan[c - 1].end_coarse : 0) || r.end_coarse < r.first_coarse ||
+        r.count != static_cast<Id>(plan.size()) || r.index != static_cast<Id>(c))
+      throw Error(ErrorKind::Usage, "plan_like: chunk " + std::to_string(c) + " does not follow on from the one before");
+    start.push_back(r.first_coarse);
   }
-  return out;
+  if (plan.empty() || plan.back().end_coarse != mesh.num_coarse_elements())
+    throw Error(ErrorKind::Usage, "plan_like: the plan does not cover the " + std::to_string(mesh.num_coarse_elements()) +
+                                      " coarse elements of " + (mesh.tables().origin.empty() ? "the mesh" : mesh.tables().origin));
+  start.push_back(plan.back().end_coarse);
+  return chunks_from(mesh, start);
 }
 
 Box parse_box(const std::string& text) {

@@ -12,6 +12,7 @@
 #include "dicer/geometry.hpp"
 #include "dicer/quality.hpp"
 #include "dicer/rows.hpp"
+#include "dicer/orientation.hpp"
 #include "dicer/tfi.hpp"
 
 namespace dicer {
@@ -368,9 +369,22 @@ class Conformer {
     return false;
   }
 
-  // Accepts points interpolated in parameters when each is within `reach`
-  // (a quarter of the fine spacing) of the closest point of its TFI
-  // prediction: the parameters then only even out the spacing. A
+  // How an entity's nodes are placed. Decided once per entity from probes
+  // at fixed parameters (kProbes), never from its interval, so two dicings
+  // whose intervals are multiples of each other (nested levels, transfer.hpp)
+  // make the same choice and place every node they share bit for bit alike.
+  enum class Place : std::uint8_t { Predicted, Parametric, Closest };
+  static constexpr int kProbes = 8;  // probes at k / kProbes, 0 < k < kProbes (per axis on faces)
+  struct EdgePlan {
+    Place how = Place::Predicted;
+    Owner o;
+    double p[4] = {0, 0, 0, 0};  // end parameters (dim of o each), unwrapped
+  };
+  std::vector<EdgePlan> eplan_;
+
+  // Accepts points interpolated in parameters when each probe is within
+  // `reach` (a quarter of the probe spacing) of the closest point of its
+  // TFI prediction: the parameters then only even out the spacing. A
   // parametrisation far from arc length (the longitudes near a sphere's
   // pole, a face across more than half a period) fails this and the closest
   // points are used instead.
@@ -379,13 +393,12 @@ class Conformer {
       if (!(dist(got[i], closest[i]) <= reach)) return false;
     return true;
   }
-
-  void finish_entity(EntityKind kind, Id id, const std::vector<Vec3>& pts, const std::vector<Vec3>& pred) {
-    double dmax = 0;
-    for (size_t i = 0; i < pts.size(); ++i) dmax = std::max(dmax, dist(pts[i], pred[i]));
-    if (dmax <= tiny_) return;  // already on the CAD (a ruling of a cylinder, say): nothing to store
-    mesh_.move_nodes(kind, id, pts);
-    ++(kind == EntityKind::Edge ? rep_.edges_moved : rep_.faces_moved);
+  // Placed probes within tiny_ of their prediction: the entity already lies
+  // on the CAD (a ruling of a cylinder, say): nothing is moved or stored.
+  Place settle(Place how, const std::vector<Vec3>& placed, const std::vector<Vec3>& pred) const {
+    for (size_t i = 0; i < placed.size(); ++i)
+      if (dist(placed[i], pred[i]) > tiny_) return how;
+    return Place::Predicted;
   }
 
   std::vector<Vec3> project(const CadEntity& e, const std::vector<Vec3>& pred) {
@@ -393,8 +406,39 @@ class Conformer {
     distances(cad_, {e.dim, e.tag}, pred, &on);
     return on;
   }
+  static Vec3 lerp(const Vec3& a, const Vec3& b, double s) {
+    return {tfi::edge(a.x, b.x, s), tfi::edge(a.y, b.y, s), tfi::edge(a.z, b.z, s)};
+  }
+
+  // Edge e's points at canonical parameters s in [0, 1] as its plan places
+  // them: the nodes (s = t / n) or probes.
+  std::vector<Vec3> edge_points(Id e, const std::vector<double>& s) {
+    const EdgeRow r = edge(e);
+    const Vec3 a = vertex(r.lo), b = vertex(r.hi);
+    const EdgePlan& pl = eplan_[static_cast<size_t>(e)];
+    std::vector<Vec3> pred;
+    for (double x : s) pred.push_back(lerp(a, b, x));
+    if (pl.how == Place::Predicted) return pred;
+    if (pl.how == Place::Closest) return project(*cad_.find(pl.o.dim, pl.o.tag), pred);
+    const int D = pl.o.dim;
+    std::vector<double> q, xyz;
+    for (double x : s)
+      for (int k = 0; k < D; ++k) q.push_back(tfi::edge(pl.p[k], pl.p[D + k], x));
+    cad_.value(D, pl.o.tag, q, xyz);
+    std::vector<Vec3> out;
+    for (size_t i = 0; i < s.size(); ++i) out.push_back(at(xyz, i));
+    return out;
+  }
+
+  static std::vector<double> probes() {
+    std::vector<double> s;
+    for (int k = 1; k < kProbes; ++k) s.push_back(static_cast<double>(k) / kProbes);
+    return s;
+  }
 
   void move_edges() {
+    eplan_.assign(static_cast<size_t>(T_.edges.rows()), EdgePlan{});
+    const std::vector<double> probe = probes();
     Id done = 0;
     for (Id e : cand_edges_) {
       progress("moving edge nodes", done++, static_cast<Id>(cand_edges_.size()));
@@ -402,35 +446,50 @@ class Conformer {
       const CadEntity* ent = o.dim >= 1 ? cad_.find(o.dim, o.tag) : nullptr;
       if (!ent || ent->flat) continue;
       const EdgeRow r = edge(e);
-      const Id n = r.n, lo = r.lo, hi = r.hi;
-      if (n < 2) continue;
-      std::vector<Vec3> pred;
-      for (Id t = 1; t < n; ++t) pred.push_back(node(EntityKind::Edge, e, t));
-      const Vec3 a = vertex(lo), b = vertex(hi);
+      if (r.n < 2) continue;  // no nodes; a face using it has none either
+      const Vec3 a = vertex(r.lo), b = vertex(r.hi);
       std::vector<double> ends, p;
       push(ends, a), push(ends, b);
       cad_.param(o.dim, o.tag, ends, p);
       const int D = o.dim;
       unwrap(*ent, &p[D], &p[0]);
-      std::vector<Vec3> pts;
+      EdgePlan& pl = eplan_[static_cast<size_t>(e)];
+      pl.o = o;
+      std::copy(p.begin(), p.end(), pl.p);
+      // The plan, from the probes.
+      std::vector<Vec3> pred;
+      for (double s : probe) pred.push_back(lerp(a, b, s));
+      const std::vector<Vec3> proj = project(*ent, pred);
+      std::vector<Vec3> par;
       if (D == 1 || !degenerate(*ent, p)) {
-        std::vector<double> q, xyz;
-        for (Id t = 1; t < n; ++t) {
-          const double s = tfi::weight(t, n);
-          for (int k = 0; k < D; ++k) q.push_back(tfi::edge(p[k], p[D + k], s));
-        }
-        cad_.value(D, o.tag, q, xyz);
-        for (size_t i = 0; i < pred.size(); ++i) pts.push_back(at(xyz, i));
+        pl.how = Place::Parametric;
+        par = edge_points(e, probe);
       }
-      std::vector<Vec3> proj = project(*ent, pred);
-      if (pts.empty() || !plausible(pts, proj, 0.25 * dist(a, b) / static_cast<double>(n) + tol_))
-        pts.swap(proj), ++rep_.closest_point_fallbacks;
-      finish_entity(EntityKind::Edge, e, pts, pred);
+      const bool param = !par.empty() && plausible(par, proj, 0.25 * dist(a, b) / kProbes + tol_);
+      pl.how = settle(param ? Place::Parametric : Place::Closest, param ? par : proj, pred);
+      const Id n = r.n;
+      if (pl.how == Place::Predicted) continue;
+      if (pl.how == Place::Closest) ++rep_.closest_point_fallbacks;
+      std::vector<double> s;
+      for (Id t = 1; t < n; ++t) s.push_back(tfi::weight(t, n));
+      mesh_.move_nodes(EntityKind::Edge, e, edge_points(e, s));
+      ++rep_.edges_moved;
     }
+  }
+
+  // Side k of face r (0 v0v1, 1 v3v2 at u; 2 v0v3, 3 v1v2 at v) at face
+  // parameters s, through its edge's plan.
+  std::vector<Vec3> side_points(const FaceRow& r, int k, const std::vector<double>& s) {
+    const bool rev = r.v[kQuadEdge[k][0]] > r.v[kQuadEdge[k][1]];
+    std::vector<double> c;
+    for (double x : s) c.push_back(rev ? 1.0 - x : x);
+    return edge_points(r.e[k], c);
   }
 
   void move_faces() {
     const Id F = T_.faces.rows();
+    const std::vector<double> probe = probes();
+    const size_t np = probe.size();
     for (Id f = 0; f < F; ++f) {
       if (!cand_face_[f]) continue;
       progress("moving face nodes", f, F);
@@ -440,23 +499,60 @@ class Conformer {
       const FaceRow r = face(f);
       const Id nu = r.nu, nv = r.nv;
       if (nu < 2 || nv < 2) continue;
+      const Vec3 c[4] = {vertex(r.v[0]), vertex(r.v[1]), vertex(r.v[2]), vertex(r.v[3])};
+      const double diam = std::max(dist(c[0], c[2]), dist(c[1], c[3]));
+      // The plan, from probes (s, t) = (i, j) / kProbes: the TFI prediction
+      // there (the Coons patch of the moved sides), its closest points, and
+      // the Coons patch of the sides' parameters.
+      std::vector<Vec3> side[4];
+      for (int k = 0; k < 4; ++k) side[k] = side_points(r, k, probe);
       std::vector<Vec3> pred;
-      for (Id v = 1; v < nv; ++v)
-        for (Id u = 1; u < nu; ++u) pred.push_back(node(EntityKind::Face, f, u, v));
-      // The moved boundary: bottom, top (u = 0..nu), left, right (v = 0..nv).
-      std::vector<double> bxyz;
-      for (Id u = 0; u <= nu; ++u) push(bxyz, node(EntityKind::Face, f, u, 0));
-      for (Id u = 0; u <= nu; ++u) push(bxyz, node(EntityKind::Face, f, u, nv));
-      for (Id v = 0; v <= nv; ++v) push(bxyz, node(EntityKind::Face, f, 0, v));
-      for (Id v = 0; v <= nv; ++v) push(bxyz, node(EntityKind::Face, f, nu, v));
+      for (size_t j = 0; j < np; ++j)
+        for (size_t i = 0; i < np; ++i) pred.push_back(coons(probe[i], probe[j], side[0][i], side[1][i], side[2][j], side[3][j], c));
+      const std::vector<Vec3> proj = project(*ent, pred);
+      std::vector<double> bxyz;  // corners, then the four sides' probes
+      for (const Vec3& x : c) push(bxyz, x);
+      for (const auto& sd : side)
+        for (const Vec3& x : sd) push(bxyz, x);
       std::vector<double> uv;
       cad_.param(2, o.tag, bxyz, uv);
       const double ref[2] = {uv[0], uv[1]};
       for (size_t i = 0; i < uv.size() / 2; ++i) unwrap(*ent, &uv[2 * i], ref);
-      std::vector<Vec3> pts;
+      std::vector<Vec3> par;
       if (!degenerate(*ent, uv)) {
+        auto P = [&](size_t i, int k) { return uv[2 * i + k]; };  // 0..3 corners, then sides from 4 + k np
+        std::vector<double> q, xyz;
+        for (size_t j = 0; j < np; ++j)
+          for (size_t i = 0; i < np; ++i)
+            for (int k = 0; k < 2; ++k)
+              q.push_back(tfi::coons(probe[i], probe[j], P(4 + i, k), P(4 + np + i, k), P(4 + 2 * np + j, k),
+                                     P(4 + 3 * np + j, k), P(0, k), P(1, k), P(2, k), P(3, k)));
+        cad_.value(2, o.tag, q, xyz);
+        for (size_t i = 0; i < pred.size(); ++i) par.push_back(at(xyz, i));
+      }
+      const bool param = !par.empty() && plausible(par, proj, 0.25 * diam / kProbes + tol_);
+      const Place how = settle(param ? Place::Parametric : Place::Closest, param ? par : proj, pred);
+      if (how == Place::Predicted) continue;
+      if (how == Place::Closest) ++rep_.closest_point_fallbacks;
+      // The nodes: predictions from the moved sides (the mesh's own faces).
+      std::vector<Vec3> npred;
+      for (Id v = 1; v < nv; ++v)
+        for (Id u = 1; u < nu; ++u) npred.push_back(node(EntityKind::Face, f, u, v));
+      std::vector<Vec3> pts;
+      if (how == Place::Closest) {
+        pts = project(*ent, npred);
+      } else {
+        // The moved boundary: bottom, top (u = 0..nu), left, right (v = 0..nv).
+        std::vector<double> nb;
+        for (Id u = 0; u <= nu; ++u) push(nb, node(EntityKind::Face, f, u, 0));
+        for (Id u = 0; u <= nu; ++u) push(nb, node(EntityKind::Face, f, u, nv));
+        for (Id v = 0; v <= nv; ++v) push(nb, node(EntityKind::Face, f, 0, v));
+        for (Id v = 0; v <= nv; ++v) push(nb, node(EntityKind::Face, f, nu, v));
+        std::vector<double> buv;
+        cad_.param(2, o.tag, nb, buv);
+        for (size_t i = 0; i < buv.size() / 2; ++i) unwrap(*ent, &buv[2 * i], ref);
         const size_t B = 0, Tp = static_cast<size_t>(nu + 1), Lf = 2 * Tp, R = Lf + static_cast<size_t>(nv + 1);
-        auto P = [&](size_t i, int k) { return uv[2 * i + k]; };
+        auto P = [&](size_t i, int k) { return buv[2 * i + k]; };
         std::vector<double> q, xyz;
         for (Id v = 1; v < nv; ++v)
           for (Id u = 1; u < nu; ++u) {
@@ -466,15 +562,17 @@ class Conformer {
                                      P(B + nu, k), P(Tp + nu, k), P(Tp, k)));
           }
         cad_.value(2, o.tag, q, xyz);
-        for (size_t i = 0; i < pred.size(); ++i) pts.push_back(at(xyz, i));
+        for (size_t i = 0; i < npred.size(); ++i) pts.push_back(at(xyz, i));
       }
-      const size_t Tp = static_cast<size_t>(nu + 1);
-      const double diam = std::max(dist(at(bxyz, 0), at(bxyz, Tp + nu)), dist(at(bxyz, nu), at(bxyz, Tp)));
-      std::vector<Vec3> proj = project(*ent, pred);
-      if (pts.empty() || !plausible(pts, proj, 0.25 * diam / static_cast<double>(std::max(nu, nv)) + tol_))
-        pts.swap(proj), ++rep_.closest_point_fallbacks;
-      finish_entity(EntityKind::Face, f, pts, pred);
+      mesh_.move_nodes(EntityKind::Face, f, pts);
+      ++rep_.faces_moved;
     }
+  }
+
+  static Vec3 coons(double s, double t, const Vec3& b, const Vec3& tp, const Vec3& l, const Vec3& r, const Vec3* c) {
+    return {tfi::coons(s, t, b.x, tp.x, l.x, r.x, c[0].x, c[1].x, c[2].x, c[3].x),
+            tfi::coons(s, t, b.y, tp.y, l.y, r.y, c[0].y, c[1].y, c[2].y, c[3].y),
+            tfi::coons(s, t, b.z, tp.z, l.z, r.z, c[0].z, c[1].z, c[2].z, c[3].z)};
   }
 
   void check_inversion() {

@@ -3,35 +3,11 @@
 #include <map>
 #include <optional>
 
+#include "all_to_all.hpp"
 #include "dicer/mpi.hpp"
 
 namespace dicer::mpi {
-namespace {
-
-// All-to-all of int64 messages: send[q] to rank q, returns what each rank sent here.
-std::vector<std::vector<std::int64_t>> all_to_all(MPI_Comm comm, const std::vector<std::vector<std::int64_t>>& send) {
-  const int P = static_cast<int>(send.size());
-  std::vector<int> scount(static_cast<size_t>(P)), rcount(static_cast<size_t>(P)), sdisp(static_cast<size_t>(P)),
-      rdisp(static_cast<size_t>(P));
-  for (int q = 0; q < P; ++q) scount[q] = static_cast<int>(send[q].size());
-  if (MPI_Alltoall(scount.data(), 1, MPI_INT, rcount.data(), 1, MPI_INT, comm) != MPI_SUCCESS)
-    throw Error(ErrorKind::Io, "MPI_Alltoall failed");
-  std::vector<std::int64_t> sbuf, rbuf;
-  for (int q = 0, s = 0, r = 0; q < P; ++q) {
-    sdisp[q] = s, rdisp[q] = r;
-    s += scount[q], r += rcount[q];
-    sbuf.insert(sbuf.end(), send[q].begin(), send[q].end());
-  }
-  rbuf.resize(static_cast<size_t>(rdisp.back() + rcount.back()));
-  if (MPI_Alltoallv(sbuf.data(), scount.data(), sdisp.data(), MPI_INT64_T, rbuf.data(), rcount.data(), rdisp.data(),
-                    MPI_INT64_T, comm) != MPI_SUCCESS)
-    throw Error(ErrorKind::Io, "MPI_Alltoallv failed");
-  std::vector<std::vector<std::int64_t>> out(static_cast<size_t>(P));
-  for (int q = 0; q < P; ++q) out[q].assign(rbuf.begin() + rdisp[q], rbuf.begin() + rdisp[q] + rcount[q]);
-  return out;
-}
-
-}  // namespace
+using detail::all_to_all;
 
 std::vector<NodeRun> exchange_sharing(MPI_Comm comm, const FineMesh& mesh, const std::vector<ChunkRange>& plan) {
   int rank = 0, P = 1;
@@ -81,12 +57,16 @@ std::vector<NodeRun> exchange_sharing(MPI_Comm comm, const FineMesh& mesh, const
   return out;
 }
 
-Partition make_partition(const FineMesh& mesh, MPI_Comm comm, const MeshSets& sets) {
+Partition make_partition(const FineMesh& mesh, MPI_Comm comm, const MeshSets& sets, std::vector<ChunkRange> plan) {
   int rank = 0, P = 1;
   MPI_Comm_rank(comm, &rank);
   MPI_Comm_size(comm, &P);
-  std::vector<ChunkRange> plan;
-  collectively(comm, [&] { plan = plan_chunks(mesh, P); });
+  collectively(comm, [&] {
+    if (plan.empty()) plan = plan_chunks(mesh, P);
+    if (static_cast<int>(plan.size()) != P)
+      throw Error(ErrorKind::Usage, "make_partition: a plan of " + std::to_string(plan.size()) + " chunks for " +
+                                        std::to_string(P) + " ranks");
+  });
   std::vector<NodeRun> sharing = exchange_sharing(comm, mesh, plan);
   std::optional<Partition> p;
   collectively(comm, [&] { p.emplace(mesh, plan, rank, std::move(sharing), sets); });

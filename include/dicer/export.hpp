@@ -35,6 +35,11 @@ struct ChunkRange {
 // Balanced split of the coarse elements into `count` chunks by fine element
 // count. Throws Error{Usage} for count < 1. O(count log H) rows read.
 std::vector<ChunkRange> plan_chunks(const FineMesh& mesh, Id count);
+// The same coarse element ranges as `plan` (made on another dicing of the
+// same coarse mesh), with mesh's own fine element and node counts: nested
+// levels (transfer.hpp) give each rank matching chunks on both. Throws
+// Error{Usage} when the plan does not tile mesh's coarse elements.
+std::vector<ChunkRange> plan_like(const FineMesh& mesh, const std::vector<ChunkRange>& plan);
 
 struct Box {
   std::array<double, 3> lo{}, hi{};

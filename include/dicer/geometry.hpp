@@ -28,8 +28,14 @@
 //     cylinder's angle, a torus) are unwrapped across the seam. Where that
 //     fails (a degenerate pole such as a sphere's, a face spanning more than
 //     half a period, a parametrisation far from arc length), the node's TFI
-//     prediction is projected to the closest point instead. Lines and planes
-//     need no move and no storage.
+//     prediction is projected to the closest point instead. The choice is
+//     made once per entity from probes at fixed parameters (k/8 along an
+//     edge, (i/8, j/8) on a face; parameters within a quarter of the probe
+//     spacing of the closest points pass), never from the interval, so two
+//     dicings whose intervals are multiples of each other place every node
+//     they share identically (nested levels, transfer.hpp). An entity whose
+//     probes already lie on the CAD (within 1e-12 of the diagonal) is not
+//     moved. Lines and planes need no move and no storage.
 //  4. Every fine element of a coarse element with moved nodes is checked:
 //     a non-positive scaled Jacobian is refused (Error{Geometry}) naming the
 //     element, never written.

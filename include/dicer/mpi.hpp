@@ -20,6 +20,7 @@
 #include "dicer/error.hpp"
 #include "dicer/export.hpp"
 #include "dicer/partition.hpp"
+#include "dicer/transfer.hpp"
 #include "dicer/verify.hpp"
 
 namespace dicer::mpi {
@@ -89,7 +90,24 @@ void collectively(MPI_Comm comm, Fn&& fn) {
 std::vector<NodeRun> exchange_sharing(MPI_Comm comm, const FineMesh& mesh, const std::vector<ChunkRange>& plan);
 
 // The partition of this rank (chunk `rank` of `size`), maps exchanged.
-Partition make_partition(const FineMesh& mesh, MPI_Comm comm, const MeshSets& sets = {});
+// `plan`: plan_chunks(mesh, size) when empty; plan_like(mesh, other_plan)
+// gives the coarse level of nested dicings the fine level's chunks.
+Partition make_partition(const FineMesh& mesh, MPI_Comm comm, const MeshSets& sets = {},
+                         std::vector<ChunkRange> plan = {});
+
+// The prolongation over ranks (transfer.hpp). Rank r holds chunk r of
+// plan_chunks(p.fine(), size) (make_partition's chunk of the fine level):
+// the fine nodes its coarse elements own (y_owned, p.owned_rows of the
+// chunk: the fine Partition's owned nodes) and the coarse-store nodes they
+// own (x_owned, p.owned_cols: the owned nodes of the coarse level's
+// partition with plan_like). Collective; the results equal the single
+// process's bit for bit.
+// y_owned = this rank's rows of P x: the ghost columns (p.ghost_cols) are
+// fetched from their owners first (one all-to-all round trip).
+void prolong(MPI_Comm comm, const Prolongation& p, std::span<const double> x_owned, std::span<double> y_owned);
+// x_owned = this rank's part of P^T y: each rank's shares for columns lower
+// ranks own go to them (one all-to-all) and are added there in rank order.
+void restrict_to(MPI_Comm comm, const Prolongation& p, std::span<const double> y_owned, std::span<double> x_owned);
 
 // verify on every rank's chunk (verify_part), merged and finished on rank 0
 // (verify_finish): every fine element checked once, faces and edges matched

@@ -11,6 +11,7 @@
     chunk = store.chunk(3, 16)      # chunk 3 of 16, local numbering, global ids
     mesh = chunk.to_meshio()        # a meshio.Mesh, one cell block per element block
     store.sweep(threads=2)          # as `dicer sweep --json`
+    P = coarse.transfer(fine)       # prolongation to a nested store: P.apply(x), P.apply_transpose(y)
 
 Errors are dicer.Error subclasses named after the library's error kinds
 (UsageError, BadInputError, UnsupportedError, IoError, IdOverflowError,
@@ -42,6 +43,7 @@ from ._core import (  # noqa: F401  (the public names)
     IoError,
     Partition,
     Store,
+    Transfer,
     UnsupportedError,
     UsageError,
     STORE_FORMAT_VERSION,
@@ -51,7 +53,7 @@ from ._paths import DICER_CAD_CANDIDATES as _DICER_CAD_CANDIDATES
 __version__ = _core.__version__
 
 __all__ = [
-    "dice", "open", "mesh_coarse", "Store", "Chunk", "Partition", "Batch", "IdBatch", "Error", "UsageError", "BadInputError",
+    "dice", "open", "mesh_coarse", "Store", "Transfer", "Chunk", "Partition", "Batch", "IdBatch", "Error", "UsageError", "BadInputError",
     "UnsupportedError", "IoError", "IdOverflowError", "GeometryError", "CorruptError", "CancelledError",
     "InternalError", "DicerWarning", "STORE_FORMAT_VERSION",
 ]

@@ -31,6 +31,7 @@
 #include "dicer/store.hpp"
 #include "dicer/sweep.hpp"
 #include "dicer/batch.hpp"
+#include "dicer/transfer.hpp"
 #include "dicer/version.hpp"
 #include "errors.hpp"
 
@@ -278,6 +279,54 @@ py::tuple locate(const Store& s, const py::array_t<double, py::array::c_style | 
   const auto n = static_cast<py::ssize_t>(found.size());
   if (surface) return py::make_tuple(owned(std::move(ids)), owned(std::move(xi), {n, 2}), owned(std::move(distance)));
   return py::make_tuple(owned(std::move(ids)), owned(std::move(xi), {n, 3}));
+}
+
+// ---- Transfer (transfer.hpp): the prolongation from one store to a
+// nested, finer one; holds both meshes.
+
+py::dict nesting_dict(const Nesting& n) {
+  // The keys and order of `dicer transfer --check --json`.
+  py::dict d;
+  d["nested"] = n.nested;
+  d["sheets"] = n.sheets;
+  d["sheet"] = n.sheet;
+  d["coarse_interval"] = n.coarse_interval;
+  d["fine_interval"] = n.fine_interval;
+  d["min_factor"] = n.min_factor;
+  d["max_factor"] = n.max_factor;
+  d["rows"] = n.rows;
+  d["cols"] = n.cols;
+  d["moved_nodes_checked"] = n.moved_nodes_checked;
+  d["moved_nodes_differ"] = n.moved_nodes_differ;
+  d["message"] = n.message;
+  return d;
+}
+
+struct Transfer {
+  Mesh coarse, fine;
+  std::shared_ptr<const Prolongation> p;
+};
+
+Transfer make_transfer(const Store& coarse, const Store& fine) {
+  Transfer t{coarse.get(), fine.get(), nullptr};
+  py::gil_scoped_release release;
+  t.p = std::make_shared<const Prolongation>(*t.coarse, *t.fine);
+  return t;
+}
+
+using Vector = py::array_t<double, py::array::c_style | py::array::forcecast>;
+
+py::array transfer_apply(const Transfer& t, const Vector& in, std::int64_t threads, bool transpose) {
+  if (threads < 1 || threads > 1024) throw Error(ErrorKind::Usage, "--threads: must be between 1 and 1024");
+  if (in.ndim() != 1) throw Error(ErrorKind::Usage, "transfer: a one-dimensional array of values, not " + std::to_string(in.ndim()) + "-dimensional");
+  std::vector<double> out(static_cast<size_t>(transpose ? t.p->cols() : t.p->rows()));
+  const std::span<const double> x(in.data(), static_cast<size_t>(in.size()));
+  {
+    py::gil_scoped_release release;
+    if (transpose) t.p->apply_transpose(x, out, static_cast<unsigned>(threads));
+    else t.p->apply(x, out, static_cast<unsigned>(threads));
+  }
+  return owned(std::move(out));
 }
 
 py::dict sweep_dict(const Store& s, std::int64_t threads) {
@@ -729,6 +778,22 @@ PYBIND11_MODULE(_core, m) {
                std::to_string(p.part->num_elements()) + " elements>";
       });
 
+  py::class_<Transfer>(m, "Transfer",
+                       "The prolongation P from a coarse store to a nested finer one (store.transfer(fine)): "
+                       "fine nodes x coarse nodes, both in id order, never formed")
+      .def_property_readonly("shape", [](const Transfer& t) { return py::make_tuple(t.p->rows(), t.p->cols()); })
+      .def_property_readonly("nonzeros", [](const Transfer& t) { return t.p->nonzeros(); })
+      .def_property_readonly("nesting", [](const Transfer& t) { return nesting_dict(t.p->nesting()); },
+                             "the keys of `dicer transfer --check --json`")
+      .def("apply", [](const Transfer& t, const Vector& x, std::int64_t threads) { return transfer_apply(t, x, threads, false); },
+           py::arg("x"), py::arg("threads") = 1, "P x: coarse node values -> fine node values (float64)")
+      .def("apply_transpose", [](const Transfer& t, const Vector& y, std::int64_t threads) { return transfer_apply(t, y, threads, true); },
+           py::arg("y"), py::arg("threads") = 1, "P^T y: fine node values -> coarse node values, the same bits for any thread count")
+      .def("__repr__", [](const Transfer& t) {
+        return "<dicer.Transfer " + std::to_string(t.p->rows()) + " x " + std::to_string(t.p->cols()) + ", " +
+               std::to_string(t.p->nonzeros()) + " non-zeros>";
+      });
+
   py::class_<Store>(m, "Store", "A fine mesh kept in a dicer store (open with dicer.open or dicer.dice).")
       .def_readonly("path", &Store::path)
       .def_readonly("warnings", &Store::warnings, "what the mesh reader accepted with a warning (from dice)")
@@ -780,6 +845,15 @@ PYBIND11_MODULE(_core, m) {
            "the partition of rank `rank` of `size`, sharing computed in this process")
       .def("partition", &make_partition_mpi, py::arg("comm"),
            "this rank's partition of an mpi4py communicator (collective), sharing exchanged over MPI")
+      .def("nesting", [](const Store& s, const Store& fine) {
+        const Mesh c = s.get(), f = fine.get();
+        py::gil_scoped_release release;
+        const Nesting n = check_nesting(*c, *f);
+        py::gil_scoped_acquire acquire;
+        return nesting_dict(n);
+      }, py::arg("fine"), "whether `fine` is nested in this store (`dicer transfer --check --json`)")
+      .def("transfer", &make_transfer, py::arg("fine"),
+           "the prolongation from this store to `fine`, a nested dicing of the same coarse mesh (BadInputError if not)")
       .def("sweep", &sweep_dict, py::arg("threads") = 2, "as `dicer sweep --json`: counts, time, checksum")
       .def("_set_report", [](Store& s, std::vector<std::string> warnings, std::vector<std::string> notes) {
         s.warnings = std::move(warnings);
