@@ -101,6 +101,7 @@ struct FineBlock {
 struct MeshInfo {
   Mode mode = Mode::Volume;
   std::string source;                    // the coarse mesh file it was diced from
+  int source_order = 1;                  // 2: the file was second order (HEX20/27, QUAD8/9; quadratic.hpp)
   std::string uuid;                      // the store's identity (store/FORMAT.md); empty for a mesh diced here
   Id coarse_vertices = 0, coarse_edges = 0, coarse_faces = 0, coarse_elements = 0, sheets = 0;
   Id nodes = 0, elements = 0;            // fine counts
