@@ -755,3 +755,57 @@ TEST(ReadMsh, SecondOrderLinesOfAQuadMeshAreBoundaryLinesIn41) {
   EXPECT_TRUE(m.warnings.empty()) << m.warnings[0];
   EXPECT_FALSE(m.second_order());  // a line's middle node is no mid node of the quad
 }
+
+// Second order (tests/geometry/test_second_order.cpp dices real ones): a
+// HEX20 (type 17) and a hex (type 5) in either order; the HEX20's nodes
+// after its corners, in Gmsh's order, are its mid nodes, the hex has none.
+TEST(ReadMsh, MixedFirstAndSecondOrderHexesIn22) {
+  // Gmsh's HEX20: nodes 8..19 between these corners (Gmsh's documentation).
+  const int edges[12][2] = {{0, 1}, {0, 3}, {0, 4}, {1, 2}, {1, 5}, {2, 3}, {2, 6}, {3, 7}, {4, 5}, {4, 7}, {5, 6}, {6, 7}};
+  const double xyz[12][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 1}, {1, 0, 1},
+                             {1, 1, 1}, {0, 1, 1}, {2, 0, 0}, {2, 1, 0}, {2, 0, 1}, {2, 1, 1}};
+  const int hex1[8] = {1, 2, 3, 4, 5, 6, 7, 8}, hex2[8] = {2, 9, 10, 3, 6, 11, 12, 7};
+  for (const bool quadratic_first : {true, false}) {
+    SCOPED_TRACE(quadratic_first ? "HEX20 first" : "HEX8 first");
+    std::string nodes, elements;
+    int count = 12;
+    for (int v = 0; v < 12; ++v)
+      nodes += std::to_string(v + 1) + " " + std::to_string(xyz[v][0]) + " " + std::to_string(xyz[v][1]) + " " +
+               std::to_string(xyz[v][2]) + "\n";
+    const int* q = quadratic_first ? hex1 : hex2;
+    std::string hex20 = "1 17 2 1 1";
+    for (int c = 0; c < 8; ++c) hex20 += " " + std::to_string(q[c]);
+    for (const auto& e : edges) {
+      const int a = q[e[0]] - 1, b = q[e[1]] - 1;
+      nodes += std::to_string(++count) + " " + std::to_string(0.5 * (xyz[a][0] + xyz[b][0])) + " " +
+               std::to_string(0.5 * (xyz[a][1] + xyz[b][1])) + " " + std::to_string(0.5 * (xyz[a][2] + xyz[b][2]) + 0.125) +
+               "\n";
+      hex20 += " " + std::to_string(count);
+    }
+    std::string hex8 = "2 5 2 1 1";
+    for (int c = 0; c < 8; ++c) hex8 += " " + std::to_string((quadratic_first ? hex2 : hex1)[c]);
+    elements = quadratic_first ? hex20 + "\n" + hex8 + "\n" : hex8 + "\n" + hex20 + "\n";
+    const CoarseMesh m = read_text("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n" + std::to_string(count) + "\n" +
+                                   nodes + "$EndNodes\n$Elements\n2\n" + elements + "$EndElements\n");
+    ASSERT_TRUE(m.second_order());
+    EXPECT_EQ(m.num_vertices(), 12);
+    ASSERT_EQ(m.mid.size(), 2u * dicer::kHexMidSlots);
+    ASSERT_EQ(m.mid_x.size(), 12u);
+    for (Id e = 0; e < 2; ++e) {
+      const bool is20 = m.element_file_id[e] == 1;
+      for (int s = 0; s < dicer::kHexMidSlots; ++s) {
+        const Id k = m.mid[static_cast<size_t>(e) * dicer::kHexMidSlots + s];
+        if (!is20 || s >= 12) {
+          EXPECT_EQ(k, -1) << "element " << e << " slot " << s;
+          continue;
+        }
+        ASSERT_GE(k, 0);
+        // Slot s is dicer's local edge s: its mid node sits between its corners (+0.125 in z).
+        const auto a = m.vertex(m.conn[8 * e + dicer::kHexEdge[s][0]]), b = m.vertex(m.conn[8 * e + dicer::kHexEdge[s][1]]);
+        EXPECT_DOUBLE_EQ(m.mid_x[k], 0.5 * (a.x + b.x)) << s;
+        EXPECT_DOUBLE_EQ(m.mid_y[k], 0.5 * (a.y + b.y)) << s;
+        EXPECT_DOUBLE_EQ(m.mid_z[k], 0.5 * (a.z + b.z) + 0.125) << s;
+      }
+    }
+  }
+}
