@@ -9,6 +9,7 @@
 #include "dicer/error.hpp"
 #include "dicer/fine_mesh.hpp"
 #include "dicer/geometry.hpp"
+#include "dicer/quadratic.hpp"
 #include "dicer/store.hpp"
 
 namespace dicer::cli {
@@ -21,6 +22,14 @@ mesh implicitly to STORE (HDF5): coarse mesh, topology, sheets, intervals.
 Nothing of the fine mesh itself is stored; `info`, `query` and `verify`
 regenerate it on demand.
 
+Second-order input (HEX20, HEX27; QUAD8, QUAD9 in Exodus or MSH) is diced
+on its quadratic geometry, no CAD needed: the corners make the coarse mesh,
+fine nodes on coarse edges go onto the P2 curve through the mid node, on
+faces onto the serendipity (HEX20) or biquadratic (HEX27) surface, and
+interiors follow by TFI; the moved nodes are stored. A fine element that
+the curvature would invert is refused (exit 7). With --geometry the CAD
+wins: the mid nodes are ignored, with a note.
+
 STORE is written under a temporary name in its folder and renamed when
 complete: an interrupted dice (Ctrl-C, SIGTERM, SIGHUP: exit 130, 143,
 129) leaves any existing STORE as it was and nothing else behind.
@@ -29,6 +38,7 @@ complete: an interrupted dice (Ctrl-C, SIGTERM, SIGHUP: exit 130, 143,
 dicer dice part.msh --intervals-file plan.json --sheet-interval 17=12 -o p.h5
 dicer mesh-coarse part.step --size 4 -o coarse.msh
 dicer dice coarse.msh --geometry part.step --interval 10 -o fine.dice.h5
+dicer dice pipe_hex27.e --interval 6 -o pipe.dice.h5    # quadratic edges and faces
 )"};
 
 int cmd_dice(const std::vector<std::string>& argv) {
@@ -36,7 +46,7 @@ int cmd_dice(const std::vector<std::string>& argv) {
   std::string in, out, cad, tolerance(16, '\0');
   tolerance.resize(static_cast<size_t>(std::snprintf(tolerance.data(), tolerance.size(), "%g", ConformOptions{}.tolerance)));
   bool quiet = false;
-  cmd.input("MESH", in, "the coarse mesh: Exodus II or Gmsh MSH 2.2/4.1, hexes or quads");
+  cmd.input("MESH", in, "the coarse mesh: Exodus II or Gmsh MSH 1/2.2/4.1, hexes or quads, first or second order");
   cmd.output(out, "STORE", "the store to write (.dice.h5)");
   cmd.flag("--quiet", quiet, "no progress bar, no summary on stdout");
   IntervalFlags intervals(cmd);
@@ -74,10 +84,21 @@ int cmd_dice(const std::vector<std::string>& argv) {
   CoarseMesh mesh = read_coarse_mesh(in);
   for (const auto& w : mesh.warnings) std::fprintf(stderr, "dicer dice: warning: %s: %s\n", in.c_str(), w.c_str());
   std::vector<std::string> notes;
+  const bool second_order = mesh.second_order();
   FineMesh fine = FineMesh::dice(std::move(mesh), req, &notes);
   for (const auto& n : notes) std::fprintf(stderr, "dicer dice: note: %s\n", n.c_str());
   throw_if_cancelled(nothing_written);
   const bool with_cad = cmd.given(o_cad);
+  SecondOrderReport quad;
+  if (second_order && with_cad) {
+    std::fprintf(stderr,
+                 "dicer dice: note: %s is second order; with --geometry the CAD places the boundary and its mid "
+                 "nodes are ignored\n",
+                 in.c_str());
+  } else if (second_order) {
+    quad = apply_second_order(fine);
+    throw_if_cancelled(nothing_written);
+  }
   ConformReport geo;
   if (with_cad) {
     Progress bar("dice: geometry", 1, quiet);
@@ -98,6 +119,12 @@ int cmd_dice(const std::vector<std::string>& argv) {
                 static_cast<long long>(fine.num_coarse_elements()), fine.mode() == Mode::Volume ? "hexes" : "quads",
                 human_count(fine.num_nodes()).c_str(), human_count(fine.num_elements()).c_str(),
                 static_cast<long long>(fine.info().sheets), out.c_str());
+  if (quad.second_order && !quiet)
+    std::printf("second order %s: %lld edges and %lld faces curved = %s bounding nodes; min scaled Jacobian %.4f over "
+                "%s elements checked\n",
+                in.c_str(), static_cast<long long>(quad.edges_curved), static_cast<long long>(quad.faces_curved),
+                human_count(quad.bounding_nodes).c_str(), quad.min_scaled_jacobian,
+                human_count(quad.elements_checked).c_str());
   if (with_cad && !quiet)
     std::printf("geometry %s: %lld vertices on the CAD (largest snap %.3g), %lld edges on curves, %lld on surfaces, "
                 "%lld faces on surfaces; moved %lld edges + %lld faces = %s bounding nodes (%lld by closest point); "

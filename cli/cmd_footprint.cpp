@@ -17,7 +17,8 @@ explicitly (float64 x,y,z per node + int64 node ids per element, as an
 explicit HDF5 or Exodus file holds it):
 
   store on disk        bytes of STORE (bounding arrays: the moved nodes of
-                       a store diced against CAD; everything else)
+                       a store diced against CAD or from a second-order
+                       mesh; everything else)
   resident to open     metadata + pages read when opening
   resident to query    plus one pinned page per table (what a block fill needs)
   explicit, raw        24 B per node + 8 B per element corner

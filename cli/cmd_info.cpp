@@ -12,7 +12,10 @@ static const CommandDoc kDoc = {
     R"(Prints what a store holds: mode (volume or surface), coarse counts
 (vertices, edges, faces, elements), number of sheets, fine node and element
 counts, and per block its id, name, coarse and fine element counts. Only a
-few hundred bytes of metadata are read.
+few hundred bytes of metadata are read. The source's order is 2 when it
+was a second-order mesh (HEX20/27, QUAD8/9): the fine mesh then follows
+its quadratic edges and faces, unless a CAD model placed it (see dicer
+dice --help).
 )",
     R"(dicer info sphere.dice.h5
 dicer info sphere.dice.h5 --json --stats
@@ -24,7 +27,7 @@ int cmd_info(const std::vector<std::string>& argv) {
   bool json = false;
   cmd.input("STORE", path, "the store to describe (.dice.h5, written by dicer dice)");
   cmd.flag("--json", json,
-           "one JSON object with keys mode, source, format_version, "
+           "one JSON object with keys mode, source, source_order (1 or 2), format_version, "
            "store_bytes, coarse_vertices, coarse_edges, coarse_faces, "
            "coarse_elements, sheets, sheet_intervals (one per sheet, "
            "in dicer sheets' numbering), fine_nodes, fine_elements, "
@@ -47,6 +50,7 @@ int cmd_info(const std::vector<std::string>& argv) {
                         {"fine_elements", fine_per_block[b]}});
     print_json({{"mode", mode_name(m.mode())},
                 {"source", c.source},
+                {"source_order", c.source_order},
                 {"format_version", s.format_version},
                 {"store_bytes", s.file_bytes},
                 {"coarse_vertices", c.coarse_vertices},
@@ -60,7 +64,8 @@ int cmd_info(const std::vector<std::string>& argv) {
                 {"blocks", blocks}});
   } else {
     std::printf("store      %s (%s, format version %d)\n", path.c_str(), human_bytes(s.file_bytes).c_str(), s.format_version);
-    std::printf("source     %s\nmode       %s\n", c.source.c_str(), mode_name(m.mode()));
+    std::printf("source     %s%s\nmode       %s\n", c.source.c_str(),
+                c.source_order == 2 ? " (second order: HEX20/27 or QUAD8/9)" : "", mode_name(m.mode()));
     std::printf("coarse     %lld vertices, %lld edges, %lld faces, %lld %s\n", ll(c.coarse_vertices), ll(c.coarse_edges),
                 ll(c.coarse_faces), ll(c.coarse_elements), m.mode() == Mode::Volume ? "hexes" : "quads");
     std::printf("sheets     %lld\n", ll(c.sheets));

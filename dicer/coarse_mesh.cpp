@@ -65,9 +65,94 @@ void reorient_left_handed(CoarseMesh& m) {
   for (auto& ss : m.side_sets)
     for (auto& s : ss.side)
       if (s >= 0 && s < 6) s = static_cast<std::int8_t>(side_map[s]);
+  // Mid nodes follow their corners: the new slot of an edge (face) is the
+  // old slot of the edge (face) between the mirrored corners.
+  if (m.mid.empty()) return;
+  int slot_map[kHexMidSlots];
+  for (int e = 0; e < 12; ++e) slot_map[e] = hex_edge_between(kHexMirror[kHexEdge[e][0]], kHexMirror[kHexEdge[e][1]]);
+  for (int f = 0; f < 6; ++f) {
+    const int c[4] = {kHexMirror[kHexFace[f][0]], kHexMirror[kHexFace[f][1]], kHexMirror[kHexFace[f][2]],
+                      kHexMirror[kHexFace[f][3]]};
+    slot_map[12 + f] = 12 + hex_face_with(c);
+  }
+  slot_map[18] = 18;
+  for (Id e = 0; e < ne; ++e) {
+    Id* s = &m.mid[static_cast<size_t>(e) * kHexMidSlots];
+    Id old[kHexMidSlots];
+    std::copy(s, s + kHexMidSlots, old);
+    for (int k = 0; k < kHexMidSlots; ++k) s[k] = old[slot_map[k]];
+  }
+}
+
+// Keeps the vertices with keep[v] set, in order: coordinates, file ids,
+// classification, connectivity and node sets (entries of dropped vertices
+// leave them). Connectivity entries out of range are left for the checks.
+// Returns the number dropped.
+Id compact_vertices(CoarseMesh& m, const std::vector<char>& keep) {
+  const Id nv = m.num_vertices();
+  std::vector<Id> remap(static_cast<size_t>(nv), -1);
+  Id used = 0;
+  for (Id v = 0; v < nv; ++v)
+    if (keep[v]) remap[v] = used++;
+  if (used == nv) return 0;
+  auto compact = [&](auto& arr) {
+    if (arr.size() != static_cast<size_t>(nv)) return;
+    for (Id v = 0; v < nv; ++v)
+      if (remap[v] >= 0) arr[remap[v]] = arr[v];
+    arr.resize(static_cast<size_t>(used));
+  };
+  compact(m.x), compact(m.y), compact(m.z), compact(m.vertex_file_id);
+  compact(m.vertex_geo_dim), compact(m.vertex_geo_tag);
+  for (Id& c : m.conn)
+    if (c >= 0 && c < nv) c = remap[c];
+  for (auto& ns : m.node_sets) {
+    std::vector<Id> kept;
+    for (Id v : ns.vertex)
+      if (v >= 0 && v < nv && remap[v] >= 0) kept.push_back(remap[v]);
+    ns.vertex = std::move(kept);
+  }
+  return nv - used;
 }
 
 }  // namespace
+
+void take_mid_nodes(CoarseMesh& m, std::vector<Id> mid) {
+  const std::string& f = m.source;
+  const int slots = mid_slots(m.mode), nc = m.corners_per_element();
+  const Id ne = m.num_elements(), nv = m.num_vertices();
+  if (mid.size() != static_cast<size_t>(ne) * slots)
+    throw Error(ErrorKind::BadInput, f + ": the second-order node table has " + std::to_string(mid.size()) +
+                                         " entries for " + std::to_string(ne) + " elements of " +
+                                         std::to_string(slots) + " slots");
+  std::vector<Id> corner_of(static_cast<size_t>(nv), -1);  // an element with v as corner
+  for (Id e = 0; e < ne; ++e)
+    for (int k = 0; k < nc; ++k)
+      if (const Id v = m.conn[static_cast<size_t>(e) * nc + k]; v >= 0 && v < nv && corner_of[v] < 0) corner_of[v] = e;
+  auto node_id = [&](Id v) { return v < static_cast<Id>(m.vertex_file_id.size()) ? m.vertex_file_id[v] : v + 1; };
+  std::vector<Id> index(static_cast<size_t>(nv), -1);
+  std::vector<char> keep(static_cast<size_t>(nv), 1);
+  for (Id e = 0; e < ne; ++e)
+    for (int k = 0; k < slots; ++k) {
+      Id& v = mid[static_cast<size_t>(e) * slots + k];
+      if (v == -1) continue;
+      if (v < 0 || v >= nv)
+        throw Error(ErrorKind::BadInput, f + ": " + element_name(m, e) + ": mid-node slot " + std::to_string(k) +
+                                             " references a node that does not exist");
+      if (corner_of[v] >= 0)
+        throw Error(ErrorKind::BadInput, f + ": node " + std::to_string(node_id(v)) + " is a corner of " +
+                                             element_name(m, corner_of[v]) + " and a mid node of " +
+                                             element_name(m, e) + " (inconsistent second-order connectivity)");
+      if (index[v] < 0) {
+        index[v] = static_cast<Id>(m.mid_x.size());
+        m.mid_x.push_back(m.x[v]), m.mid_y.push_back(m.y[v]), m.mid_z.push_back(m.z[v]);
+        m.mid_file_id.push_back(node_id(v));
+        keep[v] = 0;
+      }
+      v = index[v];
+    }
+  m.mid = std::move(mid);
+  compact_vertices(m, keep);
+}
 
 void validate_coarse_mesh(CoarseMesh& m) {
   const std::string& f = m.source;
@@ -112,6 +197,28 @@ void validate_coarse_mesh(CoarseMesh& m) {
                                                " appears twice (degenerate element)");
     if (m.element_block[e] < 0 || m.element_block[e] >= static_cast<std::int32_t>(m.blocks.size()))
       throw Error(ErrorKind::BadInput, f + ": " + element_name(m, e) + ": block index out of range");
+  }
+
+  // Second-order nodes: the table's shape, every slot in range, finite.
+  if (!m.mid.empty()) {
+    const int slots = mid_slots(m.mode);
+    const Id nm = static_cast<Id>(m.mid_x.size());
+    if (m.mid.size() != static_cast<size_t>(ne) * slots || m.mid_y.size() != m.mid_x.size() ||
+        m.mid_z.size() != m.mid_x.size() || m.mid_file_id.size() != m.mid_x.size())
+      throw Error(ErrorKind::BadInput, f + ": the second-order node tables have inconsistent lengths");
+    for (Id e = 0; e < ne; ++e)
+      for (int k = 0; k < slots; ++k) {
+        const Id q = m.mid[static_cast<size_t>(e) * slots + k];
+        if (q < -1 || q >= nm)
+          throw Error(ErrorKind::BadInput, f + ": " + element_name(m, e) + " (block " +
+                                               std::to_string(m.blocks[m.element_block[e]].id) + "): mid-node slot " +
+                                               std::to_string(k) + " references a node that does not exist");
+        if (q >= 0 && !(std::isfinite(m.mid_x[q]) && std::isfinite(m.mid_y[q]) && std::isfinite(m.mid_z[q])))
+          throw Error(ErrorKind::BadInput, f + ": " + element_name(m, e) + " (block " +
+                                               std::to_string(m.blocks[m.element_block[e]].id) + "): mid node " +
+                                               std::to_string(m.mid_file_id[q]) +
+                                               ": coordinate is not finite (NaN or Inf)");
+      }
   }
 
   // Duplicated elements: same corner set.
@@ -160,29 +267,12 @@ void validate_coarse_mesh(CoarseMesh& m) {
   }
 
   // Drop vertices used by no element (boundary-only or orphan nodes).
-  std::vector<Id> remap(static_cast<size_t>(nv), -1);
-  for (Id c : m.conn) remap[c] = 0;
-  Id used = 0;
-  for (Id v = 0; v < nv; ++v)
-    if (remap[v] == 0) remap[v] = used++;
-  if (used != nv) {
-    auto compact = [&](auto& arr) {
-      if (arr.size() != static_cast<size_t>(nv)) return;
-      for (Id v = 0; v < nv; ++v)
-        if (remap[v] >= 0) arr[remap[v]] = arr[v];
-      arr.resize(static_cast<size_t>(used));
-    };
-    compact(m.x), compact(m.y), compact(m.z), compact(m.vertex_file_id);
-    compact(m.vertex_geo_dim), compact(m.vertex_geo_tag);
-    for (Id& c : m.conn) c = remap[c];
-    for (auto& ns : m.node_sets) {
-      std::vector<Id> kept;
-      for (Id v : ns.vertex)
-        if (v >= 0 && v < nv && remap[v] >= 0) kept.push_back(remap[v]);
-      ns.vertex = std::move(kept);
-    }
-    m.warnings.push_back("dropped " + std::to_string(nv - used) + " node(s) used by no " +
-                         (m.mode == Mode::Volume ? "hexahedron" : "quadrilateral"));
+  {
+    std::vector<char> keep(static_cast<size_t>(nv), 0);
+    for (Id c : m.conn) keep[c] = 1;
+    if (const Id dropped = compact_vertices(m, keep); dropped > 0)
+      m.warnings.push_back("dropped " + std::to_string(dropped) + " node(s) used by no " +
+                           (m.mode == Mode::Volume ? "hexahedron" : "quadrilateral"));
   }
   for (auto& ss : m.side_sets) {
     if (ss.element.size() != ss.side.size())

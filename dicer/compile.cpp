@@ -86,6 +86,7 @@ FineMesh compile(std::shared_ptr<const CoarseMesh> cm, const Topology& t, const 
   MeshInfo info;
   info.mode = mode;
   info.source = m.source;
+  info.source_order = m.second_order() ? 2 : 1;
   info.blocks = m.blocks;
   info.block_coarse_elements.assign(m.blocks.size(), 0);
   info.block_fine_elements.assign(m.blocks.size(), 0);

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "dicer/orientation.hpp"
+#include "dicer/rows.hpp"
 
 namespace dicer {
 namespace {
@@ -104,6 +105,12 @@ QualityReport check_quality(const FineMesh& mesh, const std::function<bool(Id)>&
   }
   if (progress) progress(H, H);
   return r;
+}
+
+QualityReport check_moved_quality(const FineMesh& mesh, const std::function<void(Id, Id)>& progress) {
+  MeshCursor cur;
+  const RowReader R(mesh.tables(), cur);
+  return check_quality(mesh, [&](Id h) { return R.element(h).curved(); }, progress);
 }
 
 }  // namespace dicer

@@ -68,7 +68,14 @@ CoarseMesh sfc_order(const CoarseMesh& in, std::vector<Id>* old_vertex_of_new, s
     }
     out.element_file_id.push_back(in.element_file_id[e]);
     out.element_block.push_back(in.element_block[e]);
+    if (!in.mid.empty()) {
+      const size_t slots = static_cast<size_t>(mid_slots(in.mode));
+      out.mid.insert(out.mid.end(), in.mid.begin() + static_cast<std::ptrdiff_t>(e * slots),
+                     in.mid.begin() + static_cast<std::ptrdiff_t>((e + 1) * slots));
+    }
   }
+  // Mid nodes keep their numbering: elements index them, vertices do not.
+  out.mid_x = in.mid_x, out.mid_y = in.mid_y, out.mid_z = in.mid_z, out.mid_file_id = in.mid_file_id;
   // Validated meshes use every vertex; keep any stragglers at the end.
   for (Id v = 0; v < nv; ++v)
     if (new_of_old_vertex[v] < 0) new_of_old_vertex[v] = static_cast<Id>(old_of_new_vertex.size()), old_of_new_vertex.push_back(v);

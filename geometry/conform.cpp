@@ -576,11 +576,7 @@ class Conformer {
   }
 
   void check_inversion() {
-    MeshCursor c;
-    const RowReader R(T_, c);
-    const QualityReport q = check_quality(
-        mesh_, [&](Id h) { return R.element(h).curved(); },
-        [&](Id d, Id t) { progress("checking elements", d, t); });
+    const QualityReport q = check_moved_quality(mesh_, [&](Id d, Id t) { progress("checking elements", d, t); });
     rep_.min_scaled_jacobian = q.min_scaled_jacobian;
     rep_.elements_checked = q.elements_checked;
     if (q.inverted > 0) {

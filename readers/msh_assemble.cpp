@@ -2,8 +2,10 @@
 //
 // Mapping (see coarse_mesh.hpp):
 //  - mode: the highest dimension present (mesh_dimension): Volume if it is 3,
-//    then every 3D element must be a hexahedron (type 5); Surface if it is 2,
-//    then every 2D element must be a quadrangle (type 3). Other elements of
+//    then every 3D element must be a hexahedron (type 5, or 17 HEX20, 12
+//    HEX27); Surface if it is 2, then every 2D element must be a quadrangle
+//    (type 3, or 16 QUAD8, 10 QUAD9). Second-order elements give their mid
+//    nodes (take_mid_nodes; Gmsh's node order). Other elements of
 //    that dimension are refused (Unsupported); lower-dimensional ones are
 //    classification and set information (first-order quads, lines, points)
 //    or skipped with one warning.
@@ -32,8 +34,8 @@ namespace dicer::msh {
 namespace {
 
 // One rule for every input format (README, Inputs): the highest dimension
-// present is the mesh's. Its elements must all be first-order hexahedra
-// (quadrangles for a surface); lower-dimensional ones are side and node sets
+// present is the mesh's. Its elements must all be hexahedra (quadrangles
+// for a surface), first or second order; lower-dimensional ones are side and node sets
 // or are skipped, with one warning naming them. Returns that dimension.
 int mesh_dimension(const std::string& path, const MshSections& sec, std::vector<std::string>& warnings) {
   int dim = -1;
@@ -53,11 +55,13 @@ int mesh_dimension(const std::string& path, const MshSections& sec, std::vector<
       list += std::to_string(n) + " " + type_name(static_cast<int>(type)) + " (type " + std::to_string(type) + ")";
     }
     throw Error(ErrorKind::Unsupported, path + ": unsupported elements: " + list +
-                                            "; dicer needs all-hex (type 5) or all-quad (type 3) meshes");
+                                            "; dicer needs all-hex (type 5; 17, 12 second order) or all-quad "
+                                            "(type 3; 16, 10 second order) meshes");
   }
   if (dim < 2)
     throw Error(ErrorKind::Unsupported,
-                path + ": no hexahedra (type 5) or quadrangles (type 3); dicer needs all-hex or all-quad meshes");
+                path + ": no hexahedra (type 5, 17, 12) or quadrangles (type 3, 16, 10); dicer needs all-hex or "
+                       "all-quad meshes");
 
   // Skipped: other types of lower dimension, and lines in physical groups of
   // a volume mesh (dicer has no edge sets). Counted by physical group, or by
@@ -279,6 +283,7 @@ CoarseMesh assemble(const std::string& path, MshSections sec) {
   mesh.vertex_geo_tag = std::move(sec.geo_tag);
   mesh.conn = std::move(sec.groups[dim].conn);
   mesh.element_file_id = std::move(sec.groups[dim].tag);
+  if (!sec.groups[dim].mid.empty()) take_mid_nodes(mesh, std::move(sec.groups[dim].mid));
   return mesh;
 }
 

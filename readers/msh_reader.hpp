@@ -45,10 +45,13 @@ std::string type_name(int type);
 // 0 points, 1 lines, 2 triangles and quadrangles, 3 solids; -1 unknown type.
 int type_dim(Id type);
 
-// The types dicer keeps (first-order point, line, quadrangle, hexahedron),
-// indexed by their dimension.
+// The types dicer keeps: the first-order point, line, quadrangle and
+// hexahedron, and the second-order line (8), quadrangles (16 QUAD8, 10
+// QUAD9) and hexahedra (17 HEX20, 12 HEX27), whose nodes after the corners
+// (kNodesOfDim) are mid nodes (orientation.hpp, NodeOrder::Gmsh).
 inline constexpr int kPoint = 15, kLine = 1, kQuad = 3, kHex = 5;
 inline constexpr int kNodesOfDim[4] = {1, 2, 4, 8};
+inline constexpr int kMaxKeptNodes = 27;
 // Dimension of a kept type, or -1 for every other type.
 int kept_dim(Id type);
 
@@ -153,6 +156,9 @@ struct Group {
   std::vector<std::int32_t> entity;
   std::vector<std::int32_t> physical;    // MSH2 only: first tag, 0 = none
   std::vector<Id> conn;                  // vertex indices, kNodesOfDim[dim] each
+  // Quads and hexes: mid_slots entries per element (vertex indices, -1 none),
+  // empty until the first second-order element arrives.
+  std::vector<Id> mid;
   std::size_t size() const { return tag.size(); }
 };
 

@@ -64,9 +64,9 @@ const ElementType* find_type(Id type) {
 int kept_dim(Id type) {
   switch (type) {
     case kPoint: return 0;
-    case kLine: return 1;
-    case kQuad: return 2;
-    case kHex: return 3;
+    case kLine: case 8: return 1;
+    case kQuad: case 16: case 10: return 2;
+    case kHex: case 17: case 12: return 3;
     default: return -1;
   }
 }
@@ -128,7 +128,8 @@ class SectionReader {
                                                    std::size_t tokens_each);
   void add_node_tag(Id tag);
   void add_coords(Id tag, double x, double y, double z);
-  void add_element(int dim, Id tag, int entity_dim, Id entity, Id physical, const Id* nodes);
+  // A kept element: its type's nodes (find_type), corners first.
+  void add_element(int dim, Id type, Id tag, int entity_dim, Id entity, Id physical, const Id* nodes);
   void count_other(Id type, int entity_dim, Id entity, Id physical, std::size_t n) {
     s_.others[{type, entity_dim, entity, physical}] += n;
   }
@@ -329,7 +330,7 @@ void SectionReader::read_nodes_msh41() {
   lex_.expect_end("Nodes");
 }
 
-void SectionReader::add_element(int dim, Id tag, int entity_dim, Id entity, Id physical, const Id* nodes) {
+void SectionReader::add_element(int dim, Id type, Id tag, int entity_dim, Id entity, Id physical, const Id* nodes) {
   Group& g = s_.groups[dim];
   const auto [it0, fresh] = element_tags_.emplace(tag, std::make_pair(dim, g.tag.size()));
   if (!fresh) {
@@ -346,12 +347,25 @@ void SectionReader::add_element(int dim, Id tag, int entity_dim, Id entity, Id p
     ++s_.repeated;
     return;
   }
-  for (int k = 0; k < kNodesOfDim[dim]; ++k) {
-    auto it = node_index_.find(nodes[k]);
+  auto index = [&](Id node) {
+    auto it = node_index_.find(node);
     if (it == node_index_.end())
-      lex_.fail("element " + std::to_string(tag) + " references node tag " + std::to_string(nodes[k]) +
+      lex_.fail("element " + std::to_string(tag) + " references node tag " + std::to_string(node) +
                 ", which is not in $Nodes");
-    g.conn.push_back(it->second);
+    return it->second;
+  };
+  for (int k = 0; k < kNodesOfDim[dim]; ++k) g.conn.push_back(index(nodes[k]));
+  const int total = find_type(type)->nodes;
+  if (dim >= 2) {
+    const Mode mode = dim == 3 ? Mode::Volume : Mode::Surface;
+    const std::size_t slots = static_cast<std::size_t>(mid_slots(mode));
+    if (total > kNodesOfDim[dim] || !g.mid.empty()) {
+      const std::size_t first = g.tag.size() * slots;  // the earlier elements' slots, -1 if first order
+      g.mid.resize(first + slots, -1);
+      for (int k = kNodesOfDim[dim]; k < total; ++k) g.mid[first + static_cast<std::size_t>(mid_slot(NodeOrder::Gmsh, mode, k))] = index(nodes[k]);
+    }
+  } else {
+    for (int k = kNodesOfDim[dim]; k < total; ++k) index(nodes[k]);  // a line's middle: must exist, not kept
   }
   g.tag.push_back(tag);
   g.entity_dim.push_back(static_cast<std::int8_t>(entity_dim));
@@ -368,9 +382,9 @@ void SectionReader::fail_unknown_type(Id type) {
 void SectionReader::ascii_element_nodes(Id tag, Id type, Id entity, Id physical, Id listed) {
   const int dim = kept_dim(type);
   if (dim >= 0) {
-    Id nodes[8];
-    for (int k = 0; k < kNodesOfDim[dim]; ++k) nodes[k] = lex_.integer("node tag", 1);
-    add_element(dim, tag, dim, entity, physical, nodes);
+    Id nodes[kMaxKeptNodes];
+    for (int k = 0; k < find_type(type)->nodes; ++k) nodes[k] = lex_.integer("node tag", 1);
+    add_element(dim, type, tag, dim, entity, physical, nodes);
     return;
   }
   count_other(type, type_dim(type), entity, physical, 1);
@@ -406,7 +420,7 @@ void SectionReader::read_elements_msh1() {
 void SectionReader::read_elements_msh2() {
   if (!saw_nodes_) lex_.fail("no $Nodes section before $Elements");
   saw_elements_ = true;
-  Id nodes[8];
+  Id nodes[kMaxKeptNodes];
   const std::size_t n = lex_.count("number of elements", 4);
   if (binary_) {
     // Binary MSH2: blocks of elements of one type: {type, count, number of tags},
@@ -437,8 +451,8 @@ void SectionReader::read_elements_msh2() {
           lex_.skip_bytes(4 * static_cast<std::uint64_t>(info->nodes));
           continue;
         }
-        for (int k = 0; k < kNodesOfDim[dim]; ++k) nodes[k] = lex_.bin_int("node tag", 1);
-        add_element(dim, tag, dim, entity, physical, nodes);
+        for (int k = 0; k < info->nodes; ++k) nodes[k] = lex_.bin_int("node tag", 1);
+        add_element(dim, type, tag, dim, entity, physical, nodes);
       }
       seen += follow;
     }
@@ -464,7 +478,7 @@ void SectionReader::read_elements_msh2() {
 void SectionReader::read_elements_msh41() {
   if (!saw_nodes_) lex_.fail("no $Nodes section before $Elements");
   saw_elements_ = true;
-  Id nodes[8];
+  Id nodes[kMaxKeptNodes];
   const auto [blocks, total] = msh41_header("element", 16, 2);
   std::size_t seen = 0;
   for (std::size_t b = 0; b < blocks; ++b) {
@@ -507,9 +521,9 @@ void SectionReader::read_elements_msh41() {
     }
     for (std::size_t i = 0; i < n; ++i) {
       const Id tag = binary_ ? lex_.bin_tag("element tag") : lex_.integer("element tag", 1);
-      for (int k = 0; k < kNodesOfDim[dim]; ++k)
+      for (int k = 0; k < info->nodes; ++k)
         nodes[k] = binary_ ? lex_.bin_tag("node tag") : lex_.integer("node tag", 1);
-      add_element(dim, tag, entity_dim, entity, 0, nodes);
+      add_element(dim, type, tag, entity_dim, entity, 0, nodes);
     }
   }
   if (seen != total)

@@ -22,6 +22,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <initializer_list>
 #include <limits>
 #include <sstream>
 #include <string>
@@ -153,19 +154,30 @@ std::vector<Id> read_id_map(int exoid, ex_entity_type type, std::int64_t count, 
 
 // ----------------------------------------------------------- block types ---
 
-// What an element type is to dicer. Kept: HEX8 (volume), QUAD4 and SHELL4
-// (surface; they number their sides differently). Everything else counts
-// only by its dimension: refused when it is the mesh's, skipped below it.
+// What an element type is to dicer. Kept: HEX8, HEX20, HEX27 (volume),
+// QUAD4/8/9 and SHELL4/8/9 (surface; quads and shells number their sides
+// differently); the nodes after the corners are mid nodes (orientation.hpp,
+// NodeOrder::Exodus). A name without its node count ("HEX") takes the
+// count the block states. Everything else counts only by its dimension:
+// refused when it is the mesh's, skipped below it.
 enum class Shape { Hex, Quad, Shell, Solid, Face, Bar, Point, Unknown };
 
 Shape classify(const std::string& type, std::int64_t nodes_per_element) {
   const std::string t = upper(type);
-  if ((t == "HEX8" || t == "HEX" || t == "HEXAHEDRON") && nodes_per_element == 8) return Shape::Hex;
-  if ((t == "QUAD4" || t == "QUAD") && nodes_per_element == 4) return Shape::Quad;
-  if ((t == "SHELL4" || t == "SHELL") && nodes_per_element == 4) return Shape::Shell;
   // The name without its node count: "TETRA10" -> "TETRA", "BAR2" -> "BAR".
   std::string base = t;
   while (!base.empty() && std::isdigit(static_cast<unsigned char>(base.back()))) base.pop_back();
+  const std::string count = t.substr(base.size());
+  const std::string n = std::to_string(nodes_per_element);
+  auto kept = [&](const char* name, std::initializer_list<std::int64_t> counts) {
+    return base == name && std::find(counts.begin(), counts.end(), nodes_per_element) != counts.end() &&
+           (count.empty() || count == n);
+  };
+  if (kept("HEX", {8, 20, 27}) || (t == "HEXAHEDRON" && (nodes_per_element == 8 || nodes_per_element == 20 ||
+                                                         nodes_per_element == 27)))
+    return Shape::Hex;
+  if (kept("QUAD", {4, 8, 9})) return Shape::Quad;
+  if (kept("SHELL", {4, 8, 9})) return Shape::Shell;
   for (const char* solid : {"HEX", "HEXAHEDRON", "TETRA", "TET", "TETRAHEDRON", "WEDGE", "PYRAMID", "NFACED"})
     if (base == solid) return Shape::Solid;
   for (const char* face : {"QUAD", "QUADRILATERAL", "SHELL", "TRI", "TRIANGLE", "TRISHELL", "NSIDED"})
@@ -202,10 +214,12 @@ struct BlockInfo {
 
 std::string describe_type(const BlockInfo& b) {
   std::string t = b.type.empty() ? std::string("(untyped)") : b.type;
-  // A generic name with an unexpected node count ("HEX" with 20 nodes).
+  // A name with an unexpected node count ("HEX20" with 8 nodes).
   const std::string u = upper(b.type);
-  const bool generic = u == "HEX" || u == "HEX8" || u == "HEXAHEDRON" || u == "QUAD" || u == "QUAD4" ||
-                       u == "SHELL" || u == "SHELL4";
+  bool generic = u == "HEXAHEDRON";
+  for (const char* g : {"HEX", "HEX8", "HEX20", "HEX27", "QUAD", "QUAD4", "QUAD8", "QUAD9", "SHELL", "SHELL4", "SHELL8",
+                        "SHELL9"})
+    generic = generic || u == g;
   const bool diced = b.shape == Shape::Hex || b.shape == Shape::Quad || b.shape == Shape::Shell;
   if (generic && !diced) t += " with " + std::to_string(b.nodes_per_element) + " nodes per element";
   return t;
@@ -356,11 +370,12 @@ CoarseMesh read_exodus_here(const std::string& path, std::int64_t file_size) {
   }
   if (!refused.empty())
     fail(ErrorKind::Unsupported, path,
-         "unsupported elements: " + refused + "; dicer needs all-hex (HEX8) or all-quad (QUAD4/SHELL4) meshes");
+         "unsupported elements: " + refused +
+             "; dicer needs all-hex (HEX8, HEX20, HEX27) or all-quad (QUAD4/8/9, SHELL4/8/9) meshes");
   if (dim >= 0 && dim < 2)
     fail(ErrorKind::Unsupported, path,
          "no hexahedra or quadrilaterals, only elements of dimension " + std::to_string(dim) +
-             "; dicer needs all-hex (HEX8) or all-quad (QUAD4/SHELL4) meshes");
+             "; dicer needs all-hex (HEX8, HEX20, HEX27) or all-quad (QUAD4/8/9, SHELL4/8/9) meshes");
   mesh.mode = dim == 2 ? Mode::Surface : Mode::Volume;
   if (mesh.mode == Mode::Volume && init.num_dim != 3 && dim == 3)
     fail(ErrorKind::BadInput, path,
@@ -422,6 +437,13 @@ CoarseMesh read_exodus_here(const std::string& path, std::int64_t file_size) {
   mesh.conn.reserve(static_cast<std::size_t>(kept_elements * corners));
   mesh.element_file_id.reserve(static_cast<std::size_t>(kept_elements));
   mesh.element_block.reserve(static_cast<std::size_t>(kept_elements));
+  // Second-order blocks: mid-node slots of every kept element (file node
+  // indices, -1 none; first-order elements of a mixed file have none).
+  const std::size_t slots = static_cast<std::size_t>(mid_slots(mesh.mode));
+  std::vector<Id> mid;
+  for (const BlockInfo& b : blocks)
+    if (b.kept && b.count > 0 && b.nodes_per_element > corners) mid.reserve(static_cast<std::size_t>(kept_elements) * slots);
+  const bool second_order = mid.capacity() > 0;
   std::size_t file_index = 0;
   for (const BlockInfo& b : blocks) {
     const std::size_t first = file_index;
@@ -434,7 +456,8 @@ CoarseMesh read_exodus_here(const std::string& path, std::int64_t file_size) {
           "reading the connectivity of " + what);
     for (std::int64_t e = 0; e < b.count; ++e) {
       const std::size_t fe = first + static_cast<std::size_t>(e);
-      for (int k = 0; k < corners; ++k) {
+      if (second_order) mid.resize(mid.size() + slots, -1);
+      for (int k = 0; k < b.nodes_per_element; ++k) {
         const std::int64_t node = conn[static_cast<std::size_t>(e * b.nodes_per_element + k)];
         if (node < 1 || node > init.num_nodes) {
           std::ostringstream os;
@@ -442,7 +465,8 @@ CoarseMesh read_exodus_here(const std::string& path, std::int64_t file_size) {
              << init.num_nodes << " nodes)";
           fail(ErrorKind::BadInput, path, os.str());
         }
-        mesh.conn.push_back(node - 1);
+        if (k < corners) mesh.conn.push_back(node - 1);
+        else mid[mid.size() - slots + static_cast<std::size_t>(mid_slot(NodeOrder::Exodus, mesh.mode, k))] = node - 1;
       }
       mesh_element[fe] = static_cast<Id>(mesh.element_file_id.size());
       mesh.element_file_id.push_back(file_elem_id[fe]);
@@ -535,6 +559,7 @@ CoarseMesh read_exodus_here(const std::string& path, std::int64_t file_size) {
     mesh.node_sets.push_back(std::move(set));
   }
 
+  if (second_order) take_mid_nodes(mesh, std::move(mid));
   return mesh;
 }
 

@@ -373,6 +373,13 @@ std::shared_ptr<OpenStore> open_store(const std::string& path, StoreHeader& h) {
   if (mode != "volume" && mode != "surface") throw Error(ErrorKind::Corrupt, path + ": unknown mode \"" + mode + "\"");
   info.mode = mode == "volume" ? Mode::Volume : Mode::Surface;
   info.source = s->file.read_attr_string("source");
+  // Optional (absent before second-order input: a first-order source).
+  if (H5Aexists(s->file.id(), "source_order") > 0) {
+    const std::int64_t order = s->file.read_attr_int("source_order");
+    if (order != 1 && order != 2)
+      throw Error(ErrorKind::Corrupt, path + ": attribute source_order is " + std::to_string(order) + ", not 1 or 2");
+    info.source_order = static_cast<int>(order);
+  }
   auto count = [&](const char* name) {
     const std::int64_t v = s->file.read_attr_int(name);
     if (v < 0) throw Error(ErrorKind::Corrupt, path + ": attribute " + name + " is negative");
@@ -416,6 +423,7 @@ void write_store(const FineMesh& mesh, const std::string& path,
       f.write_attr("uuid", new_store_uuid());
       f.write_attr("mode", std::string(mode_name(info.mode)));
       f.write_attr("source", info.source);
+      f.write_attr("source_order", static_cast<std::int64_t>(info.source_order));
       f.write_attr("coarse_vertices", info.coarse_vertices);
       f.write_attr("coarse_edges", info.coarse_edges);
       f.write_attr("coarse_faces", info.coarse_faces);

@@ -15,7 +15,9 @@
 //  - every vertex is used by at least one element (unused ones are dropped);
 //  - volume mode: every hex is right-handed (all 8 corner Jacobians > 0);
 //    a wholly left-handed file is reoriented with a warning;
-//  - element_block[e] indexes blocks.
+//  - element_block[e] indexes blocks;
+//  - second-order input: mid has mid_slots(mode) entries per element, each
+//    -1 or an index into mid_x/y/z (finite), and no mid node is a corner.
 // Cost: memory is O(coarse mesh); nothing here grows with the fine mesh.
 #include <cstdint>
 #include <memory>
@@ -65,6 +67,16 @@ struct CoarseMesh {
   // -1 where unknown (Exodus files, MSH 2.2 without it). Empty or sized V.
   std::vector<std::int8_t> vertex_geo_dim;
   std::vector<std::int32_t> vertex_geo_tag;
+  // Second-order input (HEX20/HEX27, QUAD8/QUAD9; orientation.hpp's mid-node
+  // slots): per element mid_slots(mode) entries, each the index of the node
+  // in that slot (into mid_x/y/z) or -1 where the element has none (a
+  // HEX20's faces and centre; every slot of a first-order element in a file
+  // that mixes both). The nodes after the corners, kept apart from the
+  // vertices: they shape the fine mesh (quadratic.hpp) but are no fine nodes.
+  // All empty for a first-order mesh.
+  std::vector<Id> mid;
+  std::vector<double> mid_x, mid_y, mid_z;
+  std::vector<Id> mid_file_id;        // node id in the file (messages)
   // Quirks accepted (reoriented, dropped nodes, skipped blocks): one sentence
   // each, WITHOUT the file path; whoever prints them prefixes `source`.
   std::vector<std::string> warnings;
@@ -79,6 +91,8 @@ struct CoarseMesh {
   Id num_vertices() const { return static_cast<Id>(x.size()); }
   Id num_elements() const { return static_cast<Id>(conn.size()) / corners_per_element(); }
   Vec3 vertex(Id v) const { return {x[v], y[v], z[v]}; }
+  bool second_order() const { return !mid.empty(); }
+  Vec3 mid_node(Id m) const { return {mid_x[m], mid_y[m], mid_z[m]}; }
 };
 
 // Reads an Exodus II (.e, .exo, .ex2, .g) or Gmsh MSH 1/2.2/4.1 file, chosen
@@ -98,6 +112,15 @@ CoarseMesh read_exodus(const std::string& path);
 // element, its index in `mesh`.
 CoarseMesh sfc_order(const CoarseMesh& mesh, std::vector<Id>* old_vertex_of_new = nullptr,
                      std::vector<Id>* old_element_of_new = nullptr, bool morton = true);
+
+// For readers of second-order files: `mid` holds, per element,
+// mid_slots(mode) indices into x/y/z (the file's nodes, as conn does) or -1.
+// Moves the nodes it names out of the vertex arrays into mid_x/y/z (each
+// once, however many elements share it), fills mesh.mid with indices into
+// those, and drops them from x/y/z and from node sets: x/y/z keep corners
+// only. Throws Error{BadInput} for an index out of range or a node that is
+// a corner of one element and a mid node of another, naming both.
+void take_mid_nodes(CoarseMesh& mesh, std::vector<Id> mid);
 
 // Checks the invariants above, drops unused vertices, reorients a wholly
 // left-handed mesh (warning) and refuses mixed handedness or an inverted hex.

@@ -101,6 +101,7 @@ struct FineBlock {
 struct MeshInfo {
   Mode mode = Mode::Volume;
   std::string source;                    // the coarse mesh file it was diced from
+  int source_order = 1;                  // 2: the file was second order (HEX20/27, QUAD8/9; quadratic.hpp)
   std::string uuid;                      // the store's identity (store/FORMAT.md); empty for a mesh diced here
   Id coarse_vertices = 0, coarse_edges = 0, coarse_faces = 0, coarse_elements = 0, sheets = 0;
   Id nodes = 0, elements = 0;            // fine counts
@@ -163,8 +164,9 @@ class FineMesh {
   // only their own planes: cursors use this to hold O(n^2), not O(n^3).
   void fill_slab(Id h, Id k0, Id k1, FineBlock& out, bool coords, bool conn) const;
 
-  // ---- Geometry-conforming dicing (geometry/conform.cpp drives these; they
-  // need the in-memory tables of a mesh diced in this process).
+  // ---- Geometry-conforming dicing (geometry/conform.cpp drives these, and
+  // dicer/quadratic.cpp the move_nodes of second-order input; they need the
+  // in-memory tables of a mesh diced in this process).
   // Moves coarse vertex v (snapped onto its CAD entity) and records its owner.
   // Only before any move_nodes.
   void set_vertex(Id v, const Vec3& x, int dim, int tag);
@@ -180,7 +182,8 @@ class FineMesh {
   void move_nodes(EntityKind kind, Id entity, std::span<const Vec3> xyz);
   // Flags the elements that touch moved nodes (their interiors read them).
   void finish_moves();
-  // Number of fine nodes moved onto the CAD (rows of the bounding arrays).
+  // Number of fine nodes moved (onto the CAD, or a second-order mesh's
+  // quadratic edges and faces): rows of the bounding arrays.
   Id num_bounding_nodes() const { return tables_.bounding.rows(); }
 
  private:

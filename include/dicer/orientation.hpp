@@ -97,6 +97,78 @@ constexpr int quad_edge_at(int axis, int other) {
   return -1;
 }
 
+// ---- Second-order elements (HEX20, HEX27; QUAD8, QUAD9) ----
+//
+// Mid-node slots: where an element's nodes beyond its corners sit, in
+// dicer's local numbering. Volume, 19 slots: 0..11 the mid-edge nodes of
+// local edges 0..11 (kHexEdge), 12..17 the mid-face nodes of local faces
+// 0..5 (kHexFace), 18 the centre. Surface, 5 slots: 0..3 the mid-edge nodes
+// of kQuadEdge, 4 the centre (the mid-face node of the quad's one face).
+inline constexpr int kHexMidSlots = 19, kQuadMidSlots = 5;
+constexpr int mid_slots(Mode mode) { return mode == Mode::Volume ? kHexMidSlots : kQuadMidSlots; }
+
+// The local edge joining corners a and b (either order), -1 if none.
+constexpr int hex_edge_between(int a, int b) {
+  for (int e = 0; e < 12; ++e)
+    if ((kHexEdge[e][0] == a && kHexEdge[e][1] == b) || (kHexEdge[e][0] == b && kHexEdge[e][1] == a)) return e;
+  return -1;
+}
+constexpr int quad_edge_between(int a, int b) {
+  for (int e = 0; e < 4; ++e)
+    if ((kQuadEdge[e][0] == a && kQuadEdge[e][1] == b) || (kQuadEdge[e][0] == b && kQuadEdge[e][1] == a)) return e;
+  return -1;
+}
+// The local hex face with corners c[0..3] (any order), -1 if none.
+constexpr int hex_face_with(const int (&c)[4]) {
+  for (int f = 0; f < 6; ++f) {
+    int found = 0;
+    for (int m = 0; m < 4; ++m)
+      for (int q = 0; q < 4; ++q) found += kHexFace[f][q] == c[m];
+    if (found == 4) return f;
+  }
+  return -1;
+}
+
+// How the file formats number the nodes after the corners, as the corners
+// each one lies between (their own documentation's tables; the tests check
+// them against Gmsh's getElementProperties and the Exodus library's side
+// node lists). Gmsh (MSH types 17 = HEX20, 12 = HEX27): nodes 8..19 on the
+// edges below, 20..25 (HEX27) on the faces below, 26 the centre.
+inline constexpr int kGmshHexMidEdge[12][2] = {{0, 1}, {0, 3}, {0, 4}, {1, 2}, {1, 5}, {2, 3},
+                                               {2, 6}, {3, 7}, {4, 5}, {4, 7}, {5, 6}, {6, 7}};
+inline constexpr int kGmshHexMidFace[6][4] = {{0, 1, 2, 3}, {0, 1, 5, 4}, {0, 3, 7, 4},
+                                              {1, 2, 6, 5}, {2, 3, 7, 6}, {4, 5, 6, 7}};
+// Exodus (HEX20, HEX27; PATRAN's order): nodes 8..19 on the edges below;
+// HEX27: node 20 the centre, 21..26 on the faces -z, +z, -x, +x, -y, +y.
+inline constexpr int kExodusHexMidEdge[12][2] = {{0, 1}, {1, 2}, {2, 3}, {3, 0}, {0, 4}, {1, 5},
+                                                 {2, 6}, {3, 7}, {4, 5}, {5, 6}, {6, 7}, {7, 4}};
+inline constexpr int kExodusHexMidFace[6][4] = {{0, 1, 2, 3}, {4, 5, 6, 7}, {0, 3, 7, 4},
+                                                {1, 2, 6, 5}, {0, 1, 5, 4}, {2, 3, 7, 6}};
+// Both formats (MSH 16 = QUAD8, 10 = QUAD9; Exodus QUAD8/9, SHELL8/9):
+// nodes 4..7 on the edges below, 8 the centre.
+inline constexpr int kQuadMidEdge[4][2] = {{0, 1}, {1, 2}, {2, 3}, {3, 0}};
+
+enum class NodeOrder { Gmsh, Exodus };
+
+// The mid-node slot of node k of a second-order element (k from the number
+// of corners up to 26 volume, 8 surface) as `order` numbers it; -1 for any
+// other k.
+constexpr int mid_slot(NodeOrder order, Mode mode, int k) {
+  if (mode == Mode::Surface) {
+    if (k >= 4 && k < 8) return quad_edge_between(kQuadMidEdge[k - 4][0], kQuadMidEdge[k - 4][1]);
+    return k == 8 ? 4 : -1;
+  }
+  const bool gmsh = order == NodeOrder::Gmsh;
+  if (k >= 8 && k < 20) {
+    const int* c = gmsh ? kGmshHexMidEdge[k - 8] : kExodusHexMidEdge[k - 8];
+    return hex_edge_between(c[0], c[1]);
+  }
+  const int face = gmsh ? k - 20 : k - 21, centre = gmsh ? 26 : 20;
+  if (k == centre) return 18;
+  if (face >= 0 && face < 6) return 12 + hex_face_with(gmsh ? kGmshHexMidFace[face] : kExodusHexMidFace[face]);
+  return -1;
+}
+
 // Corner neighbours along +i, +j, +k as seen from each hex corner, ordered so
 // that det(n0 - c, n1 - c, n2 - c) > 0 for a right-handed hex (Verdict's table).
 inline constexpr int kHexCornerNbr[8][3] = {{1, 3, 4}, {2, 0, 5}, {3, 1, 6}, {0, 2, 7},

@@ -39,5 +39,10 @@ struct QualityReport {
 // (all when select is empty). progress(done, total) in coarse elements.
 QualityReport check_quality(const FineMesh& mesh, const std::function<bool(Id)>& select = {},
                             const std::function<void(Id, Id)>& progress = {});
+// The elements moved nodes can invert: every fine element of the coarse
+// elements with moved nodes (ElementRow::curved; after finish_moves). What
+// dice --geometry and second-order input (quadratic.hpp) check before they
+// accept their moves.
+QualityReport check_moved_quality(const FineMesh& mesh, const std::function<void(Id, Id)>& progress = {});
 
 }  // namespace dicer

@@ -3,7 +3,7 @@
 // the coarse mesh tables (tables.hpp: vertices, edges, faces, elements,
 // which carry topology, orientation codes, intervals and numbering offsets),
 // blocks, side and node sets, sheets, geometric owners and the bounding
-// fine arrays (nodes moved onto the CAD, geometry.hpp). Layout: store/FORMAT.md; version kStoreFormatVersion.
+// fine arrays (nodes moved onto the CAD, geometry.hpp, or onto quadratic edges and faces, quadratic.hpp). Layout: store/FORMAT.md; version kStoreFormatVersion.
 //
 // Every dataset is chunked; a chunk is a page of whole rows, compressed with
 // HDF5 filter 32004 (LZ4) and checksummed with Fletcher32. read_store opens
@@ -63,7 +63,7 @@ struct StoreSummary {
   int format_version = 0;
   std::uint64_t file_bytes = 0;
   std::uint64_t bounding_bytes = 0;   // stored (compressed) bytes of geometry/bounding + its CRCs
-  std::int64_t bounding_nodes = 0;    // fine nodes moved onto the CAD
+  std::int64_t bounding_nodes = 0;    // fine nodes moved (CAD or second order)
 };
 StoreSummary store_summary(const std::string& path);
 

@@ -58,7 +58,8 @@ inline double hex_point(const HexRow& r, double u, double U, double f2, double f
          ((r.VW * e0 + r.vW * e1) + (r.Vw * e2 + r.vw * e3));
 }
 
-// Bounding fine arrays (nodes moved onto the CAD) are stored as corrections
+// Bounding fine arrays (nodes moved onto the CAD or onto a second-order
+// mesh's quadratic edges and faces) are stored as corrections
 // to this recipe: the difference between the bit patterns of the moved value
 // and of its TFI prediction (computed by the functions above from the already
 // moved edges), zigzag-coded so small corrections of either sign have zero

@@ -231,7 +231,12 @@ def dice(mesh, out, interval=None, sheet_intervals=None, block_intervals=None, s
     block > size > interval > 1; conflicts are reported as DicerWarning and
     kept in Store.notes.
 
-    geometry: a STEP or BREP model; the fine nodes then lie on it. dicer's
+    A second-order mesh (HEX20, HEX27, QUAD8, QUAD9) is diced on its
+    quadratic edges and faces, as the command does (info["source_order"]
+    is 2).
+
+    geometry: a STEP or BREP model; the fine nodes then lie on it (the CAD
+    wins over a second-order mesh's mid nodes). dicer's
     Python module does not link Gmsh (as the dicer command does not), so
     this runs `dicer-cad dice ...` (beside the dicer command, or $DICER_CAD)
     and opens what it wrote: the same bits as the command line.

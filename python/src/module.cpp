@@ -28,6 +28,7 @@
 #include "dicer/neighbors.hpp"
 #include "dicer/mpi.hpp"
 #include "dicer/partition.hpp"
+#include "dicer/quadratic.hpp"
 #include "dicer/store.hpp"
 #include "dicer/sweep.hpp"
 #include "dicer/batch.hpp"
@@ -91,6 +92,7 @@ py::dict info_dict(const Store& s) {
   py::dict d;
   d["mode"] = mode_name(m->mode());
   d["source"] = c.source;
+  d["source_order"] = c.source_order;
   d["format_version"] = sum.format_version;
   d["store_bytes"] = sum.file_bytes;
   d["coarse_vertices"] = c.coarse_vertices;
@@ -607,6 +609,7 @@ py::dict dice_to_store(const std::string& mesh_path, const std::string& out, std
     CoarseMesh mesh = read_coarse_mesh(mesh_path);
     warnings = mesh.warnings;
     FineMesh fine = FineMesh::dice(std::move(mesh), request, &notes);
+    apply_second_order(fine);  // as the CLI does without --geometry (quadratic.hpp)
     if (poll.poll()) throw Error(ErrorKind::Cancelled, "interrupted; nothing written to " + out);
     write_store(fine, out, [&](std::int64_t, std::int64_t) {
       // Thrown from the page callback: write_store removes its temporary.

@@ -227,18 +227,30 @@ TEST(BadExodus, TetraBlockIsUnsupported) {
   expect_error(path, ErrorKind::Unsupported, {"unsupported elements", "3 TETRA4 (block 2)", "HEX8"});
 }
 
-TEST(BadExodus, Hex20BlockIsUnsupported) {
+TEST(BadExodus, ThirdOrderHexBlockIsUnsupported) {
+  // HEX20 and HEX27 are read (tests/geometry/test_second_order.cpp); a
+  // 64-node hex is not.
   TempDir tmp;
-  const std::string path = tmp.path("hex20.e");
+  const std::string path = tmp.path("hex64.e");
   Fixture f = two_hexes();
   f.blocks[0].id = 5;
   f.blocks[0].type = "HEX";
-  f.blocks[0].nodes_per_element = 20;
+  f.blocks[0].nodes_per_element = 64;
   std::vector<std::int64_t> conn;
-  for (int i = 0; i < 20; ++i) conn.push_back(1 + i % 12);
-  f.blocks[0].conn = conn;  // one element with 20 nodes
+  for (int i = 0; i < 64; ++i) conn.push_back(1 + i % 12);
+  f.blocks[0].conn = conn;  // one element with 64 nodes
   write_exodus(path, f);
-  expect_error(path, ErrorKind::Unsupported, {"1 HEX with 20 nodes per element (block 5)"});
+  expect_error(path, ErrorKind::Unsupported, {"1 HEX with 64 nodes per element (block 5)"});
+}
+
+TEST(BadExodus, NodeCountThatContradictsTheTypeIsUnsupported) {
+  TempDir tmp;
+  const std::string path = tmp.path("hex20_of_8.e");
+  Fixture f = two_hexes();
+  f.blocks[0].id = 6;
+  f.blocks[0].type = "HEX20";  // but 8 nodes per element
+  write_exodus(path, f);
+  expect_error(path, ErrorKind::Unsupported, {"2 HEX20 with 8 nodes per element (block 6)"});
 }
 
 TEST(BadExodus, ConnectivityOutOfRangeIsBadInput) {

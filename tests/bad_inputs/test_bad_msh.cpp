@@ -238,7 +238,7 @@ TEST(BadMsh, TetrahedraAreListedByTypeAndCount) {
   const Outcome o = read_bytes(kHeader22 + kCubeNodes22 + elements);
   EXPECT_MSH_ERROR(o, ErrorKind::Unsupported, "2 tetrahedron (type 4)");
   EXPECT_THAT(o.message, HasSubstr("1 10-node tetrahedron (type 11)"));
-  EXPECT_THAT(o.message, HasSubstr("all-hex (type 5) or all-quad (type 3)"));
+  EXPECT_THAT(o.message, HasSubstr("all-hex (type 5; 17, 12 second order) or all-quad (type 3; 16, 10 second order)"));
   // Lower-dimensional elements are never the reason for a refusal.
   EXPECT_THAT(o.message, testing::Not(HasSubstr("triangle")));
 }
@@ -250,16 +250,17 @@ TEST(BadMsh, TrianglesInAQuadMesh41) {
   EXPECT_MSH_ERROR(read_bytes(text), ErrorKind::Unsupported, "2 triangle (type 2)");
 }
 
-TEST(BadMsh, SecondOrderHexInBinary41) {
-  // Unsupported types in binary are skipped by their known size and listed.
+TEST(BadMsh, ThirdOrderHexInBinary41) {
+  // Unsupported types in binary are skipped by their known size and listed
+  // (second-order hexes are read: tests/geometry/test_second_order.cpp).
   std::string s = tiny_binary41(false);
   const std::size_t block = s.find("$Elements\n") + 10 + 32;
-  const std::int32_t type27 = 12;
-  s.replace(block + 8, 4, reinterpret_cast<const char*>(&type27), 4);  // element type of the block
-  // The block now claims 27 nodes per element: make room for them.
+  const std::int32_t type64 = 92;
+  s.replace(block + 8, 4, reinterpret_cast<const char*>(&type64), 4);  // element type of the block
+  // The block now claims 64 nodes per element: make room for them.
   const std::size_t end = s.find("\n$EndElements");
-  s.insert(end, std::string(19 * 8, '\0'));
-  EXPECT_MSH_ERROR(read_bytes(s), ErrorKind::Unsupported, "1 27-node hexahedron (type 12)");
+  s.insert(end, std::string(56 * 8, '\0'));
+  EXPECT_MSH_ERROR(read_bytes(s), ErrorKind::Unsupported, "1 64-node hexahedron (type 92)");
 }
 
 TEST(BadMsh, NoHexNoQuad) {

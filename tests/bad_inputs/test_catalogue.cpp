@@ -9,8 +9,11 @@
 #include <gtest/gtest.h>
 #include <hdf5.h>
 
+#include <cmath>
 #include <filesystem>
 #include <functional>
+#include <map>
+#include <sstream>
 
 #include "lz4_filter.hpp"
 #include "store_forge.hpp"
@@ -57,6 +60,51 @@ const std::string& good_store() { return test::diced_store("cardinal_sphere.e", 
 
 std::string edited_store(const test::TempDir& d, const std::function<void(hid_t)>& edit) {
   return test::edited_copy(good_store(), d.path("bad.dice.h5"), edit);
+}
+
+// The two hexes as HEX20 (MSH type 17): nodes 1..12 the corners, then one
+// node per edge at its midpoint, in Gmsh's order (nodes 8..19 of an element
+// on its local corner pairs below, Gmsh's documentation). The cases edit
+// `nodes` (tag = index + 1) and `elements` before formatting.
+struct Hex20Pair {
+  std::vector<std::array<double, 3>> nodes;
+  std::vector<std::vector<int>> elements;  // 20 tags each
+  std::string text() const {
+    std::ostringstream s;
+    s.precision(17);
+    s << kHeader << "$Nodes\n" << nodes.size() << "\n";
+    for (size_t i = 0; i < nodes.size(); ++i) s << i + 1 << " " << nodes[i][0] << " " << nodes[i][1] << " " << nodes[i][2] << "\n";
+    s << "$EndNodes\n$Elements\n" << elements.size() << "\n";
+    for (size_t e = 0; e < elements.size(); ++e) {
+      s << e + 1 << " 17 2 1 1";
+      for (int t : elements[e]) s << " " << t;
+      s << "\n";
+    }
+    s << "$EndElements\n";
+    return s.str();
+  }
+};
+Hex20Pair hex20_pair() {
+  static const int kGmshEdges[12][2] = {{0, 1}, {0, 3}, {0, 4}, {1, 2}, {1, 5}, {2, 3},
+                                        {2, 6}, {3, 7}, {4, 5}, {4, 7}, {5, 6}, {6, 7}};
+  Hex20Pair p;
+  p.nodes = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 1}, {1, 0, 1},
+             {1, 1, 1}, {0, 1, 1}, {2, 0, 0}, {2, 1, 0}, {2, 0, 1}, {2, 1, 1}};
+  std::map<std::pair<int, int>, int> mid;
+  for (const std::vector<int>& corners : {std::vector<int>{1, 2, 3, 4, 5, 6, 7, 8}, {2, 9, 10, 3, 6, 11, 12, 7}}) {
+    std::vector<int> e = corners;
+    for (const auto& pair : kGmshEdges) {
+      const int a = corners[pair[0]], b = corners[pair[1]];
+      auto [it, fresh] = mid.emplace(std::minmax(a, b), static_cast<int>(p.nodes.size()) + 1);
+      if (fresh) {
+        const auto &pa = p.nodes[a - 1], &pb = p.nodes[b - 1];
+        p.nodes.push_back({0.5 * (pa[0] + pb[0]), 0.5 * (pa[1] + pb[1]), 0.5 * (pa[2] + pb[2])});
+      }
+      e.push_back(it->second);
+    }
+    p.elements.push_back(e);
+  }
+  return p;
 }
 
 // An Exodus file with one block of `type` and `nodes_per` nodes per element.
@@ -123,6 +171,70 @@ std::vector<Case> catalogue() {
                                           "13 0.5 0 0\n14 0.5 1 0\n15 0.5 0 1\n16 0.5 1 1\n$EndNodes"),
                                   kHex1 + kHex2 + "3 5 2 1 1 13 2 3 14 15 6 7 16\n", 3)),
                 3, "non-manifold face"),
+      // ---- second order (HEX20): mid nodes are checked like corners
+      mesh_case("msh HEX20 mid node missing",
+                [](const test::TempDir& d) {
+                  Hex20Pair p = hex20_pair();
+                  p.elements[1][13] = 99;
+                  return text_file(d, "a.msh", p.text());
+                },
+                3, "element 2 references node tag 99, which is not in $Nodes"),
+      mesh_case("msh HEX20 mid node not finite",
+                [](const test::TempDir& d) {
+                  Hex20Pair p = hex20_pair();
+                  p.nodes[p.elements[1][19] - 1][1] = std::nan("");
+                  return text_file(d, "a.msh", p.text());
+                },
+                3, "not a finite number"),
+      mesh_case("msh HEX20 mid node that is a corner",
+                [](const test::TempDir& d) {
+                  Hex20Pair p = hex20_pair();
+                  p.elements[1][19] = 1;
+                  return text_file(d, "a.msh", p.text());
+                },
+                3, "node 1 is a corner of element 1 and a mid node of element 2"),
+      mesh_case("msh HEX20 pair disagreeing on a shared edge's mid node",
+                [](const test::TempDir& d) {
+                  Hex20Pair p = hex20_pair();
+                  // Element 2's local edge 0-3 (Gmsh node 9) is the shared edge 2-3.
+                  p.nodes.push_back({1.05, 0.5, 0});
+                  p.elements[1][9] = static_cast<int>(p.nodes.size());
+                  return text_file(d, "a.msh", p.text());
+                },
+                3, "disagree on the mid node of their common edge"),
+      mesh_case("msh HEX20 mid node that inverts fine elements",
+                [](const test::TempDir& d) {
+                  Hex20Pair p = hex20_pair();
+                  p.nodes[p.elements[1][18] - 1][0] = 0.6;  // element 2's edge 5-6, at x = 2, bent to x = 0.6
+                  return text_file(d, "a.msh", p.text());
+                },
+                7, "the second-order geometry of element 2 (block 1) would invert"),
+      mesh_case("exodus HEX20 mid node out of range",
+                [](const test::TempDir& d) {
+                  const std::string path = d.path("bad.exo");
+                  const Hex20Pair p = hex20_pair();
+                  static const int kGmshToExodus[12] = {8, 11, 12, 9, 13, 10, 14, 15, 16, 19, 17, 18};
+                  int cpu = 8, io = 8;
+                  const int id = ex_create(path.c_str(), EX_CLOBBER, &cpu, &io);
+                  const int nn = static_cast<int>(p.nodes.size());
+                  ex_put_init(id, "bad", 3, nn, 2, 1, 0, 0);
+                  std::vector<double> x, y, z;
+                  for (const auto& n : p.nodes) x.push_back(n[0]), y.push_back(n[1]), z.push_back(n[2]);
+                  ex_put_coord(id, x.data(), y.data(), z.data());
+                  ex_put_block(id, EX_ELEM_BLOCK, 1, "HEX20", 2, 20, 0, 0, 0);
+                  std::vector<int> conn;
+                  for (const auto& e : p.elements) {
+                    std::vector<int> ex(e.begin(), e.begin() + 8);
+                    ex.resize(20);
+                    for (int k = 0; k < 12; ++k) ex[kGmshToExodus[k]] = e[8 + k];
+                    conn.insert(conn.end(), ex.begin(), ex.end());
+                  }
+                  conn[20 + 17] = 999;
+                  ex_put_conn(id, EX_ELEM_BLOCK, 1, conn.data(), nullptr, nullptr);
+                  ex_close(id);
+                  return path;
+                },
+                3, "element block 1: element 2 references node 999"),
       // ---- Exodus
       mesh_case("exodus truncated",
                 [](const test::TempDir& d) {
@@ -132,8 +244,8 @@ std::vector<Case> catalogue() {
                 3, "cut.e"),
       mesh_case("exodus corrupt netCDF", text("bad.e", std::string("CDF\x01", 4) + std::string(200, '\x7f')), 3, "bad.e"),
       mesh_case("exodus tetra block", [](const test::TempDir& d) { return exodus_block(d, "TETRA4", 4); }, 4, "TETRA"),
-      mesh_case("exodus HEX block with 20 nodes", [](const test::TempDir& d) { return exodus_block(d, "HEX", 20); }, 4,
-                "20"),
+      mesh_case("exodus HEX block with 64 nodes", [](const test::TempDir& d) { return exodus_block(d, "HEX", 64); }, 4,
+                "64"),
       mesh_case("missing input file", [](const test::TempDir& d) { return d.path("nope.exo"); }, 5, "nope.exo"),
       // ---- the store
       Case{"store that is not HDF5", text("x.dice.h5", "not a store"), {"info", "IN"}, 3, "not an HDF5 file"},
@@ -286,6 +398,16 @@ std::vector<Case> catalogue() {
              });
            },
            {"info", "IN"}, 8, "fine_elements"},
+      Case{"store whose source order is neither 1 nor 2",
+           [](const test::TempDir& d) {
+             return edited_store(d, [](hid_t f) {
+               const hid_t a = H5Aopen(f, "source_order", H5P_DEFAULT);
+               const std::int64_t v = 3;
+               H5Awrite(a, H5T_NATIVE_INT64, &v);
+               H5Aclose(a);
+             });
+           },
+           {"info", "IN"}, 8, "source_order is 3"},
       Case{"store table replaced by a link to another file",
            [](const test::TempDir& d) {
              return edited_store(d, [](hid_t f) {
@@ -362,5 +484,15 @@ INSTANTIATE_TEST_SUITE_P(BadInputs, Catalogue, ::testing::Range<size_t>(0, catal
                              if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
                            return s;
                          });
+
+// The HEX20 fixture the second-order cases break is itself fine.
+TEST(CatalogueFixtures, Hex20PairDices) {
+  test::TempDir d;
+  test::write_file(d.path("ok.msh"), hex20_pair().text());
+  const auto r = test::run_cli({"dice", d.path("ok.msh"), "--interval", "2", "-o", d.path("ok.dice.h5")});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err, "");
+  EXPECT_NE(r.out.find("second order"), std::string::npos) << r.out;
+}
 
 TEST(CatalogueSize, HasAtLeastFortyCases) { EXPECT_GE(catalogue().size(), 40u); }

@@ -542,3 +542,53 @@ TEST(ReadExodus, TheIsolatedReadersStreamRoundTripsAndRefusesTruncation) {
   }
   EXPECT_THROW(dicer::unpack_mesh(bytes + "x", "a.e"), dicer::Error);
 }
+
+// Second order (tests/geometry/test_second_order.cpp dices real ones): a
+// HEX8 block and a HEX20 block in one file. The HEX20's nodes after its
+// corners, in Exodus's order, are its mid nodes; the HEX8 has none; the
+// mid nodes leave the vertices and the node sets.
+TEST(ReadExodus, MixedHex8AndHex20BlocksKeepTheMidNodesApart) {
+  TempDir tmp;
+  const std::string path = tmp.path("mixed.e");
+  Fixture f = two_hexes();
+  const std::vector<std::int64_t> corners(f.blocks[0].conn.begin() + 8, f.blocks[0].conn.end());
+  f.blocks[0].conn.resize(8);
+  // Exodus HEX20: nodes 8..19 between these corners (the Exodus manual).
+  const int edges[12][2] = {{0, 1}, {1, 2}, {2, 3}, {3, 0}, {0, 4}, {1, 5}, {2, 6}, {3, 7}, {4, 5}, {5, 6}, {6, 7}, {7, 4}};
+  FixtureBlock quadratic = block_of(2, "HEX20", 20, corners);
+  std::vector<std::array<double, 3>> want;
+  for (const auto& e : edges) {
+    const std::int64_t a = corners[e[0]] - 1, b = corners[e[1]] - 1;
+    want.push_back({0.5 * (f.x[a] + f.x[b]), 0.5 * (f.y[a] + f.y[b]) + 0.01, 0.5 * (f.z[a] + f.z[b])});
+    f.x.push_back(want.back()[0]), f.y.push_back(want.back()[1]), f.z.push_back(want.back()[2]);
+    quadratic.conn.push_back(static_cast<std::int64_t>(f.x.size()));
+  }
+  f.blocks.push_back(quadratic);
+  f.node_sets.push_back({4, {1, 13, 24}});  // a corner and two mid nodes
+  write_exodus(path, f);
+  const CoarseMesh m = dicer::read_coarse_mesh(path);
+  ASSERT_TRUE(m.second_order());
+  EXPECT_EQ(m.num_vertices(), 12);
+  ASSERT_EQ(m.mid.size(), 2u * dicer::kHexMidSlots);
+  ASSERT_EQ(m.mid_x.size(), 12u);
+  ASSERT_EQ(m.node_sets.size(), 1u);
+  EXPECT_EQ(m.node_sets[0].vertex.size(), 1u);
+  // Which element is the HEX20: the one of block 2 (index 1).
+  for (Id e = 0; e < 2; ++e) {
+    const bool hex20 = m.blocks[m.element_block[e]].id == 2;
+    for (int s = 0; s < dicer::kHexMidSlots; ++s) {
+      const Id q = m.mid[static_cast<size_t>(e) * dicer::kHexMidSlots + s];
+      if (!hex20 || s >= 12) {
+        EXPECT_EQ(q, -1) << "element " << e << " slot " << s;
+        continue;
+      }
+      ASSERT_GE(q, 0);
+      // Slot s is dicer's local edge s: its mid node sits between its corners (+0.01 in y).
+      const dicer::Vec3 a = m.vertex(m.conn[8 * e + dicer::kHexEdge[s][0]]), b = m.vertex(m.conn[8 * e + dicer::kHexEdge[s][1]]);
+      EXPECT_DOUBLE_EQ(m.mid_x[q], 0.5 * (a.x + b.x)) << s;
+      EXPECT_DOUBLE_EQ(m.mid_y[q], 0.5 * (a.y + b.y) + 0.01) << s;
+      EXPECT_DOUBLE_EQ(m.mid_z[q], 0.5 * (a.z + b.z)) << s;
+      EXPECT_GE(m.mid_file_id[q], 13);
+    }
+  }
+}

@@ -723,7 +723,7 @@ TEST(ReadMsh, LowerDimensionalElementsOfAHexMeshAreSkippedWithOneWarning) {
                            "2 5 2 1 1 50 60 70 80 90 100 110 120\n"
                            "3 2 2 7 4 10 20 30\n"         // triangles in physical surface 7
                            "4 2 2 7 4 10 30 40\n"
-                           "5 8 2 0 9 10 20 30\n"         // a 3-node line in no group (entity 9)
+                           "5 8 2 0 9 10 20 30\n"         // a 3-node line in no group: classification only
                            "6 1 2 12 5 90 100\n"          // a line in physical curve 12
                            "7 3 2 7 4 10 40 30 20\n"      // a quad of the same group: a side
                            "$EndElements\n";
@@ -738,18 +738,74 @@ TEST(ReadMsh, LowerDimensionalElementsOfAHexMeshAreSkippedWithOneWarning) {
   const std::string& w = m.warnings[0];
   EXPECT_THAT(w, HasSubstr("lower dimension than the hexahedra"));
   EXPECT_THAT(w, HasSubstr("2 triangle (type 2) in physical group 7 \"skin\""));
-  EXPECT_THAT(w, HasSubstr("1 3-node line (type 8) in entity 9"));
+  EXPECT_THAT(w, testing::Not(HasSubstr("type 8")));
   EXPECT_THAT(w, HasSubstr("1 line (type 1) in physical group 12 \"beam\""));
 }
 
-TEST(ReadMsh, SecondOrderLinesOfAQuadMeshAreSkippedIn41) {
+TEST(ReadMsh, SecondOrderLinesOfAQuadMeshAreBoundaryLinesIn41) {
+  // A 3-node line (type 8) is a line: its ends are its corners, its middle
+  // node must exist and is not kept; in no physical group it is only the
+  // classification of its nodes, as a 2-node line, so no warning.
   const std::string text = std::string("$MeshFormat\n4.1 0 8\n$EndMeshFormat\n") +
                            "$Nodes\n1 5 1 5\n2 1 0 5\n1\n2\n3\n4\n5\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n0.5 0 0\n$EndNodes\n"
                            "$Elements\n2 2 1 2\n2 1 3 1\n1 1 2 3 4\n1 3 8 1\n2 1 2 5\n$EndElements\n";
   const CoarseMesh m = read_text(text);
   EXPECT_EQ(m.mode, Mode::Surface);
   EXPECT_EQ(m.num_elements(), 1);
-  ASSERT_EQ(m.warnings.size(), 1u);
-  EXPECT_THAT(m.warnings[0], HasSubstr("lower dimension than the quadrangles"));
-  EXPECT_THAT(m.warnings[0], HasSubstr("1 3-node line (type 8) in entity 3"));
+  EXPECT_TRUE(m.warnings.empty()) << m.warnings[0];
+  EXPECT_FALSE(m.second_order());  // a line's middle node is no mid node of the quad
+}
+
+// Second order (tests/geometry/test_second_order.cpp dices real ones): a
+// HEX20 (type 17) and a hex (type 5) in either order; the HEX20's nodes
+// after its corners, in Gmsh's order, are its mid nodes, the hex has none.
+TEST(ReadMsh, MixedFirstAndSecondOrderHexesIn22) {
+  // Gmsh's HEX20: nodes 8..19 between these corners (Gmsh's documentation).
+  const int edges[12][2] = {{0, 1}, {0, 3}, {0, 4}, {1, 2}, {1, 5}, {2, 3}, {2, 6}, {3, 7}, {4, 5}, {4, 7}, {5, 6}, {6, 7}};
+  const double xyz[12][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 1}, {1, 0, 1},
+                             {1, 1, 1}, {0, 1, 1}, {2, 0, 0}, {2, 1, 0}, {2, 0, 1}, {2, 1, 1}};
+  const int hex1[8] = {1, 2, 3, 4, 5, 6, 7, 8}, hex2[8] = {2, 9, 10, 3, 6, 11, 12, 7};
+  for (const bool quadratic_first : {true, false}) {
+    SCOPED_TRACE(quadratic_first ? "HEX20 first" : "HEX8 first");
+    std::string nodes, elements;
+    int count = 12;
+    for (int v = 0; v < 12; ++v)
+      nodes += std::to_string(v + 1) + " " + std::to_string(xyz[v][0]) + " " + std::to_string(xyz[v][1]) + " " +
+               std::to_string(xyz[v][2]) + "\n";
+    const int* q = quadratic_first ? hex1 : hex2;
+    std::string hex20 = "1 17 2 1 1";
+    for (int c = 0; c < 8; ++c) hex20 += " " + std::to_string(q[c]);
+    for (const auto& e : edges) {
+      const int a = q[e[0]] - 1, b = q[e[1]] - 1;
+      nodes += std::to_string(++count) + " " + std::to_string(0.5 * (xyz[a][0] + xyz[b][0])) + " " +
+               std::to_string(0.5 * (xyz[a][1] + xyz[b][1])) + " " + std::to_string(0.5 * (xyz[a][2] + xyz[b][2]) + 0.125) +
+               "\n";
+      hex20 += " " + std::to_string(count);
+    }
+    std::string hex8 = "2 5 2 1 1";
+    for (int c = 0; c < 8; ++c) hex8 += " " + std::to_string((quadratic_first ? hex2 : hex1)[c]);
+    elements = quadratic_first ? hex20 + "\n" + hex8 + "\n" : hex8 + "\n" + hex20 + "\n";
+    const CoarseMesh m = read_text("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n" + std::to_string(count) + "\n" +
+                                   nodes + "$EndNodes\n$Elements\n2\n" + elements + "$EndElements\n");
+    ASSERT_TRUE(m.second_order());
+    EXPECT_EQ(m.num_vertices(), 12);
+    ASSERT_EQ(m.mid.size(), 2u * dicer::kHexMidSlots);
+    ASSERT_EQ(m.mid_x.size(), 12u);
+    for (Id e = 0; e < 2; ++e) {
+      const bool is20 = m.element_file_id[e] == 1;
+      for (int s = 0; s < dicer::kHexMidSlots; ++s) {
+        const Id k = m.mid[static_cast<size_t>(e) * dicer::kHexMidSlots + s];
+        if (!is20 || s >= 12) {
+          EXPECT_EQ(k, -1) << "element " << e << " slot " << s;
+          continue;
+        }
+        ASSERT_GE(k, 0);
+        // Slot s is dicer's local edge s: its mid node sits between its corners (+0.125 in z).
+        const auto a = m.vertex(m.conn[8 * e + dicer::kHexEdge[s][0]]), b = m.vertex(m.conn[8 * e + dicer::kHexEdge[s][1]]);
+        EXPECT_DOUBLE_EQ(m.mid_x[k], 0.5 * (a.x + b.x)) << s;
+        EXPECT_DOUBLE_EQ(m.mid_y[k], 0.5 * (a.y + b.y)) << s;
+        EXPECT_DOUBLE_EQ(m.mid_z[k], 0.5 * (a.z + b.z) + 0.125) << s;
+      }
+    }
+  }
 }

@@ -1,0 +1,66 @@
+// See access_paths.hpp.
+#include "access_paths.hpp"
+
+#include <gtest/gtest.h>
+
+#include <bit>
+#include <cstdint>
+#include <vector>
+
+#include "dicer/batch.hpp"
+#include "dicer/store.hpp"
+#include "dicer/sweep.hpp"
+#include "dicer/verify.hpp"
+
+namespace dicer::test {
+namespace {
+
+bool same_bits(const Vec3& a, const Vec3& b) {
+  return std::bit_cast<std::uint64_t>(a.x) == std::bit_cast<std::uint64_t>(b.x) &&
+         std::bit_cast<std::uint64_t>(a.y) == std::bit_cast<std::uint64_t>(b.y) &&
+         std::bit_cast<std::uint64_t>(a.z) == std::bit_cast<std::uint64_t>(b.z);
+}
+
+}  // namespace
+
+void expect_paths_bit_identical(const FineMesh& f, const std::string& store_path) {
+  std::vector<Vec3> by_id(static_cast<size_t>(f.num_nodes()));
+  for (Id id = 0; id < f.num_nodes(); ++id) by_id[id] = f.node(id);
+  for (const Id slab : {Id{1}, kCursorSlabPoints}) {
+    NodeCursor c(f, 0, f.num_nodes(), slab);
+    Id id, seen = 0;
+    Vec3 p;
+    while (c.next(id, p)) {
+      ASSERT_TRUE(same_bits(p, by_id[id])) << "cursor, node " << id << " slab " << slab;
+      ++seen;
+    }
+    EXPECT_EQ(seen, f.num_nodes());
+  }
+  FineBlock b;
+  for (Id h = 0; h < f.num_coarse_elements(); ++h) {
+    f.fill_block(h, b);
+    for (Id g = 0; g < b.num_points(); ++g)
+      ASSERT_TRUE(same_bits({b.x[g], b.y[g], b.z[g]}, by_id[b.node_id[g]])) << "block " << h << " point " << g;
+  }
+  BatchCursor batches(f);
+  Id batched = 0;
+  for (FineBatch fb; batches.next(fb);)
+    for (Id q = 0; q < fb.num_nodes(); ++q, ++batched)
+      ASSERT_TRUE(same_bits({fb.x[q], fb.y[q], fb.z[q]}, by_id[fb.node_begin + q])) << "batch node " << fb.node_begin + q;
+  EXPECT_EQ(batched, f.num_nodes());
+
+  write_store(f, store_path);
+  const FineMesh s = read_store(store_path, StoreOptions{4ull << 20, 0});
+  EXPECT_EQ(s.num_bounding_nodes(), f.num_bounding_nodes());
+  EXPECT_EQ(s.info().source_order, f.info().source_order);
+  for (Id id = 0; id < s.num_nodes(); ++id) ASSERT_TRUE(same_bits(s.node(id), by_id[id])) << "store node " << id;
+  NodeCursor sc(s);
+  Id id;
+  Vec3 p;
+  while (sc.next(id, p)) ASSERT_TRUE(same_bits(p, by_id[id])) << "store cursor node " << id;
+  EXPECT_EQ(sweep(s, 2).checksum, sweep(f, 1).checksum);
+  const VerifyReport vr = verify(s);
+  EXPECT_TRUE(vr.ok()) << (vr.problems.empty() ? std::string() : vr.problems.front());
+}
+
+}  // namespace dicer::test

@@ -1,0 +1,15 @@
+#pragma once
+// One check of DESIGN invariant 2 for any mesh diced in the test: every
+// access path gives the same bits for every node id (gtest assertions).
+#include <string>
+
+#include "dicer/fine_mesh.hpp"
+
+namespace dicer::test {
+
+// node(id), the node cursor (one-plane and whole-block slabs), the block
+// fill, the batches, and the store written to `store_path` and read back
+// (node(id), its cursor, the sweep checksum, verify): the same bits.
+void expect_paths_bit_identical(const FineMesh& mesh, const std::string& store_path);
+
+}  // namespace dicer::test
