@@ -447,15 +447,25 @@ void ChunkStream::elements(const ElementPass& pass, const std::function<void(con
       if (pass.global_conn) {
         out.conn = batch.conn.data();
       } else {
+        // Own nodes map by an offset (a loop without branches); the few
+        // ghosts are looked up afterwards.
         local.resize(batch.conn.size());
+        const Id shift = ng - own0, own_end = range_.node_end;
+        bool ghosts = false;
         for (size_t q = 0; q < local.size(); ++q) {
           const Id id = batch.conn[q];
-          const Id l = id >= own0 && id < range_.node_end ? ng + (id - own0) : local_of(id);
-          if (l < 0)
-            throw Error(ErrorKind::Corrupt, where() + ": element " + std::to_string(global[q / batch.corners]) +
-                                                " uses node " + std::to_string(id) + ", which its chunk does not hold");
-          local[q] = l;
+          local[q] = id + shift;
+          ghosts |= (id < own0) | (id >= own_end);
         }
+        if (ghosts)
+          for (size_t q = 0; q < local.size(); ++q) {
+            const Id id = batch.conn[q];
+            if (id >= own0 && id < own_end) continue;
+            local[q] = local_of(id);
+            if (local[q] < 0)
+              throw Error(ErrorKind::Corrupt, where() + ": element " + std::to_string(global[q / batch.corners]) +
+                                                  " uses node " + std::to_string(id) + ", which its chunk does not hold");
+          }
         out.conn = local.data();
       }
       fn(out);

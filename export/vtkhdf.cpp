@@ -112,7 +112,10 @@ struct VtkHdfWriter::Impl {
     hsize_t dims[2] = {0, width}, maxdims[2] = {H5S_UNLIMITED, width}, chunk[2] = {chunk_rows, width};
     Hid space(H5Screate_simple(rank, dims, maxdims), H5Sclose);
     Hid dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
-    if (!space || !dcpl || H5Pset_chunk(dcpl.get(), rank, chunk) < 0) io(d.name + ": cannot set up dataset");
+    // Every row is written, so HDF5 need not fill new chunks first.
+    if (!space || !dcpl || H5Pset_chunk(dcpl.get(), rank, chunk) < 0 ||
+        H5Pset_fill_time(dcpl.get(), H5D_FILL_TIME_NEVER) < 0)
+      io(d.name + ": cannot set up dataset");
     if (deflate > 0 && (H5Zfilter_avail(H5Z_FILTER_DEFLATE) <= 0 || H5Pset_shuffle(dcpl.get()) < 0 ||
                         H5Pset_deflate(dcpl.get(), static_cast<unsigned>(deflate)) < 0))
       io(d.name + ": cannot set up shuffle + deflate");
@@ -298,16 +301,20 @@ struct VtkHdfWriter::Impl {
     {
       const Region pts = reserve(points, static_cast<hsize_t>(nn), kSliceRows);
       const Region gid = reserve(global_node_id, static_cast<hsize_t>(nn), kSliceRows);
-      std::vector<double> xyz;
+      std::vector<double> xyz(3 * kSliceRows);  // the first 3 * ids.size() are filled
       std::vector<std::int64_t> ids;
-      xyz.reserve(3 * kSliceRows), ids.reserve(kSliceRows);
+      ids.reserve(kSliceRows);
       const hsize_t done = stream(
           lock, pts.slices,
           [&](auto&& emit) {
             c.nodes({true, -1}, [&](const NodeSpan& span) {
-              for (Id q = 0; q < span.count; ++q) {
-                xyz.insert(xyz.end(), {span.x[q], span.y[q], span.z[q]});
-                ids.push_back(span.global[q]);
+              for (Id q = 0; q < span.count;) {  // whole slices at a time
+                const Id n = std::min<Id>(span.count - q, static_cast<Id>(kSliceRows - ids.size()));
+                const size_t at = 3 * ids.size();
+                for (Id i = 0; i < n; ++i)
+                  xyz[at + 3 * i] = span.x[q + i], xyz[at + 3 * i + 1] = span.y[q + i], xyz[at + 3 * i + 2] = span.z[q + i];
+                ids.insert(ids.end(), span.global + q, span.global + q + n);
+                q += n;
                 if (ids.size() == kSliceRows) emit();
               }
             });
@@ -317,7 +324,7 @@ struct VtkHdfWriter::Impl {
             const hsize_t n = ids.size();
             if (first + n > pts.rows) throw Error(ErrorKind::Usage, path + ": " + part + ": more nodes than counted");
             put(pts, first, n, xyz.data()), put(gid, first, n, ids.data());
-            xyz.clear(), ids.clear();
+            ids.clear();
             return n;
           });
       if (done != static_cast<hsize_t>(nn)) throw Error(ErrorKind::Usage, path + ": " + part + ": fewer nodes than counted");
@@ -338,15 +345,18 @@ struct VtkHdfWriter::Impl {
           [&](auto&& emit) {
             c.elements({-1, false}, [&](const ElementSpan& span) {
               const std::int64_t block = blocks.at(static_cast<size_t>(span.block)).id;
-              for (Id e = 0; e < span.count; ++e) {
-                for (int q = 0; q < corners; ++q) {
-                  const Id l = span.conn[e * corners + q];
-                  if (l < 0 || l >= nn)
-                    throw Error(ErrorKind::Usage, path + ": " + part + ": local node id " + std::to_string(l) +
-                                                      " out of range");
-                  conn.push_back(l);
-                }
-                eid.push_back(span.global[e]), bid.push_back(block);
+              Id lo = nn, hi = -1;
+              for (Id q = 0; q < span.count * corners; ++q)
+                lo = std::min(lo, span.conn[q]), hi = std::max(hi, span.conn[q]);
+              if (span.count > 0 && (lo < 0 || hi >= nn))
+                throw Error(ErrorKind::Usage, path + ": " + part + ": local node id " + std::to_string(lo < 0 ? lo : hi) +
+                                                  " out of range");
+              for (Id e = 0; e < span.count;) {  // whole slices at a time
+                const Id n = std::min<Id>(span.count - e, static_cast<Id>(slice - eid.size()));
+                conn.insert(conn.end(), span.conn + e * corners, span.conn + (e + n) * corners);
+                eid.insert(eid.end(), span.global + e, span.global + e + n);
+                bid.insert(bid.end(), static_cast<size_t>(n), block);
+                e += n;
                 if (eid.size() == slice) emit();
               }
             });
