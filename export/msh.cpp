@@ -319,6 +319,9 @@ void write_body(const ChunkSource& c, Out& o) {
   std::vector<SideElements> side(sets.size());
   bool any_side = false;
   for (const auto& s : sets) any_side |= !s.element.empty();
+  // Passes with coordinates or connectivity: the side elements', the boxes'
+  // (ASCII), the coordinates', the elements'.
+  c.expect_passes(2 + (any_side ? 1 : 0) + (o.binary() ? 0 : 1));
   if (any_side) {
     std::vector<std::size_t> at(sets.size(), 0);
     c.elements({-1, true}, [&](const ElementSpan& span) {
@@ -382,12 +385,9 @@ void write_body(const ChunkSource& c, Out& o) {
           sents[corner_set[next_corner].second].box.add(span.x[q], span.y[q], span.z[q]);
   };
   if (!o.binary()) {
-    c.expect_passes(3);
     c.nodes({true, -1}, add_boxes);
     for (auto& v : vents) v.box.finish();
     for (auto& v : sents) v.box.finish();
-  } else {
-    c.expect_passes(2);
   }
 
   // $MeshFormat.

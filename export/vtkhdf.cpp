@@ -91,6 +91,8 @@ struct VtkHdfWriter::Impl {
 
   int write_errno = 0;  // the first failed write (h5::create_file_id)
   bool agreed = false;  // collective: the ranks have agreed on a failure (every one throws it)
+  bool created = false;  // the datasets (create_datasets)
+  Hid point_data, cell_data;
 
   [[noreturn]] void io(const std::string& what) const {
     const std::string reason = write_errno ? std::strerror(write_errno) : h5::error_reason();
@@ -104,11 +106,13 @@ struct VtkHdfWriter::Impl {
   }
 
   template <class T>
-  void create(Dataset& d, hid_t parent, const char* name, hsize_t width) {
+  void create(Dataset& d, hid_t parent, const char* name, hsize_t width, hsize_t rows_hint) {
     d.name = name;
     d.width = width;
     const int rank = width > 1 ? 2 : 1;
-    const hsize_t chunk_rows = std::max<hsize_t>(1, kChunkBytes / (width * sizeof(T)));
+    // kChunkBytes, or less for a small first partition (an uncompressed
+    // chunk is stored whole: a tiny mesh would otherwise take MiBs).
+    const hsize_t chunk_rows = std::clamp<hsize_t>(rows_hint, 1, std::max<hsize_t>(1, kChunkBytes / (width * sizeof(T))));
     hsize_t dims[2] = {0, width}, maxdims[2] = {H5S_UNLIMITED, width}, chunk[2] = {chunk_rows, width};
     Hid space(H5Screate_simple(rank, dims, maxdims), H5Sclose);
     Hid dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
@@ -247,23 +251,37 @@ struct VtkHdfWriter::Impl {
       Hid attr(H5Acreate2(root.get(), "Type", type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
       if (!attr || H5Awrite(attr.get(), type.get(), kType) < 0) io("cannot write attribute Type");
     }
-    Hid point_data = group(root.get(), "PointData"), cell_data = group(root.get(), "CellData");
-    create<std::int64_t>(number_of_points, root.get(), "NumberOfPoints", 1);
-    create<std::int64_t>(number_of_cells, root.get(), "NumberOfCells", 1);
-    create<std::int64_t>(number_of_connectivity_ids, root.get(), "NumberOfConnectivityIds", 1);
-    create<double>(points, root.get(), "Points", 3);
-    create<std::uint8_t>(types, root.get(), "Types", 1);
-    create<std::int64_t>(connectivity, root.get(), "Connectivity", 1);
-    create<std::int64_t>(offsets, root.get(), "Offsets", 1);
-    create<std::int64_t>(global_node_id, point_data.get(), "GlobalNodeId", 1);
-    create<std::int64_t>(global_element_id, cell_data.get(), "GlobalElementId", 1);
-    create<std::int64_t>(block_id, cell_data.get(), "BlockId", 1);
+    point_data = group(root.get(), "PointData"), cell_data = group(root.get(), "CellData");
+  }
+
+  // The datasets, at the first partition: chunks sized for it (collectively
+  // for the largest rank's, the same on every rank).
+  void create_datasets(const ChunkSource& c) {
+    std::int64_t nodes = c.num_nodes(), cells = c.num_elements();
+    if (par) {
+      for (std::int64_t v : par->allgather(nodes)) nodes = std::max(nodes, v);
+      for (std::int64_t v : par->allgather(cells)) cells = std::max(cells, v);
+    }
+    const auto nn = static_cast<hsize_t>(nodes), ne = static_cast<hsize_t>(cells);
+    const auto corners = static_cast<hsize_t>(c.corners()), parts = static_cast<hsize_t>(partitions);
+    create<std::int64_t>(number_of_points, root.get(), "NumberOfPoints", 1, parts);
+    create<std::int64_t>(number_of_cells, root.get(), "NumberOfCells", 1, parts);
+    create<std::int64_t>(number_of_connectivity_ids, root.get(), "NumberOfConnectivityIds", 1, parts);
+    create<double>(points, root.get(), "Points", 3, nn);
+    create<std::uint8_t>(types, root.get(), "Types", 1, ne);
+    create<std::int64_t>(connectivity, root.get(), "Connectivity", 1, ne * corners);
+    create<std::int64_t>(offsets, root.get(), "Offsets", 1, ne + 1);
+    create<std::int64_t>(global_node_id, point_data.get(), "GlobalNodeId", 1, nn);
+    create<std::int64_t>(global_element_id, cell_data.get(), "GlobalElementId", 1, ne);
+    create<std::int64_t>(block_id, cell_data.get(), "BlockId", 1, ne);
+    created = true;
   }
 
   void close_all() {
     for (Dataset* d : {&number_of_points, &number_of_cells, &number_of_connectivity_ids, &points, &types,
                        &connectivity, &offsets, &global_node_id, &global_element_id, &block_id})
       d->id.reset();
+    point_data.reset(), cell_data.reset();
     root.reset();
   }
 
@@ -292,6 +310,7 @@ struct VtkHdfWriter::Impl {
     const auto& blocks = c.mesh().info().blocks;
     const std::string part = "partition " + std::to_string(par ? par->rank : written);
     c.expect_passes(2);
+    if (!created) create_datasets(c);
     auto one = [](std::int64_t v) { return [v](Id, Id, std::int64_t* out) { out[0] = v; }; };
     append<std::int64_t>(number_of_points, 1, one(nn));
     append<std::int64_t>(number_of_cells, 1, one(ne));

@@ -18,6 +18,7 @@ table on stdout. Standard library only.
 
 usage: bench_export_stream.py [--build build] [--before /path/to/old/dicer] [--reps 3]
                               [--work DIR] [--formats msh-ascii,exodus,vtkhdf,vtkhdf1,vtkhdf6]
+                              [--meshes '16,25,40:10;10,10,20:20'] [--no-gmsh] [--out FILE]
 """
 import argparse
 import datetime
@@ -73,6 +74,8 @@ def main():
     ap.add_argument("--out", default=os.path.join(ROOT, "bench", "results", "export_stream.json"))
     ap.add_argument("--formats", default="msh-ascii,exodus,vtkhdf,vtkhdf1,vtkhdf6")
     ap.add_argument("--no-gmsh", action="store_true")
+    ap.add_argument("--meshes", default="16,25,40:10;10,10,20:20",
+                    help="boxes and intervals, BOX:INTERVAL;... (a smoke run: '4,5,8:2;2,2,4:4')")
     a = ap.parse_args()
     os.makedirs(a.work, exist_ok=True)
     dicer = os.path.join(a.build, "dicer")
@@ -94,7 +97,8 @@ def main():
     if not a.no_gmsh:
         floor["gmsh"] = summary([gmsh(bench, one_store, a.work) for _ in range(a.reps)])
     res["floor"] = floor
-    for box, interval in (("16,25,40", 10), ("10,10,20", 20)):
+    for item in a.meshes.split(";"):
+        box, interval = item.split(":")[0], int(item.split(":")[1])
         nx, ny, nz = box.split(",")
         mesh = os.path.join(a.work, "box_%s.msh" % box.replace(",", "x"))
         store = os.path.join(a.work, "box_%s_%d.dice.h5" % (box.replace(",", "x"), interval))
