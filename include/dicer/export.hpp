@@ -171,9 +171,11 @@ class ChunkSource {
 // API (kCursorSlabPoints grid points, ~2 MiB) and one element's boundary.
 // So memory is the cache budget plus O(coarse elements + boundaries), not
 // the chunk's fine size.
-// Cost: a nodes() pass without coordinates and a pass over one block's
-// elements read rows only where needed; with coordinates or connectivity
-// it is one batch sweep (batch.hpp) of the elements concerned.
+// Cost: a nodes() pass without coordinates reads nothing (the id ranges
+// are held); one with coordinates, or an elements() pass, is one batch
+// sweep (batch.hpp) of the elements concerned (one block's, when a pass
+// names a block; its nodes that another block's element owns then come by
+// random access, node(id)).
 // Progress: `progress(done, total)` after each batch, counting coarse
 // elements over the passes a writer announced (expect_passes); `cancel()`
 // is polled between batches (true: Error{Cancelled, "interrupted"}).
