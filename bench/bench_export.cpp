@@ -1,17 +1,21 @@
 // Export benchmarks: one chunk of ~1e7 fine elements out of a store of
 // ~1e9, written in every format, next to Gmsh generating the same fine mesh
 // as a transfinite mesh (the baseline: what a user without dicer runs).
-//   BM_ExportChunk/<vtkhdf|msh_binary|msh_ascii|exodus>
-//       ExportChunk::prepare + the writer for one chunk of the store;
-//       counters: elements_per_s (prepare + write), prepare_s, write_s,
-//       file_bytes_per_element, peak RSS of the export (VmHWM reset before)
-//       and its rise over the RSS before, nodes
+//   BM_ExportStream/<vtkhdf|vtkhdf_deflate1|vtkhdf_deflate6|msh_binary|msh_ascii|exodus>
+//       what `dicer export` does: a ChunkStream (the chunk's rows, ghosts)
+//       + the writer generating the chunk pass by pass; counters:
+//       elements_per_s (prepare + write), prepare_s, write_s,
+//       file_bytes_per_element, peak RSS of the export (VmHWM reset
+//       before) and its rise over the RSS before, nodes
+//   BM_ExportHeld/msh_binary
+//       the chunk held in memory first (ExportChunk::prepare), then the
+//       writer: what export did before it streamed
 //   BM_GmshTransfinite/<write 0|1>
 //       Gmsh (built-in kernel, transfinite + recombine) meshing the chunk's
 //       coarse hexes at the same intervals; /1 also writes binary MSH 4.1;
 //       counters: build_s, generate_s, write_s, hexes_per_s, peak RSS,
 //       memory per hex, file bytes per hex, Gmsh's hex count next to the
-//       chunk's; ratios against the BM_ExportChunk/msh_binary run before it
+//       chunk's; ratios against the BM_ExportStream/msh_binary run before it
 //   BM_GmshEmpty  gmsh::initialize + finalize with nothing: the floor
 // Mesh: tests/data/vtkdata_disk_out_ref.ex2 (7472 hexes) diced at interval
 // 52 (1.05e9 fine elements), 100 chunks, the middle one (~75 coarse hexes,
@@ -30,6 +34,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 
@@ -114,12 +119,12 @@ std::map<std::string, Run>& runs() {
   return r;
 }
 
-enum class Format { VtkHdf, MshBinary, MshAscii, Exodus };
+enum class Format { VtkHdf, VtkHdfDeflate1, VtkHdfDeflate6, MshBinary, MshAscii, Exodus };
 
-void BM_ExportChunk(benchmark::State& st, Format format, std::string name) {
+void BM_ExportChunk(benchmark::State& st, Format format, std::string name, bool held) {
   const Setup& s = setup();
-  const std::string out = temp_dir() + "/chunk" +
-                          (format == Format::VtkHdf ? ".vtkhdf" : format == Format::Exodus ? ".exo" : ".msh");
+  const bool vtkhdf = format == Format::VtkHdf || format == Format::VtkHdfDeflate1 || format == Format::VtkHdfDeflate6;
+  const std::string out = temp_dir() + "/chunk" + (vtkhdf ? ".vtkhdf" : format == Format::Exodus ? ".exo" : ".msh");
   double prepare_s = 0, write_s = 0, prepare_cpu = 0, write_cpu = 0, peak = 0, before = 0, file_bytes = 0;
   Id elements = 0, nodes = 0;
   for (auto _ : st) {
@@ -129,13 +134,22 @@ void BM_ExportChunk(benchmark::State& st, Format format, std::string name) {
     try {
       auto t0 = std::chrono::steady_clock::now();
       double c0 = cpu_now();
-      ExportChunk c(m, s.range);
-      c.prepare(s.sets);
+      std::unique_ptr<ChunkSource> source;
+      if (held) {
+        auto c = std::make_unique<ExportChunk>(m, s.range);
+        c->prepare(s.sets);
+        source = std::move(c);
+      } else {
+        source = std::make_unique<ChunkStream>(m, s.range, s.sets);
+      }
+      const ChunkSource& c = *source;
       prepare_s = seconds_since(t0), prepare_cpu = cpu_now() - c0;
       t0 = std::chrono::steady_clock::now(), c0 = cpu_now();
       switch (format) {
-        case Format::VtkHdf: {
-          VtkHdfWriter w(out, 1);
+        case Format::VtkHdf:
+        case Format::VtkHdfDeflate1:
+        case Format::VtkHdfDeflate6: {
+          VtkHdfWriter w(out, 1, format == Format::VtkHdf ? 0 : format == Format::VtkHdfDeflate1 ? 1 : 6);
           w.write_partition(c);
           w.finish();
           break;
@@ -175,6 +189,7 @@ void BM_ExportChunk(benchmark::State& st, Format format, std::string name) {
   st.counters["coarse_elements"] = static_cast<double>(s.range.end_coarse - s.range.first_coarse);
   st.counters["store_elements"] = static_cast<double>(s.store_elements);
   if (elements != s.range.fine_elements) st.SkipWithError("chunk element count differs from the plan");
+  if (held) return;
   runs()[name] = Run{e / (prepare_s + write_s), e / prepare_s, peak, peak - before, e / (prepare_cpu + write_cpu),
                      e / prepare_cpu};
 }
@@ -275,12 +290,19 @@ void BM_GmshEmpty(benchmark::State& st) {
 int main(int argc, char** argv) {
   benchmark::Initialize(&argc, argv);
   const std::pair<Format, const char*> formats[] = {
-      {Format::VtkHdf, "vtkhdf"}, {Format::MshBinary, "msh_binary"}, {Format::MshAscii, "msh_ascii"}, {Format::Exodus, "exodus"}};
+      {Format::VtkHdf, "vtkhdf"},         {Format::VtkHdfDeflate1, "vtkhdf_deflate1"},
+      {Format::VtkHdfDeflate6, "vtkhdf_deflate6"}, {Format::MshBinary, "msh_binary"},
+      {Format::MshAscii, "msh_ascii"},    {Format::Exodus, "exodus"}};
   for (const auto& [f, name] : formats)
-    benchmark::RegisterBenchmark((std::string("BM_ExportChunk/") + name).c_str(), BM_ExportChunk, f, std::string(name))
+    benchmark::RegisterBenchmark((std::string("BM_ExportStream/") + name).c_str(), BM_ExportChunk, f, std::string(name),
+                                 false)
         ->Iterations(1)
         ->UseManualTime()
         ->Unit(benchmark::kSecond);
+  benchmark::RegisterBenchmark("BM_ExportHeld/msh_binary", BM_ExportChunk, Format::MshBinary, std::string("msh_binary"), true)
+      ->Iterations(1)
+      ->UseManualTime()
+      ->Unit(benchmark::kSecond);
   benchmark::RegisterBenchmark("BM_GmshTransfinite", BM_GmshTransfinite)
       ->Arg(0)
       ->Arg(1)

@@ -1,6 +1,7 @@
 // dicer export: a chunk, a box or the whole mesh to VTKHDF, MSH 4.1 or Exodus II.
 #include <algorithm>
 #include <cstdio>
+#include <memory>
 #include <optional>
 
 #include "dicer/mpi.hpp"
@@ -17,14 +18,16 @@ namespace dicer::cli {
 static const CommandDoc kDoc = {
     "export",
     R"(export STORE --format FMT -o OUT [--chunk K/N | --chunks N [--nemesis]]
-                    [--box x0,y0,z0,x1,y1,z1] [--quiet] [store options])",
+                    [--box x0,y0,z0,x1,y1,z1] [--deflate LEVEL] [--quiet] [store options])",
     R"(Writes fine elements for a solver or viewer, generated on the fly from the
-store; memory is bounded by the chunk, not the mesh.
+store and written as they are generated: memory is the store's cache budget
+plus a few MiB and a little per coarse element, whatever the fine mesh's
+size (a --box selection is held in memory: about 120 B per kept element).
 
 Formats:
   vtkhdf      VTKHDF UnstructuredGrid 1.0 (ParaView 5.10+, no plugin), one
               partition per chunk; point data GlobalNodeId, cell data
-              GlobalElementId and BlockId
+              GlobalElementId and BlockId; uncompressed unless --deflate
   msh         Gmsh MSH 4.1 binary (msh-ascii: ASCII); an entity and a
               physical group per block, boundary elements per side set
   exodus      Exodus II: element blocks with names, side and node sets
@@ -43,6 +46,7 @@ and SIGHUP (exit 130, 143, 129) leave nothing behind.
 dicer export fine.dice.h5 --format exodus --chunk 3/16 -o part3.exo
 dicer export fine.dice.h5 --format exodus --chunks 8 --nemesis -o fine.e   # fine.e.8.0 .. fine.e.8.7
 dicer export fine.dice.h5 --format msh --box 0,0,0,1,1,0.5 -o cut.msh --stats
+dicer export fine.dice.h5 --format vtkhdf --deflate 1 -o small.vtkhdf   # ~2x smaller, slower
 )"};
 
 namespace {
@@ -61,7 +65,7 @@ MeshSets sets_of(const FineMesh& m, const std::string& path) {
 // OUT.P.r (communication maps exchanged between ranks); VTKHDF: one file,
 // written collectively; MSH: OUT.P.r. The same files as one process with
 // --chunks P (and --nemesis).
-int export_ranks(const std::string& path, const std::string& out, const std::string& format, bool quiet,
+int export_ranks(const std::string& path, const std::string& out, const std::string& format, int deflate, bool quiet,
                  const StoreFlags& store) {
   mpi::Session& mpi = session();
   const int P = mpi.size(), r = mpi.rank();
@@ -77,22 +81,21 @@ int export_ranks(const std::string& path, const std::string& out, const std::str
   const CancelOnSignals cancel_on_signals;
   long long counts[2] = {0, 0}, totals[2] = {0, 0};
   if (format == "exodus") {
-    Partition p = mpi::make_partition(m, mpi.comm(), sets);
+    const std::vector<NodeRun> sharing = mpi::exchange_sharing(mpi.comm(), m, plan);
     agree([&] {
-      const NemesisInfo info = nemesis_info(p, global_set_counts(m, sets));
-      write_exodus(p.chunk(), nemesis_path(out, P, r), &info);
-      counts[0] = p.num_elements(), counts[1] = p.num_nodes();
+      const ChunkStream c(m, plan[static_cast<size_t>(r)], sets, {}, cancel_requested);
+      const NemesisInfo info = nemesis_info(c, P, r, sharing, global_set_counts(m, sets));
+      write_exodus(c, nemesis_path(out, P, r), &info);
+      counts[0] = c.num_elements(), counts[1] = c.num_nodes();
     });
   } else {
-    std::optional<ExportChunk> c;
+    std::optional<ChunkStream> c;
     agree([&] {
-      c.emplace(m, plan[static_cast<size_t>(r)]);
-      c->set_plan(plan);
-      c->prepare(sets, {}, cancel_requested);
+      c.emplace(m, plan[static_cast<size_t>(r)], sets, std::function<void(Id, Id)>{}, cancel_requested);
       counts[0] = c->num_elements(), counts[1] = c->num_nodes();
       if (format != "vtkhdf") write_msh(*c, nemesis_path(out, P, r), format == "msh");
     });
-    if (format == "vtkhdf") mpi::write_vtkhdf_collective(mpi.comm(), *c, out);
+    if (format == "vtkhdf") mpi::write_vtkhdf_collective(mpi.comm(), *c, out, deflate);
   }
   MPI_Reduce(counts, totals, 2, MPI_LONG_LONG, MPI_SUM, 0, mpi.comm());
   if (r == 0 && !quiet)
@@ -120,8 +123,20 @@ int cmd_export(const std::vector<std::string>& argv) {
   bool nemesis = false;
   cmd.flag("--nemesis", nemesis, "exodus with --chunks N: one Nemesis file per chunk, OUT.N.r");
   auto* o_box = cmd.value("--box", box_text, "x0,y0,z0,x1,y1,z1", "only the elements whose centroid is in the box");
+  std::string deflate_text;
+  auto* o_deflate = cmd.value("--deflate", deflate_text, "LEVEL",
+                              "vtkhdf: byte shuffle + deflate at LEVEL (1 fastest .. 9 smallest) on every dataset",
+                              "Options", "0: no compression, the fastest to write and read");
   cmd.flag("--quiet", quiet, "no progress bar, no summary on stdout");
   StoreFlags store(cmd);
+  int deflate = 0;
+  auto parse_deflate = [&] {
+    if (!cmd.given(o_deflate)) return;
+    if (format != "vtkhdf") throw Error(ErrorKind::Usage, "--deflate is for --format vtkhdf");
+    const Id level = parse_int("--deflate", deflate_text);
+    if (level < 0 || level > 9) throw Error(ErrorKind::Usage, "--deflate " + deflate_text + ": need a level 0..9");
+    deflate = static_cast<int>(level);
+  };
   mpi::Session& mpi = session();
   if (mpi.active()) {
     bool run = true;
@@ -130,15 +145,17 @@ int cmd_export(const std::vector<std::string>& argv) {
       if (!run) return;
       if (format != "vtkhdf" && format != "msh" && format != "msh-ascii" && format != "exodus")
         throw Error(ErrorKind::Usage, "--format: \"" + format + "\" is not one of vtkhdf, msh, msh-ascii, exodus");
+      parse_deflate();
       if (cmd.given(o_chunk) || cmd.given(o_chunks) || cmd.given(o_box))
         throw Error(ErrorKind::Usage, "under mpirun every rank exports its chunk of the whole mesh: no --chunk, "
                                       "--chunks or --box (run without mpirun for those)");
     });
-    return run ? export_ranks(path, out, format, quiet, store) : 0;
+    return run ? export_ranks(path, out, format, deflate, quiet, store) : 0;
   }
   if (!cmd.parse(argv)) return 0;
   if (format != "vtkhdf" && format != "msh" && format != "msh-ascii" && format != "exodus")
     throw Error(ErrorKind::Usage, "--format: \"" + format + "\" is not one of vtkhdf, msh, msh-ascii, exodus");
+  parse_deflate();
   std::optional<Box> box;
   if (cmd.given(o_box)) box = parse_box(box_text);
   if (cmd.given(o_chunk) && cmd.given(o_chunks)) throw Error(ErrorKind::Usage, "give --chunk K/N or --chunks N, not both");
@@ -174,45 +191,64 @@ int cmd_export(const std::vector<std::string>& argv) {
   const std::string nothing_written = "nothing written to " + out;
   Id total_coarse = 0;
   for (const auto& r : ranges) total_coarse += r.end_coarse - r.first_coarse;
-  Progress bar("export", 2 * total_coarse, quiet);
+  Progress bar("export", total_coarse, quiet);
   Id done_before = 0;
   Id written_elements = 0, written_nodes = 0;
   try {
-    auto prepare = [&](ExportChunk& c) {
-      c.prepare(sets, [&](Id done, Id) { bar.update(done_before + done); }, cancel_requested);
+    // Chunk r's share of the bar: its coarse elements, scaled by the
+    // fraction of its passes done.
+    auto progress_of = [&](const ChunkRange& r) {
+      const Id span = r.end_coarse - r.first_coarse;
+      return [&bar, &done_before, span](Id done, Id total) {
+        bar.update(done_before + (total > 0 ? static_cast<Id>(static_cast<double>(span) * done / total) : 0));
+      };
+    };
+    auto finished = [&](const ChunkRange& r, const ChunkSource& c) {
       throw_if_cancelled(nothing_written);
-      done_before += 2 * (c.range().end_coarse - c.range().first_coarse);
+      done_before += r.end_coarse - r.first_coarse;
+      bar.update(done_before);
       written_elements += c.num_elements(), written_nodes += c.num_nodes();
+    };
+    // A box keeps an unknown part of the chunk: held in memory.
+    auto boxed = [&](const ChunkRange& r) {
+      auto c = std::make_unique<ExportChunk>(m, r, box);
+      c->prepare(sets, progress_of(r), cancel_requested);
+      return c;
     };
     if (nemesis) {
       const auto sharing = in_process_sharing(m, ranges);
       const SetCounts counts = global_set_counts(m, sets);
       for (const auto& r : ranges) {
-        const Partition p(m, ranges, r.index, sharing[static_cast<size_t>(r.index)], sets,
-                          [&](Id done, Id) { bar.update(done_before + done); }, cancel_requested);
-        throw_if_cancelled(nothing_written);
-        done_before += 2 * (r.end_coarse - r.first_coarse);
-        written_elements += p.num_elements(), written_nodes += p.num_nodes();
-        const NemesisInfo info = nemesis_info(p, counts);
-        write_exodus(p.chunk(), nemesis_path(out, r.count, r.index), &info);
+        const ChunkStream c(m, r, sets, progress_of(r), cancel_requested);
+        const NemesisInfo info = nemesis_info(c, r.count, r.index, sharing[static_cast<size_t>(r.index)], counts);
+        write_exodus(c, nemesis_path(out, r.count, r.index), &info);
+        finished(r, c);
       }
     } else if (format == "vtkhdf") {
-      VtkHdfWriter w(out, static_cast<Id>(ranges.size()));
+      VtkHdfWriter w(out, static_cast<Id>(ranges.size()), deflate);
       for (const auto& r : ranges) {
-        ExportChunk c(m, r, box);
-        prepare(c);
-        w.write_partition(c);
+        if (box) {
+          const auto c = boxed(r);
+          w.write_partition(*c);
+          finished(r, *c);
+        } else {
+          const ChunkStream c(m, r, sets, progress_of(r), cancel_requested);
+          w.write_partition(c);
+          finished(r, c);
+        }
       }
       throw_if_cancelled(nothing_written);
       w.finish();
     } else {
-      ExportChunk c(m, ranges[0], box);
-      prepare(c);
-      if (format == "exodus") write_exodus(c, out);
-      else write_msh(c, out, format == "msh");
+      std::unique_ptr<ChunkSource> c;
+      if (box) c = boxed(ranges[0]);
+      else c = std::make_unique<ChunkStream>(m, ranges[0], sets, progress_of(ranges[0]), cancel_requested);
+      if (format == "exodus") write_exodus(*c, out);
+      else write_msh(*c, out, format == "msh");
+      finished(ranges[0], *c);
     }
   } catch (const Error&) {
-    // The library stops prepare() with an error of its own when the cancel
+    // The library stops a pass with an error of its own when the cancel
     // callback says so; the user's signal is the reason to report.
     throw_if_cancelled(nothing_written);
     throw;

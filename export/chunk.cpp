@@ -1,5 +1,6 @@
-// Chunks and box selections of the fine mesh, with local numbering: what
-// every writer consumes. Memory is bounded by the chunk.
+// Chunks and box selections of the fine mesh, with local numbering, held in
+// memory (ExportChunk); the chunk plan and box search. The streaming source
+// the CLI writes from is export/stream.cpp.
 #include <sys/resource.h>
 #include <unistd.h>
 
@@ -8,6 +9,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <map>
 #include <numeric>
 #include <sstream>
 
@@ -16,6 +18,7 @@
 #include "dicer/numbering.hpp"
 #include "dicer/orientation.hpp"
 #include "dicer/rows.hpp"
+#include "sets.hpp"
 
 namespace dicer {
 namespace {
@@ -166,230 +169,40 @@ ExportChunk::ExportChunk(const FineMesh& mesh, ChunkRange range, std::optional<B
   range_.node_begin = own[0], range_.node_end = own[1];
 }
 
-namespace {
-
-// Node-set membership of a fine node: every vertex of its owning entity is
-// in the set. Per coarse element, the entities whose corners are all in
-// the set give whole id ranges (numbering.hpp), no per-node test.
-void node_set_ranges(const ElementRow& h, Mode mode, const std::vector<Id>& sorted_vertices,
-                     std::vector<std::array<Id, 2>>& out) {
-  const bool vol = mode == Mode::Volume;
-  const int nc = vol ? 8 : 4, ne = vol ? 12 : 4, nf = vol ? 6 : 1;
-  bool in[8];
-  bool any = false, all = true;
-  for (int k = 0; k < nc; ++k) {
-    in[k] = std::binary_search(sorted_vertices.begin(), sorted_vertices.end(), h.corner[k]);
-    any |= in[k], all &= in[k];
-  }
-  if (!any) return;
-  for (int k = 0; k < nc; ++k)
-    if (in[k]) out.push_back({h.corner_node[k], h.corner_node[k] + 1});
-  for (int k = 0; k < ne; ++k) {
-    const int a = vol ? kHexEdge[k][0] : kQuadEdge[k][0], b = vol ? kHexEdge[k][1] : kQuadEdge[k][1];
-    if (in[a] && in[b])
-      out.push_back({h.edge_node[k], h.edge_node[k] + ids::edge_nodes(h.n[vol ? k / 4 : k / 2])});
-  }
-  for (int k = 0; k < nf; ++k) {
-    bool face_in = true;
-    for (int m = 0; m < 4; ++m) face_in &= in[vol ? kHexFace[k][m] : m];
-    const auto [nu, nv] = face_intervals(h, k, mode);
-    if (face_in) out.push_back({h.face_node[k], h.face_node[k] + ids::face_nodes(nu, nv)});
-  }
-  if (all && vol) out.push_back({h.cell_node, h.cell_node + ids::cell_nodes(h.n)});
-}
-
-}  // namespace
-
 void ExportChunk::prepare(const MeshSets& sets, const std::function<void(Id, Id)>& progress,
                           const std::function<bool()>& cancel) {
-  if (!box_) refuse_if_too_big(mesh_, range_);  // a box keeps an unknown part of it
-  const Mode mode = this->mode();
-  const int nc = corners();
-  const Id first = range_.first_coarse, end = range_.end_coarse, span = end - first;
-  MeshCursor cur;
-  const RowReader R(mesh_.tables(), cur);
-  FineBlock b;
-  auto check_cancel = [&] {
-    if (cancel && cancel()) throw Error(ErrorKind::Cancelled, "interrupted");
-  };
   node_global_.clear(), elem_global_.clear(), conn_.clear(), elem_block_.clear();
-  x_.clear(), y_.clear(), z_.clear();
-  side_sets_.clear(), node_sets_.clear();
-  std::vector<std::uint8_t> kept_coarse(static_cast<size_t>(span), 1);
-  std::vector<std::vector<Id>> node_set_sorted;
-  std::vector<std::vector<std::array<Id, 2>>> node_set_ids(sets.node_sets.size());
-  for (const auto& ns : sets.node_sets) {
-    node_set_sorted.push_back(ns.vertex);
-    std::sort(node_set_sorted.back().begin(), node_set_sorted.back().end());
-    node_sets_.push_back({ns.id, ns.name, {}});
-  }
-  // Side-set members of the chunk's elements, in element order, so the pass
-  // below handles them as it meets each element (no second read of rows).
-  struct SideRef {
-    Id h;
-    std::int32_t set;
-    std::int8_t side;
-  };
-  std::vector<SideRef> side_refs;
-  for (size_t s = 0; s < sets.side_sets.size(); ++s) {
-    const auto& ss = sets.side_sets[s];
-    side_sets_.push_back({ss.id, ss.name, {}, {}});
-    for (size_t q = 0; q < ss.element.size() && q < ss.side.size(); ++q)
-      if (ss.element[q] >= first && ss.element[q] < end && ss.side[q] >= 0 && ss.side[q] <= 5)
-        side_refs.push_back({ss.element[q], static_cast<std::int32_t>(s), ss.side[q]});
-  }
-  std::sort(side_refs.begin(), side_refs.end(), [](const SideRef& a, const SideRef& c) { return a.h < c.h; });
-  size_t next_side = 0;
-  // The fine elements of block b on each coarse side of b's element that a
-  // side set names, as (global element id, side) for now.
-  auto sides_of = [&](const FineBlock& blk) {
-    for (; next_side < side_refs.size() && side_refs[next_side].h < blk.coarse_element; ++next_side) {
-    }
-    for (; next_side < side_refs.size() && side_refs[next_side].h == blk.coarse_element; ++next_side) {
-      const SideRef& ref = side_refs[next_side];
-      const auto& n = blk.n;
-      const SidePlane plane = exodus_side_plane(mode, ref.side);
-      auto& out = side_sets_[ref.set];
-      for (Id k = 0; k < n[2]; ++k)
-        for (Id j = 0; j < n[1]; ++j)
-          for (Id i = 0; i < n[0]; ++i) {
-            const Id p[3] = {i, j, k};
-            if (plane.axis >= 0 && p[plane.axis] != (plane.high ? n[plane.axis] - 1 : 0)) continue;
-            out.element.push_back(ids::element(blk.first_element, n, i, j, k));
-            out.side.push_back(ref.side);
-          }
-    }
-  };
-  auto elements_of = [&](const FineBlock& blk, bool keep_all, auto&& on_element) {
-    const auto n = blk.n;
-    const Id sj = n[0] + 1, sk = (n[0] + 1) * (n[1] + 1);
-    const Id off[8] = {0, 1, 1 + sj, sj, sk, 1 + sk, 1 + sj + sk, sj + sk};
-    for (Id k = 0; k < blk.layers; ++k)
-      for (Id j = 0; j < n[1]; ++j)
-        for (Id i = 0; i < n[0]; ++i) {
-          const Id g0 = blk.point_index(i, j, k + blk.plane0);
-          if (!keep_all) {  // the same centroid as for_each_in_box
-            double c[3];
-            centroid(blk, i + n[0] * (j + n[1] * k), nc, c);
-            if (!box_->contains(c[0], c[1], c[2])) continue;
-          }
-          on_element(ids::element(blk.first_element, n, i, j, k), g0, off);
-        }
-  };
-
+  x_.clear(), y_.clear(), z_.clear(), users_.clear(), user_sets_.clear();
+  side_sets_.clear(), node_sets_.clear(), node_ranges_.clear();
   if (!box_) {
-    // One pass in store order (each page read once). The chunk's own nodes
-    // are one id range [node_begin, node_end) (owner order); the others its
-    // elements use (ghosts) have lower ids, owned by earlier chunks. Local
-    // order is global id order: ghosts, then the own range.
-    const Id own0 = range_.node_begin, nown = range_.node_end - range_.node_begin;
-    if (nown < 0 || own0 < 0 || range_.node_end > mesh_.num_nodes())
-      R.corrupt(RowTable::Elements, first, "the chunk's own node range lies outside the mesh");
-    std::vector<double> ox(static_cast<size_t>(nown)), oy(ox.size()), oz(ox.size());
-    struct Ghost {
-      Id id;
-      double x, y, z;
-    };
-    std::vector<Ghost> ghosts;
-    const Id ne = std::clamp<Id>(range_.fine_elements, 0, mesh_.num_elements());
-    elem_global_.reserve(static_cast<size_t>(ne)), elem_block_.reserve(static_cast<size_t>(ne));
-    conn_.reserve(static_cast<size_t>(ne) * nc);
-    for (Id h = first; h < end; ++h) {
-      check_cancel();
-      mesh_.fill_block(h, b, true);
-      for (Id g = 0; g < b.num_points(); ++g) {
-        const Id id = b.node_id[g];
-        if (id >= own0 && id - own0 < nown) {
-          ox[id - own0] = b.x[g], oy[id - own0] = b.y[g], oz[id - own0] = b.z[g];
-        } else if (id < own0) {
-          ghosts.push_back({id, b.x[g], b.y[g], b.z[g]});
-        } else {
-          R.corrupt(RowTable::Elements, h, "node " + std::to_string(id) + " lies past the chunk's own node range");
-        }
-      }
-      elements_of(b, true, [&](Id gid, Id g0, const Id* off) {
-        elem_global_.push_back(gid);
-        elem_block_.push_back(b.block);
-        for (int q = 0; q < nc; ++q) {
-          const Id id = b.node_id[g0 + off[q]];
-          conn_.push_back(id >= own0 ? id - own0 : -1 - id);  // ghosts provisionally as -1 - id
-        }
-      });
-      if (!node_set_sorted.empty()) {
-        const ElementRow row = R.element(h);
-        for (size_t s = 0; s < node_set_sorted.size(); ++s) node_set_ranges(row, mode, node_set_sorted[s], node_set_ids[s]);
-      }
-      sides_of(b);
-      if (progress) progress(h - first + 1, span);
+    refuse_if_too_big(mesh_, range_);
+    // The chunk's two passes, kept.
+    const ChunkStream s(mesh_, range_, sets, progress, cancel);
+    s.expect_passes(2);
+    const auto nn = static_cast<size_t>(s.num_nodes()), ne = static_cast<size_t>(s.num_elements());
+    node_global_.reserve(nn), x_.reserve(nn), y_.reserve(nn), z_.reserve(nn), users_.reserve(nn);
+    s.nodes({}, [&](const NodeSpan& n) {
+      node_global_.insert(node_global_.end(), n.global, n.global + n.count);
+      x_.insert(x_.end(), n.x, n.x + n.count), y_.insert(y_.end(), n.y, n.y + n.count);
+      z_.insert(z_.end(), n.z, n.z + n.count), users_.insert(users_.end(), n.users, n.users + n.count);
+    });
+    elem_global_.reserve(ne), elem_block_.reserve(ne), conn_.reserve(ne * static_cast<size_t>(corners()));
+    s.elements({}, [&](const ElementSpan& e) {
+      elem_global_.insert(elem_global_.end(), e.global, e.global + e.count);
+      elem_block_.insert(elem_block_.end(), static_cast<size_t>(e.count), e.block);
+      conn_.insert(conn_.end(), e.conn, e.conn + e.count * corners());
+    });
+    user_sets_ = s.user_sets();
+    side_sets_ = s.side_sets();
+    node_ranges_ = s.node_set_ranges();
+    for (const NodeRanges& r : node_ranges_) {
+      node_sets_.push_back({r.id, r.name, {}});
+      for (const auto& [a, b] : r.local)
+        for (Id l = a; l < b; ++l) node_sets_.back().node.push_back(l);
     }
-    std::sort(ghosts.begin(), ghosts.end(), [](const Ghost& a, const Ghost& c) { return a.id < c.id; });
-    ghosts.erase(std::unique(ghosts.begin(), ghosts.end(), [](const Ghost& a, const Ghost& c) { return a.id == c.id; }),
-                 ghosts.end());
-    const Id ng = static_cast<Id>(ghosts.size());
-    node_global_.resize(static_cast<size_t>(ng + nown));
-    x_.resize(node_global_.size()), y_.resize(node_global_.size()), z_.resize(node_global_.size());
-    for (Id q = 0; q < ng; ++q)
-      node_global_[q] = ghosts[q].id, x_[q] = ghosts[q].x, y_[q] = ghosts[q].y, z_[q] = ghosts[q].z;
-    std::iota(node_global_.begin() + ng, node_global_.end(), own0);
-    std::copy(ox.begin(), ox.end(), x_.begin() + ng), std::copy(oy.begin(), oy.end(), y_.begin() + ng);
-    std::copy(oz.begin(), oz.end(), z_.begin() + ng);
-    for (Id& c : conn_) {
-      if (c >= 0) {
-        c += ng;
-      } else {
-        const Id id = -1 - c;
-        c = std::lower_bound(ghosts.begin(), ghosts.end(), id, [](const Ghost& a, Id v) { return a.id < v; }) - ghosts.begin();
-      }
-    }
+    range_ = s.range();
   } else {
-    // Box: the kept elements' nodes, sorted and deduplicated, then a second
-    // pass for coordinates and connectivity.
-    for (Id h = first; h < end; ++h) {
-      check_cancel();
-      if (coarse_box_misses(mesh_, h, *box_, cur)) {
-        kept_coarse[h - first] = 0;
-        if (progress) progress(h - first + 1, 2 * span);
-        continue;
-      }
-      mesh_.fill_block(h, b);
-      bool any = false;
-      elements_of(b, false, [&](Id, Id g0, const Id* off) {
-        any = true;
-        for (int q = 0; q < nc; ++q) node_global_.push_back(b.node_id[g0 + off[q]]);
-      });
-      if (!any) kept_coarse[h - first] = 0;
-      if (progress) progress(h - first + 1, 2 * span);
-    }
-    std::sort(node_global_.begin(), node_global_.end());
-    node_global_.erase(std::unique(node_global_.begin(), node_global_.end()), node_global_.end());
-    node_global_.shrink_to_fit();
-    const size_t nn = node_global_.size();
-    x_.assign(nn, 0), y_.assign(nn, 0), z_.assign(nn, 0);
-    auto local_of = [&](Id id) -> Id {
-      const auto it = std::lower_bound(node_global_.begin(), node_global_.end(), id);
-      return (it != node_global_.end() && *it == id) ? it - node_global_.begin() : -1;
-    };
-    for (Id h = first; h < end; ++h) {
-      check_cancel();
-      if (kept_coarse[h - first]) {
-        mesh_.fill_block(h, b, true);
-        elements_of(b, false, [&](Id gid, Id g0, const Id* off) {
-          elem_global_.push_back(gid);
-          elem_block_.push_back(b.block);
-          for (int q = 0; q < nc; ++q) {
-            const Id g = g0 + off[q], l = local_of(b.node_id[g]);
-            x_[l] = b.x[g], y_[l] = b.y[g], z_[l] = b.z[g];
-            conn_.push_back(l);
-          }
-        });
-        if (!node_set_sorted.empty()) {
-          const ElementRow row = R.element(h);
-          for (size_t s = 0; s < node_set_sorted.size(); ++s) node_set_ranges(row, mode, node_set_sorted[s], node_set_ids[s]);
-        }
-        sides_of(b);
-      }
-      if (progress) progress(span + h - first + 1, 2 * span);
-    }
+    prepare_box(sets, progress, cancel);
   }
 
   // Owners: the chunk whose own node range holds the id (owner order), so
@@ -405,36 +218,216 @@ void ExportChunk::prepare(const MeshSets& sets, const std::function<void(Id, Id)
       owner_[l] = static_cast<std::int32_t>(c);
     }
   }
+}
+
+// Box: the kept elements' nodes, sorted and deduplicated, then a second
+// pass for coordinates and connectivity. A kept element's centroid needs
+// all its corners, owned or not, so this reads whole blocks (fill_block).
+void ExportChunk::prepare_box(const MeshSets& sets, const std::function<void(Id, Id)>& progress,
+                              const std::function<bool()>& cancel) {
+  const Mode mode = this->mode();
+  const int nc = corners();
+  const Id first = range_.first_coarse, end = range_.end_coarse, span = end - first;
+  MeshCursor cur;
+  const RowReader R(mesh_.tables(), cur);
+  FineBlock b;
+  auto check_cancel = [&] {
+    if (cancel && cancel()) throw Error(ErrorKind::Cancelled, "interrupted");
+  };
+  std::vector<std::uint8_t> kept_coarse(static_cast<size_t>(span), 1);
+  std::vector<std::vector<Id>> node_set_sorted;
+  std::vector<std::vector<std::array<Id, 2>>> node_set_ids(sets.node_sets.size());
+  for (const auto& ns : sets.node_sets) {
+    node_set_sorted.push_back(ns.vertex);
+    std::sort(node_set_sorted.back().begin(), node_set_sorted.back().end());
+    node_sets_.push_back({ns.id, ns.name, {}});
+  }
+  // Side-set members of the chunk's elements, in element order, so the pass
+  // below handles them as it meets each element (no second read of rows).
+  const std::vector<detail::SideRef> refs = detail::side_refs(sets, first, end);
+  for (const auto& ss : sets.side_sets) side_sets_.push_back({ss.id, ss.name, {}, {}});
+  size_t next_side = 0;
+  auto elements_of = [&](const FineBlock& blk, auto&& on_element) {
+    const auto n = blk.n;
+    const Id sj = n[0] + 1, sk = (n[0] + 1) * (n[1] + 1);
+    const Id off[8] = {0, 1, 1 + sj, sj, sk, 1 + sk, 1 + sj + sk, sj + sk};
+    for (Id k = 0; k < blk.layers; ++k)
+      for (Id j = 0; j < n[1]; ++j)
+        for (Id i = 0; i < n[0]; ++i) {
+          const Id g0 = blk.point_index(i, j, k + blk.plane0);
+          double c[3];  // the same centroid as for_each_in_box
+          centroid(blk, i + n[0] * (j + n[1] * k), nc, c);
+          if (!box_->contains(c[0], c[1], c[2])) continue;
+          on_element(ids::element(blk.first_element, n, i, j, k), g0, off);
+        }
+  };
+
+  for (Id h = first; h < end; ++h) {
+    check_cancel();
+    if (coarse_box_misses(mesh_, h, *box_, cur)) {
+      kept_coarse[h - first] = 0;
+      if (progress) progress(h - first + 1, 2 * span);
+      continue;
+    }
+    mesh_.fill_block(h, b);
+    bool any = false;
+    elements_of(b, [&](Id, Id g0, const Id* off) {
+      any = true;
+      for (int q = 0; q < nc; ++q) node_global_.push_back(b.node_id[g0 + off[q]]);
+    });
+    if (!any) kept_coarse[h - first] = 0;
+    if (progress) progress(h - first + 1, 2 * span);
+  }
+  std::sort(node_global_.begin(), node_global_.end());
+  node_global_.erase(std::unique(node_global_.begin(), node_global_.end()), node_global_.end());
+  node_global_.shrink_to_fit();
+  const size_t nn = node_global_.size();
+  x_.assign(nn, 0), y_.assign(nn, 0), z_.assign(nn, 0);
+  for (Id h = first; h < end; ++h) {
+    check_cancel();
+    if (kept_coarse[h - first]) {
+      mesh_.fill_block(h, b, true);
+      elements_of(b, [&](Id gid, Id g0, const Id* off) {
+        elem_global_.push_back(gid);
+        elem_block_.push_back(b.block);
+        for (int q = 0; q < nc; ++q) {
+          const Id g = g0 + off[q], l = local_of(b.node_id[g]);
+          x_[l] = b.x[g], y_[l] = b.y[g], z_[l] = b.z[g];
+          conn_.push_back(l);
+        }
+      });
+      if (!node_set_sorted.empty()) {
+        const ElementRow row = R.element(h);
+        for (size_t s = 0; s < node_set_sorted.size(); ++s)
+          detail::node_set_ranges(row, mode, node_set_sorted[s], node_set_ids[s]);
+      }
+      for (; next_side < refs.size() && refs[next_side].h < h; ++next_side) {
+      }
+      for (; next_side < refs.size() && refs[next_side].h == h; ++next_side)
+        detail::append_side(mode, b.first_element, b.n, refs[next_side].side, side_sets_[refs[next_side].set]);
+    }
+    if (progress) progress(span + h - first + 1, 2 * span);
+  }
 
   // Node sets: the id ranges found per element, as local indices.
   for (size_t s = 0; s < node_set_ids.size(); ++s) {
     auto& rs = node_set_ids[s];
-    std::sort(rs.begin(), rs.end());
+    detail::merge_ranges(rs);
     auto& out = node_sets_[s].node;
     for (const auto& r : rs)
-      for (Id id = r[0]; id < r[1]; ++id) {
-        const auto it = std::lower_bound(node_global_.begin(), node_global_.end(), id);
-        if (it != node_global_.end() && *it == id) out.push_back(it - node_global_.begin());
-      }
-    std::sort(out.begin(), out.end());
-    out.erase(std::unique(out.begin(), out.end()), out.end());
+      for (Id id = r[0]; id < r[1]; ++id)
+        if (const Id l = local_of(id); l >= 0) out.push_back(l);
+    NodeRanges ranges{node_sets_[s].id, node_sets_[s].name, {}};
+    for (Id l : out) {
+      if (!ranges.local.empty() && ranges.local.back()[1] == l) ++ranges.local.back()[1];
+      else ranges.local.push_back({l, l + 1});
+    }
+    node_ranges_.push_back(std::move(ranges));
   }
 
-  // Side sets: global element ids to local indices (elements outside a box
-  // drop out), sorted by element then side.
+  // Side sets: global element ids to local indices (elements outside the
+  // box drop out), sorted by element then side.
   for (auto& m : side_sets_) {
-    std::vector<std::pair<Id, std::int8_t>> fs;
+    SideMembers kept{m.id, m.name, {}, {}};
     for (size_t q = 0; q < m.element.size(); ++q) {
       const auto it = std::lower_bound(elem_global_.begin(), elem_global_.end(), m.element[q]);
-      if (it != elem_global_.end() && *it == m.element[q]) fs.emplace_back(it - elem_global_.begin(), m.side[q]);
+      if (it != elem_global_.end() && *it == m.element[q])
+        kept.element.push_back(it - elem_global_.begin()), kept.side.push_back(m.side[q]);
     }
-    std::sort(fs.begin(), fs.end());
-    fs.erase(std::unique(fs.begin(), fs.end()), fs.end());
-    m.element.clear(), m.side.clear();
-    for (const auto& [e, side] : fs) m.element.push_back(e), m.side.push_back(side);
+    detail::sort_members(kept);
+    m = std::move(kept);
+  }
+
+  // Using blocks of each node, from the kept elements.
+  for (std::int32_t blk = 0; blk < static_cast<std::int32_t>(mesh_.info().blocks.size()); ++blk)
+    user_sets_.push_back({blk});
+  std::map<std::vector<std::int32_t>, std::uint32_t> index;
+  std::map<std::pair<std::uint32_t, std::int32_t>, std::uint32_t> joined;  // (set, block) -> set
+  constexpr std::uint32_t kNone = UINT32_MAX;
+  users_.assign(nn, kNone);
+  for (size_t e = 0; e < elem_global_.size(); ++e) {
+    const std::int32_t blk = elem_block_[e];
+    for (int q = 0; q < nc; ++q) {
+      std::uint32_t& u = users_[static_cast<size_t>(conn_[e * nc + q])];
+      if (u == kNone) {
+        u = static_cast<std::uint32_t>(blk);
+        continue;
+      }
+      const auto& have = user_sets_[u];
+      if (std::binary_search(have.begin(), have.end(), blk)) continue;
+      const auto [it, fresh] = joined.try_emplace({u, blk}, 0);
+      if (fresh) {
+        std::vector<std::int32_t> set = have;
+        set.insert(std::upper_bound(set.begin(), set.end(), blk), blk);
+        const auto [jt, added] = index.try_emplace(set, static_cast<std::uint32_t>(user_sets_.size()));
+        if (added) user_sets_.push_back(std::move(set));
+        it->second = jt->second;
+      }
+      u = it->second;
+    }
   }
 }
 
+std::vector<Id> ExportChunk::block_counts() const {
+  std::vector<Id> out(mesh_.info().blocks.size(), 0);
+  for (std::int32_t b : elem_block_) {
+    if (b < 0 || static_cast<size_t>(b) >= out.size())
+      throw Error(ErrorKind::Usage, "chunk " + std::to_string(range_.index) + ": block index " + std::to_string(b) +
+                                        " out of range");
+    ++out[static_cast<size_t>(b)];
+  }
+  return out;
+}
+
+Id ExportChunk::local_of(Id id) const {
+  const auto it = std::lower_bound(node_global_.begin(), node_global_.end(), id);
+  return (it != node_global_.end() && *it == id) ? it - node_global_.begin() : -1;
+}
+
+void ExportChunk::nodes(const NodePass& pass, const std::function<void(const NodeSpan&)>& fn) const {
+  constexpr Id kSpan = Id{1} << 16;
+  const Id nn = num_nodes();
+  if (static_cast<Id>(users_.size()) != nn || static_cast<Id>(x_.size()) != nn)
+    throw Error(ErrorKind::Usage, "chunk " + std::to_string(range_.index) + " is not prepared");
+  auto keep = [&](Id l) { return pass.lowest_user < 0 || user_sets_[users_[l]].front() == pass.lowest_user; };
+  for (Id a = 0; a < nn;) {
+    if (!keep(a)) {
+      ++a;
+      continue;
+    }
+    Id b = a + 1;
+    while (b < nn && b - a < kSpan && keep(b)) ++b;
+    NodeSpan s;
+    s.first = a, s.count = b - a, s.global = node_global_.data() + a, s.users = users_.data() + a;
+    if (pass.coords) s.x = x_.data() + a, s.y = y_.data() + a, s.z = z_.data() + a;
+    fn(s);
+    a = b;
+  }
+}
+
+void ExportChunk::elements(const ElementPass& pass, const std::function<void(const ElementSpan&)>& fn) const {
+  constexpr Id kSpan = Id{1} << 14;
+  const Id ne = num_elements();
+  const int nc = corners();
+  std::vector<Id> global;
+  for (Id a = 0; a < ne;) {
+    const std::int32_t blk = elem_block_[static_cast<size_t>(a)];
+    Id b = a + 1;
+    while (b < ne && b - a < kSpan && elem_block_[static_cast<size_t>(b)] == blk) ++b;
+    if (pass.block < 0 || blk == pass.block) {
+      ElementSpan s;
+      s.first = a, s.count = b - a, s.global = elem_global_.data() + a, s.block = blk;
+      s.conn = conn_.data() + a * nc;
+      if (pass.global_conn) {
+        global.resize(static_cast<size_t>((b - a) * nc));
+        for (size_t q = 0; q < global.size(); ++q) global[q] = node_global_[static_cast<size_t>(s.conn[q])];
+        s.conn = global.data();
+      }
+      fn(s);
+    }
+    a = b;
+  }
+}
 }  // namespace dicer
 
 namespace dicer {
@@ -503,9 +496,10 @@ std::uint64_t estimate_chunk_bytes(const FineMesh& mesh, const ChunkRange& range
   // boundary surface, small beside them, and are not counted.
   const Id nodes = own[1] - own[0];
   // What prepare() keeps (ExportChunk's members): per element its global id,
-  // block index and connectivity; per node its global id, x, y, z, owner.
+  // block index and connectivity; per node its global id, x, y, z, owner,
+  // using blocks.
   const unsigned __int128 per_element = 8 + 4 + 8 * static_cast<unsigned>(mesh.corners());
-  const unsigned __int128 per_node = 8 + 24 + 4;
+  const unsigned __int128 per_node = 8 + 24 + 4 + 4;
   const unsigned __int128 bytes = per_element * static_cast<std::uint64_t>(std::max<Id>(elements, 0)) +
                                   per_node * static_cast<std::uint64_t>(std::max<Id>(nodes, 0));
   return bytes > UINT64_MAX ? UINT64_MAX : static_cast<std::uint64_t>(bytes);
@@ -547,8 +541,9 @@ std::string gib(std::uint64_t bytes) {
 
 }  // namespace
 
-// Until exports stream, a chunk lives in memory whole: one that cannot fit
-// is refused before it is built (it ran for minutes and died out of memory).
+// A held chunk lives in memory whole: one that cannot fit is refused before
+// it is built (it would run for minutes and die out of memory). The CLI's
+// exports stream and need no such check.
 void refuse_if_too_big(const FineMesh& mesh, const ChunkRange& range) {
   const std::uint64_t need = estimate_chunk_bytes(mesh, range), avail = available_memory_bytes();
   if (need <= avail) return;

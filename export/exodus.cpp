@@ -1,4 +1,4 @@
-// Exodus II writer: one ExportChunk -> one Exodus file, through the Exodus II
+// Exodus II writer: one chunk (ChunkSource) -> one Exodus file, through the Exodus II
 // C library (the same library read_exodus.cpp reads with).
 //
 // File layout:
@@ -34,11 +34,13 @@
 // folder, fsync, rename); on any failure the temporary is closed and
 // removed and Error{Io, "<path>: <call> failed (<reason>)"} is thrown.
 //
-// Memory beyond the chunk: coordinates are passed straight from the chunk's
-// arrays; id maps go out in slices of kSlice entries; connectivity is
-// copied one block at a time (Exodus 6.02 has no partial connectivity
-// writer), i.e. at most the chunk's own connectivity size once more, plus
-// 8 B per element for the block-order permutation and the set members.
+// Streaming: coordinates, id maps, connectivity and node-set entries are
+// gathered from the chunk's passes (export.hpp ChunkSource) and go out
+// kSlice entries per partial call (ex_put_partial_coord, _id_map,
+// _elem_conn, _set); a block's elements are one pass over that block.
+// Held whole: side-set members with their file positions (O(set sizes))
+// and, for Nemesis, the processor node and element maps (Exodus 6.02 has
+// no partial writer for them: 8 B per node and per element).
 #include <exodusII.h>
 #include <netcdf.h>
 #include <unistd.h>
@@ -46,6 +48,7 @@
 #include <algorithm>
 #include <cstdint>
 #include <filesystem>
+#include <mutex>
 #include <string>
 #include <system_error>
 #include <vector>
@@ -68,6 +71,7 @@ class TempExodus {
  public:
   explicit TempExodus(const std::string& final_path) : final_(final_path), out_(final_path) {}
   ~TempExodus() {
+    std::lock_guard lock(hdf5_lock());
     if (exoid_ >= 0) ex_close(exoid_);
   }
   TempExodus(const TempExodus&) = delete;
@@ -108,6 +112,20 @@ class TempExodus {
   int exoid_ = -1;
 };
 
+// Runs a pass over the chunk without the HDF5 lock (netCDF-4 is HDF5
+// underneath): the pass loads store pages, which the cache's read-ahead
+// thread does under that lock while this thread waits for the page.
+// Library calls made inside the pass take the lock again (it is recursive).
+template <class Fn>
+void unlocked(std::unique_lock<std::recursive_mutex>& lock, Fn&& fn) {
+  lock.unlock();
+  struct Relock {
+    std::unique_lock<std::recursive_mutex>& l;
+    ~Relock() { l.lock(); }
+  } relock{lock};
+  fn();
+}
+
 // char* array for the name functions (they take non-const char**).
 struct NameList {
   std::vector<std::string> text;
@@ -122,8 +140,11 @@ struct NameList {
 // The Nemesis part of processor n.processor's file (see export.hpp). Written
 // before ex_put_init_ext, as SEACAS and libMesh do. All arrays int64 (the
 // file uses the 64-bit API); an empty array is passed as a one-element dummy
-// (the library dereferences what it is given).
-void write_nemesis(TempExodus& file, const ExportChunk& chunk, const NemesisInfo& n, const std::vector<Id>& order) {
+// (the library dereferences what it is given). `present`: the blocks in
+// file order, `per_block` their element counts.
+void write_nemesis(TempExodus& file, const ChunkSource& chunk, const NemesisInfo& n,
+                   const std::vector<std::size_t>& present, const std::vector<Id>& per_block,
+                   std::unique_lock<std::recursive_mutex>& lock) {
   const int exoid = file.id();
   const int proc = static_cast<int>(n.processor);
   const MeshInfo& info = chunk.mesh().info();
@@ -136,7 +157,7 @@ void write_nemesis(TempExodus& file, const ExportChunk& chunk, const NemesisInfo
   file.check(ex_put_init_info(exoid, static_cast<int>(n.processors), 1, ftype), "ex_put_init_info");
   exodus::clear_error();
   file.check(ex_put_init_global(exoid, n.global_nodes, n.global_elements, static_cast<std::int64_t>(info.blocks.size()),
-                                static_cast<std::int64_t>(chunk.node_sets().size()),
+                                static_cast<std::int64_t>(chunk.node_set_ranges().size()),
                                 static_cast<std::int64_t>(chunk.side_sets().size())),
              "ex_put_init_global");
   {
@@ -155,27 +176,34 @@ void write_nemesis(TempExodus& file, const ExportChunk& chunk, const NemesisInfo
     file.check(put(exoid, ptr(ids), ptr(counts), ptr(df)), call);
   };
   set_params(chunk.side_sets(), n.side_set_counts, ex_put_ss_param_global, "ex_put_ss_param_global");
-  set_params(chunk.node_sets(), n.node_set_counts, ex_put_ns_param_global, "ex_put_ns_param_global");
-  // Border nodes: those on any communication map; the rest are internal.
-  const Id nn = chunk.num_nodes(), ne = chunk.num_elements();
-  std::vector<char> border(static_cast<size_t>(nn), 0);
+  set_params(chunk.node_set_ranges(), n.node_set_counts, ex_put_ns_param_global, "ex_put_ns_param_global");
+  // Border nodes: those on any communication map (a bit each); the rest are internal.
+  const Id nn = chunk.num_nodes();
+  std::vector<std::uint64_t> border(static_cast<size_t>(nn / 64 + 1), 0);
+  auto is_border = [&](Id l) { return (border[static_cast<size_t>(l >> 6)] >> (l & 63)) & 1; };
   for (const auto& list : n.shared)
     for (Id l : list) {
       if (l < 0 || l >= nn) file.fail("nemesis", "shared node " + std::to_string(l) + " is not in the chunk");
-      border[static_cast<size_t>(l)] = 1;
+      border[static_cast<size_t>(l >> 6)] |= std::uint64_t{1} << (l & 63);
     }
   std::vector<std::int64_t> mapi, mapb, mape;
-  for (Id l = 0; l < nn; ++l) (border[static_cast<size_t>(l)] ? mapb : mapi).push_back(l + 1);
+  for (Id l = 0; l < nn; ++l) (is_border(l) ? mapb : mapi).push_back(l + 1);
+  // Border elements: those with a border node, by 1-based file position.
   std::vector<std::int64_t> emapi, emapb;
   const int c = chunk.corners();
-  const auto conn = chunk.connectivity();
-  for (size_t f = 0; f < order.size(); ++f) {  // file positions, in file order
-    const Id e = order[f];
-    bool b = false;
-    for (int q = 0; q < c && !b; ++q) b = border[static_cast<size_t>(conn[static_cast<size_t>(e * c + q)])] != 0;
-    (b ? emapb : emapi).push_back(static_cast<std::int64_t>(f) + 1);
-  }
-  (void)ne;
+  std::int64_t f = 0;
+  unlocked(lock, [&] {
+    for (std::size_t b : present) {
+      if (per_block[b] == 0) continue;
+      chunk.elements({static_cast<std::int32_t>(b), false}, [&](const ElementSpan& span) {
+        for (Id e = 0; e < span.count; ++e) {
+          bool bd = false;
+          for (int q = 0; q < c && !bd; ++q) bd = is_border(span.conn[e * c + q]);
+          (bd ? emapb : emapi).push_back(++f);
+        }
+      });
+    }
+  });
   exodus::clear_error();
   file.check(ex_put_loadbal_param(exoid, static_cast<std::int64_t>(mapi.size()), static_cast<std::int64_t>(mapb.size()), 0,
                                   static_cast<std::int64_t>(emapi.size()), static_cast<std::int64_t>(emapb.size()),
@@ -199,6 +227,14 @@ void write_nemesis(TempExodus& file, const ExportChunk& chunk, const NemesisInfo
   file.check(ex_put_processor_elem_maps(exoid, ptr(emapi), ptr(emapb), proc), "ex_put_processor_elem_maps");
 }
 
+// Values gathered from a pass's spans and handed to the library kSlice at a
+// time: put(first, n) writes buffered entries [first, first + n) (0-based).
+struct Slices {
+  std::vector<std::int64_t> a, b;
+  std::vector<double> x, y, z;
+  Id first = 0;  // index of the buffer's first entry
+};
+
 }  // namespace
 
 
@@ -209,10 +245,12 @@ std::string nemesis_path(const std::string& out, Id processors, Id processor) {
   return out + "." + p + "." + r;
 }
 
-void write_exodus(const ExportChunk& chunk, const std::string& path, const NemesisInfo* nem) {
+
+void write_exodus(const ChunkSource& chunk, const std::string& path, const NemesisInfo* nem) {
   // netCDF-4 is HDF5 underneath: take the process-wide HDF5 lock (the
-  // store's read-ahead thread may be loading pages meanwhile).
-  std::lock_guard hdf5_guard(hdf5_lock());
+  // store's read-ahead thread may be loading pages meanwhile), except
+  // during the chunk's passes (unlocked()).
+  std::unique_lock lock(hdf5_lock());
   if (path.empty() || path.back() == '/') throw Error(ErrorKind::Usage, path + ": not a file name");
 
   const MeshInfo& info = chunk.mesh().info();
@@ -220,9 +258,8 @@ void write_exodus(const ExportChunk& chunk, const std::string& path, const Nemes
   const bool volume = chunk.mode() == Mode::Volume;
   const Id num_nodes = chunk.num_nodes();
   const Id num_elements = chunk.num_elements();
-  const auto elem_block = chunk.element_block();
-  const auto elem_global = chunk.element_global();
-  const auto conn = chunk.connectivity();
+  const auto& side_sets = chunk.side_sets();
+  const auto& node_sets = chunk.node_set_ranges();
 
   constexpr Id kMaxLocal = 2147483647;  // 32-bit bulk data, see above
   if (num_nodes > kMaxLocal || num_elements > kMaxLocal)
@@ -231,27 +268,15 @@ void write_exodus(const ExportChunk& chunk, const std::string& path, const Nemes
                                       " elements is too big for one Exodus file (at most 2147483647 of each); "
                                       "export in more chunks");
 
-  // ---- block order: counting sort of the chunk's elements by block ----
+  // ---- block order: the chunk's elements block by block ----
   const std::size_t nblocks = info.blocks.size();
+  const std::vector<Id> per_block = chunk.block_counts();
   std::vector<Id> block_start(nblocks + 1, 0);
-  for (Id e = 0; e < num_elements; ++e) {
-    const std::int32_t b = elem_block[static_cast<std::size_t>(e)];
-    if (b < 0 || static_cast<std::size_t>(b) >= nblocks)
-      throw Error(ErrorKind::Usage, path + ": element " + std::to_string(elem_global[static_cast<std::size_t>(e)]) +
-                                        " has no block");
-    ++block_start[static_cast<std::size_t>(b) + 1];
-  }
-  for (std::size_t b = 0; b < nblocks; ++b) block_start[b + 1] += block_start[b];
-  // order[f]: the chunk element at 0-based file position f.
-  std::vector<Id> order(static_cast<std::size_t>(num_elements));
-  {
-    std::vector<Id> next(block_start.begin(), block_start.end() - 1);
-    for (Id e = 0; e < num_elements; ++e)
-      order[static_cast<std::size_t>(next[static_cast<std::size_t>(elem_block[static_cast<std::size_t>(e)])]++)] = e;
-  }
+  for (std::size_t b = 0; b < nblocks; ++b) block_start[b + 1] = block_start[b] + per_block[b];
   std::vector<std::size_t> present;  // block indices with elements here (every block in a Nemesis file)
   for (std::size_t b = 0; b < nblocks; ++b)
-    if (nem || block_start[b + 1] > block_start[b]) present.push_back(b);
+    if (nem || per_block[b] > 0) present.push_back(b);
+  chunk.expect_passes(nem ? 3 : 2);
 
   ex_opts(0);  // no chatter on stderr, never abort; errors become dicer::Error
   TempExodus file(path);
@@ -266,8 +291,8 @@ void write_exodus(const ExportChunk& chunk, const std::string& path, const Nemes
   // never truncates (it would print a warning on stderr).
   std::size_t longest = MAX_NAME_LENGTH;
   for (std::size_t b : present) longest = std::max(longest, info.blocks[b].name.size());
-  for (const auto& s : chunk.side_sets()) longest = std::max(longest, s.name.size());
-  for (const auto& s : chunk.node_sets()) longest = std::max(longest, s.name.size());
+  for (const auto& s : side_sets) longest = std::max(longest, s.name.size());
+  for (const auto& s : node_sets) longest = std::max(longest, s.name.size());
   const int name_len = static_cast<int>(std::min(longest, kMaxName));
   if (name_len > MAX_NAME_LENGTH) {
     const int status = nc_put_att_int(exoid, NC_GLOBAL, "maximum_name_length", NC_INT, 1, &name_len);
@@ -276,7 +301,7 @@ void write_exodus(const ExportChunk& chunk, const std::string& path, const Nemes
     file.check(ex_set_max_name_length(exoid, name_len), "ex_set_max_name_length");
   }
   const auto cut = [&](const std::string& name) { return name.substr(0, static_cast<std::size_t>(name_len)); };
-  if (nem) write_nemesis(file, chunk, *nem, order);
+  if (nem) write_nemesis(file, chunk, *nem, present, per_block, lock);
 
   // ---- header ----
   ex_init_params init{};
@@ -291,37 +316,46 @@ void write_exodus(const ExportChunk& chunk, const std::string& path, const Nemes
   init.num_nodes = num_nodes;
   init.num_elem = num_elements;
   init.num_elem_blk = static_cast<std::int64_t>(present.size());
-  init.num_side_sets = static_cast<std::int64_t>(chunk.side_sets().size());
-  init.num_node_sets = static_cast<std::int64_t>(chunk.node_sets().size());
+  init.num_side_sets = static_cast<std::int64_t>(side_sets.size());
+  init.num_node_sets = static_cast<std::int64_t>(node_sets.size());
   exodus::clear_error();
   file.check(ex_put_init_ext(exoid, &init), "ex_put_init_ext");
 
-  // ---- nodes ----
+  // ---- nodes: coordinates and the id map, kSlice nodes per call ----
   {
     NameList names{{"x", "y", "z"}, {}};
     exodus::clear_error();
     file.check(ex_put_coord_names(exoid, names.data()), "ex_put_coord_names");
   }
-  if (num_nodes > 0) {
+  Slices buf;
+  auto put_nodes = [&] {
+    const auto n = static_cast<std::int64_t>(buf.a.size());
+    if (n == 0) return;
+    std::lock_guard call(hdf5_lock());
     exodus::clear_error();
-    file.check(ex_put_coord(exoid, chunk.x().data(), chunk.y().data(), chunk.z().data()), "ex_put_coord");
-  }
-  std::vector<std::int64_t> buffer;
-  const auto node_global = chunk.node_global();
-  for (Id first = 0; first < num_nodes; first += kSlice) {
-    const Id n = std::min(kSlice, num_nodes - first);
-    buffer.resize(static_cast<std::size_t>(n));
-    for (Id i = 0; i < n; ++i)
-      buffer[static_cast<std::size_t>(i)] = node_global[static_cast<std::size_t>(first + i)] + 1;
+    file.check(ex_put_partial_coord(exoid, buf.first + 1, n, buf.x.data(), buf.y.data(), buf.z.data()),
+               "ex_put_partial_coord");
     exodus::clear_error();
-    file.check(ex_put_partial_id_map(exoid, EX_NODE_MAP, first + 1, n, buffer.data()),
-               "ex_put_partial_id_map(node)");
-  }
+    file.check(ex_put_partial_id_map(exoid, EX_NODE_MAP, buf.first + 1, n, buf.a.data()), "ex_put_partial_id_map(node)");
+    buf.first += n;
+    buf.a.clear(), buf.x.clear(), buf.y.clear(), buf.z.clear();
+  };
+  unlocked(lock, [&] {
+    chunk.nodes({true, -1}, [&](const NodeSpan& span) {
+      for (Id q = 0; q < span.count; ++q) {
+        buf.a.push_back(span.global[q] + 1);
+        buf.x.push_back(span.x[q]), buf.y.push_back(span.y[q]), buf.z.push_back(span.z[q]);
+        if (static_cast<Id>(buf.a.size()) == kSlice) put_nodes();
+      }
+    });
+  });
+  put_nodes();
+  if (buf.first != num_nodes) file.fail("export", "the chunk's node pass gave " + std::to_string(buf.first) + " nodes");
 
   // ---- element blocks ----
   for (std::size_t b : present) {
     const std::int64_t id = info.blocks[b].id;
-    const Id count = block_start[b + 1] - block_start[b];
+    const Id count = per_block[b];
     exodus::clear_error();
     file.check(ex_put_block(exoid, EX_ELEM_BLOCK, id, volume ? "HEX8" : "SHELL4", count, count ? corners : 0, 0, 0, 0),
                "ex_put_block(" + std::to_string(id) + ")");
@@ -332,38 +366,52 @@ void write_exodus(const ExportChunk& chunk, const std::string& path, const Nemes
     exodus::clear_error();
     file.check(ex_put_names(exoid, EX_ELEM_BLOCK, names.data()), "ex_put_names(element blocks)");
   }
+  // Connectivity (1-based local ids) and the element id map, block by block,
+  // kSlice elements per call; side-set members learn their file positions
+  // on the way (sets hold local element indices, ascending).
+  std::vector<std::vector<std::int64_t>> side_pos(side_sets.size());
+  for (std::size_t s = 0; s < side_sets.size(); ++s) side_pos[s].assign(side_sets[s].element.size(), -1);
   for (std::size_t b : present) {
     const std::int64_t id = info.blocks[b].id;
-    const Id first = block_start[b], count = block_start[b + 1] - first;
-    if (count == 0) continue;  // an empty block (Nemesis lists every block)
-    buffer.resize(static_cast<std::size_t>(count * corners));
-    const std::size_t width = static_cast<std::size_t>(corners);
-    std::size_t k = 0;
-    for (Id f = first; f < first + count; ++f) {
-      const std::size_t e = static_cast<std::size_t>(order[static_cast<std::size_t>(f)]);
-      for (std::size_t c = 0; c < width; ++c) buffer[k++] = conn[e * width + c] + 1;
-    }
-    exodus::clear_error();
-    file.check(ex_put_conn(exoid, EX_ELEM_BLOCK, id, buffer.data(), nullptr, nullptr),
-               "ex_put_conn(" + std::to_string(id) + ")");
+    if (per_block[b] == 0) continue;  // an empty block (Nemesis lists every block)
+    buf.first = block_start[b];       // file position of the buffer's first element
+    auto put_elements = [&] {
+      const auto n = static_cast<std::int64_t>(buf.a.size());
+      if (n == 0) return;
+      std::lock_guard call(hdf5_lock());
+      exodus::clear_error();
+      file.check(ex_put_partial_elem_conn(exoid, id, buf.first - block_start[b] + 1, n, buf.b.data()),
+                 "ex_put_partial_elem_conn(" + std::to_string(id) + ")");
+      exodus::clear_error();
+      file.check(ex_put_partial_id_map(exoid, EX_ELEM_MAP, buf.first + 1, n, buf.a.data()),
+                 "ex_put_partial_id_map(element)");
+      buf.first += n;
+      buf.a.clear(), buf.b.clear();
+    };
+    unlocked(lock, [&] {
+      chunk.elements({static_cast<std::int32_t>(b), false}, [&](const ElementSpan& span) {
+        const Id at = buf.first + static_cast<Id>(buf.a.size());  // file position of span.first
+        for (std::size_t s = 0; s < side_sets.size(); ++s) {
+          const auto& el = side_sets[s].element;
+          for (auto it = std::lower_bound(el.begin(), el.end(), span.first);
+               it != el.end() && *it < span.first + span.count; ++it)
+            side_pos[s][static_cast<std::size_t>(it - el.begin())] = at + (*it - span.first);
+        }
+        for (Id e = 0; e < span.count; ++e) {
+          buf.a.push_back(span.global[e] + 1);
+          for (int q = 0; q < corners; ++q) buf.b.push_back(span.conn[e * corners + q] + 1);
+          if (static_cast<Id>(buf.a.size()) == kSlice) put_elements();
+        }
+      });
+    });
+    put_elements();
+    if (buf.first != block_start[b + 1])
+      file.fail("export", "block " + std::to_string(id) + ": the element pass gave a different count");
   }
-  for (Id first = 0; first < num_elements; first += kSlice) {
-    const Id n = std::min(kSlice, num_elements - first);
-    buffer.resize(static_cast<std::size_t>(n));
-    for (Id i = 0; i < n; ++i)
-      buffer[static_cast<std::size_t>(i)] =
-          elem_global[static_cast<std::size_t>(order[static_cast<std::size_t>(first + i)])] + 1;
-    exodus::clear_error();
-    file.check(ex_put_partial_id_map(exoid, EX_ELEM_MAP, first + 1, n, buffer.data()),
-               "ex_put_partial_id_map(element)");
-  }
-  // Sets need the inverse: the 0-based file position of each chunk element.
-  std::vector<Id> file_pos(order.size());
-  for (std::size_t f = 0; f < order.size(); ++f) file_pos[static_cast<std::size_t>(order[f])] = static_cast<Id>(f);
-  std::vector<Id>().swap(order);
 
   // ---- side sets ----
-  for (const auto& set : chunk.side_sets()) {
+  for (std::size_t s = 0; s < side_sets.size(); ++s) {
+    const auto& set = side_sets[s];
     const std::int64_t count = static_cast<std::int64_t>(set.element.size());
     const std::string what = "(side set " + std::to_string(set.id) + ")";
     exodus::clear_error();
@@ -371,34 +419,49 @@ void write_exodus(const ExportChunk& chunk, const std::string& path, const Nemes
     if (count == 0) continue;
     std::vector<std::int64_t> elems(static_cast<std::size_t>(count)), sides(static_cast<std::size_t>(count));
     for (std::size_t i = 0; i < set.element.size(); ++i) {
-      elems[i] = file_pos[static_cast<std::size_t>(set.element[i])] + 1;
+      if (side_pos[s][i] < 0) file.fail("export", "side set " + std::to_string(set.id) + ": a member is not in the chunk");
+      elems[i] = side_pos[s][i] + 1;
       sides[i] = set.side[i] + 1;
     }
     exodus::clear_error();
     file.check(ex_put_set(exoid, EX_SIDE_SET, set.id, elems.data(), sides.data()), "ex_put_set" + what);
   }
-  if (!chunk.side_sets().empty()) {
+  if (!side_sets.empty()) {
     NameList names;
-    for (const auto& set : chunk.side_sets()) names.text.push_back(cut(set.name));
+    for (const auto& set : side_sets) names.text.push_back(cut(set.name));
     exodus::clear_error();
     file.check(ex_put_names(exoid, EX_SIDE_SET, names.data()), "ex_put_names(side sets)");
   }
 
-  // ---- node sets ----
-  for (const auto& set : chunk.node_sets()) {
-    const std::int64_t count = static_cast<std::int64_t>(set.node.size());
+  // ---- node sets: 1-based local ids, from the ranges, kSlice per call ----
+  for (const auto& set : node_sets) {
+    std::int64_t count = 0;
+    for (const auto& r : set.local) count += r[1] - r[0];
     const std::string what = "(node set " + std::to_string(set.id) + ")";
     exodus::clear_error();
     file.check(ex_put_set_param(exoid, EX_NODE_SET, set.id, count, 0), "ex_put_set_param" + what);
     if (count == 0) continue;
-    std::vector<std::int64_t> nodes(set.node.begin(), set.node.end());
-    for (std::int64_t& v : nodes) v += 1;
-    exodus::clear_error();
-    file.check(ex_put_set(exoid, EX_NODE_SET, set.id, nodes.data(), nullptr), "ex_put_set" + what);
+    buf.a.clear();
+    buf.first = 0;
+    auto put_members = [&] {
+      const auto n = static_cast<std::int64_t>(buf.a.size());
+      if (n == 0) return;
+      exodus::clear_error();
+      file.check(ex_put_partial_set(exoid, EX_NODE_SET, set.id, buf.first + 1, n, buf.a.data(), nullptr),
+                 "ex_put_partial_set" + what);
+      buf.first += n;
+      buf.a.clear();
+    };
+    for (const auto& r : set.local)
+      for (Id l = r[0]; l < r[1]; ++l) {
+        buf.a.push_back(l + 1);
+        if (static_cast<Id>(buf.a.size()) == kSlice) put_members();
+      }
+    put_members();
   }
-  if (!chunk.node_sets().empty()) {
+  if (!node_sets.empty()) {
     NameList names;
-    for (const auto& set : chunk.node_sets()) names.text.push_back(cut(set.name));
+    for (const auto& set : node_sets) names.text.push_back(cut(set.name));
     exodus::clear_error();
     file.check(ex_put_names(exoid, EX_NODE_SET, names.data()), "ex_put_names(node sets)");
   }

@@ -1,4 +1,4 @@
-// Gmsh MSH 4.1 writer (ASCII and binary) for one ExportChunk.
+// Gmsh MSH 4.1 writer (ASCII and binary) for one chunk (ChunkSource).
 //
 // Layout of the file (Gmsh reference manual, "MSH file format"):
 //  - $MeshFormat "4.1 0 8" or "4.1 1 8" + the binary int 1 (byte order).
@@ -31,11 +31,17 @@
 // Physical tags: the block (side set) id when it is a positive int that no
 // earlier block (set) took, else the next free tag above the largest one.
 //
-// Streaming: output goes through a 1 MiB buffer to the file descriptor; the
-// only chunk-sized work space is the node/element orderings by entity
-// (8 B per node and per element, 4 B per node for its entity). Every write
-// is checked; the file is written as ".<name>.tmp-<pid>" in the destination
-// folder and renamed when complete, and removed on any error.
+// Streaming: the sections need counts and boxes before their records, so
+// the writer makes passes over the source (export.hpp): nodes without
+// coordinates (counts per entity, the tag range), nodes with coordinates
+// (the entities' boxes), then per entity its tags and its coordinates, then
+// per block entity its elements; side-set elements come from one more pass
+// over the elements when a set has members, and are the only records held
+// (O(set sizes)). A chunk's nodes on a boundary between blocks are known
+// to the source as runs (ChunkSource::user_sets), so nothing is ordered or
+// held per node. Output goes through a 1 MiB buffer to the file
+// descriptor; every write is checked; the file is written through
+// AtomicOutput and removed on any error.
 #include <fcntl.h>
 #include <unistd.h>
 
@@ -61,6 +67,16 @@ namespace {
 
 constexpr int kMshHex = 5, kMshQuad = 3, kMshLine = 1;
 constexpr std::size_t kBufferBytes = std::size_t{1} << 20;
+// Written bytes handed to the disk (sync_file_range) each time this many
+// more are written: the disk works while the mesh is generated, so the
+// final fsync (AtomicOutput::commit) waits for the last stretch only.
+constexpr std::uint64_t kWriteBehindBytes = std::uint64_t{32} << 20;
+
+// A value's bytes at p (native order; p need not be aligned).
+template <class T>
+inline void store(char* p, T v) {
+  std::memcpy(p, &v, sizeof v);
+}
 
 // Buffered, checked output to a file descriptor; ASCII or binary values.
 class Out {
@@ -70,7 +86,23 @@ class Out {
   }
   bool binary() const { return binary_; }
 
+  // Bytes written so far (the file offset of the next byte).
+  std::uint64_t offset() const { return flushed_ + used_; }
+
+  // Room for n <= kBufferBytes bytes that the caller fills now.
+  char* room(std::size_t n) {
+    if (buf_.size() - used_ < n) flush();
+    char* p = buf_.data() + used_;
+    used_ += n;
+    return p;
+  }
+
   void raw(const void* p, std::size_t n) {
+    if (n <= buf_.size() - used_) {  // the common case: one copy
+      std::memcpy(buf_.data() + used_, p, n);
+      used_ += n;
+      return;
+    }
     const char* c = static_cast<const char*>(p);
     while (n > 0) {
       if (used_ == buf_.size()) flush();
@@ -136,7 +168,19 @@ class Out {
       if (w == 0) fail("write failed: no bytes written");
       done += static_cast<std::size_t>(w);
     }
+    flushed_ += used_;
     used_ = 0;
+    if (flushed_ - synced_ >= kWriteBehindBytes) {
+      // A hint: where the kernel cannot, the final fsync does it all.
+      ::sync_file_range(fd_, static_cast<off_t>(synced_), static_cast<off_t>(flushed_ - synced_), SYNC_FILE_RANGE_WRITE);
+      synced_ = flushed_;
+    }
+  }
+  // Rewrites bytes already flushed at `at` (the entity boxes).
+  void patch(std::uint64_t at, const void* p, std::size_t n) {
+    flush();
+    if (::pwrite(fd_, p, n, static_cast<off_t>(at)) != static_cast<ssize_t>(n))
+      fail("write failed: " + std::string(std::strerror(errno)));
   }
   void close() {
     flush();
@@ -155,6 +199,7 @@ class Out {
   bool binary_;
   std::vector<char> buf_;
   std::size_t used_ = 0;
+  std::uint64_t flushed_ = 0, synced_ = 0;
 };
 
 struct BBox {
@@ -208,35 +253,35 @@ std::string msh_name(std::string s) {
   return s;
 }
 
-// Corners (local node ids) of side `side` of local element e; 0 when the side
-// is not written (shell faces 0/1, bad side).
-int side_corners(const ExportChunk& c, Id e, int side, Id out[4]) {
-  const auto conn = c.connectivity();
-  const std::size_t base = static_cast<std::size_t>(e) * static_cast<std::size_t>(c.corners());
-  if (c.mode() == Mode::Volume) {
+// Corners (ids from `conn`, the element's corners) of side `side`, Exodus
+// order; 0 when the side is not written (shell faces 0/1, bad side).
+int side_corners(Mode mode, const Id* conn, int side, Id out[4]) {
+  if (mode == Mode::Volume) {
     if (side < 0 || side > 5) return 0;
-    for (int q = 0; q < 4; ++q) out[q] = conn[base + kHexSideCorners[side][q]];
+    for (int q = 0; q < 4; ++q) out[q] = conn[kHexSideCorners[side][q]];
     return 4;
   }
   if (side < 2 || side > 5) return 0;
   const int a = side - 2;
-  out[0] = conn[base + a], out[1] = conn[base + (a + 1) % 4];
+  out[0] = conn[a], out[1] = conn[(a + 1) % 4];
   return 2;
 }
 
-void write_body(const ExportChunk& c, Out& o) {
+// A side set's written boundary elements: tag and corner node tags.
+struct SideElements {
+  std::vector<std::uint64_t> tag;
+  std::vector<std::uint64_t> node;  // k per element, global id + 1
+};
+
+void write_body(const ChunkSource& c, Out& o) {
   const bool vol = c.mode() == Mode::Volume;
   const int dim = vol ? 3 : 2;
-  const int nc = c.corners();
+  const int nc = c.corners(), k_side = vol ? 4 : 2;
   const Id nn = c.num_nodes(), ne = c.num_elements();
-  const Id E = c.mesh().num_elements();
+  const auto E = static_cast<std::uint64_t>(c.mesh().num_elements());
   const auto& blocks = c.mesh().info().blocks;
   const auto& sets = c.side_sets();
-  const auto ng = c.node_global();
-  const auto eg = c.element_global();
-  const auto eb = c.element_block();
-  const auto conn = c.connectivity();
-  const auto X = c.x(), Y = c.y(), Z = c.z();
+  const auto& users = c.user_sets();
 
   // Physical tags.
   std::vector<std::int64_t> ids;
@@ -247,57 +292,102 @@ void write_body(const ExportChunk& c, Out& o) {
   const std::vector<int> set_phys = physical_tags(ids);
 
   // Block entities, in block order, for blocks with elements in the chunk.
-  std::vector<std::uint64_t> per_block(blocks.size(), 0);
-  for (Id e = 0; e < ne; ++e) {
-    const auto b = eb[static_cast<std::size_t>(e)];
-    if (b < 0 || static_cast<std::size_t>(b) >= blocks.size()) o.fail("element block index out of range");
-    ++per_block[static_cast<std::size_t>(b)];
-  }
+  const std::vector<Id> per_block = c.block_counts();
   std::vector<Entity> vents;
   std::vector<int> entity_of_block(blocks.size(), -1);
   for (std::size_t b = 0; b < blocks.size(); ++b)
     if (per_block[b] > 0) {
       entity_of_block[b] = static_cast<int>(vents.size());
-      vents.push_back({static_cast<int>(vents.size()) + 1, block_phys[b], b, per_block[b], {}});
+      vents.push_back({static_cast<int>(vents.size()) + 1, block_phys[b], b, static_cast<std::uint64_t>(per_block[b]), {}});
     }
-  if (vents.empty() && nn > 0) {
+  const bool no_elements = vents.empty();
+  if (no_elements && nn > 0) {
     if (blocks.empty()) o.fail("chunk has nodes but the mesh has no blocks");
     vents.push_back({1, block_phys[0], 0, 0, {}});
   }
+  // A node's entity: the lowest-tagged one whose elements use it (entities
+  // are in block order, so the lowest using block's).
+  auto entity_of = [&](std::uint32_t u) {
+    if (no_elements) return 0;
+    const int e = entity_of_block[static_cast<std::size_t>(users[u].front())];
+    if (e < 0) o.fail("a node's using block has no elements in the chunk");
+    return e;
+  };
 
-  // Node classification: the lowest entity whose elements use the node.
-  std::vector<std::int32_t> node_ent(static_cast<std::size_t>(nn), std::numeric_limits<std::int32_t>::max());
-  for (Id e = 0; e < ne; ++e) {
-    const int ent = entity_of_block[static_cast<std::size_t>(eb[static_cast<std::size_t>(e)])];
-    Entity& v = vents[static_cast<std::size_t>(ent)];
-    for (int q = 0; q < nc; ++q) {
-      const Id l = conn[static_cast<std::size_t>(e) * nc + q];
-      auto& ne_ = node_ent[static_cast<std::size_t>(l)];
-      ne_ = std::min(ne_, ent);
-      v.box.add(X[l], Y[l], Z[l]);
-    }
+  // Side-set boundary elements, from one pass over the elements (global
+  // connectivity) when a set has members.
+  std::vector<SideElements> side(sets.size());
+  bool any_side = false;
+  for (const auto& s : sets) any_side |= !s.element.empty();
+  // Passes with coordinates or connectivity: the side elements', the boxes'
+  // (ASCII), the coordinates', the elements'.
+  c.expect_passes(2 + (any_side ? 1 : 0) + (o.binary() ? 0 : 1));
+  if (any_side) {
+    std::vector<std::size_t> at(sets.size(), 0);
+    c.elements({-1, true}, [&](const ElementSpan& span) {
+      for (std::size_t s = 0; s < sets.size(); ++s) {
+        const auto& m = sets[s];
+        for (std::size_t& q = at[s]; q < m.element.size() && m.element[q] < span.first + span.count; ++q) {
+          const Id l = m.element[q] - span.first;
+          if (l < 0) o.fail("side set members out of order");
+          Id corner[4];
+          const int k = side_corners(c.mode(), span.conn + l * nc, m.side[q], corner);
+          if (k == 0) continue;
+          const auto eg = static_cast<std::uint64_t>(span.global[l]);
+          side[s].tag.push_back(E + 1 + 6 * (static_cast<std::uint64_t>(s) * E + eg) + static_cast<std::uint64_t>(m.side[q]));
+          for (int a = 0; a < k; ++a) side[s].node.push_back(static_cast<std::uint64_t>(corner[a]) + 1);
+        }
+      }
+    });
   }
-  for (auto& v : node_ent)
-    if (v == std::numeric_limits<std::int32_t>::max()) v = 0;  // unused node (none expected)
-  for (Id l = 0; l < nn; ++l)
-    if (ne == 0) vents[0].box.add(X[l], Y[l], Z[l]);
-  for (auto& v : vents) v.box.finish();
-
-  // Side set entities.
   std::vector<Entity> sents;
-  for (std::size_t s = 0; s < sets.size(); ++s) {
-    Entity en{static_cast<int>(sents.size()) + 1, set_phys[s], s, 0, {}};
-    Id corner[4];
-    for (std::size_t m = 0; m < sets[s].element.size(); ++m) {
-      const int k = side_corners(c, sets[s].element[m], sets[s].side[m], corner);
-      if (k == 0) continue;
-      ++en.count;
-      for (int q = 0; q < k; ++q) en.box.add(X[corner[q]], Y[corner[q]], Z[corner[q]]);
+  for (std::size_t s = 0; s < sets.size(); ++s)
+    if (!side[s].tag.empty()) sents.push_back({static_cast<int>(sents.size()) + 1, set_phys[s], s, side[s].tag.size(), {}});
+
+  // Nodes per entity, and the node tag range (ids only).
+  std::vector<std::uint64_t> nodes_in(vents.size(), 0);
+  Id lo_node = -1, hi_node = -1;
+  c.nodes({false, -1}, [&](const NodeSpan& span) {
+    for (Id q = 0; q < span.count; ++q) ++nodes_in[static_cast<std::size_t>(entity_of(span.users[q]))];
+    if (span.count > 0) {
+      if (lo_node < 0) lo_node = span.global[0];
+      hi_node = span.global[span.count - 1];
     }
-    if (en.count > 0) {
-      en.box.finish();
-      sents.push_back(en);
+  });
+
+  // Bounding boxes: a block entity's holds every node its elements use; a
+  // side set entity's the corners of its boundary elements, found by a
+  // merge (both ascend by global id within a pass). ASCII: one pass with
+  // coordinates first; binary: during the $Nodes section's coordinate
+  // passes, the boxes written in $Entities then patched in place.
+  std::vector<std::pair<Id, std::size_t>> corner_set;  // (global id, side entity)
+  for (std::size_t v = 0; v < sents.size(); ++v)
+    for (std::uint64_t t : side[sents[v].source].node) corner_set.emplace_back(static_cast<Id>(t) - 1, v);
+  std::sort(corner_set.begin(), corner_set.end());
+  corner_set.erase(std::unique(corner_set.begin(), corner_set.end()), corner_set.end());
+  std::size_t next_corner = 0;
+  auto add_boxes = [&](const NodeSpan& span) {
+    const bool one = !no_elements && users[span.users[0]].size() == 1 &&
+                     std::all_of(span.users, span.users + span.count, [&](std::uint32_t u) { return u == span.users[0]; });
+    if (one || no_elements) {  // one entity for the whole span
+      BBox& box = vents[no_elements ? 0 : static_cast<std::size_t>(entity_of(span.users[0]))].box;
+      for (Id q = 0; q < span.count; ++q) box.add(span.x[q], span.y[q], span.z[q]);
+    } else {
+      for (Id q = 0; q < span.count; ++q)
+        for (const std::int32_t b : users[span.users[q]])
+          vents[static_cast<std::size_t>(entity_of_block[static_cast<std::size_t>(b)])].box.add(span.x[q], span.y[q],
+                                                                                                span.z[q]);
     }
+    if (corner_set.empty()) return;
+    for (Id q = 0; q < span.count; ++q)
+      for (; next_corner < corner_set.size() && corner_set[next_corner].first <= span.global[q]; ++next_corner)
+        if (corner_set[next_corner].first == span.global[q])
+          sents[corner_set[next_corner].second].box.add(span.x[q], span.y[q], span.z[q]);
+  };
+  if (!o.binary()) {
+    c.nodes({true, -1}, add_boxes);
+    for (auto& v : vents) v.box.finish();
+    for (auto& v : sents) v.box.finish();
   }
 
   // $MeshFormat.
@@ -331,8 +421,10 @@ void write_body(const ExportChunk& c, Out& o) {
   o.size(vol ? 0 : n_lower);                   // curves
   o.size(vol ? n_lower : n_upper);             // surfaces
   o.size(vol ? n_upper : 0, '\n');             // volumes
+  std::vector<std::uint64_t> box_at;  // binary: where each entity's box is, sents then vents
   auto entity = [&](const Entity& en) {
     o.integer(en.tag);
+    box_at.push_back(o.offset());
     for (int a = 0; a < 3; ++a) o.dbl(en.box.lo[a]);
     for (int a = 0; a < 3; ++a) o.dbl(en.box.hi[a]);
     o.size(1);
@@ -343,64 +435,73 @@ void write_body(const ExportChunk& c, Out& o) {
   for (const auto& en : vents) entity(en);
   o.text(o.binary() ? "\n$EndEntities\n" : "$EndEntities\n");
 
-  // $Nodes: one entity block per volume (surface) entity that holds nodes.
-  std::vector<std::uint64_t> nodes_in(vents.size() + 1, 0);  // counting sort by entity
-  for (Id l = 0; l < nn; ++l) ++nodes_in[static_cast<std::size_t>(node_ent[static_cast<std::size_t>(l)]) + 1];
+  // $Nodes: one entity block per volume (surface) entity that holds nodes,
+  // its tags (ids only), then its coordinates.
   std::size_t node_blocks = 0;
-  for (std::size_t v = 0; v < vents.size(); ++v) node_blocks += nodes_in[v + 1] > 0;
-  for (std::size_t v = 1; v <= vents.size(); ++v) nodes_in[v] += nodes_in[v - 1];
-  {
-    std::vector<Id> order(static_cast<std::size_t>(nn));
-    std::vector<std::uint64_t> pos(nodes_in.begin(), nodes_in.end() - 1);
-    for (Id l = 0; l < nn; ++l) order[pos[static_cast<std::size_t>(node_ent[static_cast<std::size_t>(l)])]++] = l;
-    o.text("$Nodes\n");
-    o.size(node_blocks);
-    o.size(static_cast<std::uint64_t>(nn));
-    o.size(nn > 0 ? static_cast<std::uint64_t>(ng.front()) + 1 : 0);
-    o.size(nn > 0 ? static_cast<std::uint64_t>(ng.back()) + 1 : 0, '\n');
-    for (std::size_t v = 0; v < vents.size(); ++v) {
-      const std::uint64_t first = nodes_in[v], end = nodes_in[v + 1];
-      if (first == end) continue;
-      o.integer(dim);
-      o.integer(vents[v].tag);
-      o.integer(0);  // no parametric coordinates
-      o.size(end - first, '\n');
-      for (std::uint64_t i = first; i < end; ++i) o.size(static_cast<std::uint64_t>(ng[order[i]]) + 1, '\n');
-      for (std::uint64_t i = first; i < end; ++i) {
-        const Id l = order[i];
-        if (o.binary()) {  // one copy per node, not three
-          const double xyz[3] = {X[l], Y[l], Z[l]};
-          o.raw(xyz, sizeof xyz);
-        } else {
-          o.dbl(X[l]), o.dbl(Y[l]), o.dbl(Z[l], '\n');
-        }
+  for (std::uint64_t n : nodes_in) node_blocks += n > 0;
+  o.text("$Nodes\n");
+  o.size(node_blocks);
+  o.size(static_cast<std::uint64_t>(nn));
+  o.size(nn > 0 ? static_cast<std::uint64_t>(lo_node) + 1 : 0);
+  o.size(nn > 0 ? static_cast<std::uint64_t>(hi_node) + 1 : 0, '\n');
+  for (std::size_t v = 0; v < vents.size(); ++v) {
+    if (nodes_in[v] == 0) continue;
+    o.integer(dim);
+    o.integer(vents[v].tag);
+    o.integer(0);  // no parametric coordinates
+    o.size(nodes_in[v], '\n');
+    const ChunkSource::NodePass tags{false, no_elements ? -1 : static_cast<std::int32_t>(vents[v].source)};
+    std::uint64_t written = 0;
+    c.nodes(tags, [&](const NodeSpan& span) {
+      written += static_cast<std::uint64_t>(span.count);
+      if (!o.binary()) {
+        for (Id q = 0; q < span.count; ++q) o.size(static_cast<std::uint64_t>(span.global[q]) + 1, '\n');
+        return;
       }
-    }
-    o.text(o.binary() ? "\n$EndNodes\n" : "$EndNodes\n");
+      for (Id q = 0; q < span.count;) {  // straight into the buffer
+        const Id n = std::min<Id>(span.count - q, kBufferBytes / sizeof(std::size_t));
+        char* t = o.room(static_cast<std::size_t>(n) * sizeof(std::size_t));
+        for (Id i = 0; i < n; ++i) store(t + 8 * i, static_cast<std::size_t>(span.global[q + i]) + 1);
+        q += n;
+      }
+    });
+    next_corner = 0;
+    c.nodes({true, tags.lowest_user}, [&](const NodeSpan& span) {
+      if (!o.binary()) {
+        for (Id q = 0; q < span.count; ++q) o.dbl(span.x[q]), o.dbl(span.y[q]), o.dbl(span.z[q], '\n');
+        return;
+      }
+      add_boxes(span);
+      for (Id q = 0; q < span.count;) {  // x y z per node, straight into the buffer
+        const Id n = std::min<Id>(span.count - q, kBufferBytes / (3 * sizeof(double)));
+        char* p = o.room(static_cast<std::size_t>(n) * 3 * sizeof(double));
+        for (Id i = 0; i < n; ++i, p += 24) store(p, span.x[q + i]), store(p + 8, span.y[q + i]), store(p + 16, span.z[q + i]);
+        q += n;
+      }
+    });
+    if (written != nodes_in[v]) o.fail("an entity's node count changed between passes");
   }
-  std::vector<std::int32_t>().swap(node_ent);
+  o.text(o.binary() ? "\n$EndNodes\n" : "$EndNodes\n");
+  if (o.binary()) {  // the boxes, now known
+    std::size_t k = 0;
+    for (auto* list : {&sents, &vents})
+      for (Entity& en : *list) {
+        en.box.finish();
+        const double b[6] = {en.box.lo[0], en.box.lo[1], en.box.lo[2], en.box.hi[0], en.box.hi[1], en.box.hi[2]};
+        o.patch(box_at[k++], b, sizeof b);
+      }
+  }
 
   // $Elements.
   std::uint64_t n_elems = static_cast<std::uint64_t>(ne), min_tag = std::numeric_limits<std::uint64_t>::max(),
                 max_tag = 0;
-  for (Id e = 0; e < ne; ++e) {
-    const auto t = static_cast<std::uint64_t>(eg[static_cast<std::size_t>(e)]) + 1;
-    min_tag = std::min(min_tag, t), max_tag = std::max(max_tag, t);
+  if (ne > 0) {
+    const auto range = c.element_ids();
+    min_tag = static_cast<std::uint64_t>(range[0]) + 1, max_tag = static_cast<std::uint64_t>(range[1]) + 1;
   }
-  auto side_tag = [&](std::size_t s, Id e, int side) {
-    return static_cast<std::uint64_t>(E) + 1 +
-           6 * (static_cast<std::uint64_t>(s) * static_cast<std::uint64_t>(E) + static_cast<std::uint64_t>(eg[e])) +
-           static_cast<std::uint64_t>(side);
-  };
   for (const auto& en : sents) {
     n_elems += en.count;
-    const auto& ss = sets[en.source];
-    Id corner[4];
-    for (std::size_t m = 0; m < ss.element.size(); ++m) {
-      if (side_corners(c, ss.element[m], ss.side[m], corner) == 0) continue;
-      const auto t = side_tag(en.source, ss.element[m], ss.side[m]);
-      min_tag = std::min(min_tag, t), max_tag = std::max(max_tag, t);
-    }
+    for (std::uint64_t t : side[en.source].tag) min_tag = std::min(min_tag, t), max_tag = std::max(max_tag, t);
   }
   if (n_elems == 0) min_tag = 0;
   o.text("$Elements\n");
@@ -410,50 +511,43 @@ void write_body(const ExportChunk& c, Out& o) {
   o.size(n_elems);
   o.size(min_tag);
   o.size(max_tag, '\n');
-  {
-    // Elements ordered by entity (counting sort), global id order within.
-    std::vector<std::uint64_t> pos(vents.size() + 1, 0);
-    for (std::size_t v = 0; v < vents.size(); ++v) pos[v + 1] = pos[v] + vents[v].count;
-    std::vector<Id> order(static_cast<std::size_t>(ne));
-    {
-      std::vector<std::uint64_t> p(pos.begin(), pos.end() - 1);
-      for (Id e = 0; e < ne; ++e)
-        order[p[static_cast<std::size_t>(entity_of_block[static_cast<std::size_t>(eb[e])])]++] = e;
-    }
-    for (std::size_t v = 0; v < vents.size(); ++v) {
-      if (vents[v].count == 0) continue;
-      o.integer(dim);
-      o.integer(vents[v].tag);
-      o.integer(vol ? kMshHex : kMshQuad);
-      o.size(vents[v].count, '\n');
-      for (std::uint64_t i = pos[v]; i < pos[v + 1]; ++i) {
-        const Id e = order[i];
-        if (o.binary()) {  // the tag and the nodes in one copy
-          std::size_t rec[9];
-          rec[0] = static_cast<std::size_t>(eg[e]) + 1;
-          for (int q = 0; q < nc; ++q) rec[q + 1] = static_cast<std::size_t>(ng[conn[static_cast<std::size_t>(e) * nc + q]]) + 1;
-          o.raw(rec, sizeof(std::size_t) * static_cast<std::size_t>(nc + 1));
-          continue;
+  for (const auto& v : vents) {
+    if (v.count == 0) continue;
+    o.integer(dim);
+    o.integer(v.tag);
+    o.integer(vol ? kMshHex : kMshQuad);
+    o.size(v.count, '\n');
+    c.elements({static_cast<std::int32_t>(v.source), true}, [&](const ElementSpan& span) {
+      if (!o.binary()) {
+        for (Id e = 0; e < span.count; ++e) {
+          const Id* nodes = span.conn + e * nc;
+          o.size(static_cast<std::uint64_t>(span.global[e]) + 1);
+          for (int q = 0; q < nc; ++q) o.size(static_cast<std::uint64_t>(nodes[q]) + 1, q + 1 == nc ? '\n' : ' ');
         }
-        o.size(static_cast<std::uint64_t>(eg[e]) + 1);
-        for (int q = 0; q < nc; ++q)
-          o.size(static_cast<std::uint64_t>(ng[conn[static_cast<std::size_t>(e) * nc + q]]) + 1,
-                 q + 1 == nc ? '\n' : ' ');
+        return;
       }
-    }
+      const auto rec = static_cast<std::size_t>(nc + 1);  // the tag and the node tags
+      for (Id e = 0; e < span.count;) {  // straight into the buffer
+        const Id n = std::min<Id>(span.count - e, kBufferBytes / (rec * sizeof(std::size_t)));
+        char* t = o.room(static_cast<std::size_t>(n) * rec * sizeof(std::size_t));
+        for (Id i = 0; i < n; ++i, t += rec * sizeof(std::size_t)) {
+          const Id* nodes = span.conn + (e + i) * nc;
+          store(t, static_cast<std::size_t>(span.global[e + i]) + 1);
+          for (int q = 0; q < nc; ++q) store(t + 8 * (q + 1), static_cast<std::size_t>(nodes[q]) + 1);
+        }
+        e += n;
+      }
+    });
   }
   for (const auto& en : sents) {
-    const auto& ss = sets[en.source];
+    const SideElements& se = side[en.source];
     o.integer(dim - 1);
     o.integer(en.tag);
     o.integer(vol ? kMshQuad : kMshLine);
     o.size(en.count, '\n');
-    Id corner[4];
-    for (std::size_t m = 0; m < ss.element.size(); ++m) {
-      const int k = side_corners(c, ss.element[m], ss.side[m], corner);
-      if (k == 0) continue;
-      o.size(side_tag(en.source, ss.element[m], ss.side[m]));
-      for (int q = 0; q < k; ++q) o.size(static_cast<std::uint64_t>(ng[corner[q]]) + 1, q + 1 == k ? '\n' : ' ');
+    for (std::size_t m = 0; m < se.tag.size(); ++m) {
+      o.size(se.tag[m]);
+      for (int q = 0; q < k_side; ++q) o.size(se.node[m * k_side + q], q + 1 == k_side ? '\n' : ' ');
     }
   }
   o.text(o.binary() ? "\n$EndElements\n" : "$EndElements\n");
@@ -461,7 +555,7 @@ void write_body(const ExportChunk& c, Out& o) {
 
 }  // namespace
 
-void write_msh(const ExportChunk& chunk, const std::string& path, bool binary) {
+void write_msh(const ChunkSource& chunk, const std::string& path, bool binary) {
   namespace fs = std::filesystem;
   // Boundary element tags must fit: E + 6 * (S * E + E) + 6 < 2^63.
   const auto E = static_cast<unsigned __int128>(chunk.mesh().num_elements());

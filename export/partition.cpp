@@ -152,22 +152,36 @@ Partition::Partition(const FineMesh& mesh, const std::vector<ChunkRange>& plan, 
   for (auto& [q, list] : by_rank) neighbors_.push_back(q), shared_.push_back(std::move(list));
 }
 
-NemesisInfo nemesis_info(const Partition& p, const SetCounts& counts) {
+NemesisInfo nemesis_info(const ChunkSource& chunk, Id processors, Id rank, const std::vector<NodeRun>& sharing,
+                         const SetCounts& counts) {
   NemesisInfo n;
-  n.processors = p.size();
-  n.processor = p.rank();
-  n.global_nodes = p.chunk().mesh().num_nodes();
-  n.global_elements = p.chunk().mesh().num_elements();
+  n.processors = processors;
+  n.processor = rank;
+  n.global_nodes = chunk.mesh().num_nodes();
+  n.global_elements = chunk.mesh().num_elements();
   n.side_set_counts = counts.side;
   n.node_set_counts = counts.node;
-  n.neighbors = p.neighbors();
-  for (const auto& list : p.shared_nodes()) {
-    std::vector<Id> l;
-    l.reserve(list.size());
-    for (Id L : list) l.push_back(p.chunk_local(L));
-    n.shared.push_back(std::move(l));
-  }
+  // For every other user of a shared run, the run's nodes in global id
+  // order (runs are sorted and disjoint), in the chunk's local numbering.
+  std::map<std::int32_t, std::vector<Id>> by_rank;
+  for (const NodeRun& run : sharing)
+    for (std::int32_t q : run.users) {
+      if (q == rank) continue;
+      auto& list = by_rank[q];
+      for (Id id = run.first; id < run.first + run.count; ++id) {
+        const Id l = chunk.local_of(id);
+        if (l < 0)
+          throw Error(ErrorKind::Corrupt, "partition " + std::to_string(rank) + ": shared node " + std::to_string(id) +
+                                              " is not among its nodes");
+        list.push_back(l);
+      }
+    }
+  for (auto& [q, list] : by_rank) n.neighbors.push_back(q), n.shared.push_back(std::move(list));
   return n;
+}
+
+NemesisInfo nemesis_info(const Partition& p, const SetCounts& counts) {
+  return nemesis_info(p.chunk(), p.size(), p.rank(), p.sharing(), counts);
 }
 
 }  // namespace dicer

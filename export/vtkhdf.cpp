@@ -1,6 +1,9 @@
-// VTKHDF UnstructuredGrid 1.0 writer: one partition per ExportChunk,
-// appended to extendible, chunked datasets so memory stays bounded by the
-// chunk being written (plus one slice buffer and HDF5's chunk caches).
+// VTKHDF UnstructuredGrid 1.0 writer: one partition per chunk (ChunkSource),
+// appended to extendible, chunked datasets. A partition's rows are known
+// up front, so each dataset is extended once per partition and filled by
+// hyperslab writes of kSliceRows rows as the chunk's node and element
+// passes produce them: memory is one slice per dataset plus HDF5's chunk
+// caches, whatever the partition's size.
 //
 // Layout (what VTK 9.1's vtkHDFReader reads):
 //   /VTKHDF                      attrs Version = [1, 0], Type = "UnstructuredGrid"
@@ -14,7 +17,14 @@
 //   /VTKHDF/PointData/GlobalNodeId  [sum N] int64
 //   /VTKHDF/CellData/GlobalElementId [sum C] int64
 //   /VTKHDF/CellData/BlockId     [sum C] int64 (the block's file id)
-// Only HDF5's built-in deflate filter is used, so ParaView needs no plugin.
+// Filters: none by default; with a deflate level, byte shuffle + deflate,
+// both built into HDF5, so ParaView needs no plugin either way.
+//
+// Collective mode: every rank makes the same sequence of collective writes
+// (slices it lacks are empty writes), and before each slice of a pass the
+// ranks agree that none has failed (VtkHdfCollective::checkpoint): a rank
+// whose pass throws (a corrupt page, a cancel) tells the others at their
+// next slice, and all throw, instead of leaving them in a collective write.
 #include <hdf5.h>
 #include <unistd.h>
 
@@ -40,7 +50,6 @@ namespace {
 constexpr std::uint8_t kVtkQuad = 9, kVtkHexahedron = 12;
 constexpr hsize_t kChunkBytes = 512 * 1024;  // HDF5 chunk: below the default 1 MiB chunk cache
 constexpr hsize_t kSliceRows = 64 * 1024;    // rows converted and written per H5Dwrite
-constexpr unsigned kDeflateLevel = 1;
 
 using Hid = h5::Handle;  // an HDF5 identifier closed on scope exit
 
@@ -67,6 +76,7 @@ struct VtkHdfWriter::Impl {
   const VtkHdfCollective* par = nullptr;
   VtkHdfCollective par_copy;
   Id partitions = 0, written = 0;
+  int deflate = 0;
   bool finished = false, broken = false;
   Hid file, root;
 
@@ -80,6 +90,9 @@ struct VtkHdfWriter::Impl {
       global_node_id, global_element_id, block_id;
 
   int write_errno = 0;  // the first failed write (h5::create_file_id)
+  bool agreed = false;  // collective: the ranks have agreed on a failure (every one throws it)
+  bool created = false;  // the datasets (create_datasets)
+  Hid point_data, cell_data;
 
   [[noreturn]] void io(const std::string& what) const {
     const std::string reason = write_errno ? std::strerror(write_errno) : h5::error_reason();
@@ -93,58 +106,124 @@ struct VtkHdfWriter::Impl {
   }
 
   template <class T>
-  void create(Dataset& d, hid_t parent, const char* name, hsize_t width) {
+  void create(Dataset& d, hid_t parent, const char* name, hsize_t width, hsize_t rows_hint) {
     d.name = name;
     d.width = width;
     const int rank = width > 1 ? 2 : 1;
-    const hsize_t chunk_rows = std::max<hsize_t>(1, kChunkBytes / (width * sizeof(T)));
+    // kChunkBytes, or less for a small first partition (an uncompressed
+    // chunk is stored whole: a tiny mesh would otherwise take MiBs).
+    const hsize_t chunk_rows = std::clamp<hsize_t>(rows_hint, 1, std::max<hsize_t>(1, kChunkBytes / (width * sizeof(T))));
     hsize_t dims[2] = {0, width}, maxdims[2] = {H5S_UNLIMITED, width}, chunk[2] = {chunk_rows, width};
     Hid space(H5Screate_simple(rank, dims, maxdims), H5Sclose);
     Hid dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
-    if (!space || !dcpl || H5Pset_chunk(dcpl.get(), rank, chunk) < 0) io(d.name + ": cannot set up dataset");
-    if (H5Zfilter_avail(H5Z_FILTER_DEFLATE) > 0 && H5Pset_deflate(dcpl.get(), kDeflateLevel) < 0)
-      io(d.name + ": cannot set up deflate");
+    // Every row is written, so HDF5 need not fill new chunks first.
+    if (!space || !dcpl || H5Pset_chunk(dcpl.get(), rank, chunk) < 0 ||
+        H5Pset_fill_time(dcpl.get(), H5D_FILL_TIME_NEVER) < 0)
+      io(d.name + ": cannot set up dataset");
+    if (deflate > 0 && (H5Zfilter_avail(H5Z_FILTER_DEFLATE) <= 0 || H5Pset_shuffle(dcpl.get()) < 0 ||
+                        H5Pset_deflate(dcpl.get(), static_cast<unsigned>(deflate)) < 0))
+      io(d.name + ": cannot set up shuffle + deflate");
     d.id = Hid(H5Dcreate2(parent, name, file_type<T>(), space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT), H5Dclose);
     if (!d.id) io(d.name + ": cannot create dataset");
   }
 
-  // Appends `rows` rows; fill(first, n, out) writes rows [first, first + n)
-  // (n * width values) into out. Converts and writes kSliceRows at a time.
-  // Collectively, every rank appends its rows after those of the ranks
-  // before it, in the same number of (possibly empty) collective writes.
-  template <class T, class Fill>
-  void append(Dataset& d, hsize_t rows, Fill&& fill) {
-    hsize_t at = d.rows, total = d.rows + rows, slices = (rows + kSliceRows - 1) / kSliceRows;
-    hid_t dxpl = H5P_DEFAULT;
+  // The rows a partition fills in one dataset: [at, at + rows); `slices`:
+  // the number of slice writes to make (collectively, the most any rank
+  // needs, so that every rank makes as many).
+  struct Region {
+    Dataset* d;
+    hsize_t at, rows, slices;
+  };
+
+  // Extends d by this partition's rows; collectively by every rank's, this
+  // rank's after those of the ranks before it.
+  Region reserve(Dataset& d, hsize_t rows, hsize_t slice_rows) {
+    hsize_t at = d.rows, total = d.rows + rows, slices = (rows + slice_rows - 1) / slice_rows;
     if (par) {
       const auto all = par->allgather(static_cast<std::int64_t>(rows));
       hsize_t before = 0, sum = 0, most = 0;
       for (int r = 0; r < par->size; ++r) {
         if (r < par->rank) before += static_cast<hsize_t>(all[r]);
         sum += static_cast<hsize_t>(all[r]);
-        most = std::max<hsize_t>(most, (static_cast<hsize_t>(all[r]) + kSliceRows - 1) / kSliceRows);
+        most = std::max<hsize_t>(most, (static_cast<hsize_t>(all[r]) + slice_rows - 1) / slice_rows);
       }
       at = d.rows + before, total = d.rows + sum, slices = most;
-      dxpl = static_cast<hid_t>(par->transfer);
     }
-    if (total == d.rows) return;
-    const int rank = d.width > 1 ? 2 : 1;
-    hsize_t new_dims[2] = {total, d.width};
-    if (H5Dset_extent(d.id.get(), new_dims) < 0) io(d.name + ": cannot extend dataset");
+    if (total > d.rows) {
+      hsize_t new_dims[2] = {total, d.width};
+      if (H5Dset_extent(d.id.get(), new_dims) < 0) io(d.name + ": cannot extend dataset");
+    }
     d.rows = total;
+    return {&d, at, rows, slices};
+  }
+
+  // Writes rows [first, first + n) of the region from buf (n * width
+  // values); n = 0 is an empty write (collective mode: a rank with fewer
+  // slices than the others).
+  template <class T>
+  void put(const Region& r, hsize_t first, hsize_t n, const T* buf) {
+    const Dataset& d = *r.d;
+    const int rank = d.width > 1 ? 2 : 1;
     Hid fspace(H5Dget_space(d.id.get()), H5Sclose);
     if (!fspace) io(d.name + ": cannot get dataspace");
+    hsize_t start[2] = {r.at + first, 0}, count[2] = {n, d.width};
+    Hid mspace(H5Screate_simple(rank, count, nullptr), H5Sclose);
+    const bool selected = n > 0 ? H5Sselect_hyperslab(fspace.get(), H5S_SELECT_SET, start, nullptr, count, nullptr) >= 0
+                                : H5Sselect_none(fspace.get()) >= 0 && H5Sselect_none(mspace.get()) >= 0;
+    const hid_t dxpl = par ? static_cast<hid_t>(par->transfer) : H5P_DEFAULT;
+    const T dummy{};
+    if (!mspace || !selected || H5Dwrite(d.id.get(), mem_type<T>(), mspace.get(), fspace.get(), dxpl, n ? buf : &dummy) < 0)
+      io(d.name + ": writing rows " + std::to_string(r.at + first) + ".." + std::to_string(r.at + first + n) + " failed");
+  }
+
+  // Appends `rows` rows computed without a pass; fill(first, n, out)
+  // writes rows [first, first + n) (n * width values) into out.
+  template <class T, class Fill>
+  void append(Dataset& d, hsize_t rows, Fill&& fill) {
+    const Region r = reserve(d, rows, kSliceRows);
     std::vector<T> buf(static_cast<size_t>(std::max<hsize_t>(1, std::min(rows, kSliceRows)) * d.width));
-    for (hsize_t s = 0; s < slices; ++s) {
+    for (hsize_t s = 0; s < r.slices; ++s) {
       const hsize_t first = s * kSliceRows, n = first < rows ? std::min(kSliceRows, rows - first) : 0;
       if (n > 0) fill(static_cast<Id>(first), static_cast<Id>(n), buf.data());
-      hsize_t start[2] = {at + first, 0}, count[2] = {n, d.width};
-      Hid mspace(H5Screate_simple(rank, count, nullptr), H5Sclose);
-      const bool selected = n > 0 ? H5Sselect_hyperslab(fspace.get(), H5S_SELECT_SET, start, nullptr, count, nullptr) >= 0
-                                  : H5Sselect_none(fspace.get()) >= 0 && H5Sselect_none(mspace.get()) >= 0;
-      if (!mspace || !selected || H5Dwrite(d.id.get(), mem_type<T>(), mspace.get(), fspace.get(), dxpl, buf.data()) < 0)
-        io(d.name + ": writing rows " + std::to_string(at + first) + ".." + std::to_string(at + first + n) + " failed");
+      put(r, first, n, buf.data());
     }
+  }
+
+  // One pass of the chunk feeding slices: `pass(emit)` runs the pass
+  // without the HDF5 lock, calling emit() whenever its buffers hold a
+  // slice; `flush(first)` writes the buffered slice at row `first` (locked)
+  // and returns its rows. Collectively, a checkpoint comes before every
+  // slice and ranks with fewer slices write empty ones.
+  template <class Pass, class Flush>
+  hsize_t stream(std::unique_lock<std::recursive_mutex>& lock, hsize_t slices, Pass&& pass, Flush&& flush) {
+    hsize_t done = 0, made = 0;
+    auto emit = [&] {
+      if (par) try {
+          par->checkpoint(nullptr);
+        } catch (...) {
+          agreed = true;
+          throw;
+        }
+      std::lock_guard call(hdf5_lock());
+      done += flush(done);
+      ++made;
+    };
+    try {
+      lock.unlock();
+      struct Relock {
+        std::unique_lock<std::recursive_mutex>& l;
+        ~Relock() { l.lock(); }
+      } relock{lock};
+      pass(emit);
+    } catch (...) {
+      if (par && !agreed) {
+        agreed = true;
+        par->checkpoint(std::current_exception());  // throws on every rank
+      }
+      throw;
+    }
+    while (par && made < slices) emit();
+    return done;
   }
 
   void open() {
@@ -172,23 +251,37 @@ struct VtkHdfWriter::Impl {
       Hid attr(H5Acreate2(root.get(), "Type", type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
       if (!attr || H5Awrite(attr.get(), type.get(), kType) < 0) io("cannot write attribute Type");
     }
-    Hid point_data = group(root.get(), "PointData"), cell_data = group(root.get(), "CellData");
-    create<std::int64_t>(number_of_points, root.get(), "NumberOfPoints", 1);
-    create<std::int64_t>(number_of_cells, root.get(), "NumberOfCells", 1);
-    create<std::int64_t>(number_of_connectivity_ids, root.get(), "NumberOfConnectivityIds", 1);
-    create<double>(points, root.get(), "Points", 3);
-    create<std::uint8_t>(types, root.get(), "Types", 1);
-    create<std::int64_t>(connectivity, root.get(), "Connectivity", 1);
-    create<std::int64_t>(offsets, root.get(), "Offsets", 1);
-    create<std::int64_t>(global_node_id, point_data.get(), "GlobalNodeId", 1);
-    create<std::int64_t>(global_element_id, cell_data.get(), "GlobalElementId", 1);
-    create<std::int64_t>(block_id, cell_data.get(), "BlockId", 1);
+    point_data = group(root.get(), "PointData"), cell_data = group(root.get(), "CellData");
+  }
+
+  // The datasets, at the first partition: chunks sized for it (collectively
+  // for the largest rank's, the same on every rank).
+  void create_datasets(const ChunkSource& c) {
+    std::int64_t nodes = c.num_nodes(), cells = c.num_elements();
+    if (par) {
+      for (std::int64_t v : par->allgather(nodes)) nodes = std::max(nodes, v);
+      for (std::int64_t v : par->allgather(cells)) cells = std::max(cells, v);
+    }
+    const auto nn = static_cast<hsize_t>(nodes), ne = static_cast<hsize_t>(cells);
+    const auto corners = static_cast<hsize_t>(c.corners()), parts = static_cast<hsize_t>(partitions);
+    create<std::int64_t>(number_of_points, root.get(), "NumberOfPoints", 1, parts);
+    create<std::int64_t>(number_of_cells, root.get(), "NumberOfCells", 1, parts);
+    create<std::int64_t>(number_of_connectivity_ids, root.get(), "NumberOfConnectivityIds", 1, parts);
+    create<double>(points, root.get(), "Points", 3, nn);
+    create<std::uint8_t>(types, root.get(), "Types", 1, ne);
+    create<std::int64_t>(connectivity, root.get(), "Connectivity", 1, ne * corners);
+    create<std::int64_t>(offsets, root.get(), "Offsets", 1, ne + 1);
+    create<std::int64_t>(global_node_id, point_data.get(), "GlobalNodeId", 1, nn);
+    create<std::int64_t>(global_element_id, cell_data.get(), "GlobalElementId", 1, ne);
+    create<std::int64_t>(block_id, cell_data.get(), "BlockId", 1, ne);
+    created = true;
   }
 
   void close_all() {
     for (Dataset* d : {&number_of_points, &number_of_cells, &number_of_connectivity_ids, &points, &types,
                        &connectivity, &offsets, &global_node_id, &global_element_id, &block_id})
       d->id.reset();
+    point_data.reset(), cell_data.reset();
     root.reset();
   }
 
@@ -198,66 +291,122 @@ struct VtkHdfWriter::Impl {
     out.reset();  // removes the uncommitted temporary
   }
 
-  // The chunk's arrays agree with each other (before any dataset grows).
-  void validate(const ExportChunk& c) {
-    const Id nn = c.num_nodes(), ne = c.num_elements();
+  // What can be checked before any dataset grows.
+  void validate(const ChunkSource& c) {
     const int corners = c.corners();
     const std::string part = "partition " + std::to_string(par ? par->rank : written);
     if ((c.mode() == Mode::Volume && corners != 8) || (c.mode() == Mode::Surface && corners != 4))
       throw Error(ErrorKind::Usage, path + ": " + part + ": " + std::to_string(corners) + " corners per element");
-    if (static_cast<Id>(c.x().size()) != nn || static_cast<Id>(c.y().size()) != nn ||
-        static_cast<Id>(c.z().size()) != nn || static_cast<Id>(c.element_block().size()) != ne ||
-        static_cast<Id>(c.connectivity().size()) != ne * corners)
-      throw Error(ErrorKind::Usage, path + ": " + part + ": chunk is not prepared (array sizes disagree)");
-    for (Id v : c.connectivity())
-      if (v < 0 || v >= nn)
-        throw Error(ErrorKind::Usage, path + ": " + part + ": local node id " + std::to_string(v) + " out of range");
-    const auto& blocks = c.mesh().info().blocks;
-    for (std::int32_t b : c.element_block())
-      if (b < 0 || static_cast<size_t>(b) >= blocks.size())
-        throw Error(ErrorKind::Usage, path + ": " + part + ": block index " + std::to_string(b) + " out of range");
+    Id total = 0;
+    for (Id n : c.block_counts()) total += n;  // ExportChunk: checks its block indices
+    if (total != c.num_elements())
+      throw Error(ErrorKind::Usage, path + ": " + part + ": chunk is not prepared (element counts disagree)");
   }
 
-  void write(const ExportChunk& c) {
+  void write(const ChunkSource& c, std::unique_lock<std::recursive_mutex>& lock) {
     const Id nn = c.num_nodes(), ne = c.num_elements();
     const int corners = c.corners();
     const std::uint8_t cell_type = c.mode() == Mode::Volume ? kVtkHexahedron : kVtkQuad;
     const auto& blocks = c.mesh().info().blocks;
+    const std::string part = "partition " + std::to_string(par ? par->rank : written);
+    c.expect_passes(2);
+    if (!created) create_datasets(c);
     auto one = [](std::int64_t v) { return [v](Id, Id, std::int64_t* out) { out[0] = v; }; };
     append<std::int64_t>(number_of_points, 1, one(nn));
     append<std::int64_t>(number_of_cells, 1, one(ne));
     append<std::int64_t>(number_of_connectivity_ids, 1, one(ne * corners));
-    const auto x = c.x(), y = c.y(), z = c.z();
-    append<double>(points, static_cast<hsize_t>(nn), [&](Id first, Id n, double* out) {
-      for (Id i = 0; i < n; ++i) out[3 * i] = x[first + i], out[3 * i + 1] = y[first + i], out[3 * i + 2] = z[first + i];
-    });
-    append<std::uint8_t>(types, static_cast<hsize_t>(ne),
-                         [&](Id, Id n, std::uint8_t* out) { std::fill(out, out + n, cell_type); });
-    const auto conn = c.connectivity();
-    append<std::int64_t>(connectivity, static_cast<hsize_t>(ne * corners),
-                         [&](Id first, Id n, std::int64_t* out) { std::copy_n(conn.data() + first, n, out); });
+
+    // Points and GlobalNodeId from the node pass.
+    {
+      const Region pts = reserve(points, static_cast<hsize_t>(nn), kSliceRows);
+      const Region gid = reserve(global_node_id, static_cast<hsize_t>(nn), kSliceRows);
+      std::vector<double> xyz(3 * kSliceRows);  // the first 3 * ids.size() are filled
+      std::vector<std::int64_t> ids;
+      ids.reserve(kSliceRows);
+      const hsize_t done = stream(
+          lock, pts.slices,
+          [&](auto&& emit) {
+            c.nodes({true, -1}, [&](const NodeSpan& span) {
+              for (Id q = 0; q < span.count;) {  // whole slices at a time
+                const Id n = std::min<Id>(span.count - q, static_cast<Id>(kSliceRows - ids.size()));
+                const size_t at = 3 * ids.size();
+                for (Id i = 0; i < n; ++i)
+                  xyz[at + 3 * i] = span.x[q + i], xyz[at + 3 * i + 1] = span.y[q + i], xyz[at + 3 * i + 2] = span.z[q + i];
+                ids.insert(ids.end(), span.global + q, span.global + q + n);
+                q += n;
+                if (ids.size() == kSliceRows) emit();
+              }
+            });
+            if (!ids.empty()) emit();
+          },
+          [&](hsize_t first) {
+            const hsize_t n = ids.size();
+            if (first + n > pts.rows) throw Error(ErrorKind::Usage, path + ": " + part + ": more nodes than counted");
+            put(pts, first, n, xyz.data()), put(gid, first, n, ids.data());
+            ids.clear();
+            return n;
+          });
+      if (done != static_cast<hsize_t>(nn)) throw Error(ErrorKind::Usage, path + ": " + part + ": fewer nodes than counted");
+    }
+
+    // Types, Connectivity, GlobalElementId and BlockId from the element pass.
+    {
+      const hsize_t slice = kSliceRows / 8;  // elements per slice
+      const Region types_r = reserve(types, static_cast<hsize_t>(ne), slice);
+      const Region conn_r = reserve(connectivity, static_cast<hsize_t>(ne * corners), slice * corners);
+      const Region eid_r = reserve(global_element_id, static_cast<hsize_t>(ne), slice);
+      const Region block_r = reserve(block_id, static_cast<hsize_t>(ne), slice);
+      std::vector<std::uint8_t> type(slice, cell_type);
+      std::vector<std::int64_t> conn, eid, bid;
+      conn.reserve(slice * corners), eid.reserve(slice), bid.reserve(slice);
+      const hsize_t done = stream(
+          lock, types_r.slices,
+          [&](auto&& emit) {
+            c.elements({-1, false}, [&](const ElementSpan& span) {
+              const std::int64_t block = blocks.at(static_cast<size_t>(span.block)).id;
+              Id lo = nn, hi = -1;
+              for (Id q = 0; q < span.count * corners; ++q)
+                lo = std::min(lo, span.conn[q]), hi = std::max(hi, span.conn[q]);
+              if (span.count > 0 && (lo < 0 || hi >= nn))
+                throw Error(ErrorKind::Usage, path + ": " + part + ": local node id " + std::to_string(lo < 0 ? lo : hi) +
+                                                  " out of range");
+              for (Id e = 0; e < span.count;) {  // whole slices at a time
+                const Id n = std::min<Id>(span.count - e, static_cast<Id>(slice - eid.size()));
+                conn.insert(conn.end(), span.conn + e * corners, span.conn + (e + n) * corners);
+                eid.insert(eid.end(), span.global + e, span.global + e + n);
+                bid.insert(bid.end(), static_cast<size_t>(n), block);
+                e += n;
+                if (eid.size() == slice) emit();
+              }
+            });
+            if (!eid.empty()) emit();
+          },
+          [&](hsize_t first) {
+            const hsize_t n = eid.size();
+            if (first + n > types_r.rows) throw Error(ErrorKind::Usage, path + ": " + part + ": more elements than counted");
+            put(types_r, first, n, type.data()), put(conn_r, first * corners, n * corners, conn.data());
+            put(eid_r, first, n, eid.data()), put(block_r, first, n, bid.data());
+            conn.clear(), eid.clear(), bid.clear();
+            return n;
+          });
+      if (done != static_cast<hsize_t>(ne))
+        throw Error(ErrorKind::Usage, path + ": " + part + ": fewer elements than counted");
+    }
     append<std::int64_t>(offsets, static_cast<hsize_t>(ne + 1), [&](Id first, Id n, std::int64_t* out) {
       for (Id i = 0; i < n; ++i) out[i] = (first + i) * corners;
-    });
-    const auto ng = c.node_global();
-    append<std::int64_t>(global_node_id, static_cast<hsize_t>(nn),
-                         [&](Id first, Id n, std::int64_t* out) { std::copy_n(ng.data() + first, n, out); });
-    const auto eg = c.element_global();
-    append<std::int64_t>(global_element_id, static_cast<hsize_t>(ne),
-                         [&](Id first, Id n, std::int64_t* out) { std::copy_n(eg.data() + first, n, out); });
-    const auto eb = c.element_block();
-    append<std::int64_t>(block_id, static_cast<hsize_t>(ne), [&](Id first, Id n, std::int64_t* out) {
-      for (Id i = 0; i < n; ++i) out[i] = blocks[static_cast<size_t>(eb[first + i])].id;
     });
   }
 };
 
-VtkHdfWriter::VtkHdfWriter(const std::string& path, Id partitions) : impl_(new Impl) {
+VtkHdfWriter::VtkHdfWriter(const std::string& path, Id partitions, int deflate) : impl_(new Impl) {
   namespace fs = std::filesystem;
   std::lock_guard lock(hdf5_lock());
   impl_->path = path;
   impl_->partitions = partitions;
+  impl_->deflate = deflate;
   try {
+    if (deflate < 0 || deflate > 9)
+      throw Error(ErrorKind::Usage, path + ": deflate level " + std::to_string(deflate) + " is not 0..9");
     if (partitions < 1)
       throw Error(ErrorKind::Usage, path + ": VTKHDF needs at least one partition, got " + std::to_string(partitions));
     const fs::path final_path(path);
@@ -272,11 +421,12 @@ VtkHdfWriter::VtkHdfWriter(const std::string& path, Id partitions) : impl_(new I
   }
 }
 
-VtkHdfWriter::VtkHdfWriter(const std::string& path, const VtkHdfCollective& c) : impl_(new Impl) {
+VtkHdfWriter::VtkHdfWriter(const std::string& path, const VtkHdfCollective& c, int deflate) : impl_(new Impl) {
   std::lock_guard lock(hdf5_lock());
   Impl& m = *impl_;
   m.path = path;
   m.partitions = c.size;
+  m.deflate = std::clamp(deflate, 0, 9);
   m.par_copy = c;
   m.par = &m.par_copy;
   try {
@@ -312,8 +462,9 @@ VtkHdfWriter::~VtkHdfWriter() {
   delete impl_;
 }
 
-void VtkHdfWriter::write_partition(const ExportChunk& chunk) {
-  std::lock_guard lock(hdf5_lock());
+void VtkHdfWriter::write_partition(const ChunkSource& chunk) {
+  // Held except while a pass generates the chunk (Impl::stream).
+  std::unique_lock lock(hdf5_lock());
   Impl& m = *impl_;
   if (m.finished) throw Error(ErrorKind::Usage, m.path + ": write_partition after finish");
   if (m.broken) throw Error(ErrorKind::Usage, m.path + ": write_partition after a failed write");
@@ -331,9 +482,10 @@ void VtkHdfWriter::write_partition(const ExportChunk& chunk) {
     m.par->checkpoint(e);
     e = nullptr;
     try {
-      m.write(chunk);
+      m.write(chunk, lock);
     } catch (...) {
       m.broken = true;
+      if (m.agreed) throw;  // every rank threw from the same checkpoint
       e = std::current_exception();
     }
     m.par->checkpoint(e);
@@ -342,7 +494,7 @@ void VtkHdfWriter::write_partition(const ExportChunk& chunk) {
   }
   m.validate(chunk);  // a Usage error here leaves the file intact
   try {
-    m.write(chunk);
+    m.write(chunk, lock);
   } catch (...) {
     m.broken = true;
     throw;

@@ -7,7 +7,7 @@
 
 namespace dicer::mpi {
 
-void write_vtkhdf_collective(MPI_Comm comm, const ExportChunk& chunk, const std::string& path) {
+void write_vtkhdf_collective(MPI_Comm comm, const ChunkSource& chunk, const std::string& path, int deflate) {
   int rank = 0, size = 1;
   MPI_Comm_rank(comm, &rank);
   MPI_Comm_size(comm, &size);
@@ -48,7 +48,7 @@ void write_vtkhdf_collective(MPI_Comm comm, const ExportChunk& chunk, const std:
     return r;
   };
   c.checkpoint = [comm](std::exception_ptr e) { checkpoint(comm, e); };
-  VtkHdfWriter w(path, c);
+  VtkHdfWriter w(path, c, deflate);
   w.write_partition(chunk);
   w.finish();
 }

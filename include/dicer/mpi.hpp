@@ -119,6 +119,8 @@ VerifyReport verify_distributed(MPI_Comm comm, const FineMesh& mesh, const std::
 // parallel HDF5 (MPI-IO): the same datasets and values as VtkHdfWriter
 // writing the chunks one after another in one process. Rank 0 owns the
 // temporary (AtomicOutput) and renames it when every rank has written.
-void write_vtkhdf_collective(MPI_Comm comm, const ExportChunk& chunk, const std::string& path);
+// `deflate` as for VtkHdfWriter. A failure on one rank during the chunk's
+// passes reaches every rank at its next slice (no rank is left waiting).
+void write_vtkhdf_collective(MPI_Comm comm, const ChunkSource& chunk, const std::string& path, int deflate = 0);
 
 }  // namespace dicer::mpi

@@ -109,8 +109,14 @@ class Partition {
   std::vector<std::vector<Id>> shared_;
 };
 
-// The Nemesis description of a partition (write_exodus with `nemesis`):
-// its neighbours and shared node lists in chunk() numbering, global counts.
+// The Nemesis description of chunk `rank` of `processors` (write_exodus
+// with `nemesis`) from its sharing runs (sharing_for, in_process_sharing,
+// mpi::exchange_sharing): the neighbours, ascending, and per neighbour the
+// nodes both use in the chunk's local numbering, sorted by global id;
+// global counts. O(shared nodes); no fine data.
+NemesisInfo nemesis_info(const ChunkSource& chunk, Id processors, Id rank, const std::vector<NodeRun>& sharing,
+                         const SetCounts& counts);
+// The same for a partition: nemesis_info(p.chunk(), p.size(), p.rank(), p.sharing(), counts).
 NemesisInfo nemesis_info(const Partition& p, const SetCounts& counts);
 
 }  // namespace dicer

@@ -35,7 +35,16 @@ TEST(ExportCli, EveryFormatChunkAndBoxFromTheCommandLine) {
   EXPECT_EQ(test::run_cli({"export", store, "--format", "msh", "--chunk", "3/3", "-o", never}).exit_code, 2);
   EXPECT_EQ(test::run_cli({"export", store, "--format", "msh", "--box", "0,0,1", "-o", never}).exit_code, 2);
   EXPECT_EQ(test::run_cli({"export", store, "--format", "stl", "-o", never}).exit_code, 2);
+  // --deflate: VTKHDF only, levels 0..9.
+  EXPECT_EQ(test::run_cli({"export", store, "--format", "msh", "--deflate", "1", "-o", never}).exit_code, 2);
+  EXPECT_EQ(test::run_cli({"export", store, "--format", "vtkhdf", "--deflate", "10", "-o", never}).exit_code, 2);
+  EXPECT_EQ(test::run_cli({"export", store, "--format", "vtkhdf", "--deflate", "x", "-o", never}).exit_code, 2);
   EXPECT_FALSE(std::filesystem::exists(never));
+  r = test::run_cli({"export", store, "--format", "vtkhdf", "--deflate", "1", "-o", tmp.path("z.vtkhdf"), "--quiet"});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_LT(std::filesystem::file_size(tmp.path("z.vtkhdf")), std::filesystem::file_size(tmp.path("a.vtkhdf")) * 3);
+  r = test::run_cli({"export", "--help"});
+  EXPECT_NE(r.out.find("--deflate LEVEL"), std::string::npos) << r.out;
 }
 
 // Ctrl-C, SIGTERM (a scheduler's stop) and SIGHUP (a closed terminal) stop
@@ -51,7 +60,8 @@ TEST_P(ExportSignal, StopsCleanlyWithNoPartialOutput) {
   static test::TempDir tmp;
   static const std::string store = [] {
     const std::string p = tmp.path("big.dice.h5");
-    // 7472 hexes at interval 12: 12.9M fine elements, several seconds of export.
+    // 7472 hexes at interval 12: 12.9M fine elements, several seconds of
+    // ASCII export (binary streams too fast to interrupt reliably).
     const auto r = test::run_cli({"dice", test::data_path("vtkdata_disk_out_ref.ex2"), "--interval", "12", "-o", p});
     if (r.exit_code != 0) throw std::runtime_error(r.err);
     return p;
@@ -60,7 +70,7 @@ TEST_P(ExportSignal, StopsCleanlyWithNoPartialOutput) {
   // dicer keeps ignoring a signal it inherits ignored (nohup): start it with
   // the default action whatever ran this test.
   const auto inherited = std::signal(sig, SIG_DFL);
-  const pid_t pid = test::spawn_cli({"export", store, "--format", "msh", "-o", out});
+  const pid_t pid = test::spawn_cli({"export", store, "--format", "msh-ascii", "-o", out});
   std::signal(sig, inherited);
   std::this_thread::sleep_for(std::chrono::milliseconds(700));
   ::kill(pid, sig);

@@ -264,6 +264,49 @@ std::vector<std::int64_t> read_i64(hid_t file, const char* name) {
   return v;
 }
 
+// Every dataset of `file` against the chunks it was written from.
+void check_layout(hid_t file, const Exported& ex) {
+  const Exported* e = &ex;
+  const hid_t fid = file;
+  const auto np = read_i64(fid, "VTKHDF/NumberOfPoints"), nc = read_i64(fid, "VTKHDF/NumberOfCells"),
+             nconn = read_i64(fid, "VTKHDF/NumberOfConnectivityIds"), conn = read_i64(fid, "VTKHDF/Connectivity"),
+             off = read_i64(fid, "VTKHDF/Offsets"), gid = read_i64(fid, "VTKHDF/PointData/GlobalNodeId"),
+             eid = read_i64(fid, "VTKHDF/CellData/GlobalElementId"), bid = read_i64(fid, "VTKHDF/CellData/BlockId");
+  std::vector<double> xyz(gid.size() * 3);
+  {
+    H5 ds{H5Dopen2(fid, "VTKHDF/Points", H5P_DEFAULT), H5Dclose};
+    ASSERT_GE(H5Dread(ds.id, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, xyz.data()), 0);
+  }
+  std::set<std::int64_t> blocks_seen(bid.begin(), bid.end());
+  EXPECT_EQ(blocks_seen.size(), e->mesh.info().blocks.size());
+  ASSERT_EQ(np.size(), e->chunks.size());
+  size_t p0 = 0, c0 = 0, k0 = 0, o0 = 0;
+  for (size_t k = 0; k < e->chunks.size(); ++k) {
+    const ExportChunk& c = *e->chunks[k];
+    SCOPED_TRACE("partition " + std::to_string(k));
+    ASSERT_EQ(np[k], c.num_nodes());
+    ASSERT_EQ(nc[k], c.num_elements());
+    ASSERT_EQ(nconn[k], c.num_elements() * 8);
+    for (Id i = 0; i < c.num_nodes(); ++i) {
+      ASSERT_EQ(gid.at(p0 + i), c.node_global()[i]);
+      ASSERT_EQ(std::bit_cast<std::uint64_t>(xyz[3 * (p0 + i)]), std::bit_cast<std::uint64_t>(c.x()[i]));
+      ASSERT_EQ(std::bit_cast<std::uint64_t>(xyz[3 * (p0 + i) + 1]), std::bit_cast<std::uint64_t>(c.y()[i]));
+      ASSERT_EQ(std::bit_cast<std::uint64_t>(xyz[3 * (p0 + i) + 2]), std::bit_cast<std::uint64_t>(c.z()[i]));
+    }
+    for (Id i = 0; i < c.num_elements(); ++i) {
+      ASSERT_EQ(eid.at(c0 + i), c.element_global()[i]);
+      ASSERT_EQ(bid.at(c0 + i), e->mesh.info().blocks[static_cast<size_t>(c.element_block()[i])].id);
+    }
+    for (size_t i = 0; i < c.connectivity().size(); ++i) ASSERT_EQ(conn.at(k0 + i), c.connectivity()[i]);
+    for (Id i = 0; i <= c.num_elements(); ++i) ASSERT_EQ(off.at(o0 + i), 8 * i);
+    p0 += c.num_nodes(), c0 += c.num_elements(), k0 += c.connectivity().size(), o0 += c.num_elements() + 1;
+  }
+  EXPECT_EQ(gid.size(), p0);
+  EXPECT_EQ(eid.size(), c0);
+  EXPECT_EQ(conn.size(), k0);
+  EXPECT_EQ(off.size(), o0);
+}
+
 }  // namespace
 
 TEST(ExportVtkHdf, SpherePartitionsReadByVtkHdfReader) {
@@ -313,43 +356,51 @@ TEST(ExportVtkHdf, LayoutMatchesChunksExactly) {
       EXPECT_TRUE(id == H5Z_FILTER_DEFLATE || id == H5Z_FILTER_SHUFFLE) << "filter " << id;
     }
   }
-  const auto np = read_i64(f.id, "VTKHDF/NumberOfPoints"), nc = read_i64(f.id, "VTKHDF/NumberOfCells"),
-             nconn = read_i64(f.id, "VTKHDF/NumberOfConnectivityIds"), conn = read_i64(f.id, "VTKHDF/Connectivity"),
-             off = read_i64(f.id, "VTKHDF/Offsets"), gid = read_i64(f.id, "VTKHDF/PointData/GlobalNodeId"),
-             eid = read_i64(f.id, "VTKHDF/CellData/GlobalElementId"), bid = read_i64(f.id, "VTKHDF/CellData/BlockId");
-  std::vector<double> xyz(gid.size() * 3);
-  {
-    H5 ds{H5Dopen2(f.id, "VTKHDF/Points", H5P_DEFAULT), H5Dclose};
-    ASSERT_GE(H5Dread(ds.id, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, xyz.data()), 0);
+  check_layout(f.id, *e);
+}
+
+// What dicer export writes: streamed chunks (ChunkStream), by default
+// without filters, with --deflate byte shuffle + deflate; the same values
+// as the held chunks either way, and vtkHDFReader reads both.
+TEST(ExportVtkHdf, StreamedAndDeflatedFilesHoldTheChunksValues) {
+  const auto e = dice_and_chunk("cardinal_pincell.e", 2, 3);  // three blocks
+  test::TempDir dir;
+  const MeshSets sets{e->mesh.coarse()->side_sets, e->mesh.coarse()->node_sets};
+  std::map<int, std::string> files;
+  for (int level : {0, 1, 6}) {
+    files[level] = dir.path("deflate" + std::to_string(level) + ".vtkhdf");
+    VtkHdfWriter w(files[level], static_cast<Id>(e->chunks.size()), level);
+    for (const auto& c : e->chunks) w.write_partition(ChunkStream(e->mesh, c->range(), sets));
+    w.finish();
   }
-  std::set<std::int64_t> blocks_seen(bid.begin(), bid.end());
-  EXPECT_EQ(blocks_seen.size(), e->mesh.info().blocks.size());
-  ASSERT_EQ(np.size(), e->chunks.size());
-  size_t p0 = 0, c0 = 0, k0 = 0, o0 = 0;
-  for (size_t k = 0; k < e->chunks.size(); ++k) {
-    const ExportChunk& c = *e->chunks[k];
-    SCOPED_TRACE("partition " + std::to_string(k));
-    ASSERT_EQ(np[k], c.num_nodes());
-    ASSERT_EQ(nc[k], c.num_elements());
-    ASSERT_EQ(nconn[k], c.num_elements() * 8);
-    for (Id i = 0; i < c.num_nodes(); ++i) {
-      ASSERT_EQ(gid.at(p0 + i), c.node_global()[i]);
-      ASSERT_EQ(std::bit_cast<std::uint64_t>(xyz[3 * (p0 + i)]), std::bit_cast<std::uint64_t>(c.x()[i]));
-      ASSERT_EQ(std::bit_cast<std::uint64_t>(xyz[3 * (p0 + i) + 1]), std::bit_cast<std::uint64_t>(c.y()[i]));
-      ASSERT_EQ(std::bit_cast<std::uint64_t>(xyz[3 * (p0 + i) + 2]), std::bit_cast<std::uint64_t>(c.z()[i]));
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  for (const auto& [level, path] : files) {
+    SCOPED_TRACE("deflate " + std::to_string(level));
+    H5 f{H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose};
+    ASSERT_GE(f.id, 0);
+    for (const char* name : {"VTKHDF/Points", "VTKHDF/Connectivity", "VTKHDF/Types", "VTKHDF/CellData/BlockId"}) {
+      H5 ds{H5Dopen2(f.id, name, H5P_DEFAULT), H5Dclose};
+      H5 dcpl{H5Dget_create_plist(ds.id), H5Pclose};
+      std::vector<H5Z_filter_t> filters;
+      unsigned deflate_level = 0;
+      for (int i = 0; i < H5Pget_nfilters(dcpl.id); ++i) {
+        unsigned flags = 0, values[4] = {0, 0, 0, 0};
+        size_t nelem = 4;
+        filters.push_back(H5Pget_filter2(dcpl.id, static_cast<unsigned>(i), &flags, &nelem, values, 0, nullptr, nullptr));
+        if (filters.back() == H5Z_FILTER_DEFLATE) deflate_level = values[0];
+      }
+      if (level == 0) {
+        EXPECT_TRUE(filters.empty()) << name;
+      } else {
+        EXPECT_EQ(filters, (std::vector<H5Z_filter_t>{H5Z_FILTER_SHUFFLE, H5Z_FILTER_DEFLATE})) << name;
+        EXPECT_EQ(deflate_level, static_cast<unsigned>(level)) << name;
+      }
     }
-    for (Id i = 0; i < c.num_elements(); ++i) {
-      ASSERT_EQ(eid.at(c0 + i), c.element_global()[i]);
-      ASSERT_EQ(bid.at(c0 + i), e->mesh.info().blocks[static_cast<size_t>(c.element_block()[i])].id);
-    }
-    for (size_t i = 0; i < c.connectivity().size(); ++i) ASSERT_EQ(conn.at(k0 + i), c.connectivity()[i]);
-    for (Id i = 0; i <= c.num_elements(); ++i) ASSERT_EQ(off.at(o0 + i), 8 * i);
-    p0 += c.num_nodes(), c0 += c.num_elements(), k0 += c.connectivity().size(), o0 += c.num_elements() + 1;
+    check_layout(f.id, *e);
   }
-  EXPECT_EQ(gid.size(), p0);
-  EXPECT_EQ(eid.size(), c0);
-  EXPECT_EQ(conn.size(), k0);
-  EXPECT_EQ(off.size(), o0);
+  EXPECT_LT(std::filesystem::file_size(files[1]), std::filesystem::file_size(files[0]));
+  READ_WITH_VTK(v, files[1]);
+  compare(*e, v.json, 12);
 }
 
 TEST(ExportVtkHdf, SurfaceMeshExportsQuads) {
