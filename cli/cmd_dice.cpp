@@ -19,12 +19,23 @@ mesh implicitly to STORE (HDF5): coarse mesh, topology, sheets, intervals.
 Nothing of the fine mesh itself is stored; `info`, `query` and `verify`
 regenerate it on demand.
 
+Grading: --sheet-bias S=R@V makes the fine edges of sheet S grow by R from
+node V (R > 1: finest at V, e.g. a boundary layer at a wall through V);
+--sheet-dual-bias S=R grows them from both ends to the middle. The TFI
+then follows the graded edges, so faces and interiors are graded the
+same way and the mesh stays conforming. --entity-interval DIM:TAG=N sets
+intervals by geometric entity (curve 1, surface 2, volume 3) of an MSH
+file's classification, or of the CAD with --geometry.
+
 STORE is written under a temporary name in its folder and renamed when
 complete: an interrupted dice (Ctrl-C, SIGTERM, SIGHUP: exit 130, 143,
 129) leaves any existing STORE as it was and nothing else behind.
 )",
     R"(dicer dice part.exo --interval 8 --block-interval 2=4 -o part.dice.h5
 dicer dice part.msh --intervals-file plan.json --sheet-interval 17=12 -o p.h5
+dicer dice part.exo --interval 8 --sheet-interval 3=20 --sheet-bias 3=1.2@17 -o p.h5
+dicer dice part.exo --size 0.5 --sheet-bias 3=first:0.01@17 -o p.h5
+dicer dice part.msh --interval 4 --entity-interval 1:12=16 --sheet-dual-bias 2=1.3 -o p.h5
 dicer mesh-coarse part.step --size 4 -o coarse.msh
 dicer dice coarse.msh --geometry part.step --interval 10 -o fine.dice.h5
 )"};

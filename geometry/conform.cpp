@@ -374,6 +374,20 @@ class Conformer {
   // parametrisation far from arc length (the longitudes near a sphere's
   // pole, a face across more than half a period) fails this and the closest
   // points are used instead.
+  // A quarter of the finest cell of an entity `size` long with these
+  // series (equal spacing: size / the largest interval).
+  static double quarter_cell(double size, std::initializer_list<const tfi::Series*> series) {
+    Id n = 1;
+    double finest = 1;
+    bool graded = false;
+    for (const tfi::Series* s : series) {
+      n = std::max(n, s->n());
+      if (s->grading().kind != tfi::Spacing::Equal) graded = true, finest = std::min(finest, s->smallest_cell());
+    }
+    if (!graded) return 0.25 * size / static_cast<double>(n);
+    return 0.25 * size * std::min(finest, 1.0 / static_cast<double>(n));
+  }
+
   static bool plausible(const std::vector<Vec3>& got, const std::vector<Vec3>& closest, double reach) {
     for (size_t i = 0; i < got.size(); ++i)
       if (!(dist(got[i], closest[i]) <= reach)) return false;
@@ -413,17 +427,19 @@ class Conformer {
       const int D = o.dim;
       unwrap(*ent, &p[D], &p[0]);
       std::vector<Vec3> pts;
+      // The sheet's spacing, in the curve's (surface's) parameters.
+      const tfi::Series series(n, r.grading);
       if (D == 1 || !degenerate(*ent, p)) {
         std::vector<double> q, xyz;
         for (Id t = 1; t < n; ++t) {
-          const double s = tfi::weight(t, n);
+          const double s = series.at(t);
           for (int k = 0; k < D; ++k) q.push_back(tfi::edge(p[k], p[D + k], s));
         }
         cad_.value(D, o.tag, q, xyz);
         for (size_t i = 0; i < pred.size(); ++i) pts.push_back(at(xyz, i));
       }
       std::vector<Vec3> proj = project(*ent, pred);
-      if (pts.empty() || !plausible(pts, proj, 0.25 * dist(a, b) / static_cast<double>(n) + tol_))
+      if (pts.empty() || !plausible(pts, proj, quarter_cell(dist(a, b), {&series}) + tol_))
         pts.swap(proj), ++rep_.closest_point_fallbacks;
       finish_entity(EntityKind::Edge, e, pts, pred);
     }
@@ -454,13 +470,15 @@ class Conformer {
       const double ref[2] = {uv[0], uv[1]};
       for (size_t i = 0; i < uv.size() / 2; ++i) unwrap(*ent, &uv[2 * i], ref);
       std::vector<Vec3> pts;
+      const auto grading = RowReader(T_, cur_).face_grading(r);
+      const tfi::Series su(nu, grading[0]), sv(nv, grading[1]);
       if (!degenerate(*ent, uv)) {
         const size_t B = 0, Tp = static_cast<size_t>(nu + 1), Lf = 2 * Tp, R = Lf + static_cast<size_t>(nv + 1);
         auto P = [&](size_t i, int k) { return uv[2 * i + k]; };
         std::vector<double> q, xyz;
         for (Id v = 1; v < nv; ++v)
           for (Id u = 1; u < nu; ++u) {
-            const double s = tfi::weight(u, nu), t = tfi::weight(v, nv);
+            const double s = su.at(u), t = sv.at(v);
             for (int k = 0; k < 2; ++k)
               q.push_back(tfi::coons(s, t, P(B + u, k), P(Tp + u, k), P(Lf + v, k), P(R + v, k), P(B, k),
                                      P(B + nu, k), P(Tp + nu, k), P(Tp, k)));
@@ -471,7 +489,7 @@ class Conformer {
       const size_t Tp = static_cast<size_t>(nu + 1);
       const double diam = std::max(dist(at(bxyz, 0), at(bxyz, Tp + nu)), dist(at(bxyz, nu), at(bxyz, Tp)));
       std::vector<Vec3> proj = project(*ent, pred);
-      if (pts.empty() || !plausible(pts, proj, 0.25 * diam / static_cast<double>(std::max(nu, nv)) + tol_))
+      if (pts.empty() || !plausible(pts, proj, quarter_cell(diam, {&su, &sv}) + tol_))
         pts.swap(proj), ++rep_.closest_point_fallbacks;
       finish_entity(EntityKind::Face, f, pts, pred);
     }

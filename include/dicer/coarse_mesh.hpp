@@ -41,6 +41,14 @@ struct SideSet {
   std::vector<std::int8_t> side;    // 0-based Exodus side
 };
 
+// A curve, surface or volume of the geometric model and the entities one
+// dimension lower that bound it (tags; orientation signs dropped).
+struct GeoEntity {
+  int dim = 0, tag = 0;
+  std::vector<int> bounding;
+  friend bool operator==(const GeoEntity&, const GeoEntity&) = default;
+};
+
 struct NodeSet {
   std::int64_t id = 0;
   std::string name;
@@ -62,6 +70,9 @@ struct CoarseMesh {
   // -1 where unknown (Exodus files, MSH 2.2 without it). Empty or sized V.
   std::vector<std::int8_t> vertex_geo_dim;
   std::vector<std::int32_t> vertex_geo_tag;
+  // The model's topology: MSH 4.1 $Entities (or the CAD's, for intervals
+  // by entity with --geometry). Empty when unknown (Exodus, MSH 1/2.2).
+  std::vector<GeoEntity> geo_entities;
   // Quirks accepted (reoriented, dropped nodes, skipped blocks): one sentence
   // each, WITHOUT the file path; whoever prints them prefixes `source`.
   std::vector<std::string> warnings;

@@ -233,22 +233,22 @@ TEST(Cli, BadStoresAreRefusedClearly) {
   EXPECT_NE(r.err.find("version 99"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("reads version " + std::to_string(kStoreFormatVersion)), std::string::npos) << r.err;
   // A store of a previous format (5: numbered by kind; 6: without the spatial
-  // index of format 7) is refused the same way.
+  // index of format 7; 7: without gradings) is refused the same way.
   {
     hid_t f = H5Fopen(ver.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
     hid_t a = H5Aopen(f, "format_version", H5P_DEFAULT);
-    const long long v = 5;
+    const long long v = 7;
     H5Awrite(a, H5T_NATIVE_LLONG, &v);
     H5Aclose(a);
     H5Fclose(f);
   }
   r = run_cli({"query", ver, "--node", "0"});
   EXPECT_EQ(r.exit_code, 4);
-  EXPECT_NE(r.err.find("store format version 5 is not known to this dicer (it reads version 7)"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("store format version 7 is not known to this dicer (it reads version 8)"), std::string::npos) << r.err;
   // --version names the project's version (CMake's project()) and the format.
   r = run_cli({"--version"});
   EXPECT_EQ(r.exit_code, 0);
-  EXPECT_EQ(r.out, std::string("dicer ") + DICER_PROJECT_VERSION + " (store format 7)\n");
+  EXPECT_EQ(r.out, std::string("dicer ") + DICER_PROJECT_VERSION + " (store format 8)\n");
   r = run_cli({"query", miss, "--node", "0"});
   EXPECT_EQ(r.exit_code, 8);
   EXPECT_NE(r.err.find("topology/faces is missing"), std::string::npos) << r.err;
