@@ -75,6 +75,8 @@ int cmd_dice(const std::vector<std::string>& argv) {
   const std::string nothing_written = "nothing written to " + out;
   CoarseMesh mesh = read_coarse_mesh(in);
   for (const auto& w : mesh.warnings) std::fprintf(stderr, "dicer dice: warning: %s: %s\n", in.c_str(), w.c_str());
+  // Intervals by entity name the CAD's entities when a CAD is given.
+  if (cmd.given(o_cad) && (!req.entities.empty() || !req.entity_bias.empty())) classify_on_geometry(mesh, cad, copt);
   std::vector<std::string> notes;
   FineMesh fine = FineMesh::dice(std::move(mesh), req, &notes);
   for (const auto& n : notes) std::fprintf(stderr, "dicer dice: note: %s\n", n.c_str());

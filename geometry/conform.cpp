@@ -121,6 +121,17 @@ class Conformer {
     return rep_;
   }
 
+  // Only the vertices' owners (the first two steps of run()), for
+  // classify_on_geometry: (dim, tag) per vertex of the mesh's tables, dim
+  // -1 where none.
+  std::vector<std::pair<int, int>> vertex_owners() {
+    find_candidate_faces();
+    assign_vertices();
+    std::vector<std::pair<int, int>> out;
+    for (const Owner& o : vowner_) out.emplace_back(o.dim, o.tag);
+    return out;
+  }
+
  private:
   FineMesh& mesh_;
   const Cad& cad_;
@@ -522,6 +533,42 @@ ConformReport conform_to_geometry(FineMesh& mesh, const std::string& cad_path, c
     throw Error(ErrorKind::Usage, "geometry tolerance " + fmt(options.tolerance) + " must be in (0, 1)");
   const Cad cad(cad_path);
   return Conformer(mesh, cad, options).run();
+}
+
+void classify_on_geometry(CoarseMesh& mesh, const std::string& cad_path, const ConformOptions& options) {
+  if (!(options.tolerance > 0 && options.tolerance < 1))
+    throw Error(ErrorKind::Usage, "geometry tolerance " + fmt(options.tolerance) + " must be in (0, 1)");
+  const Cad cad(cad_path);
+  // The owners as conform_to_geometry finds them, on the mesh diced once
+  // (interval 1: its tables are the coarse mesh's), mapped back by file id.
+  FineMesh once = FineMesh::dice(mesh, IntervalRequest{});
+  const auto owners = Conformer(once, cad, options).vertex_owners();
+  const Id V = mesh.num_vertices();
+  std::map<Id, Id> vertex_of_file_id;
+  for (Id v = 0; v < V; ++v) vertex_of_file_id.emplace(mesh.vertex_file_id[v], v);
+  std::vector<std::int8_t> dim(static_cast<size_t>(V), -1);
+  std::vector<std::int32_t> tag(static_cast<size_t>(V), -1);
+  const auto& volumes = cad.entities(3);
+  for (Id v = 0; v < V; ++v)  // not on the boundary: the only volume, or the file's volume
+    if (volumes.size() == 1) dim[v] = 3, tag[v] = volumes[0].tag;
+    else if (static_cast<size_t>(v) < mesh.vertex_geo_dim.size() && mesh.vertex_geo_dim[v] == 3 &&
+             cad.find(3, mesh.vertex_geo_tag[v]))
+      dim[v] = 3, tag[v] = mesh.vertex_geo_tag[v];
+  const CoarseMesh& ordered = *once.coarse();
+  for (size_t w = 0; w < owners.size(); ++w) {
+    if (owners[w].first < 0) continue;
+    const Id v = vertex_of_file_id.at(ordered.vertex_file_id[w]);
+    dim[v] = static_cast<std::int8_t>(owners[w].first), tag[v] = owners[w].second;
+  }
+  mesh.vertex_geo_dim = std::move(dim), mesh.vertex_geo_tag = std::move(tag);
+  mesh.geo_entities.clear();
+  for (int d = 1; d <= 3; ++d)
+    for (const CadEntity& e : cad.entities(d)) {
+      GeoEntity g{d, e.tag, {}};
+      for (const CadEntity& b : cad.entities(d - 1))
+        if (std::find(b.up.begin(), b.up.end(), e.tag) != b.up.end()) g.bounding.push_back(b.tag);
+      mesh.geo_entities.push_back(std::move(g));
+    }
 }
 
 // ---------------------------------------------------------------- verify

@@ -65,6 +65,15 @@ struct ConformReport {
 // Error{Io|BadInput|Unsupported} for an unreadable CAD file.
 ConformReport conform_to_geometry(FineMesh& mesh, const std::string& cad_path, const ConformOptions& options = {});
 
+// The CAD's classification of a coarse mesh, for intervals by entity
+// (intervals.hpp): boundary vertices get the CAD entity conform_to_geometry
+// would give them (vertex_geo_dim/tag), interior ones the CAD's volume
+// when it has one (else the file's volume classification, if the CAD has
+// that volume), and geo_entities the CAD's topology, so that tags name the
+// CAD's entities. Costs what conform's vertex matching costs. Errors as
+// conform_to_geometry's for a mesh that does not fit.
+void classify_on_geometry(CoarseMesh& mesh, const std::string& cad_path, const ConformOptions& options = {});
+
 struct GeometryCheck {
   double diagonal = 0;
   double max_distance = 0;   // largest distance of a fine node on a curve or surface from it
