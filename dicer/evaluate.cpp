@@ -16,11 +16,9 @@ Vec3 lerp(const Vec3& a, const Vec3& b, double s) {
   return {tfi::edge(a.x, b.x, s), tfi::edge(a.y, b.y, s), tfi::edge(a.z, b.z, s)};
 }
 
-// Coons interior point at grid (u, v) of a face graded g (u, v) from the
-// four sides' values there (bottom, top, left, right) and the canonical
-// corners p[0..3].
-Vec3 coons_point(Id nu, Id nv, Id u, Id v, const std::array<tfi::Grading, 2>& g, const Vec3* s, const Vec3* p) {
-  const double a = tfi::param(u, nu, g[0]), b = tfi::param(v, nv, g[1]);
+// Coons interior point at face parameters (a, b) from the four sides'
+// values there (bottom, top, left, right) and the canonical corners p[0..3].
+Vec3 coons_point(double a, double b, const Vec3* s, const Vec3* p) {
   return {tfi::coons(a, b, s[0].x, s[1].x, s[2].x, s[3].x, p[0].x, p[1].x, p[2].x, p[3].x),
           tfi::coons(a, b, s[0].y, s[1].y, s[2].y, s[3].y, p[0].y, p[1].y, p[2].y, p[3].y),
           tfi::coons(a, b, s[0].z, s[1].z, s[2].z, s[3].z, p[0].z, p[1].z, p[2].z, p[3].z)};
@@ -95,7 +93,8 @@ Vec3 Evaluator::face_point(const FaceRow& f, Id u, Id v) const {
   const Vec3 sides[4] = {face_side(f, 0, e[0], u), face_side(f, 1, e[1], u), face_side(f, 2, e[2], v),
                          face_side(f, 3, e[3], v)};
   const Vec3 p[4] = {R.xyz(f.v[0]), R.xyz(f.v[1]), R.xyz(f.v[2]), R.xyz(f.v[3])};
-  const Vec3 x = coons_point(f.nu, f.nv, u, v, R.face_grading(f, e), sides, p);
+  const auto g = R.face_grading(f, e);
+  const Vec3 x = coons_point(tfi::param(u, f.nu, g[0]), tfi::param(v, f.nv, g[1]), sides, p);
   return f.bound < 0 ? x : moved(x, ids::face_node(f.bound, f.nu, u, v));
 }
 
@@ -111,15 +110,25 @@ Vec3 Evaluator::cell_point(const ElementRow& h, Id hid, Id i, Id j, Id k) const 
   R.corner_xyz(hid, corner);
   double f[3][6], e[3][12], c[3][8];
   Vec3 ep[12];
+  // The point's parameter along each axis. An edge or a face side along
+  // axis a read backwards has, graded, 1 - s there: the reversed series at
+  // n - t, bit for bit (tfi.hpp: graded parameters make 1 - s exact), so
+  // one series per axis serves every edge and face. Equal spacing keeps
+  // t / n in each entity's own frame.
+  double s[3];
+  for (int a = 0; a < 3; ++a) s[a] = tfi::param(t[a], h.n[a], h.grading[a]);
+  auto along = [&](int a, bool backwards, Id tc) {
+    if (h.grading[a].kind == tfi::Spacing::Equal) return tfi::weight(tc, h.n[a]);
+    return backwards ? 1.0 - s[a] : s[a];
+  };
   for (int q = 0; q < 12; ++q) {
     const Id n = h.n[q / 4], tc = h.rev(q) ? n - t[q / 4] : t[q / 4];
-    const tfi::Grading g = h.edge_grading(q, Mode::Volume);
     if (h.curved()) {
       ep[q] = edge_point(edge_of(h, q), tc);
     } else {
       // Canonical direction: lo -> hi vertex id; rev means local end 1 is lo.
       const bool rev = h.rev(q);
-      ep[q] = lerp(corner[kHexEdge[q][rev ? 1 : 0]], corner[kHexEdge[q][rev ? 0 : 1]], tfi::param(tc, n, g));
+      ep[q] = lerp(corner[kHexEdge[q][rev ? 1 : 0]], corner[kHexEdge[q][rev ? 0 : 1]], along(q / 4, rev, tc));
     }
     e[0][q] = ep[q].x, e[1][q] = ep[q].y, e[2][q] = ep[q].z;
   }
@@ -127,7 +136,8 @@ Vec3 Evaluator::cell_point(const ElementRow& h, Id hid, Id i, Id j, Id k) const 
     const FaceCode code = h.code(q);
     const auto [nu, nv] = face_intervals(h, q, Mode::Volume);
     const FaceMap fm = face_map(code, nu, nv);
-    const Id a = t[kHexFaceAxes[q][0]], b = t[kHexFaceAxes[q][1]];
+    const int A = kHexFaceAxes[q][0], B = kHexFaceAxes[q][1];
+    const Id a = t[A], b = t[B];
     Vec3 x;
     if (h.curved()) {
       x = face_point(R.face(h.face[q]), fm.u(a, b), fm.v(a, b));
@@ -136,13 +146,15 @@ Vec3 Evaluator::cell_point(const ElementRow& h, Id hid, Id i, Id j, Id k) const 
       Vec3 sides[4];
       for (int side = 0; side < 4; ++side) sides[side] = ep[hex_face_side_edge(q, code, side)];
       const Vec3 pc[4] = {corner[cc[0]], corner[cc[1]], corner[cc[2]], corner[cc[3]]};
-      x = coons_point(nu, nv, fm.u(a, b), fm.v(a, b), face_grading(Mode::Volume, h, q), sides, pc);
+      // Canonical u runs along local axis A (du/da = up) or B (uq), v likewise.
+      const double wu = fm.up ? along(A, fm.up < 0, fm.u(a, b)) : along(B, fm.uq < 0, fm.u(a, b));
+      const double wv = fm.vp ? along(A, fm.vp < 0, fm.v(a, b)) : along(B, fm.vq < 0, fm.v(a, b));
+      x = coons_point(wu, wv, sides, pc);
     }
     f[0][q] = x.x, f[1][q] = x.y, f[2][q] = x.z;
   }
   for (int q = 0; q < 8; ++q) c[0][q] = corner[q].x, c[1][q] = corner[q].y, c[2][q] = corner[q].z;
-  const double u = tfi::param(i, h.n[0], h.grading[0]), v = tfi::param(j, h.n[1], h.grading[1]),
-               w = tfi::param(k, h.n[2], h.grading[2]);
+  const double u = s[0], v = s[1], w = s[2];
   double out[3];
   for (int d = 0; d < 3; ++d) {
     const tfi::HexRow row = tfi::hex_row(v, w, f[d][0], f[d][1], e[d], c[d]);

@@ -202,6 +202,11 @@ namespace {
 void element_grading(const RowReader& R, Id h, const std::int64_t* r, const ElementCols& L,
                      std::array<tfi::Grading, 3>& out) {
   const std::int64_t grade = r[L.grade()];
+  constexpr std::int64_t kOne = std::bit_cast<std::int64_t>(1.0);
+  if (grade == 0 && r[L.ratio()] == kOne && r[L.ratio() + 1] == kOne && r[L.ratio() + 2] == kOne) {
+    out = {};  // equally spaced (most rows): the checks below hold
+    return;
+  }
   if (grade < 0 || grade >= (1 << (3 * kGradeBits)))
     R.corrupt(RowTable::Elements, h, "unknown grading bits " + std::to_string(grade));
   for (int a = 0; a < 3; ++a) {

@@ -7,6 +7,7 @@
 #include <hdf5.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -161,6 +162,53 @@ TEST(Cli, IntervalsFileAndFlagsCombine) {
   EXPECT_EQ(info["blocks"][1]["id"], 76);
   EXPECT_EQ(info["blocks"][1]["coarse_elements"], 760);
   EXPECT_GT(info["blocks"][1]["fine_elements"].get<long long>(), 760LL * 8);  // block 76 asks 3 > 2
+}
+
+// The README's boundary layer, command by command: sheet 70 of the pin cell
+// graded from wall node 3392; the interior nodes of the radial coarse edge
+// at the wall (ids 22081..22087) step away from the wall (x = 0.64) by
+// cells growing 1.3 times each, the first 0.155 (1.3 - 1) / (1.3^8 - 1).
+TEST(Cli, ReadmeBoundaryLayerExample) {
+  test::TempDir tmp;
+  const std::string mesh = test::data_path("cardinal_pincell.e"), store = tmp.path("pin.dice.h5");
+  const std::vector<std::string> flags = {"--interval", "2", "--sheet-interval", "70=8", "--sheet-bias", "70=1.3@3392"};
+  auto with = [&](std::vector<std::string> a) {
+    a.insert(a.end(), flags.begin(), flags.end());
+    return a;
+  };
+  auto r = run_cli(with({"sheets", mesh, "--json", "--edges"}));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::vector<Id> through;
+  const Json sheets = Json::parse(r.out);
+  for (const auto& sh : sheets["sheets"])
+    for (const auto& e : sh["edges"])
+      if (e[0] == 3392 || e[1] == 3392) {
+        through.push_back(sh["id"]);
+        break;
+      }
+  EXPECT_EQ(through, (std::vector<Id>{0, 3, 38, 39, 70}));
+  r = run_cli(with({"sheets", mesh}));
+  EXPECT_NE(r.out.find("      70     1440        8         1.3@3392  2\n"), std::string::npos) << r.out;
+  r = run_cli(with({"dice", mesh, "-o", store, "--quiet"}));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  r = run_cli({"query", store, "--nodes", "22081:22088"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::istringstream in(r.out);
+  std::vector<double> x{0.64};
+  std::string word;
+  Id id;
+  double px, py, pz;
+  while (in >> word >> id >> px >> py >> pz) {
+    EXPECT_EQ(py, 0.0);
+    EXPECT_NEAR(pz, 4.9152542372881349, 1e-15);
+    x.insert(x.begin() + 1, px);  // ids run inwards to outwards: the wall first after reversing
+  }
+  std::sort(x.begin(), x.end(), std::greater<>());
+  x.push_back(0.485);
+  ASSERT_EQ(x.size(), 9u);
+  const double h0 = 0.155 * 0.3 / (std::pow(1.3, 8) - 1);
+  for (int k = 0; k < 8; ++k) EXPECT_NEAR(x[k] - x[k + 1], h0 * std::pow(1.3, k), 1e-13) << "cell " << k;
+  EXPECT_EQ(run_cli({"verify", store, "--quiet"}).exit_code, 0);
 }
 
 TEST(Cli, RefusalsHaveDocumentedExitCodesAndLeaveNoOutput) {
