@@ -238,11 +238,12 @@ void StoreFlags::report(const FineMesh& mesh) const {
 }
 
 IntervalFlags::IntervalFlags(Command& cmd) {
-  const std::string group = "Interval options (precedence: sheet > block > size > global > 1)";
+  const std::string group = "Interval options (precedence: sheet > block and entity (the largest) > size > global > 1)";
   interval_opt_ = cmd.value("--interval", interval_, "N", "every sheet gets N", group, "1");
   size_opt_ = cmd.value("--size", size_, "H",
-            "each sheet gets the smallest N that makes all its edges no "
-            "longer than H",
+            "each sheet gets the smallest N that makes all the cells of "
+            "its edges no longer than H (a graded sheet: under its "
+            "grading)",
             group);
   cmd.values("--block-interval", blocks_, "B=N",
              "sheets touching block B (id or name) get N; a sheet "

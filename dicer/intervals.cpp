@@ -412,8 +412,8 @@ IntervalPlan resolve_intervals(const CoarseMesh& mesh, const Topology& topo, con
       if (bias->first_cell > 0 || bias->last_cell > 0) {
         const double q = (bias->first_cell > 0 ? bias->first_cell : bias->last_cell) / longest[s];
         if (!ratio_for_cell(bias->kind, n, q, bias->last_cell > 0, g.ratio)) return false;
-        if (g.ratio == 1.0) g = {};
       }
+      if (g.ratio == 1.0) g = {};  // ratio 1: equal spacing
       return true;
     };
     auto no_effect = [&](Id n) { return n == 1 || (bias->kind == tfi::Spacing::Dual && n == 2); };

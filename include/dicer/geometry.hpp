@@ -21,15 +21,18 @@
 //  2. Vertices are snapped onto their entity.
 //  3. Edge nodes on curves (and on surfaces) move first, then face nodes;
 //     hex interiors need no move: their TFI reads the moved boundary.
-//     Method: interpolate equally in the entity's parameter space between
-//     the ends (edges) or by a Coons patch of the moved boundary's
-//     parameters (faces), then evaluate there, which keeps the spacing the
-//     TFI would give in the parameters. Periodic parameters (a circle, a
-//     cylinder's angle, a torus) are unwrapped across the seam. Where that
-//     fails (a degenerate pole such as a sphere's, a face spanning more than
-//     half a period, a parametrisation far from arc length), the node's TFI
-//     prediction is projected to the closest point instead. Lines and planes
-//     need no move and no storage.
+//     Method: interpolate in the entity's parameter space between the ends
+//     at the sheet's grid parameters (tfi::Series: equal steps, or the
+//     sheet's graded series) (edges) or by a Coons patch of the moved
+//     boundary's parameters at the face's graded parameters (faces), then
+//     evaluate there, which keeps the spacing the TFI would give in the
+//     parameters. Periodic parameters (a circle, a cylinder's angle, a
+//     torus) are unwrapped across the seam. Where that fails (a degenerate
+//     pole such as a sphere's, a face spanning more than half a period, a
+//     parametrisation far from arc length: a point farther than a quarter
+//     of the finest fine cell from the closest one), the node's TFI
+//     prediction is projected to the closest point instead. Lines and
+//     planes need no move and no storage.
 //  4. Every fine element of a coarse element with moved nodes is checked:
 //     a non-positive scaled Jacobian is refused (Error{Geometry}) naming the
 //     element, never written.

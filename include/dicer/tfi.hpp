@@ -49,6 +49,9 @@ inline double weight(std::int64_t t, std::int64_t n) { return static_cast<double
 // its smallest cell at the sheet's interval (Series::smallest_cell) be at
 // least kMinCell of the edge: the finest cell equal spacing allows at the
 // interval limit, far above the 2^-53 rounding, so cells stay positive.
+// Cost: a Series costs one log to make; at() one exp and two expm1 when
+// graded, one division when equal. Fills build one per axis and edge per
+// block; node(id) one per axis.
 enum class Spacing : std::uint8_t { Equal = 0, Geometric = 1, Dual = 2 };
 
 struct Grading {

@@ -171,6 +171,11 @@ TEST(BiasRequests, PrecedenceAndConflictsAreReported) {
     else if (q == x_sheet(m, 1)) EXPECT_EQ(g, (tfi::Grading{tfi::Spacing::Dual, false, 1.2}));  // cube 1's own
     else EXPECT_EQ(g, (tfi::Grading{tfi::Spacing::Geometric, false, 1.5}));
   }
+  // Ratio 1: equal spacing.
+  IntervalRequest unit;
+  unit.global = 4;
+  unit.sheet_bias = {{x0, parse_bias("t", "1", tfi::Spacing::Geometric)}};
+  EXPECT_EQ(resolve_intervals(m, t, s, unit).sheet_grading[x0], tfi::Grading{});
   // Interval 1 (or a dual bias over 2): nothing to grade, said so.
   IntervalRequest one;
   one.sheet_bias = {{x0, BiasRequest{}}};
