@@ -2,7 +2,9 @@
 // the same run:
 //   BM_WriteBandwidth    baseline: plain write of 3 doubles per node (memset-free loop)
 //   BM_BlockIteration    fill_block over every coarse element: fine nodes/s
+//                        (/N/nodes_only/graded: graded = every sheet biased)
 //   BM_NodeQuery         node(id) at random ids: Time = ns per query (warm caches)
+//                        (/N/graded)
 //   BM_ElementQuery      element(id) at random ids: Time = ns per query
 //   BM_NodeCursor        whole-mesh node iteration in id order
 //   BM_Batches           the batch API: every node (coordinates) and element
@@ -16,18 +18,26 @@
 #include "bench_util.hpp"
 #include "dicer/batch.hpp"
 #include "dicer/fine_mesh.hpp"
+#include "dicer/sheets.hpp"
 
 using namespace dicer;
 
 namespace {
 
-const FineMesh& sphere(Id n) {
+// graded: every sheet a geometric series of ratio 1.15 from its default start.
+const FineMesh& sphere(Id n, bool graded = false) {
   static std::vector<std::pair<Id, FineMesh>> cache;
+  const Id key = graded ? -n : n;
   for (auto& [k, m] : cache)
-    if (k == n) return m;
+    if (k == key) return m;
   IntervalRequest r;
   r.global = n;
-  cache.emplace_back(n, FineMesh::dice(read_coarse_mesh(std::string(DICER_BENCH_DATA) + "/cardinal_sphere.e"), r));
+  CoarseMesh c = read_coarse_mesh(std::string(DICER_BENCH_DATA) + "/cardinal_sphere.e");
+  if (graded) {
+    const Id sheets = find_sheets(c, build_topology(c)).num_sheets();
+    for (Id q = 0; q < sheets; ++q) r.sheet_bias.emplace_back(q, BiasRequest{tfi::Spacing::Geometric, 1.15, 0, 0, {}});
+  }
+  cache.emplace_back(key, FineMesh::dice(std::move(c), r));
   return cache.back().second;
 }
 
@@ -48,9 +58,10 @@ void BM_WriteBandwidth(benchmark::State& st) {
   st.counters["nodes_per_s"] = benchmark::Counter(static_cast<double>(nodes), benchmark::Counter::kIsRate);
 }
 
-// Arg 1: 1 = nodes only, 0 = nodes and element connectivity.
+// Arg 1: 1 = nodes only, 0 = nodes and element connectivity; arg 2: 1 =
+// every sheet graded (BM_BlockIteration/N/1/1: the graded store's cost).
 void BM_BlockIteration(benchmark::State& st) {
-  const FineMesh& m = sphere(st.range(0));
+  const FineMesh& m = sphere(st.range(0), st.range(2) != 0);
   const bool nodes_only = st.range(1) != 0;
   FineBlock b;
   Id nodes = 0;
@@ -64,8 +75,9 @@ void BM_BlockIteration(benchmark::State& st) {
   st.counters["nodes_per_s"] = benchmark::Counter(static_cast<double>(nodes), benchmark::Counter::kIsRate);
 }
 
+// Arg 1: 1 = every sheet graded.
 void BM_NodeQuery(benchmark::State& st) {
-  const FineMesh& m = sphere(st.range(0));
+  const FineMesh& m = sphere(st.range(0), st.range(1) != 0);
   std::mt19937_64 rng(1);
   std::uniform_int_distribution<Id> pick(0, m.num_nodes() - 1);
   std::vector<Id> ids(1 << 16);
@@ -123,8 +135,10 @@ void BM_Batches(benchmark::State& st) {
 }  // namespace
 
 BENCHMARK(BM_WriteBandwidth)->Arg(8)->Arg(32)->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_BlockIteration)->Args({8, 1})->Args({32, 1})->Args({8, 0})->Args({32, 0})->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_NodeQuery)->Arg(8)->Arg(32);
+BENCHMARK(BM_BlockIteration)
+    ->Args({8, 1, 0})->Args({32, 1, 0})->Args({8, 0, 0})->Args({32, 0, 0})->Args({8, 1, 1})->Args({32, 1, 1})
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_NodeQuery)->Args({8, 0})->Args({32, 0})->Args({8, 1})->Args({32, 1});
 BENCHMARK(BM_ElementQuery)->Arg(8)->Arg(32);
 BENCHMARK(BM_NodeCursor)->Arg(8)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Batches)->Arg(8)->Arg(32)->Unit(benchmark::kMillisecond);

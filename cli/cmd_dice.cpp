@@ -30,12 +30,23 @@ interiors follow by TFI; the moved nodes are stored. A fine element that
 the curvature would invert is refused (exit 7). With --geometry the CAD
 wins: the mid nodes are ignored, with a note.
 
+Grading: --sheet-bias S=R@V makes the fine edges of sheet S grow by R from
+node V (R > 1: finest at V, e.g. a boundary layer at a wall through V);
+--sheet-dual-bias S=R grows them from both ends to the middle. The TFI
+then follows the graded edges, so faces and interiors are graded the
+same way and the mesh stays conforming. --entity-interval DIM:TAG=N sets
+intervals by geometric entity (curve 1, surface 2, volume 3) of an MSH
+file's classification, or of the CAD with --geometry.
+
 STORE is written under a temporary name in its folder and renamed when
 complete: an interrupted dice (Ctrl-C, SIGTERM, SIGHUP: exit 130, 143,
 129) leaves any existing STORE as it was and nothing else behind.
 )",
     R"(dicer dice part.exo --interval 8 --block-interval 2=4 -o part.dice.h5
 dicer dice part.msh --intervals-file plan.json --sheet-interval 17=12 -o p.h5
+dicer dice part.exo --interval 8 --sheet-interval 3=20 --sheet-bias 3=1.2@17 -o p.h5
+dicer dice part.exo --size 0.5 --sheet-bias 3=first:0.01@17 -o p.h5
+dicer dice part.msh --interval 4 --entity-interval 1:12=16 --sheet-dual-bias 2=1.3 -o p.h5
 dicer mesh-coarse part.step --size 4 -o coarse.msh
 dicer dice coarse.msh --geometry part.step --interval 10 -o fine.dice.h5
 dicer dice pipe_hex27.e --interval 6 -o pipe.dice.h5    # quadratic edges and faces
@@ -83,6 +94,8 @@ int cmd_dice(const std::vector<std::string>& argv) {
   const std::string nothing_written = "nothing written to " + out;
   CoarseMesh mesh = read_coarse_mesh(in);
   for (const auto& w : mesh.warnings) std::fprintf(stderr, "dicer dice: warning: %s: %s\n", in.c_str(), w.c_str());
+  // Intervals by entity name the CAD's entities when a CAD is given.
+  if (cmd.given(o_cad) && (!req.entities.empty() || !req.entity_bias.empty())) classify_on_geometry(mesh, cad, copt);
   std::vector<std::string> notes;
   const bool second_order = mesh.second_order();
   FineMesh fine = FineMesh::dice(std::move(mesh), req, &notes);

@@ -30,7 +30,8 @@ int cmd_info(const std::vector<std::string>& argv) {
            "one JSON object with keys mode, source, source_order (1 or 2), format_version, "
            "store_bytes, coarse_vertices, coarse_edges, coarse_faces, "
            "coarse_elements, sheets, sheet_intervals (one per sheet, "
-           "in dicer sheets' numbering), fine_nodes, fine_elements, "
+           "in dicer sheets' numbering), sheet_gradings (one per sheet: "
+           "null, or {kind, ratio, start}), fine_nodes, fine_elements, "
            "blocks [{id, name, coarse_elements, fine_elements}]");
   StoreFlags store(cmd);
   if (!cmd.parse(argv)) return 0;
@@ -41,6 +42,14 @@ int cmd_info(const std::vector<std::string>& argv) {
   const std::vector<Id>& coarse_per_block = c.block_coarse_elements;
   const std::vector<Id>& fine_per_block = c.block_fine_elements;
   auto ll = [](Id v) { return static_cast<long long>(v); };
+  Json gradings = Json::array();
+  std::string graded;
+  for (size_t q = 0; q < m.sheet_gradings().size(); ++q) {
+    const SheetGrading& g = m.sheet_gradings()[q];
+    gradings.push_back(grading_json(g.grading, g.start));
+    if (g.grading.kind != tfi::Spacing::Equal)
+      graded += (graded.empty() ? "" : ", ") + std::to_string(q) + ": " + grading_text(g.grading, g.start);
+  }
   if (json) {
     Json blocks = Json::array();
     for (size_t b = 0; b < c.blocks.size(); ++b)
@@ -59,6 +68,7 @@ int cmd_info(const std::vector<std::string>& argv) {
                 {"coarse_elements", c.coarse_elements},
                 {"sheets", c.sheets},
                 {"sheet_intervals", m.sheet_intervals()},
+                {"sheet_gradings", gradings},
                 {"fine_nodes", m.num_nodes()},
                 {"fine_elements", m.num_elements()},
                 {"blocks", blocks}});
@@ -68,7 +78,8 @@ int cmd_info(const std::vector<std::string>& argv) {
                 c.source_order == 2 ? " (second order: HEX20/27 or QUAD8/9)" : "", mode_name(m.mode()));
     std::printf("coarse     %lld vertices, %lld edges, %lld faces, %lld %s\n", ll(c.coarse_vertices), ll(c.coarse_edges),
                 ll(c.coarse_faces), ll(c.coarse_elements), m.mode() == Mode::Volume ? "hexes" : "quads");
-    std::printf("sheets     %lld\n", ll(c.sheets));
+    std::printf("sheets     %lld%s%s\n", ll(c.sheets), graded.empty() ? "" : "; graded (ratio@start node): ",
+                graded.c_str());
     std::printf("fine       %lld nodes (%s), %lld elements (%s)\n", ll(m.num_nodes()), human_count(m.num_nodes()).c_str(),
                 ll(m.num_elements()), human_count(m.num_elements()).c_str());
     std::printf("blocks     %8s %-20s %12s %16s\n", "id", "name", "coarse", "fine");

@@ -19,11 +19,18 @@ of every quad face are in the same sheet. A structured a x b x c box has
 a+b+c sheets. Sheet ids depend only on the input file, so you can name them
 in --sheet-interval or an intervals file.
 
-Prints per sheet: id, number of edges, blocks it touches and the interval it
-gets under the interval options (the same as `dice`'s).
+Prints per sheet: id, number of edges, blocks it touches, the interval it
+gets under the interval options (the same as `dice`'s) and its grading:
+"-" (equal spacing), R@V (a geometric series of ratio R starting at file
+node V) or "dual R". A bias's direction crosses the sheet from face to
+face; a sheet that closes on itself reversed (a Moebius-like ring) takes
+only a dual bias. To grade toward a wall, bias the sheet whose edges cross
+it, starting at a node on the wall (--edges lists each sheet's edges).
 )",
     R"(dicer sheets part.exo
 dicer sheets part.exo --block-interval 2=4 --json --edges
+dicer sheets part.exo --sheet-interval 3=12 --sheet-bias 3=1.2@17
+dicer sheets part.msh --entity-interval 2:5=8 --sheet-dual-bias 1=first:0.01
 )"};
 
 int cmd_sheets(const std::vector<std::string>& argv) {
@@ -33,7 +40,8 @@ int cmd_sheets(const std::vector<std::string>& argv) {
   cmd.input("MESH", path, "the coarse mesh (Exodus II or Gmsh MSH)");
   cmd.flag("--json", json,
            "one JSON object: {\"mode\", \"sheets\": [{\"id\", \"edge_count\", "
-           "\"blocks\", \"interval\", \"edges\"?}], \"notes\"}");
+           "\"blocks\", \"interval\", \"grading\" (null or {\"kind\", "
+           "\"ratio\", \"start\"}), \"edges\"?}], \"notes\"}");
   cmd.flag("--edges", edges,
            "also list each sheet's edges as node-id pairs, numbered "
            "as in the input file");
@@ -53,6 +61,7 @@ int cmd_sheets(const std::vector<std::string>& argv) {
     for (Id e = 0; e < topo.num_edges(); ++e) sheet_edges[sheets.edge_sheet[e]].push_back(e);
   }
   auto file_id = [&](Id e, int end) { return mesh.vertex_file_id[topo.edge_v[2 * e + end]]; };
+  auto start_id = [&](Id s) { return plan.sheet_start[s] < 0 ? Id{-1} : mesh.vertex_file_id[plan.sheet_start[s]]; };
   auto blocks_of = [&](Id s) {
     std::vector<Id> ids;
     for (Id i = sheets.block_offset[s]; i < sheets.block_offset[s + 1]; ++i) ids.push_back(mesh.blocks[sheets.block_index[i]].id);
@@ -63,7 +72,11 @@ int cmd_sheets(const std::vector<std::string>& argv) {
     // cost ~100 B each.
     std::printf("{\"mode\":%s,\"sheets\":[", json_text(mode_name(mesh.mode)).c_str());
     for (Id s = 0; s < sheets.num_sheets(); ++s) {
-      Json j = {{"id", s}, {"edge_count", sheets.edge_count[s]}, {"blocks", blocks_of(s)}, {"interval", plan.sheet_interval[s]}};
+      Json j = {{"id", s},
+                {"edge_count", sheets.edge_count[s]},
+                {"blocks", blocks_of(s)},
+                {"interval", plan.sheet_interval[s]},
+                {"grading", grading_json(plan.sheet_grading[s], start_id(s))}};
       if (edges) {
         Json list = Json::array();
         for (Id e : sheet_edges[s]) list.push_back({file_id(e, 0), file_id(e, 1)});
@@ -74,13 +87,14 @@ int cmd_sheets(const std::vector<std::string>& argv) {
     std::printf("],\"notes\":%s}\n", json_text(plan.notes).c_str());
     return 0;
   }
-  std::printf("%lld sheets in %s\n%8s %8s %8s  %s\n", static_cast<long long>(sheets.num_sheets()), mesh.source.c_str(),
-              "sheet", "edges", "interval", "blocks");
+  std::printf("%lld sheets in %s\n%8s %8s %8s %16s  %s\n", static_cast<long long>(sheets.num_sheets()),
+              mesh.source.c_str(), "sheet", "edges", "interval", "bias", "blocks");
   for (Id s = 0; s < sheets.num_sheets(); ++s) {
     std::string blocks;
     for (Id b : blocks_of(s)) blocks += (blocks.empty() ? "" : " ") + std::to_string(b);
-    std::printf("%8lld %8lld %8lld  %s\n", static_cast<long long>(s), static_cast<long long>(sheets.edge_count[s]),
-                static_cast<long long>(plan.sheet_interval[s]), blocks.c_str());
+    std::printf("%8lld %8lld %8lld %16s  %s\n", static_cast<long long>(s), static_cast<long long>(sheets.edge_count[s]),
+                static_cast<long long>(plan.sheet_interval[s]),
+                grading_text(plan.sheet_grading[s], start_id(s)).c_str(), blocks.c_str());
     if (edges) {
       std::printf("         edges:");
       for (Id e : sheet_edges[s]) std::printf(" %lld-%lld", static_cast<long long>(file_id(e, 0)), static_cast<long long>(file_id(e, 1)));

@@ -24,7 +24,8 @@ nested when every sheet's interval in FINE is a multiple of its interval in
 COARSE; then every FINE node lies in a COARSE cell at a known position, and
 the prolongation P (fine nodes x coarse nodes, both in id order) gives it
 the trilinear (bilinear for quads) weights of that cell's corners: at most
-8 (4) non-zeros per row, a unit row where the nodes coincide.
+8 (4) non-zeros per row, a unit row where the nodes coincide. Graded
+sheets (--sheet-bias) are not nested: P's weights assume equal spacing.
 
 "One coarse mesh" is checked on content, not on names: the corner
 coordinates bit for bit, the topology, orientation, sheets, blocks and CAD

@@ -84,8 +84,8 @@ class StoreFlags {
   bool stats_ = false;
 };
 
-// --interval, --size, --block-interval, --sheet-interval, --intervals-file:
-// one declaration for `sheets` and `dice`.
+// --interval, --size, --block-interval, --sheet-interval, --entity-interval,
+// the bias flags, --intervals-file: one declaration for `sheets` and `dice`.
 class IntervalFlags {
  public:
   explicit IntervalFlags(Command& cmd);
@@ -94,7 +94,7 @@ class IntervalFlags {
 
  private:
   std::string interval_, size_, file_;
-  std::vector<std::string> blocks_, sheets_;
+  std::vector<std::string> blocks_, sheets_, entities_, block_bias_, sheet_bias_, sheet_dual_, entity_bias_;
   const CLI::Option *interval_opt_ = nullptr, *size_opt_ = nullptr, *file_opt_ = nullptr;
 };
 

@@ -13,6 +13,9 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "dicer/tfi.hpp"
+#include "dicer/types.hpp"
+
 namespace dicer::cli {
 
 // Keys stay in the order the command adds them (the documented order).
@@ -26,6 +29,23 @@ inline std::string json_text(const Json& j) {
 inline void print_json(const Json& j) {
   const std::string s = json_text(j) + "\n";
   std::fwrite(s.data(), 1, s.size(), stdout);
+}
+
+// A sheet's grading (`sheets`, `info`): null when equally spaced, else
+// {"kind": "geometric"|"dual", "ratio": R, "start": file node id (geometric)}.
+inline Json grading_json(const tfi::Grading& g, Id start) {
+  if (g.kind == tfi::Spacing::Equal) return nullptr;
+  Json j = {{"kind", g.kind == tfi::Spacing::Dual ? "dual" : "geometric"}, {"ratio", g.ratio}};
+  if (g.kind == tfi::Spacing::Geometric) j["start"] = start;
+  return j;
+}
+// The same as text: "-", "1.2@345", "dual 1.3".
+inline std::string grading_text(const tfi::Grading& g, Id start) {
+  if (g.kind == tfi::Spacing::Equal) return "-";
+  char buf[64];
+  if (g.kind == tfi::Spacing::Dual) std::snprintf(buf, sizeof buf, "dual %.6g", g.ratio);
+  else std::snprintf(buf, sizeof buf, "%.6g@%lld", g.ratio, static_cast<long long>(start));
+  return buf;
 }
 
 }  // namespace dicer::cli

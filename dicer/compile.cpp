@@ -17,7 +17,7 @@ namespace {
 
 // Ordered coarse mesh + owner-order topology + numbering -> tables + info.
 FineMesh compile(std::shared_ptr<const CoarseMesh> cm, const Topology& t, const Numbering& num,
-                 const std::vector<Id>& edge_sheet, Id num_sheets) {
+                 const std::vector<Id>& edge_sheet, const std::vector<tfi::Grading>& edge_grading, Id num_sheets) {
   const CoarseMesh& m = *cm;
   const Mode mode = m.mode;
   const bool vol = mode == Mode::Volume;
@@ -71,7 +71,7 @@ FineMesh compile(std::shared_ptr<const CoarseMesh> cm, const Topology& t, const 
   }
   for (Id e = 0; e < ne; ++e)
     write_row(tab, e, EdgeRow{t.edge_v[2 * e], t.edge_v[2 * e + 1], num.edge_n(e), num.edge_node(e), edge_sheet[e],
-                              t.edge_owner_elem[e], -1, -1, edge_other[e]});
+                              t.edge_owner_elem[e], -1, -1, edge_other[e], edge_grading[e]});
   for (Id f = 0; f < nf; ++f) {
     FaceRow r;
     for (int k = 0; k < 4; ++k) r.v[k] = t.face_v[4 * f + k], r.e[k] = t.face_edge[4 * f + k];
@@ -116,6 +116,14 @@ FineMesh compile(std::shared_ptr<const CoarseMesh> cm, const Topology& t, const 
     r.file_id = m.element_file_id[h];
     r.n = num.elem_n(h);
     if (!vol) r.n[2] = 1;
+    // Each axis' grading in its increasing direction: its edges' (one sheet,
+    // one direction across it: they agree).
+    for (int k = 0; k < epe; ++k) {
+      const int axis = vol ? k / 4 : k / 2;
+      const tfi::Grading g = r.rev(k) ? tfi::reversed(edge_grading[r.edge[k]]) : edge_grading[r.edge[k]];
+      if (k % (vol ? 4 : 2) == 0) r.grading[axis] = g;
+      DICER_ASSERT(r.grading[axis] == g, "the edges along one axis of an element run one way across their sheet");
+    }
     write_row(tab, h, r);
     write_corners(tab, h, xyz);
     write_bounds(tab, h, corner_bounds(xyz, nc));
@@ -149,24 +157,53 @@ FineMesh FineMesh::dice(CoarseMesh coarse, const IntervalRequest& request, std::
   const int epe = t0->edges_per_element();
   std::vector<Id> slot_sheet(t0->elem_edge.size());
   for (size_t i = 0; i < slot_sheet.size(); ++i) slot_sheet[i] = s0.edge_sheet[t0->elem_edge[i]];
+  // Graded sheets: each slot's grading and the input vertex its edge's
+  // canonical direction starts at (ungraded meshes keep neither).
+  std::vector<tfi::Grading> slot_grading;
+  std::vector<Id> slot_start;
+  if (std::any_of(plan.sheet_grading.begin(), plan.sheet_grading.end(),
+                  [](const tfi::Grading& g) { return g.kind != tfi::Spacing::Equal; })) {
+    slot_grading.resize(slot_sheet.size());
+    slot_start.resize(slot_sheet.size());
+    for (size_t i = 0; i < slot_sheet.size(); ++i) {
+      const Id e0 = t0->elem_edge[i];
+      slot_grading[i] = plan.edge_grading(s0, e0);
+      slot_start[i] = t0->edge_v[2 * e0];
+    }
+  }
   t0.reset();
   // Store order (Morton, or the file's), vertices in first use, then the
   // owner-order topology the fine mesh is numbered by.
-  std::vector<Id> old_element;
-  auto ordered = std::make_shared<CoarseMesh>(sfc_order(coarse, nullptr, &old_element, locality_order));
+  std::vector<Id> old_vertex, old_element;
+  auto ordered = std::make_shared<CoarseMesh>(sfc_order(coarse, &old_vertex, &old_element, locality_order));
   Topology t = build_topology(*ordered);
   to_owner_order(t, ordered->conn);
   // sfc_order keeps each element's corner order, so local edge k of new
   // element h is local edge k of the input's element old_element[h].
+  // A graded edge keeps its series' physical direction: it flips when the
+  // new vertex numbering reverses the edge's canonical direction.
   std::vector<Id> edge_sheet(static_cast<size_t>(t.num_edges()), -1), edge_n(static_cast<size_t>(t.num_edges()));
+  std::vector<tfi::Grading> edge_grading(static_cast<size_t>(t.num_edges()));
   for (size_t h = 0; h < old_element.size(); ++h)
-    for (int k = 0; k < epe; ++k)
-      edge_sheet[t.elem_edge[h * epe + k]] = slot_sheet[static_cast<size_t>(old_element[h]) * epe + k];
+    for (int k = 0; k < epe; ++k) {
+      const size_t slot = static_cast<size_t>(old_element[h]) * epe + k;
+      const Id e = t.elem_edge[h * epe + k];
+      edge_sheet[e] = slot_sheet[slot];
+      if (!slot_grading.empty())
+        edge_grading[e] = old_vertex[t.edge_v[2 * e]] == slot_start[slot] ? slot_grading[slot] : tfi::reversed(slot_grading[slot]);
+    }
   slot_sheet = {};
+  slot_grading = {};
+  slot_start = {};
   for (Id e = 0; e < t.num_edges(); ++e) edge_n[e] = plan.sheet_interval[edge_sheet[e]];
   const Numbering num(t, std::move(edge_n));
-  FineMesh f = compile(ordered, t, num, edge_sheet, s0.num_sheets());
+  FineMesh f = compile(ordered, t, num, edge_sheet, edge_grading, s0.num_sheets());
   f.sheet_intervals_ = std::move(plan.sheet_interval);
+  f.sheet_gradings_.resize(plan.sheet_grading.size());
+  for (size_t s = 0; s < plan.sheet_grading.size(); ++s) {
+    const Id v = plan.sheet_start[s];
+    f.sheet_gradings_[s] = {plan.sheet_grading[s], v < 0 ? -1 : coarse.vertex_file_id.empty() ? v + 1 : coarse.vertex_file_id[v]};
+  }
   return f;
 }
 

@@ -16,10 +16,9 @@ Vec3 lerp(const Vec3& a, const Vec3& b, double s) {
   return {tfi::edge(a.x, b.x, s), tfi::edge(a.y, b.y, s), tfi::edge(a.z, b.z, s)};
 }
 
-// Coons interior point at (u, v) from the four sides' values there
-// (bottom, top, left, right) and the canonical corners p[0..3].
-Vec3 coons_point(Id nu, Id nv, Id u, Id v, const Vec3* s, const Vec3* p) {
-  const double a = tfi::weight(u, nu), b = tfi::weight(v, nv);
+// Coons interior point at face parameters (a, b) from the four sides'
+// values there (bottom, top, left, right) and the canonical corners p[0..3].
+Vec3 coons_point(double a, double b, const Vec3* s, const Vec3* p) {
   return {tfi::coons(a, b, s[0].x, s[1].x, s[2].x, s[3].x, p[0].x, p[1].x, p[2].x, p[3].x),
           tfi::coons(a, b, s[0].y, s[1].y, s[2].y, s[3].y, p[0].y, p[1].y, p[2].y, p[3].y),
           tfi::coons(a, b, s[0].z, s[1].z, s[2].z, s[3].z, p[0].z, p[1].z, p[2].z, p[3].z)};
@@ -27,6 +26,18 @@ Vec3 coons_point(Id nu, Id nv, Id u, Id v, const Vec3* s, const Vec3* p) {
 
 }  // namespace
 
+
+std::array<tfi::Grading, 2> face_grading(Mode mode, const ElementRow& h, int lf) {
+  const FaceCode code = h.code(lf);
+  const auto cc = face_canonical_corners(mode, lf, code);
+  std::array<tfi::Grading, 2> out;
+  for (int axis = 0; axis < 2; ++axis) {
+    const int side = 2 * axis;  // v0v1 (u), v0v3 (v)
+    const tfi::Grading g = h.edge_grading(face_side_edge(mode, lf, code, side), mode);
+    out[axis] = h.corner[cc[kQuadEdge[side][0]]] < h.corner[cc[kQuadEdge[side][1]]] ? g : tfi::reversed(g);
+  }
+  return out;
+}
 
 Vec3 Evaluator::moved(const Vec3& p, Id row) const {
   const auto c = R.bounding(row);
@@ -38,28 +49,43 @@ Vec3 Evaluator::moved(const Vec3& p, Id row) const {
   return x;
 }
 
+EdgeRow Evaluator::edge_of(const ElementRow& h, int k) const {
+  const EdgeRow er = R.edge(h.edge[k]);
+  const Mode m = mode();
+  if (er.n != h.n[m == Mode::Volume ? k / 4 : k / 2])
+    R.corrupt(RowTable::Edges, h.edge[k], "interval disagrees with an element using the edge");
+  if (!(er.grading == h.edge_grading(k, m)))
+    R.corrupt(RowTable::Edges, h.edge[k], "grading disagrees with an element using the edge");
+  return er;
+}
+
 Vec3 Evaluator::edge_point(const EdgeRow& e, Id t) const {
   if (t == 0) return R.xyz(e.lo);
   if (t == e.n) return R.xyz(e.hi);
-  const Vec3 p = lerp(R.xyz(e.lo), R.xyz(e.hi), tfi::weight(t, e.n));
+  const Vec3 p = lerp(R.xyz(e.lo), R.xyz(e.hi), tfi::param(t, e.n, e.grading));
   return e.bound < 0 ? p : moved(p, e.bound + t - 1);
 }
 
-Vec3 Evaluator::face_side(const FaceRow& f, int k, Id s) const {
+EdgeRow Evaluator::face_side_row(const FaceRow& f, int k) const {
   const EdgeRow e = R.edge(f.e[k]);
   if (e.n != (k < 2 ? f.nu : f.nv)) R.corrupt(RowTable::Faces, f.e[k], "side interval disagrees with its face");
+  return e;
+}
+
+Vec3 Evaluator::face_side(const FaceRow& f, int k, const EdgeRow& e, Id s) const {
   const bool rev = f.v[kQuadEdge[k][0]] > f.v[kQuadEdge[k][1]];
   return edge_point(e, rev ? e.n - s : s);
 }
 
 Vec3 Evaluator::face_point(const FaceRow& f, Id u, Id v) const {
-  if (v == 0) return face_side(f, 0, u);
-  if (v == f.nv) return face_side(f, 1, u);
-  if (u == 0) return face_side(f, 2, v);
-  if (u == f.nu) return face_side(f, 3, v);
-  const Vec3 sides[4] = {face_side(f, 0, u), face_side(f, 1, u), face_side(f, 2, v), face_side(f, 3, v)};
+  const int side = v == 0 ? 0 : v == f.nv ? 1 : u == 0 ? 2 : u == f.nu ? 3 : -1;
+  if (side >= 0) return face_side(f, side, face_side_row(f, side), side < 2 ? u : v);
+  const EdgeRow e[4] = {face_side_row(f, 0), face_side_row(f, 1), face_side_row(f, 2), face_side_row(f, 3)};
+  const Vec3 sides[4] = {face_side(f, 0, e[0], u), face_side(f, 1, e[1], u), face_side(f, 2, e[2], v),
+                         face_side(f, 3, e[3], v)};
   const Vec3 p[4] = {R.xyz(f.v[0]), R.xyz(f.v[1]), R.xyz(f.v[2]), R.xyz(f.v[3])};
-  const Vec3 x = coons_point(f.nu, f.nv, u, v, sides, p);
+  const auto g = R.face_grading(f, e);
+  const Vec3 x = coons_point(tfi::param(u, f.nu, g[0]), tfi::param(v, f.nv, g[1]), sides, p);
   return f.bound < 0 ? x : moved(x, ids::face_node(f.bound, f.nu, u, v));
 }
 
@@ -75,16 +101,25 @@ Vec3 Evaluator::cell_point(const ElementRow& h, Id hid, Id i, Id j, Id k) const 
   R.corner_xyz(hid, corner);
   double f[3][6], e[3][12], c[3][8];
   Vec3 ep[12];
+  // The point's parameter along each axis. An edge or a face side along
+  // axis a read backwards has, graded, 1 - s there: the reversed series at
+  // n - t, bit for bit (tfi.hpp: graded parameters make 1 - s exact), so
+  // one series per axis serves every edge and face. Equal spacing keeps
+  // t / n in each entity's own frame.
+  double s[3];
+  for (int a = 0; a < 3; ++a) s[a] = tfi::param(t[a], h.n[a], h.grading[a]);
+  auto along = [&](int a, bool backwards, Id tc) {
+    if (h.grading[a].kind == tfi::Spacing::Equal) return tfi::weight(tc, h.n[a]);
+    return backwards ? 1.0 - s[a] : s[a];
+  };
   for (int q = 0; q < 12; ++q) {
     const Id n = h.n[q / 4], tc = h.rev(q) ? n - t[q / 4] : t[q / 4];
     if (h.curved()) {
-      const EdgeRow er = R.edge(h.edge[q]);
-      if (er.n != n) R.corrupt(RowTable::Edges, h.edge[q], "interval disagrees with an element using the edge");
-      ep[q] = edge_point(er, tc);
+      ep[q] = edge_point(edge_of(h, q), tc);
     } else {
       // Canonical direction: lo -> hi vertex id; rev means local end 1 is lo.
       const bool rev = h.rev(q);
-      ep[q] = lerp(corner[kHexEdge[q][rev ? 1 : 0]], corner[kHexEdge[q][rev ? 0 : 1]], tfi::weight(tc, n));
+      ep[q] = lerp(corner[kHexEdge[q][rev ? 1 : 0]], corner[kHexEdge[q][rev ? 0 : 1]], along(q / 4, rev, tc));
     }
     e[0][q] = ep[q].x, e[1][q] = ep[q].y, e[2][q] = ep[q].z;
   }
@@ -92,7 +127,8 @@ Vec3 Evaluator::cell_point(const ElementRow& h, Id hid, Id i, Id j, Id k) const 
     const FaceCode code = h.code(q);
     const auto [nu, nv] = face_intervals(h, q, Mode::Volume);
     const FaceMap fm = face_map(code, nu, nv);
-    const Id a = t[kHexFaceAxes[q][0]], b = t[kHexFaceAxes[q][1]];
+    const int A = kHexFaceAxes[q][0], B = kHexFaceAxes[q][1];
+    const Id a = t[A], b = t[B];
     Vec3 x;
     if (h.curved()) {
       x = face_point(R.face(h.face[q]), fm.u(a, b), fm.v(a, b));
@@ -101,12 +137,15 @@ Vec3 Evaluator::cell_point(const ElementRow& h, Id hid, Id i, Id j, Id k) const 
       Vec3 sides[4];
       for (int side = 0; side < 4; ++side) sides[side] = ep[hex_face_side_edge(q, code, side)];
       const Vec3 pc[4] = {corner[cc[0]], corner[cc[1]], corner[cc[2]], corner[cc[3]]};
-      x = coons_point(nu, nv, fm.u(a, b), fm.v(a, b), sides, pc);
+      // Canonical u runs along local axis A (du/da = up) or B (uq), v likewise.
+      const double wu = fm.up ? along(A, fm.up < 0, fm.u(a, b)) : along(B, fm.uq < 0, fm.u(a, b));
+      const double wv = fm.vp ? along(A, fm.vp < 0, fm.v(a, b)) : along(B, fm.vq < 0, fm.v(a, b));
+      x = coons_point(wu, wv, sides, pc);
     }
     f[0][q] = x.x, f[1][q] = x.y, f[2][q] = x.z;
   }
   for (int q = 0; q < 8; ++q) c[0][q] = corner[q].x, c[1][q] = corner[q].y, c[2][q] = corner[q].z;
-  const double u = tfi::weight(i, h.n[0]), v = tfi::weight(j, h.n[1]), w = tfi::weight(k, h.n[2]);
+  const double u = s[0], v = s[1], w = s[2];
   double out[3];
   for (int d = 0; d < 3; ++d) {
     const tfi::HexRow row = tfi::hex_row(v, w, f[d][0], f[d][1], e[d], c[d]);
@@ -200,7 +239,7 @@ Vec3 Evaluator::straight_owned_point(const ElementRow& h, Id hid, int slot, cons
   auto edge_at = [&](int k, Id t) {
     const int a = vol ? kHexEdge[k][0] : kQuadEdge[k][0], b = vol ? kHexEdge[k][1] : kQuadEdge[k][1];
     const Id n = h.n[vol ? k / 4 : k / 2];
-    return lerp(corner[h.rev(k) ? b : a], corner[h.rev(k) ? a : b], tfi::weight(t, n));
+    return lerp(corner[h.rev(k) ? b : a], corner[h.rev(k) ? a : b], tfi::param(t, n, h.edge_grading(k, m)));
   };
   if (r.kind == EntityKind::Edge) return edge_at(slot, r.local[0]);
   // Face: interior point (u, v), as face_point: its sides at the point's
@@ -216,7 +255,8 @@ Vec3 Evaluator::straight_owned_point(const ElementRow& h, Id hid, int slot, cons
     sides[side] = edge_at(face_side_edge(m, slot, code, side), forward ? s : len - s);
   }
   const Vec3 p[4] = {corner[cc[0]], corner[cc[1]], corner[cc[2]], corner[cc[3]]};
-  return coons_point(nu, nv, u, v, sides, p);
+  const auto g = face_grading(m, h, slot);
+  return coons_point(tfi::param(u, nu, g[0]), tfi::param(v, nv, g[1]), sides, p);
 }
 
 Vec3 Evaluator::node(const NodeRef& r) const {
@@ -248,8 +288,7 @@ void element_boundary(const Evaluator& E, const ElementRow& h, Id hid, FineBlock
     auto& pts = out.edge[k];
     for (auto& a : pts) a.resize(static_cast<size_t>(std::max<Id>(n - 1, 0)));
     if (curved) {
-      const EdgeRow er = E.R.edge(h.edge[k]);
-      if (er.n != n) E.R.corrupt(RowTable::Edges, h.edge[k], "interval disagrees with an element using the edge");
+      const EdgeRow er = E.edge_of(h, k);
       for (Id t = 1; t < n; ++t) {
         const Vec3 x = E.edge_point(er, t);
         pts[0][t - 1] = x.x, pts[1][t - 1] = x.y, pts[2][t - 1] = x.z;
@@ -258,8 +297,9 @@ void element_boundary(const Evaluator& E, const ElementRow& h, Id hid, FineBlock
       const int a = vol ? kHexEdge[k][0] : kQuadEdge[k][0], b = vol ? kHexEdge[k][1] : kQuadEdge[k][1];
       const Vec3& lo = out.corner[h.rev(k) ? b : a];
       const Vec3& hi = out.corner[h.rev(k) ? a : b];
+      const tfi::Series series(n, h.edge_grading(k, mode));
       for (Id t = 1; t < n; ++t) {
-        const Vec3 x = lerp(lo, hi, tfi::weight(t, n));
+        const Vec3 x = lerp(lo, hi, series.at(t));
         pts[0][t - 1] = x.x, pts[1][t - 1] = x.y, pts[2][t - 1] = x.z;
       }
     }
@@ -284,8 +324,10 @@ void element_boundary(const Evaluator& E, const ElementRow& h, Id hid, FineBlock
       }
     }
     s.s.resize(static_cast<size_t>(nu)), s.t.resize(static_cast<size_t>(nv));
-    for (Id u = 1; u < nu; ++u) s.s[u] = tfi::weight(u, nu);
-    for (Id v = 1; v < nv; ++v) s.t[v] = tfi::weight(v, nv);
+    const auto g = face_grading(mode, h, lf);
+    const tfi::Series su(nu, g[0]), sv(nv, g[1]);
+    for (Id u = 1; u < nu; ++u) s.s[u] = su.at(u);
+    for (Id v = 1; v < nv; ++v) s.t[v] = sv.at(v);
     const size_t m = static_cast<size_t>(ids::face_nodes(nu, nv));
     for (int d = 0; d < 3; ++d) {
       auto comp = [&](const Vec3& p) { return d == 0 ? p.x : d == 1 ? p.y : p.z; };

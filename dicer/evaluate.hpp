@@ -20,11 +20,16 @@ struct Evaluator {
 
   // A predicted point corrected by bounding row `row` (a moved node).
   Vec3 moved(const Vec3& p, Id row) const;
-  // Edge point at canonical t in [0, n]: equal spacing from lo to hi, moved
-  // when the edge has bounding rows.
+  // Edge point at canonical t in [0, n]: at the edge's graded parameter
+  // from lo to hi, moved when the edge has bounding rows.
   Vec3 edge_point(const EdgeRow& e, Id t) const;
-  // Side k of a face (0 v0v1, 1 v3v2, 2 v0v3, 3 v1v2) at face parameter s.
-  Vec3 face_side(const FaceRow& f, int k, Id s) const;
+  // The row of local edge k of element h, checked against the element's
+  // interval and grading along it (Corrupt when they disagree).
+  EdgeRow edge_of(const ElementRow& h, int k) const;
+  // Side k of a face (0 v0v1, 1 v3v2, 2 v0v3, 3 v1v2): its edge's row
+  // (interval checked), and its point at face parameter s.
+  EdgeRow face_side_row(const FaceRow& f, int k) const;
+  Vec3 face_side(const FaceRow& f, int k, const EdgeRow& e, Id s) const;
   // Face point at canonical (u, v), moved when bounded.
   Vec3 face_point(const FaceRow& f, Id u, Id v) const;
   // Interior point (i, j, k) of element h, row hid (0 < i < n1 ...).
@@ -75,5 +80,8 @@ void facet_points(const Evaluator& E, const ElementRow& h, Id hid, int slot, Fin
 inline int face_side_edge(Mode mode, int lf, FaceCode code, int side) {
   return mode == Mode::Volume ? hex_face_side_edge(lf, code, side) : quad_side_edge(code, side);
 }
+// Grading of local face lf along its canonical u and v, from the element
+// row (what RowReader::face_grading gives from the face's edge rows).
+std::array<tfi::Grading, 2> face_grading(Mode mode, const ElementRow& h, int lf);
 
 }  // namespace dicer::detail

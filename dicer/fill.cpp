@@ -93,8 +93,10 @@ void fill_boundary(const detail::Evaluator& E, std::uint64_t mesh, const Element
 // planes k = 0 and k = n[2], ak plane k with its ring (i or j at 0 or n)
 // filled; all three with row stride n[0] + 1. A plane at a time, so a block
 // can be produced in slabs (cursors hold O(n^2), not O(n^3)).
-DICER_CLONES void hex_interior_plane(const double* a0, const double* aN, double* ak, std::array<Id, 3> n, Id k,
-                                     const double* u, const double* U) {
+// u, U: the i-axis parameters and their complements, v the j-axis
+// parameters, w plane k's (tfi::Series of the element's gradings).
+DICER_CLONES void hex_interior_plane(const double* a0, const double* aN, double* ak, std::array<Id, 3> n,
+                                     const double* u, const double* U, const double* v, double w) {
   const Id sj = n[0] + 1;
   const Id n1 = n[1] * sj;
   double c[8];
@@ -103,16 +105,14 @@ DICER_CLONES void hex_interior_plane(const double* a0, const double* aN, double*
   const double* e1 = a0 + n1;  // (i, n1, 0)
   const double* e2 = aN;       // (i, 0, n2)
   const double* e3 = aN + n1;  // (i, n1, n2)
-  const double w = tfi::weight(k, n[2]);
   const double* f2 = ak;       // (i, 0, k)
   const double* f3 = ak + n1;  // (i, n1, k)
   for (Id j = 1; j < n[1]; ++j) {
-    const double v = tfi::weight(j, n[1]);
     const double* f4 = a0 + j * sj;  // (i, j, 0)
     const double* f5 = aN + j * sj;  // (i, j, n2)
     const double e[12] = {0, 0, 0, 0, a0[j * sj], a0[n[0] + j * sj], aN[j * sj], aN[n[0] + j * sj],
                           ak[0], ak[n[0]], ak[n[0] + n1], ak[n1]};
-    const tfi::HexRow row = tfi::hex_row(v, w, ak[j * sj], ak[n[0] + j * sj], e, c);
+    const tfi::HexRow row = tfi::hex_row(v[j], w, ak[j * sj], ak[n[0] + j * sj], e, c);
     double* out = ak + j * sj;
     for (Id i = 1; i < n[0]; ++i)
       out[i] = tfi::hex_point(row, u[i], U[i], f2[i], f3[i], f4[i], f5[i], e0[i], e1[i], e2[i], e3[i]);
@@ -147,8 +147,13 @@ void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool c
   for (auto* x : {&b.x, &b.y, &b.z}) coords ? x->resize(np) : x->clear();
   auto& s = b.scratch;
   if (coords && vol) {
+    // The three axes' parameters, once per slab (O(n)): the kernel reads tables.
     s.u.resize(static_cast<size_t>(n[0])), s.U.resize(static_cast<size_t>(n[0]));
-    for (Id i = 1; i < n[0]; ++i) s.u[i] = tfi::weight(i, n[0]), s.U[i] = 1.0 - s.u[i];
+    s.v.resize(static_cast<size_t>(n[1])), s.w.resize(static_cast<size_t>(n[2]));
+    const tfi::Series su(n[0], h.grading[0]), sv(n[1], h.grading[1]), sw(n[2], h.grading[2]);
+    for (Id i = 1; i < n[0]; ++i) s.u[i] = su.at(i), s.U[i] = 1.0 - s.u[i];
+    for (Id j = 1; j < n[1]; ++j) s.v[j] = sv.at(j);
+    for (Id k = std::max<Id>(k0, 1); k < std::min(k1 + 1, n[2]); ++k) s.w[k] = sw.at(k);
   }
   for (Id k = k0; k <= k1; ++k) {
     const size_t at = static_cast<size_t>((k - k0) * pp);
@@ -172,7 +177,7 @@ void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool c
       for (Id i = 1; i < n[0]; ++i) ids[i + ni * j] = ids::cell_node(h.cell_node, n, i, j, k);
     for (int d = 0; d < 3 && coords; ++d) {
       ring_copy(B.x[d].data() + ring, X[d]);
-      hex_interior_plane(B.x[d].data(), B.x[d].data() + pp, X[d], n, k, s.u.data(), s.U.data());
+      hex_interior_plane(B.x[d].data(), B.x[d].data() + pp, X[d], n, s.u.data(), s.U.data(), s.v.data(), s.w[k]);
     }
   }
 

@@ -11,6 +11,7 @@
 #include "dicer/numbering.hpp"
 #include "dicer/orientation.hpp"
 #include "dicer/rows.hpp"
+#include "dicer/tfi.hpp"
 
 namespace dicer {
 
@@ -104,6 +105,41 @@ bool invert(const Corners& x, const P3& p, P3& xi) {
   double r[3];
   residual(xi, r);
   return std::max({std::abs(r[0]), std::abs(r[1]), std::abs(r[2])}) <= kLocateTolerance * h;
+}
+
+// One axis of a straight element: the corner map's parameter s -> the
+// fine cell c holding it (`lower`: the one below, for a point on a shared
+// plane) and xi in it. The fine cell's map is the corner map on [s_c,
+// s_c+1] (TFI reproduces the corner map at the graded parameters): an
+// affine change of parameter. Equal spacing: t = s n, xi = t - c.
+struct AxisCell {
+  Id c;
+  double xi;
+};
+AxisCell axis_cell(const tfi::Series& S, double s, int lower) {
+  const Id n = S.n();
+  if (S.grading().kind == tfi::Spacing::Equal) {
+    const double t = s * static_cast<double>(n);
+    const Id c = std::clamp<Id>(static_cast<Id>(std::floor(t)), 0, n - 1) - lower;
+    return {c, t - static_cast<double>(c)};
+  }
+  const Id c = S.cell(s) - lower;
+  if (c < 0) return {c, 0};
+  const double a = S.at(c), b = S.at(c + 1);
+  return {c, (s - a) / (b - a)};
+}
+
+// The corners of fine cell c of a straight element (corner map x) graded
+// by S: the corner map at the cell's parameter box, no fine node read.
+template <size_t N>
+std::array<P3, N> fine_corners(const std::array<P3, N>& x, const tfi::Series* S, const std::array<Id, 3>& c) {
+  std::array<P3, N> out;
+  for (size_t q = 0; q < N; ++q) {
+    P3 s{0, 0, 0};
+    for (int d = 0; d < (N == 8 ? 3 : 2); ++d) s[d] = S[d].at(c[d] + kHexCorner[q][d]);
+    out[q] = corner_map(x, s);
+  }
+  return out;
 }
 
 bool inside(const P3& xi) {
@@ -289,34 +325,40 @@ struct Searcher {
     const RowReader::Cells r = R.cells(h);
     const bool curved = r.curved;
     if (!curved && !(guessed && inside(g))) return false;
+    const tfi::Series S[3] = {{r.n[0], r.grading[0]}, {r.n[1], r.grading[1]}, {r.n[2], r.grading[2]}};
     if (!curved) {
       // A straight element is its corners' trilinear map (TFI reproduces
-      // it) and its cell (i, j, k) that map on [i/n, (i+1)/n] x ...: the
-      // cell and xi follow from g without reading a fine node. Inside a
-      // valid straight hex Newton converges; where it does not, the point
-      // is outside. The lowest id: the lowest cell that holds the point.
+      // it) and its cell (i, j, k) that map on [s_i, s_i+1] x ... (the
+      // axes' graded parameters; equal: [i/n, (i+1)/n]): the cell and xi
+      // follow from g without reading a fine node. Inside a valid straight
+      // hex Newton converges; where it does not, the point is outside. The
+      // lowest id: the lowest cell that holds the point. A graded cell's xi
+      // is solved again on its own corners (precise however thin the cell).
       if (!guessed) return false;
+      const bool graded = !(r.grading[0].kind == tfi::Spacing::Equal && r.grading[1].kind == tfi::Spacing::Equal &&
+                            r.grading[2].kind == tfi::Spacing::Equal);
       Id best = -1;
       for (int mask = 0; mask < 8; ++mask) {
         std::array<Id, 3> c;
         P3 xi;
         bool ok = true;
         for (int d = 0; d < 3 && ok; ++d) {
-          const double t = g[d] * static_cast<double>(r.n[d]);
-          c[d] = std::clamp<Id>(static_cast<Id>(std::floor(t)), 0, r.n[d] - 1) - (mask >> d & 1);
-          xi[d] = t - static_cast<double>(c[d]);
+          const AxisCell a = axis_cell(S[d], g[d], mask >> d & 1);
+          c[d] = a.c, xi[d] = a.xi;
           ok = c[d] >= 0 && xi[d] >= -kLocateTolerance && xi[d] <= 1 + kLocateTolerance;
         }
         if (!ok) continue;
         const Id id = ids::element(r.element_first, r.n, c[0], c[1], c[2]);
-        if (best < 0 || id < best) best = id, out.xi = xi;
+        if (best >= 0 && id >= best) continue;
+        if (graded)
+          if (P3 fx; invert(fine_corners(x, S, c), p, fx)) xi = fx;
+        best = id, out.xi = xi;
       }
       out.element = best;
       return best >= 0;
     }
     std::array<Id, 3> c;
-    for (int d = 0; d < 3; ++d)
-      c[d] = std::clamp<Id>(static_cast<Id>(std::floor((guessed ? g[d] : 0.5) * static_cast<double>(r.n[d]))), 0, r.n[d] - 1);
+    for (int d = 0; d < 3; ++d) c[d] = axis_cell(S[d], guessed ? g[d] : 0.5, 0).c;
     P3 xi;
     bool found = false;
     // Walk: a step towards the point along every direction it lies beyond.
@@ -449,31 +491,34 @@ struct Searcher {
     const RowReader::Cells r = R.cells(h);
     const bool curved = r.curved;
     if (!curved && !(std::sqrt(g.d2) <= limit)) return;
+    const tfi::Series S[2] = {{r.n[0], r.grading[0]}, {r.n[1], r.grading[1]}};
     if (!curved) {
       // A straight quad is its corners' bilinear map, cell (i, j) that map
-      // on [i/n, (i+1)/n] x [j/n, (j+1)/n]: the cell from g, no fine node
-      // read; on a line shared with lower cells, the lowest of them.
+      // on [s_i, s_i+1] x [s_j, s_j+1] (the graded parameters): the cell
+      // from g, no fine node read; on a line shared with lower cells, the
+      // lowest of them. A graded cell's xi is solved again on its corners.
       const double d = std::sqrt(g.d2);
       if (!(d <= limit)) return;
+      const bool graded = !(r.grading[0].kind == tfi::Spacing::Equal && r.grading[1].kind == tfi::Spacing::Equal);
       for (int mask = 3; mask >= 0; --mask) {  // higher masks: lower ids first
         std::array<Id, 3> c{0, 0, 0};
         P3 xi{0, 0, 0};
         bool ok = true;
         for (int k = 0; k < 2 && ok; ++k) {
-          const double t = g.xi[k] * static_cast<double>(r.n[k]);
-          c[k] = std::clamp<Id>(static_cast<Id>(std::floor(t)), 0, r.n[k] - 1) - (mask >> k & 1);
-          xi[k] = std::clamp(t - static_cast<double>(c[k]), 0.0, 1.0);
-          ok = c[k] >= 0 && t - static_cast<double>(c[k]) <= 1 + kLocateTolerance;
+          const AxisCell a = axis_cell(S[k], g.xi[k], mask >> k & 1);
+          c[k] = a.c, xi[k] = std::clamp(a.xi, 0.0, 1.0);
+          ok = c[k] >= 0 && a.xi <= 1 + kLocateTolerance;
         }
-        if (ok && d <= max_distance) offer(best, ids::element(r.element_first, r.n, c[0], c[1], 0), xi, d, tol);
+        if (!ok || !(d <= max_distance)) continue;
+        if (graded) xi = closest_bilinear(fine_corners(x, S, c), p).xi;
+        offer(best, ids::element(r.element_first, r.n, c[0], c[1], 0), xi, d, tol);
       }
       return;
     }
     // Curved: descend from the guess to a strictly nearer neighbouring
     // cell while there is one (no cycle: the distance falls each step).
     std::array<Id, 3> c{0, 0, 0};
-    for (int k = 0; k < 2; ++k)
-      c[k] = std::clamp<Id>(static_cast<Id>(std::floor(g.xi[k] * static_cast<double>(r.n[k]))), 0, r.n[k] - 1);
+    for (int k = 0; k < 2; ++k) c[k] = axis_cell(S[k], g.xi[k], 0).c;
     Nearest at = closest_bilinear(cell_nodes<4>(h, c), p);
     for (Id step = 0; step < r.n[0] * r.n[1]; ++step) {
       std::array<Id, 3> next = c;

@@ -129,7 +129,7 @@ class Quadratic {
       if (r.n < 2) continue;  // no fine node inside; the faces still see m
       pts.clear();
       for (Id t = 1; t < r.n; ++t) {
-        const double s = tfi::weight(t, r.n);
+        const double s = tfi::param(t, r.n, r.grading);  // the TFI's (graded) parameter
         pts.push_back(plus_scaled(node(EntityKind::Edge, e, t), 4.0 * s * (1.0 - s), d));
       }
       mesh_.move_nodes(EntityKind::Edge, e, pts);
@@ -153,9 +153,10 @@ class Quadratic {
       const Vec3 d = sub(c_.mid_node(face_mid_[f]), centre);
       if (!(norm(d) > tiny_) || r.nu < 2 || r.nv < 2) continue;
       pts.clear();
+      const auto g = RowReader(T_, cur_).face_grading(r);
       for (Id v = 1; v < r.nv; ++v)
         for (Id u = 1; u < r.nu; ++u) {
-          const double s = tfi::weight(u, r.nu), t = tfi::weight(v, r.nv);
+          const double s = tfi::param(u, r.nu, g[0]), t = tfi::param(v, r.nv, g[1]);
           pts.push_back(plus_scaled(node(EntityKind::Face, f, u, v), 16.0 * (s * (1.0 - s)) * (t * (1.0 - t)), d));
         }
       mesh_.move_nodes(EntityKind::Face, f, pts);

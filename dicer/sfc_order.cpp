@@ -85,6 +85,7 @@ CoarseMesh sfc_order(const CoarseMesh& in, std::vector<Id>* old_vertex_of_new, s
     if (!in.vertex_geo_dim.empty()) out.vertex_geo_dim.push_back(in.vertex_geo_dim[v]);
     if (!in.vertex_geo_tag.empty()) out.vertex_geo_tag.push_back(in.vertex_geo_tag[v]);
   }
+  out.geo_entities = in.geo_entities;
   for (const auto& ss : in.side_sets) {
     SideSet s = ss;
     for (Id& e : s.element) e = new_of_old_element[e];

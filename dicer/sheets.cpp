@@ -56,4 +56,50 @@ Sheets find_sheets(const CoarseMesh& mesh, const Topology& t) {
   return s;
 }
 
+SheetDirections orient_sheets(const Topology& t, const Sheets& s) {
+  const Id ne = t.num_edges(), nf = t.num_faces();
+  // Each face links its opposite sides; `same` when both run the face's
+  // axis the same way in their canonical (lo -> hi) directions. CSR.
+  std::vector<Id> offset(static_cast<size_t>(ne) + 1, 0);
+  for (Id f = 0; f < nf; ++f)
+    for (int k = 0; k < 4; ++k) ++offset[t.face_edge[4 * f + k] + 1];
+  for (Id e = 0; e < ne; ++e) offset[e + 1] += offset[e];
+  std::vector<Id> fill(offset.begin(), offset.end() - 1), link(static_cast<size_t>(offset.back()));
+  std::vector<std::uint8_t> same(link.size());
+  for (Id f = 0; f < nf; ++f) {
+    const Id* v = &t.face_v[4 * f];
+    for (int k = 0; k < 4; k += 2) {
+      const Id a = t.face_edge[4 * f + k], b = t.face_edge[4 * f + k + 1];
+      const bool fa = v[kQuadEdge[k][0]] < v[kQuadEdge[k][1]], fb = v[kQuadEdge[k + 1][0]] < v[kQuadEdge[k + 1][1]];
+      link[fill[a]] = b, same[fill[a]++] = fa == fb;
+      link[fill[b]] = a, same[fill[b]++] = fa == fb;
+    }
+  }
+  SheetDirections d;
+  d.edge_flip.assign(static_cast<size_t>(ne), 0);
+  d.twisted.assign(static_cast<size_t>(s.num_sheets()), 0);
+  std::vector<std::uint8_t> seen(static_cast<size_t>(ne), 0);
+  std::vector<Id> queue;
+  for (Id root = 0; root < ne; ++root) {  // the first edge met of a sheet is its lowest
+    if (seen[root]) continue;
+    seen[root] = 1;
+    queue.assign(1, root);
+    while (!queue.empty()) {
+      const Id e = queue.back();
+      queue.pop_back();
+      for (Id i = offset[e]; i < offset[e + 1]; ++i) {
+        const Id o = link[i];
+        const std::uint8_t flip = d.edge_flip[e] ^ (same[i] ? 0 : 1);
+        if (!seen[o]) {
+          seen[o] = 1, d.edge_flip[o] = flip;
+          queue.push_back(o);
+        } else if (d.edge_flip[o] != flip) {
+          d.twisted[s.edge_sheet[o]] = 1;
+        }
+      }
+    }
+  }
+  return d;
+}
+
 }  // namespace dicer

@@ -85,6 +85,10 @@ Nesting check_nesting(const FineMesh& coarse, const FineMesh& fine) {
   std::vector<Id> sc = coarse.sheet_intervals(), sf = fine.sheet_intervals();
   const bool have_sheets = static_cast<Id>(sc.size()) == ci.sheets && static_cast<Id>(sf.size()) == ci.sheets;
   if (!have_sheets) sc.assign(static_cast<size_t>(ci.sheets), 0), sf.assign(static_cast<size_t>(ci.sheets), 0);
+  // P's weights are those of equally spaced levels: a graded sheet's fine
+  // nodes are not at the reference positions P assumes.
+  Id graded_sheet = -1;
+  bool graded_in_fine = false;
   for (Id e = 0; e < T.edges.rows(); ++e) {
     const EdgeRow a = C.edge(e), b = F.edge(e);
     const char* t = "topology/edges";
@@ -97,6 +101,9 @@ Nesting check_nesting(const FineMesh& coarse, const FineMesh& fine) {
     if (!have_sheets && s_c == 0) s_c = a.n, s_f = b.n;
     if (a.n != s_c) C.corrupt(RowTable::Edges, e, "interval disagrees with its sheet's");
     if (b.n != s_f) F.corrupt(RowTable::Edges, e, "interval disagrees with its sheet's");
+    if ((a.grading.kind != tfi::Spacing::Equal || b.grading.kind != tfi::Spacing::Equal) &&
+        (graded_sheet < 0 || a.sheet < graded_sheet))
+      graded_sheet = a.sheet, graded_in_fine = b.grading.kind != tfi::Spacing::Equal;
   }
   for (Id f = 0; f < T.faces.rows(); ++f) {
     const FaceRow a = C.face(f), b = F.face(f);
@@ -134,8 +141,18 @@ Nesting check_nesting(const FineMesh& coarse, const FineMesh& fine) {
     out.min_factor = out.min_factor ? std::min(out.min_factor, m) : m;
     out.max_factor = std::max(out.max_factor, m);
   }
+  if (out.sheet < 0 && graded_sheet >= 0) {
+    out.sheet = graded_sheet, out.graded = true;
+    out.coarse_interval = sc[static_cast<size_t>(graded_sheet)], out.fine_interval = sf[static_cast<size_t>(graded_sheet)];
+  }
   out.nested = out.sheet < 0;
   out.rows = fine.num_nodes(), out.cols = coarse.num_nodes();
+  if (out.graded) {
+    out.min_factor = out.max_factor = 0;
+    out.message = "not nested: sheet " + std::to_string(out.sheet) + " is graded in " + (graded_in_fine ? fn : cn) +
+                  "; transfer operators need equally spaced sheets in both stores";
+    return out;
+  }
   if (!out.nested) {
     out.min_factor = out.max_factor = 0;
     out.message = "not nested: sheet " + std::to_string(out.sheet) + " has interval " + std::to_string(out.fine_interval) +

@@ -286,12 +286,19 @@ VerifyReport verify_finish(const FineMesh& mesh, const std::vector<VerifyPart>& 
   {
     __int128 nodes = info.coarse_vertices, elems = 0;
     for (Id e = 0; e < t.edges.rows(); ++e) nodes += R.edge(e).n - 1;
+    // Gradings agree too: opposite sides of every face (face_grading is
+    // Corrupt otherwise) and every element's axes with its edges' rows (a
+    // straight element's fill reads only its own row).
     for (Id f = 0; f < t.faces.rows(); ++f) {
       const FaceRow fr = R.face(f);
       nodes += static_cast<__int128>(R.edge(fr.e[0]).n - 1) * (R.edge(fr.e[2]).n - 1);
+      R.face_grading(fr);
     }
     for (Id h = 0; h < t.elements.rows(); ++h) {
       const ElementRow row = R.element(h);
+      for (int k = 0; k < R.edges(); ++k)
+        if (!(R.edge(row.edge[k]).grading == row.edge_grading(k, t.mode)))
+          R.corrupt(RowTable::Edges, row.edge[k], "grading disagrees with element " + std::to_string(h) + " using the edge");
       const __int128 n0 = R.edge(row.edge[0]).n, n1 = R.edge(row.edge[vol ? 4 : 2]).n, n2 = vol ? R.edge(row.edge[8]).n : 1;
       if (vol) nodes += (n0 - 1) * (n1 - 1) * (n2 - 1);
       elems += n0 * n1 * n2;

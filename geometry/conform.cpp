@@ -122,6 +122,17 @@ class Conformer {
     return rep_;
   }
 
+  // Only the vertices' owners (the first two steps of run()), for
+  // classify_on_geometry: (dim, tag) per vertex of the mesh's tables, dim
+  // -1 where none.
+  std::vector<std::pair<int, int>> vertex_owners() {
+    find_candidate_faces();
+    assign_vertices();
+    std::vector<std::pair<int, int>> out;
+    for (const Owner& o : vowner_) out.emplace_back(o.dim, o.tag);
+    return out;
+  }
+
  private:
   FineMesh& mesh_;
   const Cad& cad_;
@@ -470,8 +481,10 @@ class Conformer {
       const Id n = r.n;
       if (pl.how == Place::Predicted) continue;
       if (pl.how == Place::Closest) ++rep_.closest_point_fallbacks;
+      // The sheet's spacing (equal or graded) in the curve's parameters.
+      const tfi::Series series(n, r.grading);
       std::vector<double> s;
-      for (Id t = 1; t < n; ++t) s.push_back(tfi::weight(t, n));
+      for (Id t = 1; t < n; ++t) s.push_back(series.at(t));
       mesh_.move_nodes(EntityKind::Edge, e, edge_points(e, s));
       ++rep_.edges_moved;
     }
@@ -519,6 +532,8 @@ class Conformer {
       const double ref[2] = {uv[0], uv[1]};
       for (size_t i = 0; i < uv.size() / 2; ++i) unwrap(*ent, &uv[2 * i], ref);
       std::vector<Vec3> par;
+      const auto grading = RowReader(T_, cur_).face_grading(r);
+      const tfi::Series su(nu, grading[0]), sv(nv, grading[1]);
       if (!degenerate(*ent, uv)) {
         auto P = [&](size_t i, int k) { return uv[2 * i + k]; };  // 0..3 corners, then sides from 4 + k np
         std::vector<double> q, xyz;
@@ -556,7 +571,7 @@ class Conformer {
         std::vector<double> q, xyz;
         for (Id v = 1; v < nv; ++v)
           for (Id u = 1; u < nu; ++u) {
-            const double s = tfi::weight(u, nu), t = tfi::weight(v, nv);
+            const double s = su.at(u), t = sv.at(v);
             for (int k = 0; k < 2; ++k)
               q.push_back(tfi::coons(s, t, P(B + u, k), P(Tp + u, k), P(Lf + v, k), P(R + v, k), P(B, k),
                                      P(B + nu, k), P(Tp + nu, k), P(Tp, k)));
@@ -598,6 +613,42 @@ ConformReport conform_to_geometry(FineMesh& mesh, const std::string& cad_path, c
     throw Error(ErrorKind::Usage, "geometry tolerance " + fmt(options.tolerance) + " must be in (0, 1)");
   const Cad cad(cad_path);
   return Conformer(mesh, cad, options).run();
+}
+
+void classify_on_geometry(CoarseMesh& mesh, const std::string& cad_path, const ConformOptions& options) {
+  if (!(options.tolerance > 0 && options.tolerance < 1))
+    throw Error(ErrorKind::Usage, "geometry tolerance " + fmt(options.tolerance) + " must be in (0, 1)");
+  const Cad cad(cad_path);
+  // The owners as conform_to_geometry finds them, on the mesh diced once
+  // (interval 1: its tables are the coarse mesh's), mapped back by file id.
+  FineMesh once = FineMesh::dice(mesh, IntervalRequest{});
+  const auto owners = Conformer(once, cad, options).vertex_owners();
+  const Id V = mesh.num_vertices();
+  std::map<Id, Id> vertex_of_file_id;
+  for (Id v = 0; v < V; ++v) vertex_of_file_id.emplace(mesh.vertex_file_id[v], v);
+  std::vector<std::int8_t> dim(static_cast<size_t>(V), -1);
+  std::vector<std::int32_t> tag(static_cast<size_t>(V), -1);
+  const auto& volumes = cad.entities(3);
+  for (Id v = 0; v < V; ++v)  // not on the boundary: the only volume, or the file's volume
+    if (volumes.size() == 1) dim[v] = 3, tag[v] = volumes[0].tag;
+    else if (static_cast<size_t>(v) < mesh.vertex_geo_dim.size() && mesh.vertex_geo_dim[v] == 3 &&
+             cad.find(3, mesh.vertex_geo_tag[v]))
+      dim[v] = 3, tag[v] = mesh.vertex_geo_tag[v];
+  const CoarseMesh& ordered = *once.coarse();
+  for (size_t w = 0; w < owners.size(); ++w) {
+    if (owners[w].first < 0) continue;
+    const Id v = vertex_of_file_id.at(ordered.vertex_file_id[w]);
+    dim[v] = static_cast<std::int8_t>(owners[w].first), tag[v] = owners[w].second;
+  }
+  mesh.vertex_geo_dim = std::move(dim), mesh.vertex_geo_tag = std::move(tag);
+  mesh.geo_entities.clear();
+  for (int d = 1; d <= 3; ++d)
+    for (const CadEntity& e : cad.entities(d)) {
+      GeoEntity g{d, e.tag, {}};
+      for (const CadEntity& b : cad.entities(d - 1))
+        if (std::find(b.up.begin(), b.up.end(), e.tag) != b.up.end()) g.bounding.push_back(b.tag);
+      mesh.geo_entities.push_back(std::move(g));
+    }
 }
 
 // ---------------------------------------------------------------- verify

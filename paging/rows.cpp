@@ -3,7 +3,9 @@
 #include "dicer/rows.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 #include "dicer/error.hpp"
@@ -15,7 +17,8 @@ namespace {
 
 enum VertexCol : int { kVertexOwner = 0, kVertexCorner, kVertexNode, kVertexWidth };
 enum EdgeCol : int {
-  kEdgeLo = 0, kEdgeHi, kEdgeN, kEdgeNode, kEdgeSheet, kEdgeOwner, kEdgeGeo, kEdgeBound, kEdgeOther, kEdgeWidth
+  kEdgeLo = 0, kEdgeHi, kEdgeN, kEdgeNode, kEdgeSheet, kEdgeOwner, kEdgeGeo, kEdgeBound, kEdgeOther, kEdgeGrade,
+  kEdgeRatio, kEdgeWidth
 };
 enum FaceCol : int {
   kFaceV = 0, kFaceE = 4, kFaceNu = 8, kFaceNv, kFaceNode, kFaceOwner, kFaceGeo, kFaceBound, kFaceOther, kFaceWidth
@@ -39,11 +42,27 @@ struct ElementCols {
   int block() const { return node_first() + 4; }
   int flags() const { return node_first() + 5; }
   int n() const { return node_first() + 6; }
-  int width() const { return node_first() + 9; }
+  int grade() const { return node_first() + 9; }
+  int ratio() const { return node_first() + 10; }
+  int width() const { return node_first() + 13; }
   static ElementCols of(Mode m) { return m == Mode::Volume ? ElementCols{8, 12, 6} : ElementCols{4, 4, 1}; }
 };
 
 using i128 = __int128;
+
+// A grading as columns: kind | flip << 2 (3 bits; an element packs its
+// three axes at bits 3a), and the ratio's IEEE bits.
+constexpr int kGradeBits = 3;
+std::int64_t grade_code(const tfi::Grading& g) { return static_cast<std::int64_t>(g.kind) | (g.flip ? 4 : 0); }
+tfi::Grading grading_of(std::int64_t code, std::int64_t ratio) {
+  return {static_cast<tfi::Spacing>(code & 3), (code & 4) != 0, std::bit_cast<double>(ratio)};
+}
+std::string grading_text(const tfi::Grading& g) {
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "grading (kind %d%s, ratio %.17g)", static_cast<int>(g.kind), g.flip ? ", flipped" : "",
+                g.ratio);
+  return buf;
+}
 
 }  // namespace
 
@@ -109,6 +128,8 @@ EdgeRow RowReader::edge(Id e) const {
   EdgeRow o;
   o.lo = r[kEdgeLo], o.hi = r[kEdgeHi], o.n = r[kEdgeN], o.node = r[kEdgeNode], o.sheet = r[kEdgeSheet];
   o.owner_element = r[kEdgeOwner], o.geo = r[kEdgeGeo], o.bound = r[kEdgeBound], o.other_element = r[kEdgeOther];
+  const std::int64_t grade = r[kEdgeGrade];
+  o.grading = grading_of(grade, r[kEdgeRatio]);
   const Id V = t_.num_vertices();
   if (o.lo < 0 || o.hi >= V || o.lo >= o.hi) corrupt(RowTable::Edges, e, "vertex ids out of range or not ascending");
   if (!interval_ok(o.n)) corrupt(RowTable::Edges, e, "interval " + std::to_string(o.n) + " out of range");
@@ -122,7 +143,32 @@ EdgeRow RowReader::edge(Id e) const {
   if (!geo_ok(o.geo)) corrupt(RowTable::Edges, e, "geometric owner " + std::to_string(o.geo) + " is not a CAD entity");
   if (o.bound != -1 && !range_ok(o.bound, o.n - 1, t_.bounding.rows()))
     corrupt(RowTable::Edges, e, "bounding rows outside geometry/bounding");
+  if (grade < 0 || grade >= (1 << kGradeBits) || !tfi::grading_ok(o.grading))
+    corrupt(RowTable::Edges, e, grading_text(o.grading) + " is not valid");
   return o;
+}
+
+std::array<tfi::Grading, 2> RowReader::face_grading(const FaceRow& row) const {
+  EdgeRow sides[4];
+  for (int k = 0; k < 4; ++k) sides[k] = edge(row.e[k]);
+  return face_grading(row, sides);
+}
+
+std::array<tfi::Grading, 2> RowReader::face_grading(const FaceRow& row, const EdgeRow* sides) const {
+  std::array<tfi::Grading, 2> out;
+  for (int axis = 0; axis < 2; ++axis) {
+    tfi::Grading side[2];
+    for (int q = 0; q < 2; ++q) {
+      const int k = 2 * axis + q;  // sides 0, 1 run along u; 2, 3 along v (kQuadEdge)
+      const tfi::Grading& g = sides[k].grading;
+      side[q] = row.v[kQuadEdge[k][0]] < row.v[kQuadEdge[k][1]] ? g : tfi::reversed(g);
+    }
+    if (!(side[0] == side[1]))
+      corrupt(RowTable::Edges, row.e[2 * axis + 1],
+              "graded unlike the opposite side of a face it bounds (an inconsistent sheet direction)");
+    out[axis] = side[0];
+  }
+  return out;
 }
 
 FaceRow RowReader::face(Id f) const {
@@ -149,6 +195,27 @@ FaceRow RowReader::face(Id f) const {
     corrupt(RowTable::Faces, f, "bounding rows outside geometry/bounding");
   return o;
 }
+
+namespace {
+// An element row's three axis gradings: element() and cells() decode and
+// check them here, the same way.
+void element_grading(const RowReader& R, Id h, const std::int64_t* r, const ElementCols& L,
+                     std::array<tfi::Grading, 3>& out) {
+  const std::int64_t grade = r[L.grade()];
+  constexpr std::int64_t kOne = std::bit_cast<std::int64_t>(1.0);
+  if (grade == 0 && r[L.ratio()] == kOne && r[L.ratio() + 1] == kOne && r[L.ratio() + 2] == kOne) {
+    out = {};  // equally spaced (most rows): the checks below hold
+    return;
+  }
+  if (grade < 0 || grade >= (1 << (3 * kGradeBits)))
+    R.corrupt(RowTable::Elements, h, "unknown grading bits " + std::to_string(grade));
+  for (int a = 0; a < 3; ++a) {
+    out[a] = grading_of(grade >> (kGradeBits * a), r[L.ratio() + a]);
+    if (!tfi::grading_ok(out[a]) || (a == 2 && R.mode() == Mode::Surface && out[a].kind != tfi::Spacing::Equal))
+      R.corrupt(RowTable::Elements, h, "axis " + std::to_string(a) + ": " + grading_text(out[a]) + " is not valid");
+  }
+}
+}  // namespace
 
 // The fields of an element row that say where its fine grid is: element()
 // and cells() check them here, the same way.
@@ -179,6 +246,7 @@ void RowReader::element(Id h, ElementRow& o) const {
   o.n = {r[L.n()], r[L.n() + 1], r[L.n() + 2]};
 
   check_grid(h, o.n, o.element_first, o.flags);
+  element_grading(*this, h, r, L, o.grading);
   // The other fields in one pass without branches (random queries decode a
   // row per call); which field failed is looked for only when one did. The
   // grid is valid now, so every count below is under kMaxElementPoints.
@@ -316,6 +384,7 @@ RowReader::Cells RowReader::cells(Id h) const {
   const auto flags = static_cast<std::uint64_t>(r[L.flags()]);
   o.curved = (flags >> ElementRow::kCurvedBit) & 1;
   check_grid(h, o.n, o.element_first, flags);
+  element_grading(*this, h, r, L, o.grading);
   return o;
 }
 
@@ -344,6 +413,7 @@ void write_row(MeshTables& t, Id e, const EdgeRow& r) {
   std::int64_t* o = row_for_write(t.edges, e);
   o[kEdgeLo] = r.lo, o[kEdgeHi] = r.hi, o[kEdgeN] = r.n, o[kEdgeNode] = r.node, o[kEdgeSheet] = r.sheet;
   o[kEdgeOwner] = r.owner_element, o[kEdgeGeo] = r.geo, o[kEdgeBound] = r.bound, o[kEdgeOther] = r.other_element;
+  o[kEdgeGrade] = grade_code(r.grading), o[kEdgeRatio] = std::bit_cast<std::int64_t>(r.grading.ratio);
 }
 
 void write_row(MeshTables& t, Id f, const FaceRow& r) {
@@ -361,7 +431,13 @@ void write_row(MeshTables& t, Id h, const ElementRow& r) {
   for (int k = 0; k < L.f; ++k) o[L.face() + k] = r.face[k], o[L.face_node() + k] = r.face_node[k];
   o[L.node_first()] = r.node_first, o[L.element_first()] = r.element_first, o[L.cell_node()] = r.cell_node;
   o[L.file_id()] = r.file_id, o[L.block()] = r.block, o[L.flags()] = static_cast<std::int64_t>(r.flags);
-  for (int k = 0; k < 3; ++k) o[L.n() + k] = r.n[k];
+  std::int64_t grade = 0;
+  for (int k = 0; k < 3; ++k) {
+    o[L.n() + k] = r.n[k];
+    grade |= grade_code(r.grading[k]) << (kGradeBits * k);
+    o[L.ratio() + k] = std::bit_cast<std::int64_t>(r.grading[k].ratio);
+  }
+  o[L.grade()] = grade;
 }
 
 ElementBounds corner_bounds(const Vec3* xyz, int n) {

@@ -164,6 +164,9 @@ std::string pack_mesh(const CoarseMesh& m) {
   p.u64(m.node_sets.size());
   for (const auto& s : m.node_sets) p.u64(static_cast<std::uint64_t>(s.id)), p.str(s.name), p.vec(s.vertex);
   p.vec(m.vertex_geo_dim), p.vec(m.vertex_geo_tag);
+  p.u64(m.geo_entities.size());
+  for (const auto& g : m.geo_entities)
+    p.u64(static_cast<std::uint64_t>(g.dim)), p.u64(static_cast<std::uint32_t>(g.tag)), p.vec(g.bounding);
   p.u64(m.warnings.size());
   for (const auto& w : m.warnings) p.str(w);
   return p.out;
@@ -206,6 +209,13 @@ CoarseMesh unpack_mesh(const std::string& bytes, const std::string& path) {
   }
   m.vertex_geo_dim = u.vec<std::int8_t>();
   m.vertex_geo_tag = u.vec<std::int32_t>();
+  for (std::uint64_t i = count(); i > 0; --i) {
+    GeoEntity g;
+    g.dim = static_cast<int>(u.u64());
+    g.tag = static_cast<std::int32_t>(static_cast<std::uint32_t>(u.u64()));
+    g.bounding = u.vec<int>();
+    m.geo_entities.push_back(std::move(g));
+  }
   for (std::uint64_t i = count(); i > 0; --i) m.warnings.push_back(u.str());
   if (u.at != bytes.size()) u.fail();
   return m;

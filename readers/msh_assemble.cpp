@@ -281,6 +281,7 @@ CoarseMesh assemble(const std::string& path, MshSections sec) {
   mesh.vertex_file_id = std::move(sec.node_tag);
   mesh.vertex_geo_dim = std::move(sec.geo_dim);
   mesh.vertex_geo_tag = std::move(sec.geo_tag);
+  mesh.geo_entities = std::move(sec.entities);
   mesh.conn = std::move(sec.groups[dim].conn);
   mesh.element_file_id = std::move(sec.groups[dim].tag);
   if (!sec.groups[dim].mid.empty()) take_mid_nodes(mesh, std::move(sec.groups[dim].mid));

@@ -176,6 +176,7 @@ struct MshSections {
   std::size_t repeated = 0;                  // MSH2 elements written once per physical group
   std::map<std::pair<int, int>, std::vector<int>> entity_physicals;  // MSH4 (dim, tag)
   std::map<std::pair<int, Id>, std::string> physical_names;          // (dim, tag)
+  std::vector<GeoEntity> entities;  // MSH4: curves, surfaces, volumes and what bounds them
 
   // Physical tags of element i of groups[dim] (nonzero only).
   std::span<const int> physicals(int dim, std::size_t i) const;

@@ -3,6 +3,7 @@
 // refused by the lexer before anything is reserved.
 #include <charconv>
 #include <cmath>
+#include <cstdlib>
 #include <unordered_map>
 
 #include "msh_reader.hpp"
@@ -190,8 +191,8 @@ void SectionReader::read_physical_names() {
   lex_.expect_end("PhysicalNames");
 }
 
-// MSH 4.1: the physical tags of every entity (bounding boxes and boundaries
-// are skipped).
+// MSH 4.1: the physical tags of every entity and the entities bounding each
+// curve, surface and volume (bounding boxes are skipped).
 void SectionReader::read_entities() {
   std::size_t n[4];
   if (binary_) {
@@ -202,14 +203,17 @@ void SectionReader::read_entities() {
   }
   for (int d = 0; d < 4; ++d) {
     for (std::size_t i = 0; i < n[d]; ++i) {
-      std::vector<int> phys;
+      std::vector<int> phys, bounding;
       int tag;
       if (binary_) {
         tag = lex_.bin_int("entity tag");
         lex_.skip_bytes(d == 0 ? 24 : 48);
         const std::size_t np = lex_.bin_count("number of physical tags", 4);
         for (std::size_t k = 0; k < np; ++k) phys.push_back(lex_.bin_int("physical tag"));
-        if (d > 0) lex_.skip_bytes(4 * lex_.bin_count("number of bounding entities", 4));
+        if (d > 0) {
+          const std::size_t nb = lex_.bin_count("number of bounding entities", 4);
+          for (std::size_t k = 0; k < nb; ++k) bounding.push_back(lex_.bin_int("bounding entity"));
+        }
       } else {
         tag = static_cast<int>(lex_.integer("entity tag", kInt32Min, kInt32Max));
         for (int k = 0; k < (d == 0 ? 3 : 6); ++k) lex_.token();
@@ -218,11 +222,17 @@ void SectionReader::read_entities() {
           phys.push_back(static_cast<int>(lex_.integer("physical tag", kInt32Min, kInt32Max)));
         if (d > 0) {
           const std::size_t nb = lex_.count("number of bounding entities", 1);
-          for (std::size_t k = 0; k < nb; ++k) lex_.token();
+          for (std::size_t k = 0; k < nb; ++k)
+            bounding.push_back(static_cast<int>(lex_.integer("bounding entity", kInt32Min, kInt32Max)));
         }
       }
       std::erase(phys, 0);
       s_.entity_physicals[{d, tag}] = std::move(phys);
+      if (d > 0) {
+        // Signs give the orientation of the boundary: dicer needs only which.
+        for (int& b : bounding) b = b == kInt32Min ? b : std::abs(b);
+        s_.entities.push_back({d, tag, std::move(bounding)});
+      }
     }
   }
   lex_.expect_end("Entities");

@@ -2,6 +2,7 @@
 // parser is safer than our own for user-written JSON.
 #include <cmath>
 #include <cstdlib>
+#include <optional>
 #include <nlohmann/json.hpp>  // Debian's nlohmann-json3-dev
 
 #include "dicer/error.hpp"
@@ -32,22 +33,65 @@ IntervalRequest read_interval_file(const std::string& path) {
       const double s = static_cast<double>(number(*it, k));
       if (!(s > 0) || !std::isfinite(s)) throw Error(ErrorKind::Usage, path + ": size must be a positive number");
       r.size = s;
-    } else if (k == "blocks" || k == "sheets") {
+    } else if (k == "blocks" || k == "sheets" || k == "entities") {
       if (!it->is_object()) throw Error(ErrorKind::Usage, path + ": " + k + " must be an object");
       for (auto b = it->begin(); b != it->end(); ++b) {
-        const Id n = checked_interval(path + ": " + k + " \"" + b.key() + "\"", number(*b, k + "." + b.key()));
+        const std::string where = path + ": " + k + " \"" + b.key() + "\"";
+        // A number (the interval) or {"interval", "bias" | "dual_bias" |
+        // "first" | "last", "start"}.
+        std::optional<Id> n;
+        std::optional<BiasRequest> bias;
+        if (b->is_object()) {
+          BiasRequest q;
+          int given = 0;
+          for (auto f = b->begin(); f != b->end(); ++f) {
+            const std::string& fk = f.key();
+            const std::string fw = k + "." + b.key() + "." + fk;
+            if (fk == "interval") {
+              n = checked_interval(where, number(*f, fw));
+            } else if (fk == "bias" || fk == "dual_bias") {
+              q.ratio = static_cast<double>(number(*f, fw)), ++given;
+              if (fk == "dual_bias") q.kind = tfi::Spacing::Dual;
+            } else if (fk == "first" || fk == "last") {
+              const double h = static_cast<double>(number(*f, fw));
+              if (!(h > 0)) throw Error(ErrorKind::Usage, where + ": " + fk + " must be a positive cell length");
+              (fk == "first" ? q.first_cell : q.last_cell) = h, ++given;
+            } else if (fk == "start") {
+              const long double v = number(*f, fw);
+              if (v != std::floor(v) || std::fabs(v) > 9.2e18L)
+                throw Error(ErrorKind::Usage, where + ": start must be a node id of the input file");
+              q.start = static_cast<Id>(v);
+            } else {
+              throw Error(ErrorKind::Usage, where + ": unknown key \"" + fk +
+                                                "\" (known: interval, bias, dual_bias, first, last, start)");
+            }
+          }
+          if (given > 1)
+            throw Error(ErrorKind::Usage, where + ": give one of bias, dual_bias, first, last");
+          if (given == 0 && q.start) throw Error(ErrorKind::Usage, where + ": start needs a bias");
+          if (given > 0) check_bias(where, q), bias = q;
+          if (!n && !bias) throw Error(ErrorKind::Usage, where + ": give an interval or a bias");
+        } else {
+          n = checked_interval(where, number(*b, k + "." + b.key()));
+        }
         if (k == "blocks") {
-          r.blocks.emplace_back(b.key(), n);
+          if (n) r.blocks.emplace_back(b.key(), *n);
+          if (bias) r.block_bias.emplace_back(b.key(), *bias);
+        } else if (k == "entities") {
+          const EntityTag e = parse_entity(where, b.key());
+          if (n) r.entities.emplace_back(e, *n);
+          if (bias) r.entity_bias.emplace_back(e, *bias);
         } else {
           char* end = nullptr;
           const long long s = std::strtoll(b.key().c_str(), &end, 10);
           if (b.key().empty() || *end != '\0' || s < 0)
             throw Error(ErrorKind::Usage, path + ": sheets: \"" + b.key() + "\" is not a sheet id");
-          r.sheets.emplace_back(s, n);
+          if (n) r.sheets.emplace_back(s, *n);
+          if (bias) r.sheet_bias.emplace_back(s, *bias);
         }
       }
     } else {
-      throw Error(ErrorKind::Usage, path + ": unknown key \"" + k + "\" (known: global, size, blocks, sheets)");
+      throw Error(ErrorKind::Usage, path + ": unknown key \"" + k + "\" (known: global, size, blocks, sheets, entities)");
     }
   }
   return r;

@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <bit>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
@@ -279,14 +280,14 @@ std::uint32_t open_paged(OpenStore& s, const std::string& name, std::int64_t wid
 // Small datasets read whole (O(blocks)).
 template <class T>
 std::vector<T> read_small(OpenStore& s, const std::shared_ptr<PageCache>& cache, const std::string& name,
-                          std::int64_t rows) {
-  const std::uint32_t id = open_paged<T>(s, name, 1, rows);  // rows checked against the file first
+                          std::int64_t rows, std::int64_t width = 1) {
+  const std::uint32_t id = open_paged<T>(s, name, width, rows);  // rows checked against the file first
   const PagedDataset& a = s.arrays[id];
   cache->set_array_pages(id, static_cast<std::uint64_t>((a.rows + a.rows_per_page - 1) / a.rows_per_page));
-  Table<T> t(1, a.rows, cache, id, a.rows_per_page);
+  Table<T> t(width, a.rows, cache, id, a.rows_per_page);
   TableCursor cur;
-  std::vector<T> out(static_cast<size_t>(rows));
-  for (std::int64_t i = 0; i < rows; ++i) out[i] = t.row(i, cur)[0];
+  std::vector<T> out(static_cast<size_t>(rows * width));
+  for (std::int64_t i = 0; i < rows; ++i) std::copy_n(t.row(i, cur), width, out.data() + i * width);
   return out;
 }
 
@@ -457,6 +458,16 @@ void write_store(const FineMesh& mesh, const std::string& path,
         write_paged(f, "numbering/element_page_element", element_first);
       }
       write_paged(f, "sheets/sheet_interval", mesh.sheet_intervals());
+      {
+        // Per sheet: spacing kind, ratio (IEEE bits), start node's file id.
+        std::vector<std::int64_t> grading;
+        for (const SheetGrading& g : mesh.sheet_gradings())
+          grading.insert(grading.end(), {static_cast<std::int64_t>(g.grading.kind),
+                                         std::bit_cast<std::int64_t>(g.grading.ratio), g.start});
+        if (grading.empty())  // a mesh built without dice(): every sheet equally spaced
+          for (Id q = 0; q < info.sheets; ++q) grading.insert(grading.end(), {0, std::bit_cast<std::int64_t>(1.0), -1});
+        write_paged(f, "sheets/sheet_grading", grading, 3);
+      }
       std::vector<std::int64_t> block_id;
       std::vector<std::string> block_name;
       for (const auto& b : info.blocks) block_id.push_back(b.id), block_name.push_back(b.name);
@@ -587,8 +598,18 @@ FineMesh read_store(const std::string& path, const StoreOptions& options) {
   const auto sheet_interval = read_small<std::int64_t>(*s, cache, "sheets/sheet_interval", info.sheets);
   for (Id n : sheet_interval)
     if (n < 1 || n >= kMaxElementPoints) throw Error(ErrorKind::Corrupt, path + ": sheets/sheet_interval holds " + std::to_string(n));
+  const auto sheet_grading = read_small<std::int64_t>(*s, cache, "sheets/sheet_grading", info.sheets, 3);
+  std::vector<SheetGrading> gradings(static_cast<size_t>(info.sheets));
+  for (size_t q = 0; q < gradings.size(); ++q) {
+    const std::int64_t* r = &sheet_grading[3 * q];
+    gradings[q] = {{static_cast<tfi::Spacing>(r[0] & 3), false, std::bit_cast<double>(r[1])}, r[2]};
+    if (r[0] < 0 || r[0] > 2 || !tfi::grading_ok(gradings[q].grading) || r[2] < -1 ||
+        (r[2] >= 0) != (gradings[q].grading.kind == tfi::Spacing::Geometric))
+      throw Error(ErrorKind::Corrupt, path + ": sheets/sheet_grading row " + std::to_string(q) + " is not a grading");
+  }
   FineMesh mesh(std::move(info), std::move(tab));
   mesh.set_sheet_intervals(sheet_interval);
+  mesh.set_sheet_gradings(std::move(gradings));
   return mesh;
 }
 

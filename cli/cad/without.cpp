@@ -62,6 +62,9 @@ namespace dicer {
 ConformReport conform_to_geometry(FineMesh&, const std::string&, const ConformOptions&) {
   throw std::logic_error("conform_to_geometry in dicer without Gmsh (the command should run in dicer-cad)");
 }
+void classify_on_geometry(CoarseMesh&, const std::string&, const ConformOptions&) {
+  throw std::logic_error("classify_on_geometry in dicer without Gmsh (the command should run in dicer-cad)");
+}
 GeometryCheck check_geometry(const FineMesh&, const std::string&, const std::function<void(Id, Id)>&) {
   throw std::logic_error("check_geometry in dicer without Gmsh (the command should run in dicer-cad)");
 }

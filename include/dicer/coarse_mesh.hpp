@@ -46,6 +46,14 @@ struct SideSet {
   std::vector<std::int8_t> side;    // 0-based Exodus side
 };
 
+// A curve, surface or volume of the geometric model and the entities one
+// dimension lower that bound it (tags; orientation signs dropped).
+struct GeoEntity {
+  int dim = 0, tag = 0;
+  std::vector<int> bounding;
+  friend bool operator==(const GeoEntity&, const GeoEntity&) = default;
+};
+
 struct NodeSet {
   std::int64_t id = 0;
   std::string name;
@@ -77,6 +85,9 @@ struct CoarseMesh {
   std::vector<Id> mid;
   std::vector<double> mid_x, mid_y, mid_z;
   std::vector<Id> mid_file_id;        // node id in the file (messages)
+  // The model's topology: MSH 4.1 $Entities (or the CAD's, for intervals
+  // by entity with --geometry). Empty when unknown (Exodus, MSH 1/2.2).
+  std::vector<GeoEntity> geo_entities;
   // Quirks accepted (reoriented, dropped nodes, skipped blocks): one sentence
   // each, WITHOUT the file path; whoever prints them prefixes `source`.
   std::vector<std::string> warnings;

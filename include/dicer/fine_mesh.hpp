@@ -29,6 +29,7 @@
 #include "dicer/intervals.hpp"
 #include "dicer/numbering.hpp"
 #include "dicer/tables.hpp"
+#include "dicer/tfi.hpp"
 
 namespace dicer {
 
@@ -66,7 +67,7 @@ struct FineBlock {
   struct Scratch {
     Vec3 corner[8];
     std::vector<double> edge[12][3], face[6][3];  // the element's edges' and faces' points, canonical order
-    std::vector<double> bottom[3], top[3], left[3], right[3], s, t, u, U;
+    std::vector<double> bottom[3], top[3], left[3], right[3], s, t, u, U, v, w;
     // The boundary (corners, edges, faces) of the element filled last, so a
     // block produced slab by slab evaluates it once: planes k = 0 and k = n[2]
     // whole, then for each 0 < k < n[2] the ring of plane k (j = 0, j = n[1],
@@ -98,6 +99,14 @@ struct FineBlock {
 };
 
 // Small per-mesh facts, always in memory: O(blocks).
+// How a sheet is graded (intervals.hpp): its series (flip unused) and,
+// geometric, the input file's node id its series starts at (-1 otherwise).
+struct SheetGrading {
+  tfi::Grading grading;
+  Id start = -1;
+  friend bool operator==(const SheetGrading&, const SheetGrading&) = default;
+};
+
 struct MeshInfo {
   Mode mode = Mode::Volume;
   std::string source;                    // the coarse mesh file it was diced from
@@ -129,6 +138,9 @@ class FineMesh {
   // process or read from a store.
   const std::vector<Id>& sheet_intervals() const { return sheet_intervals_; }
   void set_sheet_intervals(std::vector<Id> s) { sheet_intervals_ = std::move(s); }
+  // Grading of every sheet (ids of the input file), as sheet_intervals().
+  const std::vector<SheetGrading>& sheet_gradings() const { return sheet_gradings_; }
+  void set_sheet_gradings(std::vector<SheetGrading> s) { sheet_gradings_ = std::move(s); }
   // The reordered coarse mesh with its sets, when diced in this process
   // (nullptr when opened from a store: sets stay on disk).
   const CoarseMesh* coarse() const { return coarse_.get(); }
@@ -191,6 +203,7 @@ class FineMesh {
   MeshTables tables_;
   std::shared_ptr<const CoarseMesh> coarse_;
   std::vector<Id> sheet_intervals_;
+  std::vector<SheetGrading> sheet_gradings_;
   bool faces_moved_ = false;
   std::vector<Id> vertex_uses_, vertex_uses_offset_;  // set_vertex: vertex -> 8 * element + corner (CSR)
   // Identity of this mesh's content (a new value on every change), the key

@@ -21,17 +21,19 @@
 //  2. Vertices are snapped onto their entity.
 //  3. Edge nodes on curves (and on surfaces) move first, then face nodes;
 //     hex interiors need no move: their TFI reads the moved boundary.
-//     Method: interpolate equally in the entity's parameter space between
-//     the ends (edges) or by a Coons patch of the moved boundary's
-//     parameters (faces), then evaluate there, which keeps the spacing the
-//     TFI would give in the parameters. Periodic parameters (a circle, a
-//     cylinder's angle, a torus) are unwrapped across the seam. Where that
-//     fails (a degenerate pole such as a sphere's, a face spanning more than
-//     half a period, a parametrisation far from arc length), the node's TFI
-//     prediction is projected to the closest point instead. The choice is
-//     made once per entity from probes at fixed parameters (k/8 along an
-//     edge, (i/8, j/8) on a face; parameters within a quarter of the probe
-//     spacing of the closest points pass), never from the interval, so two
+//     Method: interpolate in the entity's parameter space between the ends
+//     at the sheet's grid parameters (tfi::Series: equal steps, or the
+//     sheet's graded series) (edges) or by a Coons patch of the moved
+//     boundary's parameters at the face's graded parameters (faces), then
+//     evaluate there, which keeps the spacing the TFI would give in the
+//     parameters. Periodic parameters (a circle, a cylinder's angle, a
+//     torus) are unwrapped across the seam. Where that fails (a degenerate
+//     pole such as a sphere's, a face spanning more than half a period, a
+//     parametrisation far from arc length), the node's TFI prediction is
+//     projected to the closest point instead. The choice is made once per
+//     entity from probes at fixed parameters (k/8 along an edge, (i/8, j/8)
+//     on a face; parameters within a quarter of the probe spacing of the
+//     closest points pass), never from the interval or the grading, so two
 //     dicings whose intervals are multiples of each other place every node
 //     they share identically (nested levels, transfer.hpp). An entity whose
 //     probes already lie on the CAD (within 1e-12 of the diagonal) is not
@@ -70,6 +72,15 @@ struct ConformReport {
 // (STEP or BREP). Throws Error{Geometry} for a mismatch or an inversion,
 // Error{Io|BadInput|Unsupported} for an unreadable CAD file.
 ConformReport conform_to_geometry(FineMesh& mesh, const std::string& cad_path, const ConformOptions& options = {});
+
+// The CAD's classification of a coarse mesh, for intervals by entity
+// (intervals.hpp): boundary vertices get the CAD entity conform_to_geometry
+// would give them (vertex_geo_dim/tag), interior ones the CAD's volume
+// when it has one (else the file's volume classification, if the CAD has
+// that volume), and geo_entities the CAD's topology, so that tags name the
+// CAD's entities. Costs what conform's vertex matching costs. Errors as
+// conform_to_geometry's for a mesh that does not fit.
+void classify_on_geometry(CoarseMesh& mesh, const std::string& cad_path, const ConformOptions& options = {});
 
 struct GeometryCheck {
   double diagonal = 0;

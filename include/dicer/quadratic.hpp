@@ -6,7 +6,8 @@
 // first-order file). The nodes after them (CoarseMesh::mid) shape it:
 //  - Edges. The curve through an edge's ends a, b and its mid node m at
 //    parameter 1/2 (isoparametric Lagrange P2). Fine node t of n sits at
-//    s = tfi::weight(t, n), the parameter the TFI gives it, at
+//    s = tfi::param(t, n, grading), the parameter the (graded) TFI gives
+//    it, at
 //        x(s) = lerp(a, b, s) + 4 s (1 - s) (m - (a + b) / 2),
 //    the P2 curve written as the straight edge plus its bubble.
 //  - Faces. The serendipity surface (QUAD8, HEX20 faces) is, exactly, the

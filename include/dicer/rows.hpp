@@ -24,6 +24,7 @@
 
 #include "dicer/orientation.hpp"
 #include "dicer/tables.hpp"
+#include "dicer/tfi.hpp"
 
 namespace dicer {
 
@@ -51,6 +52,9 @@ struct EdgeRow {
   std::int64_t geo = -1;     // geometric owner, pack_owner(dim, tag), -1 unknown
   Id bound = -1;             // first row of `bounding` for its n-1 nodes, -1: not moved
   Id other_element = -1;     // surface mode: the other quad on the edge (-1: boundary or non-manifold); volume: -1
+  // The sheet's grading in the edge's canonical direction (lo -> hi):
+  // node t sits at tfi::param(t, n, grading) (tfi::grading_ok holds).
+  tfi::Grading grading;
 };
 
 // topology/faces: canonical corners v (v0 lowest id, v1 its lower
@@ -102,6 +106,9 @@ struct ElementRow {
   // local face k; bit kCurvedBit: some edge or face has bounding rows.
   std::uint64_t flags = 0;
   std::array<Id, 3> n{1, 1, 1};  // intervals along local i, j, k (k = 1 in surface mode)
+  // Grading along local i, j, k, each in its axis' increasing direction:
+  // the edges along axis a carry grading[a] (tfi::reversed where rev()).
+  std::array<tfi::Grading, 3> grading{};
 
   static constexpr int kCurvedBit = 30;
   bool rev(int k) const { return (flags >> k) & 1; }
@@ -110,6 +117,11 @@ struct ElementRow {
   // Whether this element owns the node id (entities owned by earlier
   // elements have lower ids: owner order).
   bool owns(Id node) const { return node >= node_first; }
+  // Local edge k's grading in its canonical direction (as its edge row has it).
+  tfi::Grading edge_grading(int k, Mode mode) const {
+    const tfi::Grading& g = grading[mode == Mode::Volume ? k / 4 : k / 2];
+    return rev(k) ? tfi::reversed(g) : g;
+  }
 };
 
 // Which table a row comes from (errors, widths, dataset names).
@@ -135,6 +147,12 @@ class RowReader {
   VertexRow vertex(Id v) const;
   EdgeRow edge(Id e) const;
   FaceRow face(Id f) const;
+  // A face's grading along its canonical u (v0 -> v1) and v (v0 -> v3):
+  // its side edges' (e0 and e2), seen from v0. Corrupt (naming the side
+  // e1 or e3) when opposite sides disagree: a sheet graded inconsistently.
+  // `sides`: the rows of its side edges e0..e3 when already read.
+  std::array<tfi::Grading, 2> face_grading(const FaceRow& row) const;
+  std::array<tfi::Grading, 2> face_grading(const FaceRow& row, const EdgeRow* sides) const;
   ElementRow element(Id h) const {
     ElementRow o;
     element(h, o);
@@ -168,13 +186,14 @@ class RowReader {
   // exceeds x (hi if none): a binary search over rows that share one page
   // (Table::run), through one row pointer. Unvalidated like the two above.
   Id search_first(Id lo, Id hi, Id x, bool by_node) const;
-  // What a search needs of element h (its fine grid and curved flag),
+  // What a search needs of element h (its fine grid, grading and curved flag),
   // validated like element() validates these fields, without decoding the
   // rest of the ~450-byte row.
   struct Cells {
     std::array<Id, 3> n{1, 1, 1};
     Id element_first = 0;
     bool curved = false;
+    std::array<tfi::Grading, 3> grading{};
   };
   Cells cells(Id h) const;
 

@@ -25,4 +25,17 @@ struct Sheets {
 // O(n alpha(n)) union-find plus an O(n log n) sort for the block lists.
 Sheets find_sheets(const CoarseMesh& mesh, const Topology& topo);
 
+// A direction across each sheet, for graded sheets (intervals.hpp): the
+// sheet's lowest edge runs lo -> hi, and the direction crosses each face
+// from one side edge to the opposite one keeping the face's axis sense
+// (the canonical u of sides v0v1 and v3v2, the v of v0v3 and v1v2). A
+// sheet that comes back to an edge with the other sense (a Moebius-like
+// ring) has no direction: `twisted`.
+// Cost: O(E + F) time and memory (a breadth-first walk of each sheet).
+struct SheetDirections {
+  std::vector<std::uint8_t> edge_flip;  // per edge: 1 when the sheet's direction runs hi -> lo along it
+  std::vector<std::uint8_t> twisted;    // per sheet: 1 when no direction is consistent
+};
+SheetDirections orient_sheets(const Topology& topo, const Sheets& sheets);
+
 }  // namespace dicer

@@ -27,7 +27,7 @@
 
 namespace dicer {
 
-inline constexpr int kStoreFormatVersion = 7;
+inline constexpr int kStoreFormatVersion = 8;
 inline constexpr const char* kStoreFormatName = "dicer-store";
 inline constexpr std::uint64_t kStorePageBytes = 64 * 1024;  // target page size (whole rows)
 

@@ -12,7 +12,7 @@
 // (ids 0-based, in the store's numbering, every entity in owner order):
 //   vertex_nodes    [V x 3]  owner element, its corner slot, fine node id:
 //                   a vertex's coordinates are its owner's corner there
-//   edges           [E x 8], faces [F x 14], elements [H x W]: rows.hpp
+//   edges           [E x 11], faces [F x 15], elements [H x W]: rows.hpp
 //   corners         [H x 3c] float64  the element's c corner coordinates:
 //                   the only coordinates of the coarse mesh, so that a
 //                   sweep over straight elements reads nothing but

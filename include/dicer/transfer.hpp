@@ -74,6 +74,9 @@ struct Nesting {
   // The first sheet (ids as `dicer sheets` prints them) whose fine interval
   // is not a multiple of its coarse one: -1 when nested.
   Id sheet = -1, coarse_interval = 0, fine_interval = 0;
+  // Set (with `sheet`, the first graded one) when a sheet is graded in
+  // either store: P's weights assume equal spacing, so it is refused.
+  bool graded = false;
   Id min_factor = 0, max_factor = 0;  // over sheets, fine / coarse (nested only)
   Id rows = 0, cols = 0;              // P's shape: fine nodes x coarse nodes
   // Nodes moved onto the CAD in the coarse store whose fine-store twin has

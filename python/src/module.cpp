@@ -101,6 +101,19 @@ py::dict info_dict(const Store& s) {
   d["coarse_elements"] = c.coarse_elements;
   d["sheets"] = c.sheets;
   d["sheet_intervals"] = m->sheet_intervals();
+  py::list gradings;  // None, or {kind, ratio, start}: cli/json_out.hpp grading_json
+  for (const SheetGrading& g : m->sheet_gradings()) {
+    if (g.grading.kind == tfi::Spacing::Equal) {
+      gradings.append(py::none());
+      continue;
+    }
+    py::dict q;
+    q["kind"] = g.grading.kind == tfi::Spacing::Dual ? "dual" : "geometric";
+    q["ratio"] = g.grading.ratio;
+    if (g.grading.kind == tfi::Spacing::Geometric) q["start"] = g.start;
+    gradings.append(q);
+  }
+  d["sheet_gradings"] = gradings;
   d["fine_nodes"] = m->num_nodes();
   d["fine_elements"] = m->num_elements();
   d["blocks"] = blocks;

@@ -426,7 +426,9 @@ TEST(BadCli, OptionSpellingsRepeatsAndHelp) {
 // (from the README) is both accepted and listed with its description.
 TEST(BadCli, HelpListsWhatTheParserAccepts) {
   const std::vector<std::string> store = {"--cache-mb", "--read-ahead", "--stats"};
-  const std::vector<std::string> intervals = {"--interval", "--size", "--block-interval", "--sheet-interval",
+  const std::vector<std::string> intervals = {"--interval",      "--size",         "--block-interval",
+                                              "--sheet-interval", "--entity-interval", "--sheet-bias",
+                                              "--sheet-dual-bias", "--block-bias",    "--entity-bias",
                                               "--intervals-file"};
   auto with = [](std::vector<std::string> a, const std::vector<std::string>& b) {
     a.insert(a.end(), b.begin(), b.end());

@@ -310,9 +310,10 @@ std::vector<Case> catalogue() {
                hsize_t dims[2] = {0, 0};
                H5Sget_simple_extent_dims(sp, dims, nullptr);
                H5Sclose(sp), H5Dclose(ds);
-               // Element 5's first interval (column W-3) claims 2^41; Fletcher32 and CRC-32 recomputed.
+               // Element 5's first interval (column W-7, before the grading's four) claims 2^41;
+               // Fletcher32 and CRC-32 recomputed.
                test::forge_page(f, "topology/elements", 0, [&](std::vector<std::uint8_t>& page) {
-                 reinterpret_cast<std::int64_t*>(page.data())[5 * dims[1] + dims[1] - 3] = std::int64_t{1} << 41;
+                 reinterpret_cast<std::int64_t*>(page.data())[5 * dims[1] + dims[1] - 7] = std::int64_t{1} << 41;
                }, true);
              });
            },

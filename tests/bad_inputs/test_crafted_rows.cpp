@@ -2,7 +2,7 @@
 // checksums are all valid (store_forge recomputes Fletcher32 and CRC-32):
 // the command must answer Corrupt (exit 8) naming the dataset and the row,
 // never crash or print a wrong mesh. The column layout comes from
-// store/FORMAT.md (the tables of format 6), not from the code's enums.
+// store/FORMAT.md (the tables of format 8), not from the code's enums.
 #include <gtest/gtest.h>
 #include <hdf5.h>
 
@@ -82,6 +82,13 @@ std::vector<Column> element_columns(bool volume) {
   out.push_back({ds, base + 4, "block", [](const Store&) { return std::int64_t{99}; }});
   out.push_back({ds, base + 5, "flags", [](const Store&) { return std::int64_t{1} << 40; }});
   for (int k = 0; k < 3; ++k) out.push_back({ds, base + 6 + k, "interval", [](const Store&) { return std::int64_t{0}; }});
+  // Format 8: the axes' grading (3 bits each: kind, flip) and their ratios
+  // (float64 bits): unknown bits, a NaN, zero, negative and huge ratio.
+  out.push_back({ds, base + 9, "grading", [](const Store&) { return std::int64_t{1} << 20; }});
+  out.push_back({ds, base + 10, "ratio", [](const Store&) { return std::int64_t{0x7FF8000000000000}; }});  // NaN
+  out.push_back({ds, base + 11, "ratio", [](const Store&) { return std::int64_t{0}; }});                   // 0.0
+  if (volume)
+    out.push_back({ds, base + 12, "ratio", [](const Store&) { return static_cast<std::int64_t>(0xBFF8000000000000ull); }});  // -1.5
   return out;
 }
 
@@ -97,6 +104,8 @@ std::vector<Column> all_columns(bool volume) {
   out.push_back({ed, 6, "geometric owner", [](const Store&) { return std::int64_t{9} << 32; }});
   out.push_back({ed, 7, "bounding row", [](const Store&) { return std::int64_t{5}; }});
   out.push_back({ed, 8, "other element", [](const Store& s) { return s.H; }});
+  out.push_back({ed, 9, "grading", [](const Store&) { return std::int64_t{4}; }});  // equal spacing "flipped": no direction
+  out.push_back({ed, 10, "ratio", [](const Store&) { return static_cast<std::int64_t>(0x7E37E43C8800759Cull); }});  // 1e300
   for (int k = 0; k < 4; ++k) out.push_back({fa, k, "corner", [](const Store& s) { return s.V; }});
   for (int k = 0; k < 4; ++k) out.push_back({fa, 4 + k, "side edge", [](const Store& s) { return s.E + 1; }});
   out.push_back({fa, 8, "nu", [](const Store&) { return std::int64_t{0}; }});
@@ -146,7 +155,8 @@ void run_all(bool volume) {
     EXPECT_NE(r.err.find(c.dataset + " row " + std::to_string(row) + ":"), std::string::npos) << r.err;
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
     if (c.dataset == "topology/elements" && (c.what == std::string("element_first") || c.what == std::string("flags") ||
-                                              c.what == std::string("interval"))) {
+                                              c.what == std::string("interval") || c.what == std::string("grading") ||
+                                              c.what == std::string("ratio"))) {
       // Point location reads these of every candidate element (its grid
       // and curved flag) without decoding the whole row: the centre of
       // coarse element `row` is a point whose search reaches that row.
@@ -232,4 +242,39 @@ TEST(CraftedRows, ALyingPageIndexIsCorruptForEveryCommand) {
     EXPECT_EQ(whole.exit_code, 0) << whole.err;
     EXPECT_EQ(whole.out, good.out);
   }
+}
+
+// A graded sheet whose direction is crafted inconsistent: one edge of a
+// geometric sheet flipped (kind 1 <-> 5 in column 9), checksums valid.
+// verify names the edges table and a row; so does a query of the flipped
+// edge's face nodes.
+TEST(CraftedRows, AnInconsistentGradingDirectionIsCorrupt) {
+  test::TempDir tmp;
+  const std::string good = tmp.path("g.dice.h5"), bad = tmp.path("bad.dice.h5");
+  auto r = test::run_cli({"dice", test::data_path("cardinal_sphere.e"), "--interval", "3", "--sheet-bias", "0=1.4",
+                          "--sheet-bias", "1=0.7", "--sheet-bias", "2=1.3", "-o", good});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  ASSERT_EQ(test::run_cli({"verify", good}).exit_code, 0);
+  fs::copy_file(good, bad);
+  hid_t f = H5Fopen(bad.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+  const hsize_t w = width_of(f, "topology/edges");
+  ASSERT_EQ(w, 11u);
+  std::int64_t flipped = -1;
+  test::forge_page(f, "topology/edges", 0, [&](std::vector<std::uint8_t>& page) {
+    for (std::size_t row = 0; row * w * 8 < page.size() && flipped < 0; ++row) {
+      std::int64_t g;
+      std::memcpy(&g, page.data() + (row * w + 9) * 8, 8);
+      if ((g & 3) != 1) continue;  // geometric
+      g ^= 4;
+      std::memcpy(page.data() + (row * w + 9) * 8, &g, 8);
+      flipped = static_cast<std::int64_t>(row);
+    }
+  }, true);
+  H5Fclose(f);
+  ASSERT_GE(flipped, 0) << "no geometric edge on the first page";
+  r = test::run_cli({"verify", bad});
+  EXPECT_EQ(r.exit_code, 8) << r.err;
+  EXPECT_NE(r.err.find("topology/edges row "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("grad"), std::string::npos) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
 }

@@ -510,5 +510,207 @@ TEST(Geometry, BoundingCodeIsLosslessForEveryPair) {
   EXPECT_EQ(tfi::bounding_code(1.0, std::nextafter(1.0, 0.0)), 1);
 }
 
+// ---------------------------------------------------------------- grading
+
+// Graded sheets on the CAD: edge nodes moved onto a circle keep the
+// sheet's series in the circle's parameter (its angle), measured here from
+// the coordinates against the series summed independently.
+TEST(Geometry, BiasedSheetsKeepTheSeriesInTheCurvesParameter) {
+  TempDir tmp;
+  const Shape sh = cylinder();
+  const std::string cad = tmp.path("cyl.brep"), msh = tmp.path("cyl.msh");
+  make_cad(cad, sh.build);
+  CoarseMeshOptions mo;
+  mo.size = sh.size;
+  mesh_coarse(cad, msh, mo);
+  const CoarseMesh cm = read_coarse_mesh(msh);
+  const Sheets sheets = find_sheets(cm, build_topology(cm));
+  const double R = 1.4;
+  IntervalRequest req;
+  req.global = 5;
+  for (Id q = 0; q < sheets.num_sheets(); ++q) req.sheet_bias.emplace_back(q, BiasRequest{tfi::Spacing::Geometric, R, 0, 0, std::nullopt});
+  FineMesh fine = FineMesh::dice(cm, req);
+  conform_to_geometry(fine, cad);
+  EXPECT_EQ(check_quality(fine).inverted, 0);
+  const VerifyReport vr = verify(fine);
+  EXPECT_TRUE(vr.ok()) << (vr.problems.empty() ? std::string() : vr.problems.front());
+  double worst = 0;
+  for_each_cad_node(fine, [&](Id, const Vec3& p) { worst = std::max(worst, sh.distance(p)); });
+  EXPECT_LE(worst, 1e-12 * sh.diagonal);
+  // The series from one end: h, hR, ..., n = 5.
+  std::vector<double> frac(5, 1.0);
+  for (int k = 1; k < 5; ++k) frac[k] = frac[k - 1] * R;
+  const double sum = frac[0] + frac[1] + frac[2] + frac[3] + frac[4];
+  for (double& f : frac) f /= sum;
+  MeshCursor cur;
+  const RowReader Rr(fine.tables(), cur);
+  int circles = 0;
+  for (Id e = 0; e < fine.tables().edges.rows(); ++e) {
+    const EdgeRow row = Rr.edge(e);
+    const Vec3 a = Rr.xyz(row.lo), b = Rr.xyz(row.hi);
+    const bool on_circle = owner_dim(row.geo) == 1 && std::abs(a.z - b.z) < 1e-12 && std::abs(hyp(a.x, a.y) - 1) < 1e-9 &&
+                           std::abs(hyp(b.x, b.y) - 1) < 1e-9;
+    if (!on_circle) continue;
+    std::vector<double> th;
+    for (Id t = 0; t <= row.n; ++t) {
+      const Vec3 p = t == 0 ? a : t == row.n ? b : fine.node(NodeRef{EntityKind::Edge, e, {t, 0, 0}}, cur);
+      double v = std::atan2(p.y, p.x);
+      if (!th.empty()) v += 2 * M_PI * std::round((th.back() - v) / (2 * M_PI));  // unwrapped
+      th.push_back(v);
+    }
+    const double total = th.back() - th.front();
+    bool fw = true, bw = true;
+    for (int k = 0; k < 5; ++k) {
+      const double d = th[k + 1] - th[k];
+      fw = fw && std::abs(d - total * frac[k]) <= 1e-9 * std::abs(total);
+      bw = bw && std::abs(d - total * frac[4 - k]) <= 1e-9 * std::abs(total);
+    }
+    EXPECT_TRUE(fw || bw) << "edge " << e << " on a circle is not spaced like the series in its angle";
+    ++circles;
+  }
+  EXPECT_GT(circles, 4);
+  // Through the store, bit for bit.
+  const std::string store = tmp.path("cyl.dice.h5");
+  write_store(fine, store);
+  const FineMesh s = read_store(store, StoreOptions{8ull << 20, 0});
+  EXPECT_EQ(sweep(s, 2).checksum, sweep(fine, 1).checksum);
+  EXPECT_TRUE(verify(s).ok());
+  EXPECT_LE(check_geometry(s, cad).max_distance, 1e-9 * sh.diagonal);
+}
+
+// Intervals by entity on a transfinite box (4 x 2 x 2 hexes, Gmsh's MSH
+// 4.1 classification): a curve's sheets, a face's (with its boundary
+// curves), the volume's; precedence against blocks and sheets; and the
+// CAD's classification (dice --geometry) equal to the file's.
+TEST(Geometry, IntervalsByEntity) {
+  TempDir tmp;
+  const std::string cad = tmp.path("box.brep"), msh = tmp.path("box.msh");
+  make_cad(cad, [] { gmsh::model::occ::addBox(0, 0, 0, 2, 1, 1); });
+  CoarseMeshOptions mo;
+  mo.size = 0.5;
+  ASSERT_EQ(mesh_coarse(cad, msh, mo).method, "transfinite");
+  const CoarseMesh cm = read_coarse_mesh(msh);
+  ASSERT_FALSE(cm.geo_entities.empty());
+  // Tags from the nodes' classification: a node inside the x edge at y = z = 0,
+  // inside the face x = 0, inside the box.
+  auto tag_where = [&](int dim, const std::function<bool(double, double, double)>& at) {
+    for (Id v = 0; v < cm.num_vertices(); ++v)
+      if (cm.vertex_geo_dim[v] == dim && at(cm.x[v], cm.y[v], cm.z[v])) return static_cast<int>(cm.vertex_geo_tag[v]);
+    ADD_FAILURE() << "no node classified on such a " << dim << "-entity";
+    return -1;
+  };
+  const int curve = tag_where(1, [](double, double y, double z) { return std::abs(y) + std::abs(z) < 1e-12; });
+  const int face = tag_where(2, [](double x, double, double) { return std::abs(x) < 1e-12; });
+  const int volume = tag_where(3, [](double, double, double) { return true; });
+  // Coarse x edges along that curve (one per x slab).
+  Id slabs = 0;
+  {
+    const Topology t0 = build_topology(cm);
+    for (Id e = 0; e < t0.num_edges(); ++e) {
+      const Id a = t0.edge_v[2 * e], b = t0.edge_v[2 * e + 1];
+      slabs += std::abs(cm.y[a]) + std::abs(cm.z[a]) + std::abs(cm.y[b]) + std::abs(cm.z[b]) < 1e-12;
+    }
+  }
+  ASSERT_GT(slabs, 1);
+  // Intervals along x, y, z of each coarse edge, by direction.
+  auto per_axis = [](const FineMesh& f) {
+    std::array<std::set<Id>, 3> n;
+    MeshCursor cur;
+    const RowReader R(f.tables(), cur);
+    for (Id e = 0; e < f.tables().edges.rows(); ++e) {
+      const EdgeRow row = R.edge(e);
+      const Vec3 a = R.xyz(row.lo), b = R.xyz(row.hi);
+      const int axis = std::abs(a.x - b.x) > 1e-9 ? 0 : std::abs(a.y - b.y) > 1e-9 ? 1 : 2;
+      n[axis].insert(row.n);
+    }
+    return n;
+  };
+  using S = std::set<Id>;
+  {
+    IntervalRequest req;
+    req.entities = {{{1, curve}, 7}};
+    const auto n = per_axis(FineMesh::dice(cm, req));
+    EXPECT_EQ(n, (std::array<S, 3>{S{7}, S{1}, S{1}}));
+  }
+  {
+    IntervalRequest req;
+    req.global = 2;
+    req.entities = {{{2, face}, 3}};
+    const auto n = per_axis(FineMesh::dice(cm, req));
+    EXPECT_EQ(n, (std::array<S, 3>{S{2}, S{3}, S{3}}));
+  }
+  {
+    IntervalRequest req;
+    req.entities = {{{3, volume}, 4}};
+    const auto n = per_axis(FineMesh::dice(cm, req));
+    EXPECT_EQ(n, (std::array<S, 3>{S{4}, S{4}, S{4}}));
+  }
+  {  // Ranked with blocks: the largest, reported; a sheet request wins, reported.
+    IntervalRequest req;
+    req.entities = {{{1, curve}, 7}};
+    req.blocks = {{std::to_string(cm.blocks[0].id), 9}};
+    req.sheets = {{0, 5}};
+    std::vector<std::string> notes;
+    const FineMesh f = FineMesh::dice(cm, req, &notes);
+    bool largest = false, sheet = false;
+    for (const auto& note : notes) {
+      largest |= note.find("using the largest, 9") != std::string::npos && note.find("curve " + std::to_string(curve)) != std::string::npos;
+      sheet |= note.find("sheet 0: sheet interval 5 overrides") != std::string::npos;
+    }
+    EXPECT_TRUE(largest && sheet) << ::testing::PrintToString(notes);
+    EXPECT_EQ(f.sheet_intervals()[0], 5);
+  }
+  {  // An entity bias with a start node: on the sheet holding the node, it starts there.
+    Id origin = -1;
+    for (Id v = 0; v < cm.num_vertices(); ++v)
+      if (std::abs(cm.x[v]) + std::abs(cm.y[v]) + std::abs(cm.z[v]) < 1e-12) origin = cm.vertex_file_id[v];
+    IntervalRequest req;
+    req.global = 4;
+    BiasRequest b;
+    b.ratio = 2;
+    b.start = origin;
+    req.entity_bias = {{{1, curve}, b}};
+    std::vector<std::string> notes;
+    const FineMesh f = FineMesh::dice(cm, req, &notes);
+    int started = 0, defaulted = 0;
+    for (const SheetGrading& g : f.sheet_gradings()) started += g.start == origin, defaulted += g.start >= 0 && g.start != origin;
+    EXPECT_EQ(started, 1);
+    EXPECT_EQ(defaulted, slabs - 1);  // the other x slabs along the curve, reported
+    int reported = 0;
+    for (const auto& note : notes) reported += note.find("is on none of its edges") != std::string::npos;
+    EXPECT_EQ(reported, slabs - 1);
+    // The x edge at the origin: its first cell (at x = 0) is the series' h = L / (1 + 2 + 4 + 8).
+    MeshCursor cur;
+    const RowReader R(f.tables(), cur);
+    int at_origin = 0;
+    for (Id e = 0; e < f.tables().edges.rows(); ++e) {
+      const EdgeRow row = R.edge(e);
+      const Vec3 a = R.xyz(row.lo), c = R.xyz(row.hi);
+      if (std::abs(a.y) + std::abs(a.z) + std::abs(c.y) + std::abs(c.z) > 1e-12 || std::min(a.x, c.x) > 1e-12) continue;
+      const Vec3 p = f.node(NodeRef{EntityKind::Edge, e, {a.x < c.x ? 1 : row.n - 1, 0, 0}}, cur);
+      EXPECT_NEAR(p.x, std::max(a.x, c.x) / 15, 1e-15);
+      ++at_origin;
+    }
+    EXPECT_EQ(at_origin, 1);
+  }
+  // The CAD's classification of the same mesh, from nothing: the same edges on the same entities.
+  CoarseMesh bare = cm;
+  std::fill(bare.vertex_geo_dim.begin(), bare.vertex_geo_dim.end(), std::int8_t{-1});
+  std::fill(bare.vertex_geo_tag.begin(), bare.vertex_geo_tag.end(), -1);
+  bare.geo_entities.clear();
+  classify_on_geometry(bare, cad);
+  const Topology t = build_topology(cm);
+  const auto want = edge_entities(cm, t), got = edge_entities(bare, t);
+  EXPECT_EQ(got, want);
+  EXPECT_EQ(std::count(want.begin(), want.end(), std::int64_t{-1}), 0);
+  // The command: dice --geometry with an entity interval (dicer-cad classifies first).
+  const std::string store = tmp.path("box.dice.h5");
+  const auto r = test::run_cli({"dice", msh, "--geometry", cad, "--entity-interval", "1:" + std::to_string(curve) + "=7",
+                                "--sheet-bias", "0=1.3", "-o", store, "--quiet"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto n = per_axis(read_store(store));
+  EXPECT_EQ(n, (std::array<S, 3>{S{7}, S{1}, S{1}}));
+}
+
 }  // namespace
 }  // namespace dicer

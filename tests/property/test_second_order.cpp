@@ -17,8 +17,10 @@
 #include "dicer/orientation.hpp"
 #include "dicer/quadratic.hpp"
 #include "dicer/quality.hpp"
+#include "dicer/rows.hpp"
 #include "dicer/store.hpp"
 #include "dicer/sweep.hpp"
+#include "dicer/tfi.hpp"
 #include "dicer/verify.hpp"
 #include "access_paths.hpp"
 #include "random_mesh.hpp"
@@ -161,10 +163,17 @@ ElementMap element_map(const CoarseMesh& m, Id e, const std::map<Key, Vec3>& whe
 double boundary_distance(const FineMesh& f, const CoarseMesh& input, const std::map<Key, Vec3>& where) {
   const CoarseMesh& ordered = *f.coarse();
   FineBlock b;
+  MeshCursor cur;
   double worst = 0;
   for (Id h = 0; h < f.num_coarse_elements(); ++h) {
     const Id e = ordered.element_file_id[h] - 1;  // the input's element (file ids are 1..n)
     const ElementMap em = element_map(input, e, where);
+    // Reference positions along each local axis: the axis's series (graded
+    // sheets), i / n when equally spaced.
+    const auto grading = RowReader(f.tables(), cur).element(h).grading;
+    auto ref = [&](Id i, Id n, int a) {
+      return grading[a].kind == tfi::Spacing::Equal ? static_cast<double>(i) / n : tfi::param(i, n, grading[a]);
+    };
     f.fill_block(h, b);
     const bool vol = f.mode() == Mode::Volume;
     for (Id k = 0; k <= (vol ? b.n[2] : 0); ++k)
@@ -172,8 +181,7 @@ double boundary_distance(const FineMesh& f, const CoarseMesh& input, const std::
         for (Id i = 0; i <= b.n[0]; ++i) {
           const bool on = i == 0 || i == b.n[0] || j == 0 || j == b.n[1] || (vol && (k == 0 || k == b.n[2]));
           if (!on) continue;
-          const Vec3 want = em.at(static_cast<double>(i) / b.n[0], static_cast<double>(j) / b.n[1],
-                                  vol ? static_cast<double>(k) / b.n[2] : 0.0);
+          const Vec3 want = em.at(ref(i, b.n[0], 0), ref(j, b.n[1], 1), vol ? ref(k, b.n[2], 2) : 0.0);
           const Id g = b.point_index(i, j, k);
           worst = std::max(worst, std::hypot(b.x[g] - want.x, b.y[g] - want.y, b.z[g] - want.z));
         }
@@ -185,8 +193,17 @@ IntervalRequest random_intervals(const FineMesh& probe, std::mt19937_64& rng) {
   IntervalRequest req;
   std::uniform_int_distribution<Id> n(1, 4), global(2, 4);
   req.global = global(rng);
-  for (Id s = 0; s < probe.info().sheets; ++s)
+  for (Id s = 0; s < probe.info().sheets; ++s) {
     if (rng() % 2) req.sheets.push_back({s, n(rng)});
+    // Graded sheets: nodes follow the curve at the series' parameters. A
+    // dual bias fits every sheet; a geometric one the boxes' (untwisted).
+    if (rng() % 3 == 0) {
+      BiasRequest b;
+      b.kind = probe.mode() == Mode::Volume && rng() % 2 ? tfi::Spacing::Geometric : tfi::Spacing::Dual;
+      b.ratio = 1.1 + 0.4 * static_cast<double>(rng() % 8) / 8;
+      req.sheet_bias.emplace_back(s, b);
+    }
+  }
   return req;
 }
 

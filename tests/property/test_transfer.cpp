@@ -437,6 +437,32 @@ TEST(Transfer, TheFirstSheetThatIsNotNestedIsNamedAndNoOperatorIsBuilt) {
   EXPECT_EQ(same.nonzeros(), coarse.num_nodes());
 }
 
+// A graded sheet in either store: not nested (P's weights assume equal
+// spacing), the first graded sheet named, no operator built.
+TEST(Transfer, GradedSheetsAreNotNested) {
+  std::mt19937_64 rng(9);
+  test::BoxSpec spec;
+  spec.a = 2, spec.b = 2, spec.c = 2;
+  const CoarseMesh mesh = test::random_box(spec, rng);
+  IntervalRequest rc, rf;
+  rc.global = 2, rf.global = 4;
+  BiasRequest bias;
+  bias.ratio = 1.25;
+  rf.sheet_bias = {{1, bias}};
+  const FineMesh coarse = FineMesh::dice(mesh, rc), fine = FineMesh::dice(mesh, rf);
+  IntervalRequest plain = rf;
+  plain.sheet_bias.clear();
+  ASSERT_TRUE(check_nesting(coarse, FineMesh::dice(mesh, plain)).nested);  // the intervals alone nest
+  for (const auto& [a, b] : {std::pair{&coarse, &fine}, std::pair{&fine, &fine}}) {
+    const Nesting n = check_nesting(*a, *b);
+    EXPECT_FALSE(n.nested);
+    EXPECT_TRUE(n.graded);
+    EXPECT_EQ(n.sheet, 1);
+    EXPECT_NE(n.message.find("sheet 1 is graded"), std::string::npos) << n.message;
+    EXPECT_THROW(Prolongation(*a, *b), Error);
+  }
+}
+
 // Different coarse meshes, or the same one in another order, are refused
 // by content.
 TEST(Transfer, StoresOfDifferentCoarseMeshesAreRefusedByContent) {

@@ -82,6 +82,15 @@ def shell_store(tmp_path_factory, cli):
     return out
 
 
+@pytest.fixture(scope="session")
+def graded_store(tmp_path_factory, cli):
+    """The sphere with graded sheets: geometric from a node, reversed (R < 1), dual."""
+    out = tmp_path_factory.mktemp("graded") / "graded.dice.h5"
+    cli.run("dice", DATA / "cardinal_sphere.e", "--interval", 4, "--sheet-bias", "0=1.4", "--sheet-bias", "2=0.7",
+            "--sheet-dual-bias", "1=1.3", "-o", out, "--quiet")
+    return out
+
+
 def bits(a):
     """float64 array -> its 64-bit patterns, so equality is bit equality (-0.0 != 0.0)."""
     return np.ascontiguousarray(a, dtype=np.float64).view(np.uint64)

@@ -26,7 +26,7 @@ def query_elements(cli, store, a, b):
     return rows
 
 
-@pytest.mark.parametrize("fixture", ["sphere_store", "prism_store", "shell_store"])
+@pytest.mark.parametrize("fixture", ["sphere_store", "prism_store", "shell_store", "graded_store"])
 def test_info_is_the_cli_info(request, cli, fixture):
     path = request.getfixturevalue(fixture)
     with dicer.open(path) as s:
@@ -35,7 +35,7 @@ def test_info_is_the_cli_info(request, cli, fixture):
         assert s.num_nodes == s.info["fine_nodes"] and s.num_elements == s.info["fine_elements"]
 
 
-@pytest.mark.parametrize("fixture", ["sphere_store", "prism_store", "shell_store"])
+@pytest.mark.parametrize("fixture", ["sphere_store", "prism_store", "shell_store", "graded_store"])
 def test_nodes_range_bit_equal_to_query(request, cli, fixture):
     path = request.getfixturevalue(fixture)
     s = dicer.open(path)
@@ -55,7 +55,7 @@ def test_nodes_by_ids_equal_ranges(sphere_store):
     assert s.nodes([]).shape == (0, 3) and s.nodes(5, 5).shape == (0, 3)
 
 
-@pytest.mark.parametrize("fixture", ["sphere_store", "prism_store", "shell_store"])
+@pytest.mark.parametrize("fixture", ["sphere_store", "prism_store", "shell_store", "graded_store"])
 def test_elements_equal_to_query(request, cli, fixture):
     path = request.getfixturevalue(fixture)
     s = dicer.open(path)
@@ -72,6 +72,15 @@ def test_elements_equal_to_query(request, cli, fixture):
         assert info["ijk"].tolist() == [r["ijk"] for r in rows]
         ids = np.arange(b - 1, a - 1, -1)  # by ids, reversed: random access, not the cursor
         assert s.elements(ids).tolist() == got[::-1].tolist()
+
+
+def test_graded_store_reports_its_gradings(graded_store):
+    with dicer.open(graded_store) as s:
+        g = s.info["sheet_gradings"]
+        assert g[0]["kind"] == "geometric" and g[0]["ratio"] == 1.4 and g[0]["start"] > 0
+        assert g[1] == {"kind": "dual", "ratio": 1.3}
+        assert g[2]["kind"] == "geometric" and g[2]["ratio"] == 0.7
+        assert all(x is None for x in g[3:])
 
 
 def test_box_equals_query_box(cli, prism_store):
@@ -259,7 +268,7 @@ def test_chunks_equal_cli_vtkhdf_export(request, cli, tmp_path, fixture):
             assert np.array_equal(g["Connectivity"][:], c.cells.ravel())
 
 
-@pytest.mark.parametrize("fixture", ["sphere_store", "prism_store", "shell_store"])
+@pytest.mark.parametrize("fixture", ["sphere_store", "prism_store", "shell_store", "graded_store"])
 def test_chunks_tile_the_mesh_with_global_ids(request, fixture):
     """Chunk arrays against the store's own random access, and the chunks against each other."""
     s = dicer.open(request.getfixturevalue(fixture))

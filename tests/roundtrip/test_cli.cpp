@@ -7,6 +7,7 @@
 #include <hdf5.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -163,6 +164,53 @@ TEST(Cli, IntervalsFileAndFlagsCombine) {
   EXPECT_GT(info["blocks"][1]["fine_elements"].get<long long>(), 760LL * 8);  // block 76 asks 3 > 2
 }
 
+// The README's boundary layer, command by command: sheet 70 of the pin cell
+// graded from wall node 3392; the interior nodes of the radial coarse edge
+// at the wall (ids 22081..22087) step away from the wall (x = 0.64) by
+// cells growing 1.3 times each, the first 0.155 (1.3 - 1) / (1.3^8 - 1).
+TEST(Cli, ReadmeBoundaryLayerExample) {
+  test::TempDir tmp;
+  const std::string mesh = test::data_path("cardinal_pincell.e"), store = tmp.path("pin.dice.h5");
+  const std::vector<std::string> flags = {"--interval", "2", "--sheet-interval", "70=8", "--sheet-bias", "70=1.3@3392"};
+  auto with = [&](std::vector<std::string> a) {
+    a.insert(a.end(), flags.begin(), flags.end());
+    return a;
+  };
+  auto r = run_cli(with({"sheets", mesh, "--json", "--edges"}));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::vector<Id> through;
+  const Json sheets = Json::parse(r.out);
+  for (const auto& sh : sheets["sheets"])
+    for (const auto& e : sh["edges"])
+      if (e[0] == 3392 || e[1] == 3392) {
+        through.push_back(sh["id"]);
+        break;
+      }
+  EXPECT_EQ(through, (std::vector<Id>{0, 3, 38, 39, 70}));
+  r = run_cli(with({"sheets", mesh}));
+  EXPECT_NE(r.out.find("      70     1440        8         1.3@3392  2\n"), std::string::npos) << r.out;
+  r = run_cli(with({"dice", mesh, "-o", store, "--quiet"}));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  r = run_cli({"query", store, "--nodes", "22081:22088"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::istringstream in(r.out);
+  std::vector<double> x{0.64};
+  std::string word;
+  Id id;
+  double px, py, pz;
+  while (in >> word >> id >> px >> py >> pz) {
+    EXPECT_EQ(py, 0.0);
+    EXPECT_NEAR(pz, 4.9152542372881349, 1e-15);
+    x.insert(x.begin() + 1, px);  // ids run inwards to outwards: the wall first after reversing
+  }
+  std::sort(x.begin(), x.end(), std::greater<>());
+  x.push_back(0.485);
+  ASSERT_EQ(x.size(), 9u);
+  const double h0 = 0.155 * 0.3 / (std::pow(1.3, 8) - 1);
+  for (int k = 0; k < 8; ++k) EXPECT_NEAR(x[k] - x[k + 1], h0 * std::pow(1.3, k), 1e-13) << "cell " << k;
+  EXPECT_EQ(run_cli({"verify", store, "--quiet"}).exit_code, 0);
+}
+
 TEST(Cli, RefusalsHaveDocumentedExitCodesAndLeaveNoOutput) {
   test::TempDir tmp;
   const std::string out = tmp.path("never.dice.h5");
@@ -233,22 +281,22 @@ TEST(Cli, BadStoresAreRefusedClearly) {
   EXPECT_NE(r.err.find("version 99"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("reads version " + std::to_string(kStoreFormatVersion)), std::string::npos) << r.err;
   // A store of a previous format (5: numbered by kind; 6: without the spatial
-  // index of format 7) is refused the same way.
+  // index of format 7; 7: without gradings) is refused the same way.
   {
     hid_t f = H5Fopen(ver.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
     hid_t a = H5Aopen(f, "format_version", H5P_DEFAULT);
-    const long long v = 5;
+    const long long v = 7;
     H5Awrite(a, H5T_NATIVE_LLONG, &v);
     H5Aclose(a);
     H5Fclose(f);
   }
   r = run_cli({"query", ver, "--node", "0"});
   EXPECT_EQ(r.exit_code, 4);
-  EXPECT_NE(r.err.find("store format version 5 is not known to this dicer (it reads version 7)"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("store format version 7 is not known to this dicer (it reads version 8)"), std::string::npos) << r.err;
   // --version names the project's version (CMake's project()) and the format.
   r = run_cli({"--version"});
   EXPECT_EQ(r.exit_code, 0);
-  EXPECT_EQ(r.out, std::string("dicer ") + DICER_PROJECT_VERSION + " (store format 7)\n");
+  EXPECT_EQ(r.out, std::string("dicer ") + DICER_PROJECT_VERSION + " (store format 8)\n");
   r = run_cli({"query", miss, "--node", "0"});
   EXPECT_EQ(r.exit_code, 8);
   EXPECT_NE(r.err.find("topology/faces is missing"), std::string::npos) << r.err;
