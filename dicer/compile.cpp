@@ -21,6 +21,8 @@ FineMesh compile(std::shared_ptr<const CoarseMesh> cm, const Topology& t, const 
   const CoarseMesh& m = *cm;
   const Mode mode = m.mode;
   const bool vol = mode == Mode::Volume;
+  // edge_grading: one per edge, or empty when no sheet is graded.
+  auto graded = [&](Id e) { return edge_grading.empty() ? tfi::Grading{} : edge_grading[static_cast<size_t>(e)]; };
   MeshTables tab;
   tab.mode = mode;
   tab.fine_nodes = num.num_nodes();
@@ -71,7 +73,7 @@ FineMesh compile(std::shared_ptr<const CoarseMesh> cm, const Topology& t, const 
   }
   for (Id e = 0; e < ne; ++e)
     write_row(tab, e, EdgeRow{t.edge_v[2 * e], t.edge_v[2 * e + 1], num.edge_n(e), num.edge_node(e), edge_sheet[e],
-                              t.edge_owner_elem[e], -1, -1, edge_other[e], edge_grading[e]});
+                              t.edge_owner_elem[e], -1, -1, edge_other[e], graded(e)});
   for (Id f = 0; f < nf; ++f) {
     FaceRow r;
     for (int k = 0; k < 4; ++k) r.v[k] = t.face_v[4 * f + k], r.e[k] = t.face_edge[4 * f + k];
@@ -120,7 +122,7 @@ FineMesh compile(std::shared_ptr<const CoarseMesh> cm, const Topology& t, const 
     // one direction across it: they agree).
     for (int k = 0; k < epe; ++k) {
       const int axis = vol ? k / 4 : k / 2;
-      const tfi::Grading g = r.rev(k) ? tfi::reversed(edge_grading[r.edge[k]]) : edge_grading[r.edge[k]];
+      const tfi::Grading g = r.rev(k) ? tfi::reversed(graded(r.edge[k])) : graded(r.edge[k]);
       if (k % (vol ? 4 : 2) == 0) r.grading[axis] = g;
       DICER_ASSERT(r.grading[axis] == g, "the edges along one axis of an element run one way across their sheet");
     }
@@ -183,7 +185,7 @@ FineMesh FineMesh::dice(CoarseMesh coarse, const IntervalRequest& request, std::
   // A graded edge keeps its series' physical direction: it flips when the
   // new vertex numbering reverses the edge's canonical direction.
   std::vector<Id> edge_sheet(static_cast<size_t>(t.num_edges()), -1), edge_n(static_cast<size_t>(t.num_edges()));
-  std::vector<tfi::Grading> edge_grading(static_cast<size_t>(t.num_edges()));
+  std::vector<tfi::Grading> edge_grading(slot_grading.empty() ? 0 : static_cast<size_t>(t.num_edges()));
   for (size_t h = 0; h < old_element.size(); ++h)
     for (int k = 0; k < epe; ++k) {
       const size_t slot = static_cast<size_t>(old_element[h]) * epe + k;
