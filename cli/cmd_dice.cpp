@@ -2,6 +2,8 @@
 #include <malloc.h>
 
 #include <cstdio>
+#include <functional>
+#include <optional>
 
 #include "command.hpp"
 #include "common.hpp"
@@ -9,6 +11,7 @@
 #include "dicer/error.hpp"
 #include "dicer/fine_mesh.hpp"
 #include "dicer/geometry.hpp"
+#include "dicer/mpi.hpp"
 #include "dicer/quadratic.hpp"
 #include "dicer/store.hpp"
 
@@ -37,6 +40,10 @@ then follows the graded edges, so faces and interiors are graded the
 same way and the mesh stays conforming. --entity-interval DIM:TAG=N sets
 intervals by geometric entity (curve 1, surface 2, volume 3) of an MSH
 file's classification, or of the CAD with --geometry.
+
+Under mpirun, --geometry shares out the CAD work (each of P ranks places
+every P-th curve and face and checks every P-th coarse element; rank 0
+writes the same store one process writes); without it rank 0 dices alone.
 
 STORE is written under a temporary name in its folder and renamed when
 complete: an interrupted dice (Ctrl-C, SIGTERM, SIGHUP: exit 130, 143,
@@ -78,77 +85,111 @@ int cmd_dice(const std::vector<std::string>& argv) {
                           "a boundary vertex must be within T x the CAD's "
                           "bounding-box diagonal of its entity",
                           geometry);
-  if (!cmd.parse(argv)) return 0;
-  const IntervalRequest req = intervals.request();
-  ConformOptions copt;
-  if (cmd.given(o_tol) && !cmd.given(o_cad)) throw Error(ErrorKind::Usage, "--geometry-tol needs --geometry CAD");
-  copt.tolerance = parse_double("--geometry-tol", tolerance);
-  const CancelOnSignals cancel_on_signals;
-  // Dicing allocates and frees arrays of hundreds of MB in turn (sort keys,
-  // permutations, tables). glibc maps every block over 32 MiB on its own,
-  // so each is fresh memory the kernel zeroes page by page (a third of the
-  // time of a dice of 1e6 hexes); in the heap, freed pages are reused.
-  // Peak memory stays the same; it returns to the system at exit.
-  mallopt(M_MMAP_THRESHOLD, 1 << 30);
-  mallopt(M_TRIM_THRESHOLD, 1 << 30);
-  const std::string nothing_written = "nothing written to " + out;
-  CoarseMesh mesh = read_coarse_mesh(in);
-  for (const auto& w : mesh.warnings) std::fprintf(stderr, "dicer dice: warning: %s: %s\n", in.c_str(), w.c_str());
-  // Intervals by entity name the CAD's entities when a CAD is given.
-  if (cmd.given(o_cad) && (!req.entities.empty() || !req.entity_bias.empty())) classify_on_geometry(mesh, cad, copt);
-  std::vector<std::string> notes;
-  const bool second_order = mesh.second_order();
-  FineMesh fine = FineMesh::dice(std::move(mesh), req, &notes);
-  for (const auto& n : notes) std::fprintf(stderr, "dicer dice: note: %s\n", n.c_str());
-  throw_if_cancelled(nothing_written);
+  bool run = true;
+  agree([&] { run = cmd.parse(argv); });
+  if (!run) return 0;
+  // Under mpirun only the CAD work is shared out: every rank dices the
+  // coarse mesh, places every P-th curve and face and checks every P-th
+  // coarse element (ConformOptions::parts), and rank 0 writes the store a
+  // single process writes. Without --geometry rank 0 does it alone.
+  mpi::Session& mpi = session();
   const bool with_cad = cmd.given(o_cad);
-  SecondOrderReport quad;
-  if (second_order && with_cad) {
-    std::fprintf(stderr,
-                 "dicer dice: note: %s is second order; with --geometry the CAD places the boundary and its mid "
-                 "nodes are ignored\n",
-                 in.c_str());
-  } else if (second_order) {
-    quad = apply_second_order(fine);
-    throw_if_cancelled(nothing_written);
-  }
-  ConformReport geo;
-  if (with_cad) {
-    Progress bar("dice: geometry", 1, quiet);
-    copt.progress = [&](const char*, Id done, Id total) { bar.update(done, total); };
-    geo = conform_to_geometry(fine, cad, copt);
-    throw_if_cancelled(nothing_written);
-  }
-  {
-    Progress bar("dice: writing", 1, quiet);
-    // Thrown from the page callback: write_store removes its temporary file.
-    write_store(fine, out, [&](std::int64_t done, std::int64_t total) {
+  const bool shared = mpi.active() && with_cad, lead = !shared || mpi.rank() == 0;
+  // Each step ends with an agreement when shared (a rank that fails is
+  // known to all before anyone waits for it).
+  auto step = [&](const std::function<void()>& fn) {
+    if (shared) agree(fn);
+    else fn();
+  };
+  auto body = [&]() -> int {
+    IntervalRequest req;
+    ConformOptions copt;
+    const CancelOnSignals cancel_on_signals;
+    // Dicing allocates and frees arrays of hundreds of MB in turn (sort keys,
+    // permutations, tables). glibc maps every block over 32 MiB on its own,
+    // so each is fresh memory the kernel zeroes page by page (a third of the
+    // time of a dice of 1e6 hexes); in the heap, freed pages are reused.
+    // Peak memory stays the same; it returns to the system at exit.
+    mallopt(M_MMAP_THRESHOLD, 1 << 30);
+    mallopt(M_TRIM_THRESHOLD, 1 << 30);
+    const std::string nothing_written = "nothing written to " + out;
+    std::optional<FineMesh> diced;
+    SecondOrderReport quad;
+    step([&] {
+      req = intervals.request();
+      if (cmd.given(o_tol) && !with_cad) throw Error(ErrorKind::Usage, "--geometry-tol needs --geometry CAD");
+      copt.tolerance = parse_double("--geometry-tol", tolerance);
+      CoarseMesh mesh = read_coarse_mesh(in);
+      if (lead)
+        for (const auto& w : mesh.warnings) std::fprintf(stderr, "dicer dice: warning: %s: %s\n", in.c_str(), w.c_str());
+      // Intervals by entity name the CAD's entities when a CAD is given.
+      if (with_cad && (!req.entities.empty() || !req.entity_bias.empty())) classify_on_geometry(mesh, cad, copt);
+      std::vector<std::string> notes;
+      const bool second_order = mesh.second_order();
+      diced.emplace(FineMesh::dice(std::move(mesh), req, &notes));
+      if (lead)
+        for (const auto& n : notes) std::fprintf(stderr, "dicer dice: note: %s\n", n.c_str());
       throw_if_cancelled(nothing_written);
-      bar.update(done, total);
+      if (second_order && with_cad) {
+        if (lead)
+          std::fprintf(stderr,
+                       "dicer dice: note: %s is second order; with --geometry the CAD places the boundary and its mid "
+                       "nodes are ignored\n",
+                       in.c_str());
+      } else if (second_order) {
+        quad = apply_second_order(*diced);
+        throw_if_cancelled(nothing_written);
+      }
     });
-  }
-  if (!quiet)
-    std::printf("diced %s: %lld coarse %s -> %s fine nodes, %s fine elements (%lld sheets); wrote %s\n", in.c_str(),
-                static_cast<long long>(fine.num_coarse_elements()), fine.mode() == Mode::Volume ? "hexes" : "quads",
-                human_count(fine.num_nodes()).c_str(), human_count(fine.num_elements()).c_str(),
-                static_cast<long long>(fine.info().sheets), out.c_str());
-  if (quad.second_order && !quiet)
-    std::printf("second order %s: %lld edges and %lld faces curved = %s bounding nodes; min scaled Jacobian %.4f over "
-                "%s elements checked\n",
-                in.c_str(), static_cast<long long>(quad.edges_curved), static_cast<long long>(quad.faces_curved),
-                human_count(quad.bounding_nodes).c_str(), quad.min_scaled_jacobian,
-                human_count(quad.elements_checked).c_str());
-  if (with_cad && !quiet)
-    std::printf("geometry %s: %lld vertices on the CAD (largest snap %.3g), %lld edges on curves, %lld on surfaces, "
-                "%lld faces on surfaces; moved %lld edges + %lld faces = %s bounding nodes (%lld by closest point); "
-                "min scaled Jacobian %.4f over %s elements checked\n",
-                cad.c_str(), static_cast<long long>(geo.vertices_on_cad), geo.max_vertex_snap,
-                static_cast<long long>(geo.edges_on_curves), static_cast<long long>(geo.edges_on_surfaces),
-                static_cast<long long>(geo.faces_on_surfaces), static_cast<long long>(geo.edges_moved),
-                static_cast<long long>(geo.faces_moved), human_count(geo.bounding_nodes).c_str(),
-                static_cast<long long>(geo.closest_point_fallbacks), geo.min_scaled_jacobian,
-                human_count(geo.elements_checked).c_str());
-  return 0;
+    FineMesh& fine = *diced;
+    ConformReport geo;
+    if (with_cad) {
+      step([&] {
+        Progress bar("dice: geometry", 1, quiet || !lead);
+        copt.progress = [&](const char*, Id done, Id total) { bar.update(done, total); };
+        if (shared) {
+          copt.part = mpi.rank(), copt.parts = mpi.size();
+          copt.share = [&](const std::string& mine) { return dicer::mpi::allgather_bytes(mpi.comm(), mine); };
+        }
+        geo = conform_to_geometry(fine, cad, copt);
+        throw_if_cancelled(nothing_written);
+      });
+    }
+    step([&] {
+      if (!lead) return;
+      Progress bar("dice: writing", 1, quiet);
+      // Thrown from the page callback: write_store removes its temporary file.
+      write_store(fine, out, [&](std::int64_t done, std::int64_t total) {
+        throw_if_cancelled(nothing_written);
+        bar.update(done, total);
+      });
+    });
+    if (!lead) return 0;
+    if (!quiet)
+      std::printf("diced %s: %lld coarse %s -> %s fine nodes, %s fine elements (%lld sheets); wrote %s\n", in.c_str(),
+                  static_cast<long long>(fine.num_coarse_elements()), fine.mode() == Mode::Volume ? "hexes" : "quads",
+                  human_count(fine.num_nodes()).c_str(), human_count(fine.num_elements()).c_str(),
+                  static_cast<long long>(fine.info().sheets), out.c_str());
+    if (quad.second_order && !quiet)
+      std::printf("second order %s: %lld edges and %lld faces curved = %s bounding nodes; min scaled Jacobian %.4f over "
+                  "%s elements checked\n",
+                  in.c_str(), static_cast<long long>(quad.edges_curved), static_cast<long long>(quad.faces_curved),
+                  human_count(quad.bounding_nodes).c_str(), quad.min_scaled_jacobian,
+                  human_count(quad.elements_checked).c_str());
+    if (with_cad && !quiet)
+      std::printf("geometry %s: %lld vertices on the CAD (largest snap %.3g), %lld edges on curves, %lld on surfaces, "
+                  "%lld faces on surfaces; moved %lld edges + %lld faces = %s bounding nodes (%lld by closest point); "
+                  "min scaled Jacobian %.4f over %s elements checked\n",
+                  cad.c_str(), static_cast<long long>(geo.vertices_on_cad), geo.max_vertex_snap,
+                  static_cast<long long>(geo.edges_on_curves), static_cast<long long>(geo.edges_on_surfaces),
+                  static_cast<long long>(geo.faces_on_surfaces), static_cast<long long>(geo.edges_moved),
+                  static_cast<long long>(geo.faces_moved), human_count(geo.bounding_nodes).c_str(),
+                  static_cast<long long>(geo.closest_point_fallbacks), geo.min_scaled_jacobian,
+                  human_count(geo.elements_checked).c_str());
+    return 0;
+  };
+  if (mpi.active() && !with_cad) return on_rank0(body);
+  return body();
 }
 
 }  // namespace dicer::cli

@@ -20,7 +20,7 @@ struct CommandEntry {
   const char* args;     // shown after the name in `dicer --help`
   const char* summary;  // lines after the first are indented under it
   int (*run)(const std::vector<std::string>&);
-  bool distributed = false;  // has an MPI mode (rank r on chunk r); else rank 0 runs it alone
+  bool distributed = false;  // has an MPI mode (rank r on chunk r; dice: the CAD work shared); else rank 0 runs it alone
 };
 
 // In the order you use them.
@@ -29,7 +29,7 @@ const CommandEntry kCommands[] = {
      "coarse all-hex (--surface: all-quad) mesh of a STEP\nor BREP model with Gmsh, for dice --geometry CAD",
      dicer::cli::cmd_mesh_coarse},
     {"sheets", "MESH", "list the dicer sheets (edges that must share one\ninterval)", dicer::cli::cmd_sheets},
-    {"dice", "MESH -o STORE", "choose intervals and write the implicit fine mesh", dicer::cli::cmd_dice},
+    {"dice", "MESH -o STORE", "choose intervals and write the implicit fine mesh", dicer::cli::cmd_dice, true},
     {"info", "STORE", "counts, blocks and settings of a store", dicer::cli::cmd_info},
     {"query", "STORE", "fine nodes and elements by id, or in a box", dicer::cli::cmd_query, true},
     {"verify", "STORE",

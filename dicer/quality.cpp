@@ -107,6 +107,17 @@ QualityReport check_quality(const FineMesh& mesh, const std::function<bool(Id)>&
   return r;
 }
 
+void merge_quality(QualityReport& a, const QualityReport& b) {
+  a.elements_checked += b.elements_checked;
+  a.inverted += b.inverted;
+  if (b.worst_element < 0) return;
+  if (a.worst_element < 0 || b.min_scaled_jacobian < a.min_scaled_jacobian ||
+      (b.min_scaled_jacobian == a.min_scaled_jacobian && b.worst_element < a.worst_element)) {
+    a.min_scaled_jacobian = b.min_scaled_jacobian;
+    a.worst_element = b.worst_element, a.worst_coarse_element = b.worst_coarse_element;
+  }
+}
+
 QualityReport check_moved_quality(const FineMesh& mesh, const std::function<void(Id, Id)>& progress) {
   MeshCursor cur;
   const RowReader R(mesh.tables(), cur);

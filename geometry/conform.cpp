@@ -3,9 +3,14 @@
 // include/dicer/geometry.hpp.
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <exception>
 #include <map>
+#include <memory>
 #include <set>
 #include <sstream>
+#include <stdexcept>
+#include <type_traits>
 
 #include "cad.hpp"
 #include "dicer/error.hpp"
@@ -41,6 +46,97 @@ std::string fmt(const Vec3& p) {
   s << "(" << p.x << ", " << p.y << ", " << p.z << ")";
   return s.str();
 }
+
+// Records of a distributed phase (ConformOptions::share): plain bytes of
+// trivially copyable values, read back in the same process image.
+struct Bytes {
+  std::string s;
+  template <class T>
+  void put(const T& v) {
+    static_assert(std::is_trivially_copyable_v<T>);
+    s.append(reinterpret_cast<const char*>(&v), sizeof v);
+  }
+  void points(const std::vector<Vec3>& p) {
+    put<std::uint64_t>(p.size());
+    s.append(reinterpret_cast<const char*>(p.data()), p.size() * sizeof(Vec3));
+  }
+};
+struct Cursor {
+  const std::string& s;
+  size_t at = 0;
+  explicit Cursor(const std::string& bytes) : s(bytes) {}
+  bool done() const { return at >= s.size(); }
+  void need(size_t n) const {
+    if (n > s.size() - at) throw std::logic_error("conform: a shared record is truncated");
+  }
+  template <class T>
+  T get() {
+    static_assert(std::is_trivially_copyable_v<T>);
+    need(sizeof(T));
+    T v;
+    std::memcpy(&v, s.data() + at, sizeof v);
+    at += sizeof v;
+    return v;
+  }
+  std::string text(std::uint64_t n) {
+    need(n);
+    std::string t = s.substr(at, n);
+    at += n;
+    return t;
+  }
+  std::vector<Vec3> points() {
+    const auto n = get<std::uint64_t>();
+    need(n * sizeof(Vec3));
+    std::vector<Vec3> p(n);
+    std::memcpy(p.data(), s.data() + at, n * sizeof(Vec3));
+    at += n * sizeof(Vec3);
+    return p;
+  }
+};
+
+// Every part's records of a phase, in part order, once all parts are
+// done with it. A failure on any part (err, at entity index `at`) is
+// thrown by every part after the exchange: the one at the lowest index.
+std::vector<std::string> exchange(const ConformOptions& opt, const std::string& records, std::exception_ptr err,
+                                std::uint64_t at) {
+  Bytes head;
+  std::int32_t kind = -1;
+  std::string what;
+  if (err) {
+    try {
+      std::rethrow_exception(err);
+    } catch (const Error& e) {
+      kind = static_cast<std::int32_t>(e.kind()), what = e.what();
+    } catch (const std::exception& e) {
+      what = e.what();
+    } catch (...) {
+      what = "unknown error";
+    }
+  }
+  head.put<std::uint8_t>(err ? 1 : 0), head.put(at), head.put(kind), head.put<std::uint64_t>(what.size());
+  head.s += what;
+  std::vector<std::string> all = opt.share(head.s + records);
+  if (static_cast<int>(all.size()) != opt.parts) throw std::logic_error("conform: share gave the wrong number of parts");
+  bool any = false;
+  std::uint64_t best = 0;
+  std::int32_t best_kind = -1;
+  std::string best_what;
+  for (std::string& part : all) {
+    Cursor c(part);
+    const bool f = c.get<std::uint8_t>() != 0;
+    const auto i = c.get<std::uint64_t>();
+    const auto k = c.get<std::int32_t>();
+    const std::string w = c.text(c.get<std::uint64_t>());
+    if (f && (!any || i < best)) any = true, best = i, best_kind = k, best_what = w;
+    part.erase(0, c.at);
+  }
+  if (any) {
+    if (best_kind < 0) throw std::runtime_error(best_what);
+    throw Error(static_cast<ErrorKind>(best_kind), best_what);
+  }
+  return all;
+}
+
 
 struct Owner {
   int dim = -1, tag = -1;
@@ -107,14 +203,24 @@ class Conformer {
     tiny_ = 1e-12 * rep_.diagonal;
   }
 
-  ConformReport run() {
-    find_candidate_faces();
-    assign_vertices();
-    assign_edges();
-    assign_faces();
-    check_coverage();
-    snap_vertices();
-    move_edges();
+  // `early`: a part's failure before this (loading the CAD), shared at the
+  // first exchange.
+  ConformReport run(std::exception_ptr early = nullptr) {
+    std::exception_ptr failed = early;
+    if (!failed) {
+      try {
+        find_candidate_faces();
+        assign_vertices();
+        assign_edges();
+        assign_faces();
+        check_coverage();
+        snap_vertices();
+      } catch (...) {
+        if (!distributed()) throw;
+        failed = std::current_exception();
+      }
+    }
+    move_edges(failed);
     move_faces();
     mesh_.finish_moves();
     check_inversion();
@@ -447,17 +553,73 @@ class Conformer {
     return s;
   }
 
-  void move_edges() {
+  // ---- distributed conforming (ConformOptions::parts > 1)
+  bool distributed() const { return opt_.parts > 1; }
+  bool mine(size_t i) const { return !distributed() || static_cast<int>(i % static_cast<size_t>(opt_.parts)) == opt_.part; }
+
+  // What placing one edge decided: its plan, and its nodes when they move.
+  struct EdgeDone {
+    Id e = -1;
+    EdgePlan plan;
+    bool closest = false;
+    std::vector<Vec3> pts;  // empty: not moved
+  };
+  void apply(const EdgeDone& d) {
+    eplan_[static_cast<size_t>(d.e)] = d.plan;
+    if (d.closest) ++rep_.closest_point_fallbacks;
+    if (d.pts.empty()) return;
+    mesh_.move_nodes(EntityKind::Edge, d.e, d.pts);
+    ++rep_.edges_moved;
+  }
+
+  void move_edges(std::exception_ptr failed) {
     eplan_.assign(static_cast<size_t>(T_.edges.rows()), EdgePlan{});
     const std::vector<double> probe = probes();
-    Id done = 0;
-    for (Id e : cand_edges_) {
-      progress("moving edge nodes", done++, static_cast<Id>(cand_edges_.size()));
+    Bytes out;
+    std::uint64_t failed_at = 0;
+    if (!failed) {
+      size_t i = 0;
+      try {
+        for (; i < cand_edges_.size(); ++i) {
+          if (!mine(i)) continue;
+          progress("moving edge nodes", static_cast<Id>(i), static_cast<Id>(cand_edges_.size()));
+          EdgeDone d;
+          if (!place_edge(cand_edges_[i], probe, d)) continue;
+          if (!distributed()) {
+            apply(d);
+            continue;
+          }
+          out.put<std::uint64_t>(i), out.put(d.e), out.put(d.plan), out.put<std::uint8_t>(d.closest), out.points(d.pts);
+        }
+      } catch (...) {
+        if (!distributed()) throw;
+        failed = std::current_exception(), failed_at = i;
+      }
+    }
+    if (!distributed()) return;
+    // Every part's edges, applied in candidate order as one process does.
+    std::vector<std::pair<std::uint64_t, EdgeDone>> all;
+    for (const std::string& part : exchange(opt_, out.s, failed, failed_at)) {
+      Cursor c(part);
+      while (!c.done()) {
+        const auto i = c.get<std::uint64_t>();
+        EdgeDone d;
+        d.e = c.get<Id>(), d.plan = c.get<EdgePlan>(), d.closest = c.get<std::uint8_t>() != 0, d.pts = c.points();
+        all.emplace_back(i, std::move(d));
+      }
+    }
+    std::sort(all.begin(), all.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+    for (const auto& [i, d] : all) apply(d);
+  }
+
+  // Decides how candidate edge e is placed; false when it is left alone
+  // (no curve or surface, flat, no interior nodes).
+  bool place_edge(Id e, const std::vector<double>& probe, EdgeDone& d) {
       const Owner o = eowner_[e];
       const CadEntity* ent = o.dim >= 1 ? cad_.find(o.dim, o.tag) : nullptr;
-      if (!ent || ent->flat) continue;
+      if (!ent || ent->flat) return false;
       const EdgeRow r = edge(e);
-      if (r.n < 2) continue;  // no nodes; a face using it has none either
+      if (r.n < 2) return false;  // no nodes; a face using it has none either
       const Vec3 a = vertex(r.lo), b = vertex(r.hi);
       std::vector<double> ends, p;
       push(ends, a), push(ends, b);
@@ -478,16 +640,15 @@ class Conformer {
       }
       const bool param = !par.empty() && plausible(par, proj, 0.25 * dist(a, b) / kProbes + tol_);
       pl.how = settle(param ? Place::Parametric : Place::Closest, param ? par : proj, pred);
-      const Id n = r.n;
-      if (pl.how == Place::Predicted) continue;
-      if (pl.how == Place::Closest) ++rep_.closest_point_fallbacks;
+      d.e = e, d.plan = pl;
+      if (pl.how == Place::Predicted) return true;
+      d.closest = pl.how == Place::Closest;
       // The sheet's spacing (equal or graded) in the curve's parameters.
-      const tfi::Series series(n, r.grading);
+      const tfi::Series series(r.n, r.grading);
       std::vector<double> s;
-      for (Id t = 1; t < n; ++t) s.push_back(series.at(t));
-      mesh_.move_nodes(EntityKind::Edge, e, edge_points(e, s));
-      ++rep_.edges_moved;
-    }
+      for (Id t = 1; t < r.n; ++t) s.push_back(series.at(t));
+      d.pts = edge_points(e, s);
+      return true;
   }
 
   // Side k of face r (0 v0v1, 1 v3v2 at u; 2 v0v3, 3 v1v2 at v) at face
@@ -499,19 +660,62 @@ class Conformer {
     return edge_points(r.e[k], c);
   }
 
+  void apply_face(Id f, bool closest, const std::vector<Vec3>& pts) {
+    if (closest) ++rep_.closest_point_fallbacks;
+    mesh_.move_nodes(EntityKind::Face, f, pts);
+    ++rep_.faces_moved;
+  }
+
   void move_faces() {
     const Id F = T_.faces.rows();
     const std::vector<double> probe = probes();
-    const size_t np = probe.size();
-    for (Id f = 0; f < F; ++f) {
-      if (!cand_face_[f]) continue;
-      progress("moving face nodes", f, F);
+    Bytes out;
+    std::exception_ptr failed;
+    Id f = 0;
+    try {
+      for (std::uint64_t c = 0; f < F; ++f) {
+        if (!cand_face_[f] || !mine(c++)) continue;
+        progress("moving face nodes", f, F);
+        bool closest = false;
+        std::vector<Vec3> pts;
+        if (!place_face(f, probe, closest, pts)) continue;
+        if (!distributed()) apply_face(f, closest, pts);
+        else out.put(f), out.put<std::uint8_t>(closest), out.points(pts);
+      }
+    } catch (...) {
+      if (!distributed()) throw;
+      failed = std::current_exception();
+    }
+    if (!distributed()) return;
+    struct Done {
+      Id f;
+      bool closest;
+      std::vector<Vec3> pts;
+    };
+    std::vector<Done> all;
+    for (const std::string& part : exchange(opt_, out.s, failed, static_cast<std::uint64_t>(f))) {
+      Cursor c(part);
+      while (!c.done()) {
+        Done d;
+        d.f = c.get<Id>(), d.closest = c.get<std::uint8_t>() != 0, d.pts = c.points();
+        all.push_back(std::move(d));
+      }
+    }
+    std::sort(all.begin(), all.end(), [](const Done& x, const Done& y) { return x.f < y.f; });
+    for (const Done& d : all) apply_face(d.f, d.closest, d.pts);
+  }
+
+  // Places candidate face f's nodes; false when they stay where the TFI
+  // of the moved sides puts them (no surface, flat, no interior nodes, or
+  // already on the CAD).
+  bool place_face(Id f, const std::vector<double>& probe, bool& closest, std::vector<Vec3>& pts) {
+      const size_t np = probe.size();
       const Owner o = fowner_[f];
       const CadEntity* ent = o.dim == 2 ? cad_.find(2, o.tag) : nullptr;
-      if (!ent || ent->flat) continue;
+      if (!ent || ent->flat) return false;
       const FaceRow r = face(f);
       const Id nu = r.nu, nv = r.nv;
-      if (nu < 2 || nv < 2) continue;
+      if (nu < 2 || nv < 2) return false;
       const Vec3 c[4] = {vertex(r.v[0]), vertex(r.v[1]), vertex(r.v[2]), vertex(r.v[3])};
       const double diam = std::max(dist(c[0], c[2]), dist(c[1], c[3]));
       // The plan, from probes (s, t) = (i, j) / kProbes: the TFI prediction
@@ -547,13 +751,12 @@ class Conformer {
       }
       const bool param = !par.empty() && plausible(par, proj, 0.25 * diam / kProbes + tol_);
       const Place how = settle(param ? Place::Parametric : Place::Closest, param ? par : proj, pred);
-      if (how == Place::Predicted) continue;
-      if (how == Place::Closest) ++rep_.closest_point_fallbacks;
+      if (how == Place::Predicted) return false;
+      closest = how == Place::Closest;
       // The nodes: predictions from the moved sides (the mesh's own faces).
       std::vector<Vec3> npred;
       for (Id v = 1; v < nv; ++v)
         for (Id u = 1; u < nu; ++u) npred.push_back(node(EntityKind::Face, f, u, v));
-      std::vector<Vec3> pts;
       if (how == Place::Closest) {
         pts = project(*ent, npred);
       } else {
@@ -579,9 +782,7 @@ class Conformer {
         cad_.value(2, o.tag, q, xyz);
         for (size_t i = 0; i < npred.size(); ++i) pts.push_back(at(xyz, i));
       }
-      mesh_.move_nodes(EntityKind::Face, f, pts);
-      ++rep_.faces_moved;
-    }
+      return true;
   }
 
   static Vec3 coons(double s, double t, const Vec3& b, const Vec3& tp, const Vec3& l, const Vec3& r, const Vec3* c) {
@@ -591,7 +792,26 @@ class Conformer {
   }
 
   void check_inversion() {
-    const QualityReport q = check_moved_quality(mesh_, [&](Id d, Id t) { progress("checking elements", d, t); });
+    auto bar = [&](Id d, Id t) { progress("checking elements", d, t); };
+    QualityReport q;
+    if (!distributed()) {
+      q = check_moved_quality(mesh_, bar);
+    } else {
+      // Every parts-th coarse element here, the reports merged in element order.
+      QualityReport mine_q;
+      std::exception_ptr failed;
+      try {
+        MeshCursor cur;
+        const RowReader R(T_, cur);
+        const auto P = static_cast<Id>(opt_.parts);
+        mine_q = check_quality(mesh_, [&](Id h) { return h % P == opt_.part && R.element(h).curved(); }, bar);
+      } catch (...) {
+        failed = std::current_exception();
+      }
+      Bytes out;
+      out.put(mine_q);
+      for (const std::string& part : exchange(opt_, out.s, failed, 0)) merge_quality(q, Cursor(part).get<QualityReport>());
+    }
     rep_.min_scaled_jacobian = q.min_scaled_jacobian;
     rep_.elements_checked = q.elements_checked;
     if (q.inverted > 0) {
@@ -611,8 +831,23 @@ class Conformer {
 ConformReport conform_to_geometry(FineMesh& mesh, const std::string& cad_path, const ConformOptions& options) {
   if (!(options.tolerance > 0 && options.tolerance < 1))
     throw Error(ErrorKind::Usage, "geometry tolerance " + fmt(options.tolerance) + " must be in (0, 1)");
-  const Cad cad(cad_path);
-  return Conformer(mesh, cad, options).run();
+  if (options.parts > 1 && !options.share) throw Error(ErrorKind::Usage, "conform: parts > 1 without share");
+  if (options.parts <= 1) {
+    const Cad cad(cad_path);
+    return Conformer(mesh, cad, options).run();
+  }
+  // A part that cannot load the CAD still takes part in the first
+  // exchange, where every part throws (the others wait there otherwise).
+  std::unique_ptr<Cad> cad;
+  std::exception_ptr early;
+  try {
+    cad = std::make_unique<Cad>(cad_path);
+  } catch (...) {
+    early = std::current_exception();
+  }
+  if (cad) return Conformer(mesh, *cad, options).run();
+  exchange(options, {}, early, 0);
+  std::rethrow_exception(early);  // not reached: the exchange throws it
 }
 
 void classify_on_geometry(CoarseMesh& mesh, const std::string& cad_path, const ConformOptions& options) {

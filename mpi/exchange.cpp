@@ -1,5 +1,6 @@
 // Who uses which node run, across ranks: two all-to-all rounds.
 #include <algorithm>
+#include <limits>
 #include <map>
 #include <optional>
 
@@ -71,6 +72,34 @@ Partition make_partition(const FineMesh& mesh, MPI_Comm comm, const MeshSets& se
   std::optional<Partition> p;
   collectively(comm, [&] { p.emplace(mesh, plan, rank, std::move(sharing), sets); });
   return std::move(*p);
+}
+
+}  // namespace dicer::mpi
+
+namespace dicer::mpi {
+
+std::vector<std::string> allgather_bytes(MPI_Comm comm, const std::string& mine) {
+  int P = 1;
+  MPI_Comm_size(comm, &P);
+  const std::int64_t size = static_cast<std::int64_t>(mine.size());
+  std::vector<std::int64_t> sizes(static_cast<size_t>(P));
+  if (MPI_Allgather(&size, 1, MPI_INT64_T, sizes.data(), 1, MPI_INT64_T, comm) != MPI_SUCCESS)
+    throw Error(ErrorKind::Io, "MPI_Allgather failed");
+  std::vector<int> counts(static_cast<size_t>(P)), displs(static_cast<size_t>(P));
+  std::int64_t total = 0;
+  for (int q = 0; q < P; ++q) {
+    if (sizes[q] > std::numeric_limits<int>::max() || total > std::numeric_limits<int>::max() - sizes[q])
+      throw Error(ErrorKind::Overflow, "rank " + std::to_string(q) + " has " + std::to_string(sizes[q]) +
+                                           " bytes to share with every rank: over MPI's 2 GiB limit for one exchange");
+    counts[q] = static_cast<int>(sizes[q]), displs[q] = static_cast<int>(total), total += sizes[q];
+  }
+  std::string all(static_cast<size_t>(total), '\0');
+  if (MPI_Allgatherv(mine.data(), static_cast<int>(size), MPI_BYTE, all.data(), counts.data(),
+                     displs.data(), MPI_BYTE, comm) != MPI_SUCCESS)
+    throw Error(ErrorKind::Io, "MPI_Allgatherv failed");
+  std::vector<std::string> out(static_cast<size_t>(P));
+  for (int q = 0; q < P; ++q) out[q] = all.substr(static_cast<size_t>(displs[q]), static_cast<size_t>(counts[q]));
+  return out;
 }
 
 }  // namespace dicer::mpi

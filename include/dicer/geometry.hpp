@@ -43,6 +43,7 @@
 //     element, never written.
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "dicer/fine_mesh.hpp"
 
@@ -53,6 +54,16 @@ struct ConformOptions {
   // of its entity.
   double tolerance = 1e-4;
   std::function<void(const char* stage, Id done, Id total)> progress;
+  // Shared out over `parts` processes (mpirun): every part runs with the
+  // same mesh and CAD, places every parts-th candidate edge and face and
+  // checks every parts-th coarse element, and `share` hands each part the
+  // bytes of all parts in part order (mpi::allgather_bytes). Every part
+  // ends with the same moves, report and store bits as one process. An
+  // error on any part is kept until the next exchange, so no part waits
+  // for one that failed, and every part throws the one at the lowest
+  // entity. Three exchanges: edges, faces, the quality check.
+  int part = 0, parts = 1;
+  std::function<std::vector<std::string>(const std::string&)> share;
 };
 
 struct ConformReport {

@@ -84,6 +84,12 @@ void collectively(MPI_Comm comm, Fn&& fn) {
   checkpoint(comm, e);
 }
 
+// Every rank's bytes, in rank order, on every rank (MPI_Allgatherv). Each
+// rank's part must stay under 2 GiB (MPI's int counts): a larger one is
+// Error{Overflow} on every rank, after the sizes are exchanged (no rank is
+// left waiting). Collective; what ConformOptions::share needs.
+std::vector<std::string> allgather_bytes(MPI_Comm comm, const std::string& mine);
+
 // The sharing runs of this rank's chunk (partition.hpp), exchanged with the
 // owners of its ghost runs: two all-to-all rounds, messages proportional to
 // the chunk's boundary. Equals in_process_sharing(mesh, plan)[rank].

@@ -35,6 +35,12 @@ struct QualityReport {
   Id elements_checked = 0;
 };
 
+// Folds b into a: what one check over the elements of both gives (counts
+// summed; the minimum, and at equal minima the lower fine element id, as a
+// single pass in id order keeps the first). For checks shared out over
+// processes (ConformOptions::parts).
+void merge_quality(QualityReport& a, const QualityReport& b);
+
 // Checks every fine element of the coarse elements h with select(h) true
 // (all when select is empty). progress(done, total) in coarse elements.
 QualityReport check_quality(const FineMesh& mesh, const std::function<bool(Id)>& select = {},
