@@ -19,6 +19,7 @@
 #include <filesystem>
 #include <mutex>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "dicer/atomic_output.hpp"
@@ -45,10 +46,24 @@ void stream_rows(const Prolongation& p, const std::string& path, const std::func
   ProlongationCursor cur(p);
   ProlongationBatch b;
   Id next_row = 0, entries = 0;
+  std::vector<Id> cols;
+  std::vector<double> weights;
   while (cur.next(b)) {
     if (b.row_begin != next_row || b.num_entries() > p.nonzeros() - entries)
       throw InternalError(path + ": prolongation rows out of order or beyond the counted non-zeros");
-    fn(b);
+    // Files get each row's columns ascending, as CSR readers assume (PETSc's
+    // AIJ kernels; scipy's has_sorted_indices); the generator gives them in
+    // corner order. At most 8 per row: insertion sort.
+    cols.assign(b.cols.begin(), b.cols.end());
+    weights.assign(b.weights.begin(), b.weights.end());
+    for (Id r = 0; r < b.num_rows(); ++r)
+      for (Id i = b.offsets[static_cast<size_t>(r)] + 1; i < b.offsets[static_cast<size_t>(r) + 1]; ++i)
+        for (Id j = i; j > b.offsets[static_cast<size_t>(r)] && cols[static_cast<size_t>(j - 1)] > cols[static_cast<size_t>(j)]; --j)
+          std::swap(cols[static_cast<size_t>(j - 1)], cols[static_cast<size_t>(j)]),
+              std::swap(weights[static_cast<size_t>(j - 1)], weights[static_cast<size_t>(j)]);
+    ProlongationBatch sorted = b;
+    sorted.cols = cols, sorted.weights = weights;
+    fn(sorted);
     next_row = b.row_end, entries += b.num_entries();
     if (progress) progress(next_row, p.rows());
   }

@@ -48,6 +48,7 @@ def test_hdf5_csr_is_read_by_scipy_and_interpolates(levels, cli, tmp_path):
         assert T.shape == P.shape == (f.num_nodes, c.num_nodes)
         assert T.nonzeros == P.nnz
         # Rows: at most 8 entries in (0, 1], summing to 1; a unit row per coarse node.
+        assert P.has_sorted_indices  # ascending columns in every row, as CSR readers assume
         per_row = np.diff(P.indptr)
         assert per_row.min() >= 1 and per_row.max() <= 8
         assert P.data.min() > 0 and P.data.max() <= 1
