@@ -17,6 +17,7 @@
 
 #include "dicer/error.hpp"
 #include "dicer/fine_mesh.hpp"
+#include "dicer/intervals.hpp"
 
 namespace dicer::cli {
 
@@ -56,13 +57,7 @@ std::int64_t parse_int(const std::string& what, const std::string& text) {
   return v;
 }
 
-double parse_double(const std::string& what, const std::string& text) {
-  char* end = nullptr;
-  const double v = std::strtod(text.c_str(), &end);
-  if (text.empty() || *end != '\0' || !std::isfinite(v))
-    throw Error(ErrorKind::Usage, what + ": \"" + text + "\" is not a finite number");
-  return v;
-}
+double parse_double(const std::string& what, const std::string& text) { return parse_real(what, text); }
 
 std::pair<std::int64_t, std::int64_t> parse_range(const std::string& what, const std::string& text) {
   const auto colon = text.find(':');

@@ -31,14 +31,6 @@ std::string num(double x) {
   return b;
 }
 
-double real(const std::string& what, const std::string& text) {
-  char* end = nullptr;
-  const double v = std::strtod(text.c_str(), &end);
-  if (text.empty() || *end != '\0' || !std::isfinite(v))
-    throw Error(ErrorKind::Usage, what + ": \"" + text + "\" is not a finite number");
-  return v;
-}
-
 std::string entity_label(const EntityTag& e) {
   static const char* kDim[4] = {"point", "curve", "surface", "volume"};
   return std::string(e.first >= 0 && e.first <= 3 ? kDim[e.first] : "entity") + " " + std::to_string(e.second);
@@ -62,6 +54,14 @@ void check_bias(const std::string& what, const BiasRequest& b) {
                                       num(tfi::kMaxRatio) + " (got " + num(b.ratio) + ")");
 }
 
+double parse_real(const std::string& what, const std::string& text) {
+  char* end = nullptr;
+  const double v = std::strtod(text.c_str(), &end);
+  if (text.empty() || *end != '\0' || !std::isfinite(v))
+    throw Error(ErrorKind::Usage, what + ": \"" + text + "\" is not a finite number");
+  return v;
+}
+
 BiasRequest parse_bias(const std::string& what, const std::string& text, tfi::Spacing kind) {
   BiasRequest b;
   b.kind = kind;
@@ -74,9 +74,9 @@ BiasRequest parse_bias(const std::string& what, const std::string& text, tfi::Sp
     b.start = id;
     body = text.substr(0, at);
   }
-  if (body.rfind("first:", 0) == 0) b.first_cell = real(what, body.substr(6));
-  else if (body.rfind("last:", 0) == 0) b.last_cell = real(what, body.substr(5));
-  else b.ratio = real(what, body);
+  if (body.rfind("first:", 0) == 0) b.first_cell = parse_real(what, body.substr(6));
+  else if (body.rfind("last:", 0) == 0) b.last_cell = parse_real(what, body.substr(5));
+  else b.ratio = parse_real(what, body);
   if ((body.rfind("first:", 0) == 0 && !(b.first_cell > 0)) || (body.rfind("last:", 0) == 0 && !(b.last_cell > 0)))
     throw Error(ErrorKind::Usage, what + ": a cell length must be a positive number");
   check_bias(what, b);

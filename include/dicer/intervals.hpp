@@ -65,6 +65,9 @@ struct BiasRequest {
 // "1.2", "1.2@345", "first:0.01", "last:0.5@17" (kind: Geometric), or the
 // same for Dual ("@V" refused). Error{Usage} naming `what`.
 BiasRequest parse_bias(const std::string& what, const std::string& text, tfi::Spacing kind);
+// A finite number, the whole of `text`, else Error{Usage} naming `what`
+// (bias requests here and every numeric option of the command line).
+double parse_real(const std::string& what, const std::string& text);
 // Its checks (ratio range, positive finite cells), Error{Usage} naming `what`.
 void check_bias(const std::string& what, const BiasRequest& b);
 // "1.2 from node 345", "dual 1.1", "first cell 0.01": for notes and `sheets`.

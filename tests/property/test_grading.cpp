@@ -22,6 +22,7 @@
 #include "dicer/sweep.hpp"
 #include "dicer/tfi.hpp"
 #include "dicer/verify.hpp"
+#include "access_paths.hpp"
 #include "random_mesh.hpp"
 #include "test_support.hpp"
 
@@ -170,45 +171,6 @@ std::vector<Vec3> edge_points(const FineMesh& f, Id e, MeshCursor& cur) {
   return p;
 }
 
-void expect_bit_identical_paths(const FineMesh& f, const FineMesh* stored) {
-  std::vector<Vec3> by_id(static_cast<size_t>(f.num_nodes()));
-  for (Id id = 0; id < f.num_nodes(); ++id) by_id[id] = f.node(id);
-  for (const Id slab : {Id{1}, Id{40}, kCursorSlabPoints}) {
-    NodeCursor c(f, 0, f.num_nodes(), slab);
-    Id id;
-    Vec3 p;
-    while (c.next(id, p)) ASSERT_TRUE(same_bits(p, by_id[id])) << "cursor, slab " << slab << ", node " << id;
-  }
-  FineBlock b;
-  for (Id h = 0; h < f.num_coarse_elements(); ++h) {
-    f.fill_block(h, b);
-    for (Id g = 0; g < b.num_points(); ++g)
-      ASSERT_TRUE(same_bits({b.x[g], b.y[g], b.z[g]}, by_id[b.node_id[g]])) << "block " << h << ", node " << b.node_id[g];
-    for (Id e = 0; e < b.num_elements(); ++e) {
-      const FineElement el = f.element(b.first_element + e);
-      for (int q = 0; q < f.corners(); ++q) ASSERT_EQ(el.nodes[q], b.conn[static_cast<size_t>(e * f.corners() + q)]);
-    }
-  }
-  BatchOptions opt;
-  opt.slab_points = 30;
-  BatchCursor bc(f, 0, -1, opt);
-  FineBatch fb;
-  while (bc.next(fb))
-    for (Id id = fb.node_begin; id < fb.node_end; ++id) {
-      const auto q = static_cast<size_t>(id - fb.node_begin);
-      ASSERT_TRUE(same_bits({fb.x[q], fb.y[q], fb.z[q]}, by_id[id])) << "batch, node " << id;
-    }
-  if (stored) {
-    ASSERT_EQ(stored->num_nodes(), f.num_nodes());
-    for (Id id = 0; id < f.num_nodes(); ++id) ASSERT_TRUE(same_bits(stored->node(id), by_id[id])) << "store, node " << id;
-    NodeCursor c(*stored);
-    Id id;
-    Vec3 p;
-    while (c.next(id, p)) ASSERT_TRUE(same_bits(p, by_id[id])) << "store cursor, node " << id;
-    EXPECT_EQ(stored->sheet_gradings(), f.sheet_gradings());
-  }
-}
-
 // Checks every coarse edge's spacing against its sheet's series (to 1e-12
 // of each cell), that each face's opposite sides run the same way, and that
 // every geometric sheet starts where it was asked to (or at the lower file
@@ -301,15 +263,8 @@ TEST(GradedMeshes, ConformingBitIdenticalAndSpacedLikeTheSeries) {
     ASSERT_TRUE(r.ok()) << (r.problems.empty() ? "" : r.problems[0]);
     EXPECT_GT(r.min_scaled_jacobian, 0.0);
     expect_series_on_edges(g, f);
-    if (trial % 4 == 0) {
-      test::TempDir dir;
-      write_store(f, dir.path("g.dice.h5"));
-      const FineMesh stored = read_store(dir.path("g.dice.h5"));
-      expect_bit_identical_paths(f, &stored);
-      EXPECT_TRUE(verify(stored).ok());
-    } else {
-      expect_bit_identical_paths(f, nullptr);
-    }
+    test::TempDir dir;
+    test::expect_paths_bit_identical(f, dir.path("g.dice.h5"));
   }
 }
 
@@ -507,7 +462,8 @@ TEST(GradedMeshes, ATwistedSheetRefusesABiasAndTakesADualOne) {
         const VerifyReport r = verify(f);
         EXPECT_TRUE(r.ok()) << (r.problems.empty() ? "" : r.problems[0]);
       }
-      expect_bit_identical_paths(f, nullptr);
+      test::TempDir dir;
+      test::expect_paths_bit_identical(f, dir.path("t.dice.h5"), volume);
     }
   }
 }

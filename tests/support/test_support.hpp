@@ -1,5 +1,6 @@
 #pragma once
 // Helpers shared by the test binary: data paths, temp dirs, running the CLI.
+#include <gtest/gtest.h>
 #include <sys/types.h>
 
 #include <cstdlib>
@@ -7,6 +8,8 @@
 #include <map>
 #include <string>
 #include <vector>
+
+#include "dicer/error.hpp"
 
 namespace dicer::test {
 
@@ -67,5 +70,19 @@ inline const std::vector<std::string> kForeignPythonEnv = {"PYTHONPATH", "PYTHON
 // Writes bytes to a file (bad-input fixtures made by the tests).
 void write_file(const std::string& path, const std::string& bytes);
 std::string read_file(const std::string& path);
+
+// What f() throws: a dicer::Error of `kind` (a failed expectation
+// otherwise), its message for the caller's checks.
+template <class F>
+std::string error_of(F&& f, ErrorKind kind) {
+  try {
+    f();
+  } catch (const Error& e) {
+    EXPECT_EQ(static_cast<int>(e.kind()), static_cast<int>(kind)) << e.what();
+    return e.what();
+  }
+  ADD_FAILURE() << "no error thrown";
+  return {};
+}
 
 }  // namespace dicer::test

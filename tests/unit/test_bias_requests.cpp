@@ -45,17 +45,7 @@ Id x_sheet(const CoarseMesh& m, int i, double length = 1) {
   return -1;
 }
 
-template <class F>
-std::string error_of(F&& f, ErrorKind kind) {
-  try {
-    f();
-  } catch (const Error& e) {
-    EXPECT_EQ(static_cast<int>(e.kind()), static_cast<int>(kind)) << e.what();
-    return e.what();
-  }
-  ADD_FAILURE() << "no error thrown";
-  return {};
-}
+using test::error_of;
 
 // Fine x positions along the x edge y = z = 0 of the diced row, sorted.
 std::vector<double> xs(const FineMesh& f) {
