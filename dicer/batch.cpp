@@ -10,11 +10,18 @@
 
 namespace dicer {
 
-BatchCursor::BatchCursor(const FineMesh& mesh, Id first, Id end, BatchOptions options)
-    : mesh_(mesh), h_(first), end_(end < 0 ? mesh.num_coarse_elements() : end), opt_(options) {
-  if (first < 0 || first > end_ || end_ > mesh.num_coarse_elements())
-    throw Error(ErrorKind::Usage, "batches: coarse elements " + std::to_string(first) + ".." + std::to_string(end_) +
-                                      " outside the mesh (" + std::to_string(mesh.num_coarse_elements()) + ")");
+BatchCursor::BatchCursor(const FineMesh& mesh, Id first, Id end, BatchOptions options) : mesh_(mesh), opt_(options) {
+  const Id layer = opt_.first_layer;
+  reset(first, end);
+  opt_.first_layer = layer;  // the first element of the first pass only
+}
+
+void BatchCursor::reset(Id first, Id end) {
+  if (end < 0) end = mesh_.num_coarse_elements();
+  if (first < 0 || first > end || end > mesh_.num_coarse_elements())
+    throw Error(ErrorKind::Usage, "batches: coarse elements " + std::to_string(first) + ".." + std::to_string(end) +
+                                      " outside the mesh (" + std::to_string(mesh_.num_coarse_elements()) + ")");
+  h_ = first, end_ = end, k0_ = 0, entered_ = false, opt_.first_layer = 0;
 }
 
 void BatchCursor::enter() {
@@ -40,7 +47,7 @@ bool BatchCursor::next(FineBatch& out) {
   if (!entered_) enter();
   const bool vol = n2_ > 0;
   const Id k0 = k0_, k1 = vol ? std::min(k0 + step_, n2_) : 0;
-  if (opt_.conn || opt_.coords) mesh_.fill_slab(h_, k0, k1, block_, opt_.coords, opt_.conn);
+  if (opt_.conn || opt_.coords || opt_.grid) mesh_.fill_slab(h_, k0, k1, block_, opt_.coords, opt_.conn);
   out.coarse_element = h_;
   out.block = row_.block;
   out.n = n_;
@@ -80,6 +87,7 @@ bool BatchCursor::next(FineBatch& out) {
   out.element_begin = row_.element_first + layer * k0;
   out.element_end = row_.element_first + layer * (vol ? k1 : 1);
   out.conn = opt_.conn ? std::span<const Id>(block_.conn) : std::span<const Id>();
+  out.grid = opt_.grid ? std::span<const Id>(block_.node_id) : std::span<const Id>();
   // Advance.
   if (vol && k1 < n2_) {
     k0_ = k1;

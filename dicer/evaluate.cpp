@@ -8,6 +8,7 @@
 #include "dicer/error.hpp"
 #include "dicer/orientation.hpp"
 #include "dicer/tfi.hpp"
+#include "clones.hpp"
 
 namespace dicer::detail {
 namespace {
@@ -24,8 +25,25 @@ Vec3 coons_point(double a, double b, const Vec3* s, const Vec3* p) {
           tfi::coons(a, b, s[0].z, s[1].z, s[2].z, s[3].z, p[0].z, p[1].z, p[2].z, p[3].z)};
 }
 
-}  // namespace
+// The interior points of an edge from a to b, one coordinate, at
+// parameters s[1..n-1], as edge_point computes each.
+DICER_CLONES void edge_fill(double a, double b, const double* s, Id n, double* out) {
+  for (Id t = 1; t < n; ++t) out[t - 1] = tfi::edge(a, b, s[t]);
+}
 
+// The interior of a face, one coordinate, in canonical order (u fastest):
+// tfi::coons at parameters s[u], t[v] from the sides' values there and the
+// corners p[0..3], as face_point computes each (clones.hpp: same bits).
+DICER_CLONES void coons_fill(const double* s, const double* t, Id nu, Id nv, const double* bottom, const double* top,
+                             const double* left, const double* right, const double* p, double* out) {
+  const double p0 = p[0], p1 = p[1], p2 = p[2], p3 = p[3];
+  for (Id v = 1; v < nv; ++v, out += nu - 1) {
+    const double tv = t[v], l = left[v], r = right[v];
+    for (Id u = 1; u < nu; ++u) out[u - 1] = tfi::coons(s[u], tv, bottom[u], top[u], l, r, p0, p1, p2, p3);
+  }
+}
+
+}  // namespace
 
 std::array<tfi::Grading, 2> face_grading(Mode mode, const ElementRow& h, int lf) {
   const FaceCode code = h.code(lf);
@@ -282,6 +300,8 @@ void element_boundary(const Evaluator& E, const ElementRow& h, Id hid, FineBlock
     if (!want_face || want_face[lf])
       for (int side = 0; side < 4; ++side) need_edge[face_side_edge(mode, lf, h.code(lf), side)] = true;
 
+  Id series_n = -1;  // the edge parameters held in out.s
+  tfi::Grading series_g;
   for (int k = 0; k < ne; ++k) {
     if (!need_edge[k]) continue;
     const Id n = h.n[vol ? k / 4 : k / 2];
@@ -297,11 +317,16 @@ void element_boundary(const Evaluator& E, const ElementRow& h, Id hid, FineBlock
       const int a = vol ? kHexEdge[k][0] : kQuadEdge[k][0], b = vol ? kHexEdge[k][1] : kQuadEdge[k][1];
       const Vec3& lo = out.corner[h.rev(k) ? b : a];
       const Vec3& hi = out.corner[h.rev(k) ? a : b];
-      const tfi::Series series(n, h.edge_grading(k, mode));
-      for (Id t = 1; t < n; ++t) {
-        const Vec3 x = lerp(lo, hi, series.at(t));
-        pts[0][t - 1] = x.x, pts[1][t - 1] = x.y, pts[2][t - 1] = x.z;
+      const tfi::Grading g = h.edge_grading(k, mode);
+      if (n != series_n || !(g == series_g)) {  // edges along one axis mostly share their series
+        const tfi::Series series(n, g);
+        out.s.resize(static_cast<size_t>(std::max<Id>(n, 1)));
+        for (Id t = 1; t < n; ++t) out.s[t] = series.at(t);
+        series_n = n, series_g = g;
       }
+      edge_fill(lo.x, hi.x, out.s.data(), n, pts[0].data());
+      edge_fill(lo.y, hi.y, out.s.data(), n, pts[1].data());
+      edge_fill(lo.z, hi.z, out.s.data(), n, pts[2].data());
     }
   }
 
@@ -335,12 +360,9 @@ void element_boundary(const Evaluator& E, const ElementRow& h, Id hid, FineBlock
                    p3 = comp(out.corner[cc[3]]);
       auto& face = out.face[lf][d];
       face.resize(m);
-      double* o = face.data();
-      const double *B = s.bottom[d].data(), *T = s.top[d].data(), *L = s.left[d].data(), *Rt = s.right[d].data();
-      for (Id v = 1; v < nv; ++v) {
-        const double tv = s.t[v];
-        for (Id u = 1; u < nu; ++u) *o++ = tfi::coons(s.s[u], tv, B[u], T[u], L[v], Rt[v], p0, p1, p2, p3);
-      }
+      const double p[4] = {p0, p1, p2, p3};
+      coons_fill(s.s.data(), s.t.data(), nu, nv, s.bottom[d].data(), s.top[d].data(), s.left[d].data(),
+                 s.right[d].data(), p, face.data());
     }
     if (curved && m > 0) {
       const FaceRow fr = E.R.face(h.face[lf]);

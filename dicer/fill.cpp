@@ -9,10 +9,20 @@
 #include "dicer/numbering.hpp"
 #include "dicer/orientation.hpp"
 #include "dicer/tfi.hpp"
+#include "clones.hpp"
 #include "evaluate.hpp"
 
 namespace dicer {
 namespace {
+
+// dst[gs t] = first + cs t and dst[gs t] = src[cs t], t < m: one row of a
+// face scattered into the boundary slots (ids, coordinates).
+void scatter_row(Id* dst, Id gs, Id first, Id cs, Id m) {
+  for (Id t = 0; t < m; ++t) dst[gs * t] = first + cs * t;
+}
+void gather_row(double* dst, Id gs, const double* src, Id cs, Id m) {
+  for (Id t = 0; t < m; ++t) dst[gs * t] = src[cs * t];
+}
 
 // The boundary of coarse element hid (corners, edges, faces) into b's
 // scratch (Boundary::index): ids from the element row alone, coordinates
@@ -63,32 +73,25 @@ void fill_boundary(const detail::Evaluator& E, std::uint64_t mesh, const Element
     const int ax = vol ? kHexFaceAxes[lf][0] : 0, bx = vol ? kHexFaceAxes[lf][1] : 1;
     Id p[3] = {0, 0, 0};
     if (vol) p[lf / 2] = (lf % 2) ? n[lf / 2] : 0;
-    for (Id q = 1; q < n[bx]; ++q)
-      for (Id pp = 1; pp < n[ax]; ++pp) {
-        p[ax] = pp, p[bx] = q;
-        const Id u = fm.u(pp, q), v = fm.v(pp, q);
-        const Id g = B.index(p[0], p[1], p[2]);
-        ids[g] = ids::face_node(h.face_node[lf], nu, u, v);
-        if (coords) {
-          const Id c = ids::face_node(0, nu, u, v);  // canonical index
-          for (int d = 0; d < 3; ++d) X[d][g] = s.face[lf][d][c];
-        }
-      }
+    // Along a row (pp = 1 .. n[ax] - 1 at fixed q) both the slot and the
+    // canonical index are affine in pp: a strided copy per row.
+    const Id m = n[ax] - 1, cs = fm.up + fm.vp * (nu - 1);
+    for (Id q = 1; q < n[bx]; ++q) {
+      p[ax] = 1, p[bx] = q;
+      const Id g = B.index(p[0], p[1], p[2]);
+      p[ax] = 2;
+      const Id gs = m > 1 ? B.index(p[0], p[1], p[2]) - g : 0;
+      const Id c = ids::face_node(0, nu, fm.u(1, q), fm.v(1, q));  // canonical index at pp = 1
+      scatter_row(ids + g, gs, h.face_node[lf] + c, cs, m);
+      for (int d = 0; d < 3 && coords; ++d) gather_row(X[d] + g, gs, s.face[lf][d].data() + c, cs, m);
+    }
   }
 }
 
 // Hex interior, one coordinate, from the block's boundary values:
 // tfi::hex_row once per (j, k), tfi::hex_point along i, the same two calls
-// Evaluator::cell_point() makes, fed the same boundary values. Built twice
-// (AVX2 and baseline x86-64): both are plain IEEE mul/add/sub in the same
-// order with contraction off, so both give the same bits.
-// (ThreadSanitizer builds: GCC 12's ifunc resolver for target_clones runs
-// before the TSan runtime is up and crashes the binary at start-up.)
-#if defined(__SANITIZE_THREAD__)
-#define DICER_CLONES
-#else
-#define DICER_CLONES __attribute__((target_clones("avx2", "default")))
-#endif
+// Evaluator::cell_point() makes, fed the same boundary values (clones.hpp:
+// every clone gives the same bits).
 // One interior plane k (0 < k < n[2]) of one coordinate: a0 and aN are the
 // planes k = 0 and k = n[2], ak plane k with its ring (i or j at 0 or n)
 // filled; all three with row stride n[0] + 1. A plane at a time, so a block
@@ -117,6 +120,22 @@ DICER_CLONES void hex_interior_plane(const double* a0, const double* aN, double*
     for (Id i = 1; i < n[0]; ++i)
       out[i] = tfi::hex_point(row, u[i], U[i], f2[i], f3[i], f4[i], f5[i], e0[i], e1[i], e2[i], e3[i]);
   }
+}
+
+// Connectivity of one row of m fine hexes (kHexCorner order) whose corner
+// (0, 0, 0) points are p[0..m): rows of the block's node ids (row stride
+// sj, plane stride sk). Eight row pointers and one store per corner and
+// element, so the compiler keeps the loop free of index arithmetic.
+DICER_CLONES void hex_conn_row(const Id* p, Id sj, Id sk, Id m, Id* out) {
+  const Id *a = p, *b = p + sj, *c = p + sk, *d = p + sk + sj;
+  for (Id i = 0; i < m; ++i, out += 8) {
+    out[0] = a[i], out[1] = a[i + 1], out[2] = b[i + 1], out[3] = b[i];
+    out[4] = c[i], out[5] = c[i + 1], out[6] = d[i + 1], out[7] = d[i];
+  }
+}
+void quad_conn_row(const Id* p, Id sj, Id m, Id* out) {
+  const Id *a = p, *b = p + sj;
+  for (Id i = 0; i < m; ++i, out += 4) out[0] = a[i], out[1] = a[i + 1], out[2] = b[i + 1], out[3] = b[i];
 }
 
 }  // namespace
@@ -173,8 +192,11 @@ void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool c
       for (Id j = 1; j < n[1]; ++j) dst[j * ni] = src[2 * ni + j - 1], dst[n[0] + j * ni] = src[2 * ni + n[1] - 1 + j - 1];
     };
     ring_copy(B.id.data() + ring, ids);
-    for (Id j = 1; j < n[1]; ++j)
-      for (Id i = 1; i < n[0]; ++i) ids[i + ni * j] = ids::cell_node(h.cell_node, n, i, j, k);
+    for (Id j = 1; j < n[1]; ++j) {  // a row of the cell's own ids: consecutive (numbering.hpp)
+      const Id first = ids::cell_node(h.cell_node, n, 1, j, k);
+      Id* row = ids + ni * j;
+      for (Id i = 1; i < n[0]; ++i) row[i] = first + (i - 1);
+    }
     for (int d = 0; d < 3 && coords; ++d) {
       ring_copy(B.x[d].data() + ring, X[d]);
       hex_interior_plane(B.x[d].data(), B.x[d].data() + pp, X[d], n, s.u.data(), s.U.data(), s.v.data(), s.w[k]);
@@ -190,21 +212,10 @@ void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool c
   Id* out = b.conn.data();
   const Id* ids = b.node_id.data();
   if (vol) {
-    const Id sj = ni, sk = pp;
-    const Id off[8] = {0, 1, 1 + sj, sj, sk, 1 + sk, 1 + sj + sk, sj + sk};
     for (Id k = k0; k < k1; ++k)
-      for (Id j = 0; j < n[1]; ++j)
-        for (Id i = 0; i < n[0]; ++i) {
-          const Id g = b.point_index(i, j, k);
-          for (int q = 0; q < 8; ++q) *out++ = ids[g + off[q]];
-        }
+      for (Id j = 0; j < n[1]; ++j, out += 8 * n[0]) hex_conn_row(ids + b.point_index(0, j, k), ni, pp, n[0], out);
   } else {
-    const Id off[4] = {0, 1, 1 + ni, ni};
-    for (Id j = 0; j < n[1]; ++j)
-      for (Id i = 0; i < n[0]; ++i) {
-        const Id g = b.point_index(i, j, 0);
-        for (int q = 0; q < 4; ++q) *out++ = ids[g + off[q]];
-      }
+    for (Id j = 0; j < n[1]; ++j, out += 4 * n[0]) quad_conn_row(ids + b.point_index(0, j, 0), ni, n[0], out);
   }
 }
 

@@ -14,6 +14,7 @@
 #include "dicer/batch.hpp"
 #include "dicer/error.hpp"
 #include "dicer/rows.hpp"
+#include "clones.hpp"
 #include "work_split.hpp"
 
 namespace dicer {
@@ -43,16 +44,8 @@ inline std::uint64_t element_term(std::uint64_t id, const Id* nodes) {
 }
 
 // The loops over a batch: independent terms, no branch, so the compiler
-// vectorises them (AVX2 / AVX-512 clones; integer arithmetic, so every
-// clone gives the same sum). Not under ThreadSanitizer (see fill.cpp).
-#if defined(__SANITIZE_THREAD__)
-#define DICER_HASH_CLONES
-#elif defined(__clang__)  // the fuzz build: Clang 14 clones no arch= levels
-#define DICER_HASH_CLONES __attribute__((target_clones("avx2", "default")))
-#else
-#define DICER_HASH_CLONES __attribute__((target_clones("arch=x86-64-v4", "avx2", "default")))
-#endif
-
+// vectorises them (clones.hpp; integer arithmetic, so every clone gives the
+// same sum).
 DICER_HASH_CLONES std::uint64_t sum_nodes(std::uint64_t first, const double* x, const double* y, const double* z,
                                           std::int64_t n) {
   std::uint64_t sum = 0;
@@ -78,7 +71,70 @@ DICER_HASH_CLONES std::uint64_t sum_quads(std::uint64_t first, const Id* conn, s
   return sum_elements<4>(first, conn, n);
 }
 
+// Hex terms of one row of m elements whose corners come from grid rows a
+// (j, k), b (j + 1, k), c (j, k + 1), d (j + 1, k + 1), in kHexCorner order
+// (fill.cpp's hex_conn_row): contiguous loads, no connectivity formed.
+DICER_HASH_CLONES std::uint64_t sum_hex_row(std::uint64_t first, const Id* a, const Id* b, const Id* c, const Id* d,
+                                            std::int64_t m) {
+  std::uint64_t sum = 0;
+  for (std::int64_t i = 0; i < m; ++i) {
+    const Id nodes[8] = {a[i], a[i + 1], b[i + 1], b[i], c[i], c[i + 1], d[i + 1], d[i]};
+    sum += element_term<8>(first + static_cast<std::uint64_t>(i), nodes);
+  }
+  return sum;
+}
+
+// fmix(h0 + i * step), i < m: the terms of a run of elements whose
+// arguments step by a constant.
+DICER_HASH_CLONES std::uint64_t sum_fmix_run(std::uint64_t h0, std::uint64_t step, std::int64_t m) {
+  std::uint64_t sum = 0;
+  for (std::int64_t i = 0; i < m; ++i) sum += fmix(h0 + static_cast<std::uint64_t>(i) * step);
+  return sum;
+}
+
+// Whether p[1..m] are consecutive ids (p[t + 1] = p[t] + 1).
+bool consecutive(const Id* p, std::int64_t m) {
+  bool ok = true;
+  for (std::int64_t t = 1; t < m; ++t) ok &= p[t + 1] - p[t] == 1;
+  return ok;
+}
+
 }  // namespace
+
+std::uint64_t checksum_hex_grid(Id first, const std::array<Id, 3>& n, Id layers, std::span<const Id> grid) {
+  const Id ni = n[0] + 1, pp = ni * (n[1] + 1);
+  if (n[0] < 1 || n[1] < 1 || layers < 0 || static_cast<Id>(grid.size()) != pp * (layers + 1))
+    throw Error(ErrorKind::Usage, "checksum_hex_grid: a grid of " + std::to_string(grid.size()) +
+                                      " ids for " + std::to_string(layers) + " layers of " + std::to_string(n[0]) +
+                                      " x " + std::to_string(n[1]));
+  // Each grid row's interior [1, n0 - 1] checked once.
+  const Id rows = (n[1] + 1) * (layers + 1);
+  thread_local std::vector<char> run;  // warm after the first batch: no allocation per batch
+  run.resize(static_cast<size_t>(rows));
+  for (Id r = 0; r < rows; ++r) run[r] = n[0] >= 3 && consecutive(grid.data() + r * ni, n[0] - 1);
+  std::uint64_t step = K[4];
+  for (int q = 5; q < 13; ++q) step += K[q];
+  std::uint64_t sum = 0;
+  auto id = static_cast<std::uint64_t>(first);
+  for (Id k = 0; k < layers; ++k)
+    for (Id j = 0; j < n[1]; ++j, id += static_cast<std::uint64_t>(n[0])) {
+      const Id ra = j + (n[1] + 1) * k, rc = ra + n[1] + 1;
+      const Id *a = grid.data() + ra * ni, *b = a + ni, *c = grid.data() + rc * ni, *d = c + ni;
+      if (!(run[ra] && run[ra + 1] && run[rc] && run[rc + 1])) {
+        sum += sum_hex_row(id, a, b, c, d, n[0]);
+        continue;
+      }
+      // Elements 1 .. n0 - 2 read only the rows' consecutive interiors: each
+      // argument is the one before plus `step`. The two end elements in full.
+      const Id e = n[0] - 1;
+      sum += sum_hex_row(id, a, b, c, d, 1) + sum_hex_row(id + static_cast<std::uint64_t>(e), a + e, b + e, c + e, d + e, 1);
+      const Id nodes[8] = {a[1], a[2], b[2], b[1], c[1], c[2], d[2], d[1]};
+      std::uint64_t h = (id + 1) * K[4];  // element 1's argument
+      for (int q = 0; q < 8; ++q) h += static_cast<std::uint64_t>(nodes[q]) * K[5 + q];
+      sum += sum_fmix_run(h, step, n[0] - 2);
+    }
+  return sum;
+}
 
 std::uint64_t node_checksum_term(Id id, const Vec3& x) {
   return node_term(static_cast<std::uint64_t>(id), std::bit_cast<std::uint64_t>(x.x), std::bit_cast<std::uint64_t>(x.y),
@@ -169,10 +225,16 @@ SweepResult sweep(const FineMesh& mesh, unsigned threads, const std::function<vo
     try {
       std::uint64_t sum = 0;
       Id local = 0;
-      BatchCursor batches(mesh, split[t], split[t + 1]);
+      // Hexes from the slab's grid (no connectivity formed), quads from conn.
+      BatchOptions opt;
+      opt.grid = mesh.mode() == Mode::Volume;
+      opt.conn = !opt.grid;
+      BatchCursor batches(mesh, split[t], split[t + 1], opt);
       FineBatch b;
       while (batches.next(b)) {
-        sum += checksum_nodes(b.node_begin, b.x, b.y, b.z) + checksum_elements(b.element_begin, b.corners, b.conn);
+        sum += checksum_nodes(b.node_begin, b.x, b.y, b.z);
+        sum += opt.grid ? checksum_hex_grid(b.element_begin, b.n, b.num_elements() / (b.n[0] * b.n[1]), b.grid)
+                        : checksum_elements(b.element_begin, b.corners, b.conn);
         local += b.num_nodes() + b.num_elements();
         if (local >= 65536) done += local, local = 0;
       }

@@ -39,6 +39,13 @@ struct FineBatch {
   Id element_begin = 0, element_end = 0;  // consecutive element ids
   int corners = 8;
   std::span<const Id> conn;               // corners * (element_end - element_begin) (empty without connectivity)
+  // The slab's grid (BatchOptions::grid; empty otherwise): the node id of
+  // each grid point (i, j, k) of the planes the batch's elements span,
+  // k = first_layer .. first_layer + layers (surface: the one plane), at
+  // i + (n[0] + 1) * (j + (n[1] + 1) * (k - first_layer)). An element's
+  // corners are its cell's grid points (what conn lists): consumers that
+  // use the structure (the sweep's checksum) read it instead of conn.
+  std::span<const Id> grid;
   Id num_nodes() const { return node_end - node_begin; }
   Id num_elements() const { return element_end - element_begin; }
 };
@@ -52,6 +59,7 @@ struct BatchOptions {
   // layer and its nodes up to grid plane first_layer (its own boundary
   // included) are skipped. The cursors start mid-element with it.
   Id first_layer = 0;
+  bool grid = false;  // the slab's grid of node ids (FineBatch::grid)
 };
 
 class BatchCursor {
@@ -60,6 +68,10 @@ class BatchCursor {
   BatchCursor(const FineMesh& mesh, Id first = 0, Id end = -1, BatchOptions options = {});
   // The next batch (valid until the next call); false at the end.
   bool next(FineBatch& out);
+  // Starts over at coarse elements [first, end) (end = -1: to the last),
+  // keeping the buffers: a warm cursor allocates nothing on a repeated pass.
+  // Error{Usage} as the constructor.
+  void reset(Id first, Id end = -1);
 
  private:
   void enter();

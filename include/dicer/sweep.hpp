@@ -58,5 +58,14 @@ std::uint64_t node_checksum_term(Id id, const Vec3& x);
 std::uint64_t element_checksum_term(const FineElement& e);
 std::uint64_t checksum_nodes(Id first, std::span<const double> x, std::span<const double> y, std::span<const double> z);
 std::uint64_t checksum_elements(Id first, int corners, std::span<const Id> conn);
+// The same sum as checksum_elements over the hexes of `layers` element
+// layers of an n[0] x n[1] grid (ids first, first + 1, ... in i, j, layer
+// order), their corners read from `grid` (FineBatch::grid's layout:
+// (n[0] + 1)(n[1] + 1)(layers + 1) node ids). Cheaper: no connectivity is
+// formed, and along a row where all four grid rows it reads hold
+// consecutive ids (a cell's interior), each term's argument is the
+// previous one's plus a constant (K4 + K5 + ... + K12), so only fmix is
+// computed per element there. Error{Usage} when grid has the wrong size.
+std::uint64_t checksum_hex_grid(Id first, const std::array<Id, 3>& n, Id layers, std::span<const Id> grid);
 
 }  // namespace dicer

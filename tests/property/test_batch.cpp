@@ -11,6 +11,7 @@
 #include "dicer/batch.hpp"
 #include "dicer/error.hpp"
 #include "dicer/numbering.hpp"
+#include "dicer/orientation.hpp"
 #include "random_mesh.hpp"
 
 using namespace dicer;
@@ -45,6 +46,20 @@ void check_batches(const FineMesh& f, Id first, Id end, BatchOptions opt) {
       const auto q = static_cast<size_t>(id - b.node_begin);
       ASSERT_TRUE(same_bits(p.x, b.x[q]) && same_bits(p.y, b.y[q]) && same_bits(p.z, b.z[q])) << "node " << id;
       ASSERT_EQ(owner_element(f.tables(), id, cur), b.coarse_element) << "node " << id << " in its owner's batch";
+    }
+    if (opt.grid) {  // every element's corners at its cell's grid points (batch.hpp's layout)
+      const Id ni = b.n[0] + 1, nj = b.n[1] + 1;
+      const Id planes = f.mode() == Mode::Volume ? b.num_elements() / (b.n[0] * b.n[1]) + 1 : 1;
+      ASSERT_EQ(static_cast<Id>(b.grid.size()), ni * nj * planes);
+      for (Id e = b.element_begin; e < b.element_end; ++e) {
+        const FineElement el = f.element(e);
+        const Id l = e - b.element_begin, i = l % b.n[0], j = (l / b.n[0]) % b.n[1], k = l / (b.n[0] * b.n[1]);
+        for (int q = 0; q < b.corners; ++q) {
+          const auto* c = kHexCorner[q];
+          ASSERT_EQ(el.nodes[q], b.grid[static_cast<size_t>(i + c[0] + ni * (j + c[1] + nj * (k + c[2])))])
+              << "element " << e << " corner " << q;
+        }
+      }
     }
     for (Id e = b.element_begin; e < b.element_end && opt.conn; ++e) {
       const FineElement el = f.element(e);
@@ -90,7 +105,7 @@ TEST(Batches, TileTheChunkInIdOrderWithTheBitsOfNodeAndElement) {
     for (const Id slab : {Id{1}, Id{30}, kCursorSlabPoints}) {
       for (const auto& [coords, conn] : {std::pair{true, true}, std::pair{true, false}, std::pair{false, true}}) {
         BatchOptions opt;
-        opt.coords = coords, opt.conn = conn, opt.slab_points = slab;
+        opt.coords = coords, opt.conn = conn, opt.slab_points = slab, opt.grid = !conn;
         check_batches(f, 0, H, opt);
         check_batches(f, 1, H - 1, opt);
         check_batches(f, H / 2, H / 2, opt);

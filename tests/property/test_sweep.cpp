@@ -6,6 +6,7 @@
 #include <random>
 
 #include "dicer/error.hpp"
+#include "dicer/orientation.hpp"
 #include "dicer/store.hpp"
 #include "dicer/sweep.hpp"
 #include "random_mesh.hpp"
@@ -127,4 +128,47 @@ TEST(Sweep, AFailingThreadEndsTheSweepWithItsError) {
       EXPECT_NE(std::string(e.what()).find("topology/elements page 3"), std::string::npos) << e.what();
     }
   }
+}
+
+// checksum_hex_grid is checksum_elements over the grid's hexes, written
+// here from batch.hpp's layout and kHexCorner order, on grids whose rows
+// are consecutive (its shortcut), broken anywhere in a row (first, inside,
+// last point), or random; every n[0] from 1 (no interior) up.
+TEST(Sweep, GridChecksumEqualsTheTermsOfItsHexes) {
+  std::mt19937_64 rng(17);
+  const std::uint64_t* K = kChecksumKeys;
+  for (int trial = 0; trial < 400; ++trial) {
+    const std::array<Id, 3> n{1 + trial % 7, 1 + (trial / 7) % 4, 3};
+    const Id layers = trial % 3, ni = n[0] + 1, pp = ni * (n[1] + 1);
+    std::vector<Id> grid(static_cast<size_t>(pp * (layers + 1)));
+    std::uniform_int_distribution<Id> big(0, Id{1} << 45);
+    for (Id r = 0; r < (n[1] + 1) * (layers + 1); ++r) {
+      Id* row = grid.data() + r * ni;
+      const Id base = big(rng);
+      for (Id i = 0; i < ni; ++i) row[i] = base + i;  // consecutive
+      switch (rng() % 4) {
+        case 0: break;
+        case 1: row[rng() % ni] = big(rng); break;  // one point anywhere
+        case 2: if (ni > 2) row[1 + rng() % (ni - 2)] += 1; break;  // an interior point off by one
+        default: for (Id i = 0; i < ni; ++i) row[i] = big(rng);
+      }
+    }
+    const Id first = big(rng);
+    std::uint64_t want = 0;
+    for (Id k = 0; k < layers; ++k)
+      for (Id j = 0; j < n[1]; ++j)
+        for (Id i = 0; i < n[0]; ++i) {
+          std::uint64_t h = static_cast<std::uint64_t>(first + i + n[0] * (j + n[1] * k)) * K[4];
+          for (int q = 0; q < 8; ++q) {
+            const Id id = grid[static_cast<size_t>(i + kHexCorner[q][0] + ni * (j + kHexCorner[q][1]) +
+                                                   pp * (k + kHexCorner[q][2]))];
+            h += static_cast<std::uint64_t>(id) * K[5 + q];
+          }
+          want += fmix(h);
+        }
+    ASSERT_EQ(checksum_hex_grid(first, n, layers, grid), want) << "trial " << trial;
+  }
+  EXPECT_NE(test::error_of([] { checksum_hex_grid(0, {2, 2, 2}, 1, std::vector<Id>(17)); }, ErrorKind::Usage)
+                .find("17 ids for 1 layers of 2 x 2"),
+            std::string::npos);
 }
