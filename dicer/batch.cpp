@@ -47,39 +47,40 @@ bool BatchCursor::next(FineBatch& out) {
   if (!entered_) enter();
   const bool vol = n2_ > 0;
   const Id k0 = k0_, k1 = vol ? std::min(k0 + step_, n2_) : 0;
-  if (opt_.conn || opt_.coords || opt_.grid) mesh_.fill_slab(h_, k0, k1, block_, opt_.coords, opt_.conn);
   out.coarse_element = h_;
   out.block = row_.block;
   out.n = n_;
   out.first_layer = k0;
   out.corners = mesh_.corners();
-  // Nodes: the own boundary on the first slab (already in xyz_), then the
-  // interior planes k in (k0, k1], k < n2 (ids follow cell_node in plane order).
+  // Nodes: the own boundary on the first slab, then the interior planes k
+  // in (k0, k1], k < n2 (ids follow cell_node in plane order).
   const Id in = (n_[0] - 1) * (n_[1] - 1);
   const Id p_lo = vol ? k0 + 1 : 1, p_hi = vol ? std::min(k1, n2_ - 1) : 0;  // interior planes held
   out.node_begin = k0 == 0 ? row_.node_first : row_.cell_node + in * (p_lo - 1);
   out.node_end = vol ? row_.cell_node + in * std::max<Id>(p_hi, p_lo - 1) : own_end_;
   if (opt_.coords) {
+    // The own boundary first (k0 = 0), then the interior, which fill_slab
+    // writes there directly (volume; a surface element's interior is its
+    // face, part of its own boundary).
+    const Id own = k0 == 0 ? own_end_ - row_.node_first : 0;
+    const Id total = out.node_end - out.node_begin;
+    if (own < 0 || total < own)
+      detail::Evaluator(mesh_.tables(), block_.cursor).R.corrupt(RowTable::Elements, h_,
+                                                                "the element's own node ids run backwards");
+    for (auto& a : xyz_) a.resize(static_cast<size_t>(total));
+    double* const interior[3] = {xyz_[0].data() + own, xyz_[1].data() + own, xyz_[2].data() + own};
+    mesh_.fill_slab(h_, k0, k1, block_, true, opt_.conn, vol ? interior : nullptr);
     if (k0 == 0) {
       // fill_slab has just evaluated the element's whole boundary into the
       // block's scratch (edges and faces in their canonical frames).
       const detail::Evaluator E(mesh_.tables(), block_.cursor);
-      const Id end = detail::own_boundary_nodes(E, row_, h_, block_.scratch, xyz_);
+      double* const front[3] = {xyz_[0].data(), xyz_[1].data(), xyz_[2].data()};
+      const Id end = detail::own_boundary_nodes(E, row_, h_, block_.scratch, front, own);
       DICER_ASSERT(end == own_end_, "batches: the own range of the row");
-    } else {
-      for (auto& a : xyz_) a.clear();
     }
-    const std::vector<double>* src[3] = {&block_.x, &block_.y, &block_.z};
-    for (Id k = p_lo; k <= p_hi; ++k)
-      for (Id j = 1; j < n_[1]; ++j) {
-        const auto g = static_cast<std::ptrdiff_t>(block_.point_index(1, j, k));
-        for (int d = 0; d < 3; ++d)
-          xyz_[d].insert(xyz_[d].end(), src[d]->begin() + g, src[d]->begin() + g + (n_[0] - 1));
-      }
-    DICER_ASSERT(static_cast<Id>(xyz_[0].size()) == out.node_end - out.node_begin,
-                 "batches: a slab's node count matches its id range");
     out.x = xyz_[0], out.y = xyz_[1], out.z = xyz_[2];
   } else {
+    if (opt_.conn || opt_.grid) mesh_.fill_slab(h_, k0, k1, block_, false, opt_.conn);
     out.x = out.y = out.z = {};
   }
   // Elements: layers [k0, k1) (surface: the element's one layer).

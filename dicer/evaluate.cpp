@@ -428,7 +428,7 @@ void facet_points(const Evaluator& E, const ElementRow& h, Id hid, int slot, Fin
 }
 
 Id own_boundary_nodes(const Evaluator& E, const ElementRow& h, Id hid, const FineBlock::Scratch& s,
-                      std::vector<double> (&out)[3]) {
+                      double* const out[3], Id size) {
   const Mode mode = E.mode();
   const bool vol = mode == Mode::Volume;
   const int nc = E.R.corners(), ne = E.R.edges(), nf = E.R.faces();
@@ -438,15 +438,14 @@ Id own_boundary_nodes(const Evaluator& E, const ElementRow& h, Id hid, const Fin
   for (int k = 0; k < ne; ++k) want_edge[k] = h.owns(h.edge_node[k]) && h.n[vol ? k / 4 : k / 2] > 1;
   for (int k = 0; k < nf; ++k) want_face[k] = h.owns(h.face_node[k]);
   if (end < first) E.R.corrupt(RowTable::Elements, hid, "the element's own node ids run backwards");
-  const size_t size = static_cast<size_t>(end - first);
-  for (auto& a : out) a.resize(size);
-  size_t filled = 0;
+  if (end - first != size) E.R.corrupt(RowTable::Elements, hid, "the element's own node range disagrees with its row");
+  Id filled = 0;
   auto put = [&](Id node, Id count, const double* x, const double* y, const double* z) {
-    if (node < first || node - first + count > static_cast<Id>(size))
+    if (node < first || node - first + count > size)
       E.R.corrupt(RowTable::Elements, hid, "an owned entity's node ids lie outside the element's own range");
     const double* src[3] = {x, y, z};
-    for (int d = 0; d < 3; ++d) std::copy_n(src[d], count, out[d].data() + (node - first));
-    filled += static_cast<size_t>(count);
+    for (int d = 0; d < 3; ++d) std::copy_n(src[d], count, out[d] + (node - first));
+    filled += count;
   };
   for (int k = 0; k < nc; ++k)
     if (h.owns(h.corner_node[k])) put(h.corner_node[k], 1, &s.corner[k].x, &s.corner[k].y, &s.corner[k].z);

@@ -62,13 +62,14 @@ void element_boundary(const Evaluator& E, const ElementRow& h, Id hid, FineBlock
 
 // The coordinates of the nodes element h owns outside its interior
 // (volume: ids [node_first, cell_node); surface: [node_first, cell_node +
-// its face's nodes)), in id order, into out[d][id - node_first]: its owned
-// corners, edges and faces, copied from `s`, which must hold element h's
-// whole boundary in canonical frames (fill_slab with coordinates has just
-// put it there: element_boundary). Returns the end of that id range.
-// Error{Corrupt} when the row's owned entities do not tile the range.
+// its face's nodes)), in id order, into out[d][id - node_first] (`size`
+// values each): its owned corners, edges and faces, copied from `s`, which
+// must hold element h's whole boundary in canonical frames (fill_slab with
+// coordinates has just put it there: element_boundary). Returns the end of
+// that id range. Error{Corrupt} when the range is not `size` long or the
+// row's owned entities do not tile it.
 Id own_boundary_nodes(const Evaluator& E, const ElementRow& h, Id hid, const FineBlock::Scratch& s,
-                      std::vector<double> (&out)[3]);
+                      double* const out[3], Id size);
 
 // Every grid point of one facet of element h: local face `slot` (volume)
 // or local edge `slot` (surface), with its node id and coordinates, each

@@ -98,8 +98,11 @@ void fill_boundary(const detail::Evaluator& E, std::uint64_t mesh, const Element
 // can be produced in slabs (cursors hold O(n^2), not O(n^3)).
 // u, U: the i-axis parameters and their complements, v the j-axis
 // parameters, w plane k's (tfi::Series of the element's gradings).
-DICER_CLONES void hex_interior_plane(const double* a0, const double* aN, double* ak, std::array<Id, 3> n,
-                                     const double* u, const double* U, const double* v, double w) {
+// The interior goes to dst: point (i, j) at dst[(j - 1) dj + i - 1] (ak's
+// own rows: dst = ak + n[0] + 2, dj = n[0] + 1; compact: dj = n[0] - 1).
+DICER_CLONES void hex_interior_plane(const double* a0, const double* aN, const double* ak, std::array<Id, 3> n,
+                                     const double* u, const double* U, const double* v, double w, double* dst,
+                                     Id dj) {
   const Id sj = n[0] + 1;
   const Id n1 = n[1] * sj;
   double c[8];
@@ -116,7 +119,7 @@ DICER_CLONES void hex_interior_plane(const double* a0, const double* aN, double*
     const double e[12] = {0, 0, 0, 0, a0[j * sj], a0[n[0] + j * sj], aN[j * sj], aN[n[0] + j * sj],
                           ak[0], ak[n[0]], ak[n[0] + n1], ak[n1]};
     const tfi::HexRow row = tfi::hex_row(v[j], w, ak[j * sj], ak[n[0] + j * sj], e, c);
-    double* out = ak + j * sj;
+    double* out = dst + (j - 1) * dj - 1;
     for (Id i = 1; i < n[0]; ++i)
       out[i] = tfi::hex_point(row, u[i], U[i], f2[i], f3[i], f4[i], f5[i], e0[i], e1[i], e2[i], e3[i]);
   }
@@ -141,6 +144,10 @@ void quad_conn_row(const Id* p, Id sj, Id m, Id* out) {
 }  // namespace
 
 void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool conn) const {
+  fill_slab(hid, k0, k1, b, coords, conn, nullptr);
+}
+
+void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool conn, double* const* interior) const {
   const detail::Evaluator E(tables_, b.cursor);
   const ElementRow h = E.R.element(hid);
   const auto n = h.n;
@@ -163,7 +170,11 @@ void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool c
   const Id ni = n[0] + 1, nj = n[1] + 1, pp = ni * nj;
   const size_t np = static_cast<size_t>(pp * b.planes);
   b.node_id.resize(np);
-  for (auto* x : {&b.x, &b.y, &b.z}) coords ? x->resize(np) : x->clear();
+  if (interior) coords = true;
+  // Compact: x, y, z hold one plane, the ring the kernel reads.
+  const size_t nx = interior ? static_cast<size_t>(pp) : np;
+  for (auto* x : {&b.x, &b.y, &b.z}) coords ? x->resize(nx) : x->clear();
+  const Id in = (n[0] - 1) * (n[1] - 1);
   auto& s = b.scratch;
   if (coords && vol) {
     // The three axes' parameters, once per slab (O(n)): the kernel reads tables.
@@ -178,11 +189,12 @@ void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool c
     const size_t at = static_cast<size_t>((k - k0) * pp);
     Id* ids = b.node_id.data() + at;
     double* X[3] = {nullptr, nullptr, nullptr};
-    if (coords) X[0] = b.x.data() + at, X[1] = b.y.data() + at, X[2] = b.z.data() + at;
+    const size_t xat = interior ? 0 : at;
+    if (coords) X[0] = b.x.data() + xat, X[1] = b.y.data() + xat, X[2] = b.z.data() + xat;
     if (!vol || k == 0 || k == n[2]) {  // a face plane: all boundary
       const size_t from = static_cast<size_t>(B.index(0, 0, k));
       std::copy_n(B.id.data() + from, pp, ids);
-      for (int d = 0; d < 3 && coords; ++d) std::copy_n(B.x[d].data() + from, pp, X[d]);
+      for (int d = 0; d < 3 && coords && !interior; ++d) std::copy_n(B.x[d].data() + from, pp, X[d]);
       continue;
     }
     // The ring of plane k from the side faces and edges, the rest hex interior.
@@ -197,9 +209,13 @@ void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool c
       Id* row = ids + ni * j;
       for (Id i = 1; i < n[0]; ++i) row[i] = first + (i - 1);
     }
+    // Compact: the planes after k0 only (plane k0 ended the previous slab).
+    if (interior && k == k0) continue;
     for (int d = 0; d < 3 && coords; ++d) {
       ring_copy(B.x[d].data() + ring, X[d]);
-      hex_interior_plane(B.x[d].data(), B.x[d].data() + pp, X[d], n, s.u.data(), s.U.data(), s.v.data(), s.w[k]);
+      double* dst = interior ? interior[d] + (k - k0 - 1) * in : X[d] + ni + 1;
+      hex_interior_plane(B.x[d].data(), B.x[d].data() + pp, X[d], n, s.u.data(), s.U.data(), s.v.data(), s.w[k], dst,
+                         interior ? n[0] - 1 : ni);
     }
   }
 

@@ -209,6 +209,11 @@ class FineMesh {
   // Identity of this mesh's content (a new value on every change), the key
   // of a FineBlock's cached boundary.
   std::uint64_t serial_ = next_serial();
+  // For BatchCursor: fill_slab with the interior points of planes k0 < k <=
+  // min(k1, n[2] - 1) written compact, in id order, to interior[d] (volume
+  // mode), and out.x, y, z left as work space.
+  friend class BatchCursor;
+  void fill_slab(Id h, Id k0, Id k1, FineBlock& out, bool coords, bool conn, double* const* interior) const;
   static std::uint64_t next_serial();
   void require_memory(const char* what) const;
 };
