@@ -9,6 +9,8 @@
 //   BM_NodeCursor        whole-mesh node iteration in id order
 //   BM_Batches           the batch API: every node (coordinates) and element
 //                        (connectivity) once, slab by slab (batch.hpp)
+//   BM_BatchesGrid       the same with the slab's grid of node ids instead of
+//                        connectivity (what the sweep reads)
 // Mesh: the CUBIT sphere (256 hexes) at interval N (arg), so ~256 N^3 elements.
 #include <benchmark/benchmark.h>
 
@@ -142,4 +144,24 @@ BENCHMARK(BM_NodeQuery)->Args({8, 0})->Args({32, 0})->Args({8, 1})->Args({32, 1}
 BENCHMARK(BM_ElementQuery)->Arg(8)->Arg(32);
 BENCHMARK(BM_NodeCursor)->Arg(8)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Batches)->Arg(8)->Arg(32)->Unit(benchmark::kMillisecond);
+
+// The sweep's batches: coordinates and the slab's grid of node ids, no
+// connectivity formed (BatchOptions::grid).
+void BM_BatchesGrid(benchmark::State& st) {
+  const FineMesh& m = sphere(st.range(0));
+  BatchOptions opt;
+  opt.conn = false, opt.grid = true;
+  Id nodes = 0;
+  for (auto _ : st) {
+    BatchCursor c(m, 0, -1, opt);
+    FineBatch b;
+    while (c.next(b)) {
+      benchmark::DoNotOptimize(b.x.data());
+      benchmark::DoNotOptimize(b.grid.data());
+    }
+    nodes += m.num_nodes();
+  }
+  st.counters["nodes_per_s"] = benchmark::Counter(static_cast<double>(nodes), benchmark::Counter::kIsRate);
+}
+BENCHMARK(BM_BatchesGrid)->Arg(8)->Arg(32)->Unit(benchmark::kMillisecond);
 BENCHMARK_MAIN();
