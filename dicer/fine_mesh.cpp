@@ -72,6 +72,13 @@ FineElement FineMesh::element(Id id, MeshCursor& cur) const {
   const auto [i, j, k] = el.ijk;
   const bool vol = mode() == Mode::Volume;
   el.num_nodes = vol ? 8 : 4;
+  if (vol && i > 0 && j > 0 && k > 0 && i + 1 < h.n[0] && j + 1 < h.n[1] && k + 1 < h.n[2]) {
+    // Every corner inside the cell (most elements at large intervals): the
+    // cell's own ids, with no entity lookup per corner.
+    for (int q = 0; q < 8; ++q)
+      el.nodes[q] = ids::cell_node(h.cell_node, h.n, i + kHexCorner[q][0], j + kHexCorner[q][1], k + kHexCorner[q][2]);
+    return el;
+  }
   for (int q = 0; q < el.num_nodes; ++q)
     el.nodes[q] = E.grid_node_id(h, i + kHexCorner[q][0], j + kHexCorner[q][1], vol ? k + kHexCorner[q][2] : 0);
   return el;
