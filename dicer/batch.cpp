@@ -1,6 +1,6 @@
 // Batch iteration (batch.hpp): a coarse element's own boundary nodes once
-// (own_boundary_nodes), then its slabs through fill_slab, the interior
-// planes of each slab copied out row by row.
+// (own_boundary_nodes), then its slabs through fill_slab, which writes the
+// interior planes of each slab straight into the batch's arrays.
 #include "dicer/batch.hpp"
 
 #include <algorithm>
@@ -64,9 +64,13 @@ bool BatchCursor::next(FineBatch& out) {
     // face, part of its own boundary).
     const Id own = k0 == 0 ? own_end_ - row_.node_first : 0;
     const Id total = out.node_end - out.node_begin;
-    if (own < 0 || total < own)
+    // No more than the element's boundary points (a hostile row must not
+    // make us allocate its whole id gap before the entities are checked).
+    const Id grid = (n_[0] + 1) * (n_[1] + 1) * (vol ? n2_ + 1 : 1);
+    const Id boundary = vol ? grid - (n_[0] - 1) * (n_[1] - 1) * (n2_ - 1) : grid;
+    if (own < 0 || total < own || own > boundary)
       detail::Evaluator(mesh_.tables(), block_.cursor).R.corrupt(RowTable::Elements, h_,
-                                                                "the element's own node ids run backwards");
+                                                                "the element's own node range disagrees with its intervals");
     for (auto& a : xyz_) a.resize(static_cast<size_t>(total));
     double* const interior[3] = {xyz_[0].data() + own, xyz_[1].data() + own, xyz_[2].data() + own};
     mesh_.fill_slab(h_, k0, k1, block_, true, opt_.conn, vol ? interior : nullptr);

@@ -119,9 +119,9 @@ DICER_CLONES void hex_interior_plane(const double* a0, const double* aN, const d
     const double e[12] = {0, 0, 0, 0, a0[j * sj], a0[n[0] + j * sj], aN[j * sj], aN[n[0] + j * sj],
                           ak[0], ak[n[0]], ak[n[0] + n1], ak[n1]};
     const tfi::HexRow row = tfi::hex_row(v[j], w, ak[j * sj], ak[n[0] + j * sj], e, c);
-    double* out = dst + (j - 1) * dj - 1;
+    double* out = dst + (j - 1) * dj;
     for (Id i = 1; i < n[0]; ++i)
-      out[i] = tfi::hex_point(row, u[i], U[i], f2[i], f3[i], f4[i], f5[i], e0[i], e1[i], e2[i], e3[i]);
+      out[i - 1] = tfi::hex_point(row, u[i], U[i], f2[i], f3[i], f4[i], f5[i], e0[i], e1[i], e2[i], e3[i]);
   }
 }
 
@@ -157,6 +157,7 @@ void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool c
     throw Error(ErrorKind::Usage, "fill_slab: planes " + std::to_string(k0) + ".." + std::to_string(k1) +
                                       " of coarse element " + std::to_string(hid) + " (it has " +
                                       std::to_string(vol ? n[2] : 0) + ")");
+  if (interior) coords = true;
   auto& B = b.scratch.boundary;
   if (B.mesh != serial_ || B.h != hid || (coords && !B.coords)) fill_boundary(E, serial_, h, hid, b, coords);
   b.coarse_element = hid;
@@ -170,7 +171,6 @@ void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool c
   const Id ni = n[0] + 1, nj = n[1] + 1, pp = ni * nj;
   const size_t np = static_cast<size_t>(pp * b.planes);
   b.node_id.resize(np);
-  if (interior) coords = true;
   // Compact: x, y, z hold one plane, the ring the kernel reads.
   const size_t nx = interior ? static_cast<size_t>(pp) : np;
   for (auto* x : {&b.x, &b.y, &b.z}) coords ? x->resize(nx) : x->clear();
@@ -210,7 +210,7 @@ void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool c
       for (Id i = 1; i < n[0]; ++i) row[i] = first + (i - 1);
     }
     // Compact: the planes after k0 only (plane k0 ended the previous slab).
-    if (interior && k == k0) continue;
+    if (interior && (k == k0 || in == 0)) continue;
     for (int d = 0; d < 3 && coords; ++d) {
       ring_copy(B.x[d].data() + ring, X[d]);
       double* dst = interior ? interior[d] + (k - k0 - 1) * in : X[d] + ni + 1;

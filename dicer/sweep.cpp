@@ -92,21 +92,24 @@ DICER_HASH_CLONES std::uint64_t sum_fmix_run(std::uint64_t h0, std::uint64_t ste
   return sum;
 }
 
-// Whether p[1..m] are consecutive ids (p[t + 1] = p[t] + 1).
+// Whether p[1..m] are consecutive ids (p[t + 1] = p[t] + 1 mod 2^64, the
+// arithmetic of the terms: no overflow on any input).
 bool consecutive(const Id* p, std::int64_t m) {
   bool ok = true;
-  for (std::int64_t t = 1; t < m; ++t) ok &= p[t + 1] - p[t] == 1;
+  for (std::int64_t t = 1; t < m; ++t) ok &= static_cast<std::uint64_t>(p[t + 1]) - static_cast<std::uint64_t>(p[t]) == 1;
   return ok;
 }
 
 }  // namespace
 
 std::uint64_t checksum_hex_grid(Id first, const std::array<Id, 3>& n, Id layers, std::span<const Id> grid) {
-  const Id ni = n[0] + 1, pp = ni * (n[1] + 1);
-  if (n[0] < 1 || n[1] < 1 || layers < 0 || static_cast<Id>(grid.size()) != pp * (layers + 1))
+  // Sizes checked in 128 bits: no overflow on any input.
+  const __int128 want = static_cast<__int128>(n[0] + __int128{1}) * (n[1] + __int128{1}) * (layers + __int128{1});
+  if (n[0] < 1 || n[1] < 1 || layers < 0 || want != static_cast<__int128>(grid.size()))
     throw Error(ErrorKind::Usage, "checksum_hex_grid: a grid of " + std::to_string(grid.size()) +
                                       " ids for " + std::to_string(layers) + " layers of " + std::to_string(n[0]) +
                                       " x " + std::to_string(n[1]));
+  const Id ni = n[0] + 1;
   // Each grid row's interior [1, n0 - 1] checked once.
   const Id rows = (n[1] + 1) * (layers + 1);
   thread_local std::vector<char> run;  // warm after the first batch: no allocation per batch

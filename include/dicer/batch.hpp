@@ -41,7 +41,8 @@ struct FineBatch {
   std::span<const Id> conn;               // corners * (element_end - element_begin) (empty without connectivity)
   // The slab's grid (BatchOptions::grid; empty otherwise): the node id of
   // each grid point (i, j, k) of the planes the batch's elements span,
-  // k = first_layer .. first_layer + layers (surface: the one plane), at
+  // k = first_layer .. first_layer + L with L = num_elements() / (n[0] n[1])
+  // element layers (surface: the one plane, k = 0), at
   // i + (n[0] + 1) * (j + (n[1] + 1) * (k - first_layer)). An element's
   // corners are its cell's grid points (what conn lists): consumers that
   // use the structure (the sweep's checksum) read it instead of conn.
@@ -68,7 +69,8 @@ class BatchCursor {
   BatchCursor(const FineMesh& mesh, Id first = 0, Id end = -1, BatchOptions options = {});
   // The next batch (valid until the next call); false at the end.
   bool next(FineBatch& out);
-  // Starts over at coarse elements [first, end) (end = -1: to the last),
+  // Starts over at coarse elements [first, end) (end = -1: to the last)
+  // from layer 0 (BatchOptions::first_layer applies to the first pass only),
   // keeping the buffers: a warm cursor allocates nothing on a repeated pass.
   // Error{Usage} as the constructor.
   void reset(Id first, Id end = -1);

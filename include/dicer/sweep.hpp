@@ -65,7 +65,9 @@ std::uint64_t checksum_elements(Id first, int corners, std::span<const Id> conn)
 // formed, and along a row where all four grid rows it reads hold
 // consecutive ids (a cell's interior), each term's argument is the
 // previous one's plus a constant (K4 + K5 + ... + K12), so only fmix is
-// computed per element there. Error{Usage} when grid has the wrong size.
+// computed per element there. Error{Usage} when n[0] or n[1] < 1, layers
+// < 0 or grid has the wrong size. Each calling thread keeps one byte per
+// grid row of work space (allocated on its first call).
 std::uint64_t checksum_hex_grid(Id first, const std::array<Id, 3>& n, Id layers, std::span<const Id> grid);
 
 }  // namespace dicer

@@ -79,9 +79,11 @@ TEST(WarmAllocation, BlockFillsAllocateNothingOnceWarm) {
 
 TEST(WarmAllocation, BatchCursorsAllocateNothingOnceWarm) {
   for (const FineMesh& f : meshes()) {
-    for (const Id slab : {Id{7}, kCursorSlabPoints}) {
+    for (const Id slab : {Id{7}, kCursorSlabPoints})
+    for (const bool sweep_like : {false, true}) {  // the sweep's batches: the grid instead of connectivity
       BatchOptions opt;
       opt.slab_points = slab;
+      opt.grid = sweep_like, opt.conn = !sweep_like;
       BatchCursor c(f, 0, f.num_coarse_elements(), opt);
       FineBatch batch;
       Id nodes = 0;

@@ -7,6 +7,7 @@
 #include <bit>
 #include <algorithm>
 #include <random>
+#include <tuple>
 
 #include "dicer/batch.hpp"
 #include "dicer/error.hpp"
@@ -103,9 +104,12 @@ TEST(Batches, TileTheChunkInIdOrderWithTheBitsOfNodeAndElement) {
     const FineMesh f = FineMesh::dice(m, req);
     const Id H = f.num_coarse_elements();
     for (const Id slab : {Id{1}, Id{30}, kCursorSlabPoints}) {
-      for (const auto& [coords, conn] : {std::pair{true, true}, std::pair{true, false}, std::pair{false, true}}) {
+      // (coords, conn, grid): every array alone and together.
+      for (const auto& [coords, conn, grid] : {std::tuple{true, true, false}, std::tuple{true, false, true},
+                                               std::tuple{false, true, false}, std::tuple{false, false, true},
+                                               std::tuple{true, true, true}, std::tuple{true, false, false}}) {
         BatchOptions opt;
-        opt.coords = coords, opt.conn = conn, opt.slab_points = slab, opt.grid = !conn;
+        opt.coords = coords, opt.conn = conn, opt.slab_points = slab, opt.grid = grid;
         check_batches(f, 0, H, opt);
         check_batches(f, 1, H - 1, opt);
         check_batches(f, H / 2, H / 2, opt);
@@ -120,11 +124,60 @@ TEST(Batches, SurfaceMeshesToo) {
   IntervalRequest req;
   req.global = 3;
   const FineMesh f = FineMesh::dice(m, req);
-  for (const auto& [coords, conn] : {std::pair{true, true}, std::pair{false, true}, std::pair{true, false}}) {
+  for (const auto& [coords, conn, grid] : {std::tuple{true, true, false}, std::tuple{false, true, false},
+                                           std::tuple{true, false, false}, std::tuple{true, false, true},
+                                           std::tuple{false, false, true}}) {
     BatchOptions opt;
-    opt.coords = coords, opt.conn = conn;
+    opt.coords = coords, opt.conn = conn, opt.grid = grid;
     check_batches(f, 0, f.num_coarse_elements(), opt);
     check_batches(f, 2, 5, opt);
+  }
+}
+
+// Batches from any layer of any element (first_layer, what the cursors
+// use), on elements one and two intervals thin along each axis: the
+// coordinates written straight into the batch, the connectivity and the grid
+// equal node(id) and element(id).
+TEST(Batches, FromAnyLayerOfThinElements) {
+  std::mt19937_64 rng(29);
+  test::BoxSpec spec;
+  spec.a = 2, spec.b = 2, spec.c = 2;
+  for (const auto& sheets : {std::vector<std::pair<Id, Id>>{{0, 1}, {1, 2}, {2, 3}},
+                             std::vector<std::pair<Id, Id>>{{0, 3}, {1, 1}, {2, 1}}}) {
+    IntervalRequest req;
+    req.global = 4;
+    req.sheets = sheets;
+    const FineMesh f = FineMesh::dice(test::random_box(spec, rng), req);
+    FineBatch b;
+    for (Id h = 0; h < f.num_coarse_elements(); ++h) {
+      BatchCursor probe(f, h, h + 1);
+      ASSERT_TRUE(probe.next(b));
+      const std::array<Id, 3> n = b.n;
+      for (Id layer = 0; layer < n[2]; ++layer)
+        for (const Id slab : {Id{1}, Id{60}}) {
+          BatchOptions opt;
+          opt.first_layer = layer, opt.slab_points = slab, opt.grid = true;
+          BatchCursor c(f, h, h + 1, opt);
+          while (c.next(b)) {
+            for (Id id = b.node_begin; id < b.node_end; ++id) {
+              const Vec3 p = f.node(id);
+              const auto q = static_cast<size_t>(id - b.node_begin);
+              ASSERT_TRUE(same_bits(p.x, b.x[q]) && same_bits(p.y, b.y[q]) && same_bits(p.z, b.z[q]))
+                  << "element " << h << " layer " << layer << " node " << id;
+            }
+            const Id ni = b.n[0] + 1, nj = b.n[1] + 1;
+            for (Id e = b.element_begin; e < b.element_end; ++e) {
+              const FineElement el = f.element(e);
+              const Id l = e - b.element_begin, i = l % b.n[0], j = (l / b.n[0]) % b.n[1], k = l / (b.n[0] * b.n[1]);
+              for (int q = 0; q < 8; ++q) {
+                ASSERT_EQ(el.nodes[q], b.conn[static_cast<size_t>(8 * l + q)]) << "element " << e;
+                const auto* c3 = kHexCorner[q];
+                ASSERT_EQ(el.nodes[q], b.grid[static_cast<size_t>(i + c3[0] + ni * (j + c3[1] + nj * (k + c3[2])))]);
+              }
+            }
+          }
+        }
+    }
   }
 }
 
