@@ -95,11 +95,19 @@ Id search_elements(const MeshTables& t, Id x, bool by_node, MeshCursor& cur) {
   const std::vector<std::int64_t>& index = by_node ? t.node_index : t.element_index;
   const Id rpp = t.elements.rows_per_page();
   Id lo = 0, hi = t.elements.rows();  // first row with value > x lies in [lo, hi]
+  Id guess = -1;
   if (!index.empty()) {
     const Id p = static_cast<Id>(std::upper_bound(index.begin(), index.end(), x) - index.begin()) - 1;
     if (p < 0) return -1;
     lo = p * rpp;
     hi = std::min(t.elements.rows(), lo + rpp);
+    // Values grow about evenly across a page (every element owns about the
+    // same): x's share of the page's range, from the index alone.
+    if (static_cast<size_t>(p + 1) < index.size() && index[p + 1] > index[p] && hi > lo) {
+      const double share = (static_cast<double>(x) - static_cast<double>(index[p])) /
+                           (static_cast<double>(index[p + 1]) - static_cast<double>(index[p]));
+      guess = lo + std::clamp<Id>(static_cast<Id>(share * static_cast<double>(hi - lo)), 0, hi - lo - 1);
+    }
   }
   if (index.empty() && hi - lo > t.elements.run(lo)) {  // paged without an index: not a store we write
     while (lo < hi) {
@@ -109,7 +117,7 @@ Id search_elements(const MeshTables& t, Id x, bool by_node, MeshCursor& cur) {
     }
     return lo - 1;
   }
-  return R.search_first(lo, hi, x, by_node) - 1;
+  return R.search_first(lo, hi, x, by_node, guess) - 1;
 }
 
 }  // namespace

@@ -357,7 +357,7 @@ Id RowReader::element_first(Id h) const {
   return t_.elements.row(h, c_.elements)[ElementCols::of(t_.mode).element_first()];
 }
 
-Id RowReader::search_first(Id lo, Id hi, Id x, bool by_node) const {
+Id RowReader::search_first(Id lo, Id hi, Id x, bool by_node, Id guess) const {
   if (lo >= hi) return lo;
   const ElementCols L = ElementCols::of(t_.mode);
   const int col = by_node ? L.node_first() : L.element_first();
@@ -365,7 +365,29 @@ Id RowReader::search_first(Id lo, Id hi, Id x, bool by_node) const {
   // One row pointer for the run [lo, hi) on one page (or in memory).
   DICER_ASSERT(lo >= 0 && hi <= t_.elements.rows() && hi - lo <= t_.elements.run(lo), "search_first: one page");
   const std::int64_t* base = t_.elements.row(lo, c_.elements) + col;
-  Id a = lo, b = hi;
+  auto at = [&](Id r) { return base[(r - lo) * w]; };
+  Id a = lo, b = hi;  // the answer lies in [a, b]
+  if (guess >= lo && guess < hi) {
+    if (at(guess) <= x) {
+      a = guess + 1;
+      for (Id step = 1; guess + step < hi; step *= 2) {
+        if (at(guess + step) > x) {
+          b = guess + step;
+          break;
+        }
+        a = guess + step + 1;
+      }
+    } else {
+      b = guess;
+      for (Id step = 1; guess - step >= lo; step *= 2) {
+        if (at(guess - step) <= x) {
+          a = guess - step + 1;
+          break;
+        }
+        b = guess - step;
+      }
+    }
+  }
   while (a < b) {
     const Id mid = a + (b - a) / 2;
     if (base[(mid - lo) * w] <= x) a = mid + 1;
