@@ -119,19 +119,29 @@ void BM_NodeCursor(benchmark::State& st) {
 
 // The batch API alone (batch.hpp): every node once with coordinates and
 // every element with its connectivity, slab by slab, no checksum.
-void BM_Batches(benchmark::State& st) {
+// Every batch of the sphere at interval st.range(0), with the arrays `opt` asks.
+void batches_rate(benchmark::State& st, const BatchOptions& opt) {
   const FineMesh& m = sphere(st.range(0));
   Id nodes = 0;
   for (auto _ : st) {
-    BatchCursor c(m);
+    BatchCursor c(m, 0, -1, opt);
     FineBatch b;
     while (c.next(b)) {
       benchmark::DoNotOptimize(b.x.data());
       benchmark::DoNotOptimize(b.conn.data());
+      benchmark::DoNotOptimize(b.grid.data());
     }
     nodes += m.num_nodes();
   }
   st.counters["nodes_per_s"] = benchmark::Counter(static_cast<double>(nodes), benchmark::Counter::kIsRate);
+}
+void BM_Batches(benchmark::State& st) { batches_rate(st, {}); }
+// The sweep's batches: coordinates and the slab's grid of node ids, no
+// connectivity formed (BatchOptions::grid).
+void BM_BatchesGrid(benchmark::State& st) {
+  BatchOptions opt;
+  opt.conn = false, opt.grid = true;
+  batches_rate(st, opt);
 }
 
 }  // namespace
@@ -144,24 +154,5 @@ BENCHMARK(BM_NodeQuery)->Args({8, 0})->Args({32, 0})->Args({8, 1})->Args({32, 1}
 BENCHMARK(BM_ElementQuery)->Arg(8)->Arg(32);
 BENCHMARK(BM_NodeCursor)->Arg(8)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Batches)->Arg(8)->Arg(32)->Unit(benchmark::kMillisecond);
-
-// The sweep's batches: coordinates and the slab's grid of node ids, no
-// connectivity formed (BatchOptions::grid).
-void BM_BatchesGrid(benchmark::State& st) {
-  const FineMesh& m = sphere(st.range(0));
-  BatchOptions opt;
-  opt.conn = false, opt.grid = true;
-  Id nodes = 0;
-  for (auto _ : st) {
-    BatchCursor c(m, 0, -1, opt);
-    FineBatch b;
-    while (c.next(b)) {
-      benchmark::DoNotOptimize(b.x.data());
-      benchmark::DoNotOptimize(b.grid.data());
-    }
-    nodes += m.num_nodes();
-  }
-  st.counters["nodes_per_s"] = benchmark::Counter(static_cast<double>(nodes), benchmark::Counter::kIsRate);
-}
 BENCHMARK(BM_BatchesGrid)->Arg(8)->Arg(32)->Unit(benchmark::kMillisecond);
 BENCHMARK_MAIN();

@@ -130,15 +130,14 @@ DICER_CLONES void hex_interior_plane(const double* a0, const double* aN, const d
 // sj, plane stride sk). Eight row pointers and one store per corner and
 // element, so the compiler keeps the loop free of index arithmetic.
 DICER_CLONES void hex_conn_row(const Id* p, Id sj, Id sk, Id m, Id* out) {
-  const Id *a = p, *b = p + sj, *c = p + sk, *d = p + sk + sj;
-  for (Id i = 0; i < m; ++i, out += 8) {
-    out[0] = a[i], out[1] = a[i + 1], out[2] = b[i + 1], out[3] = b[i];
-    out[4] = c[i], out[5] = c[i + 1], out[6] = d[i + 1], out[7] = d[i];
-  }
+  const Id* const rows[4] = {p, p + sj, p + sk, p + sk + sj};
+  for (Id i = 0; i < m; ++i, out += 8)
+    for (int q = 0; q < 8; ++q) out[q] = grid_cell_corner(rows, i, q);
 }
 void quad_conn_row(const Id* p, Id sj, Id m, Id* out) {
-  const Id *a = p, *b = p + sj;
-  for (Id i = 0; i < m; ++i, out += 4) out[0] = a[i], out[1] = a[i + 1], out[2] = b[i + 1], out[3] = b[i];
+  const Id* const rows[2] = {p, p + sj};
+  for (Id i = 0; i < m; ++i, out += 4)
+    for (int q = 0; q < 4; ++q) out[q] = grid_cell_corner(rows, i, q);
 }
 
 }  // namespace

@@ -13,6 +13,7 @@
 
 #include "dicer/batch.hpp"
 #include "dicer/error.hpp"
+#include "dicer/orientation.hpp"
 #include "dicer/rows.hpp"
 #include "clones.hpp"
 #include "work_split.hpp"
@@ -71,14 +72,16 @@ DICER_HASH_CLONES std::uint64_t sum_quads(std::uint64_t first, const Id* conn, s
   return sum_elements<4>(first, conn, n);
 }
 
-// Hex terms of one row of m elements whose corners come from grid rows a
-// (j, k), b (j + 1, k), c (j, k + 1), d (j + 1, k + 1), in kHexCorner order
-// (fill.cpp's hex_conn_row): contiguous loads, no connectivity formed.
-DICER_HASH_CLONES std::uint64_t sum_hex_row(std::uint64_t first, const Id* a, const Id* b, const Id* c, const Id* d,
+// Hex terms of elements i0 .. i0 + m - 1 of one row, their corners read
+// from the grid rows around it (grid_cell_corner): contiguous loads, no
+// connectivity formed.
+DICER_HASH_CLONES std::uint64_t sum_hex_row(std::uint64_t first, const Id* const* rows, std::int64_t i0,
                                             std::int64_t m) {
+  const Id* const r[4] = {rows[0], rows[1], rows[2], rows[3]};  // held in registers
   std::uint64_t sum = 0;
-  for (std::int64_t i = 0; i < m; ++i) {
-    const Id nodes[8] = {a[i], a[i + 1], b[i + 1], b[i], c[i], c[i + 1], d[i + 1], d[i]};
+  for (std::int64_t i = i0; i < i0 + m; ++i) {
+    Id nodes[8];
+    for (int q = 0; q < 8; ++q) nodes[q] = grid_cell_corner(r, i, q);
     sum += element_term<8>(first + static_cast<std::uint64_t>(i), nodes);
   }
   return sum;
@@ -122,18 +125,17 @@ std::uint64_t checksum_hex_grid(Id first, const std::array<Id, 3>& n, Id layers,
   for (Id k = 0; k < layers; ++k)
     for (Id j = 0; j < n[1]; ++j, id += static_cast<std::uint64_t>(n[0])) {
       const Id ra = j + (n[1] + 1) * k, rc = ra + n[1] + 1;
-      const Id *a = grid.data() + ra * ni, *b = a + ni, *c = grid.data() + rc * ni, *d = c + ni;
+      const Id* const rows[4] = {grid.data() + ra * ni, grid.data() + (ra + 1) * ni, grid.data() + rc * ni,
+                                 grid.data() + (rc + 1) * ni};
       if (!(run[ra] && run[ra + 1] && run[rc] && run[rc + 1])) {
-        sum += sum_hex_row(id, a, b, c, d, n[0]);
+        sum += sum_hex_row(id, rows, 0, n[0]);
         continue;
       }
       // Elements 1 .. n0 - 2 read only the rows' consecutive interiors: each
       // argument is the one before plus `step`. The two end elements in full.
-      const Id e = n[0] - 1;
-      sum += sum_hex_row(id, a, b, c, d, 1) + sum_hex_row(id + static_cast<std::uint64_t>(e), a + e, b + e, c + e, d + e, 1);
-      const Id nodes[8] = {a[1], a[2], b[2], b[1], c[1], c[2], d[2], d[1]};
+      sum += sum_hex_row(id, rows, 0, 1) + sum_hex_row(id, rows, n[0] - 1, 1);
       std::uint64_t h = (id + 1) * K[4];  // element 1's argument
-      for (int q = 0; q < 8; ++q) h += static_cast<std::uint64_t>(nodes[q]) * K[5 + q];
+      for (int q = 0; q < 8; ++q) h += static_cast<std::uint64_t>(grid_cell_corner(rows, 1, q)) * K[5 + q];
       sum += sum_fmix_run(h, step, n[0] - 2);
     }
   return sum;

@@ -26,6 +26,16 @@ namespace dicer {
 inline constexpr int kHexCorner[8][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0},
                                          {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
 
+// Corner q of a structured grid's cell, read from the grid rows around it:
+// rows[0] holds grid row (j, k), rows[1] (j + 1, k), rows[2] (j, k + 1),
+// rows[3] (j + 1, k + 1), and the cell's corner 0 is point i of rows[0]
+// (quads: rows[0..1], q < 4). Block connectivity and the sweep's checksum
+// read cells this way; a constant q folds to one load.
+template <class T>
+constexpr T grid_cell_corner(const T* const* rows, std::int64_t i, int q) {
+  return rows[kHexCorner[q][1] + 2 * kHexCorner[q][2]][i + kHexCorner[q][0]];
+}
+
 // Local hex edges: 0-3 run along i, 4-7 along j, 8-11 along k, each from its
 // lower to its higher local coordinate. kHexEdgeAxis[e] = e / 4.
 inline constexpr int kHexEdge[12][2] = {{0, 1}, {3, 2}, {4, 5}, {7, 6}, {0, 3}, {1, 2},
