@@ -115,50 +115,55 @@ Vec3 Evaluator::face_point(const FaceRow& f, Id u, Id v) const {
 // values, and so the bits, are those the owners compute.
 Vec3 Evaluator::cell_point(const ElementRow& h, Id hid, Id i, Id j, Id k) const {
   const Id t[3] = {i, j, k};
-  Vec3 corner[8];
-  R.corner_xyz(hid, corner);
+  Uninitialised<Vec3, 8> corner;
+  R.corner_xyz(hid, corner.data());
   double f[3][6], e[3][12], c[3][8];
-  Vec3 ep[12];
-  // The point's parameter along each axis. An edge or a face side along
-  // axis a read backwards has, graded, 1 - s there: the reversed series at
-  // n - t, bit for bit (tfi.hpp: graded parameters make 1 - s exact), so
-  // one series per axis serves every edge and face. Equal spacing keeps
-  // t / n in each entity's own frame.
-  double s[3];
-  for (int a = 0; a < 3; ++a) s[a] = tfi::param(t[a], h.n[a], h.grading[a]);
-  auto along = [&](int a, bool backwards, Id tc) {
-    if (h.grading[a].kind == tfi::Spacing::Equal) return tfi::weight(tc, h.n[a]);
-    return backwards ? 1.0 - s[a] : s[a];
-  };
+  Uninitialised<Vec3, 12> ep;
+  // The point's parameter along each axis, and the weight every edge and
+  // face side along axis a takes there: read forwards (canonical index
+  // t[a]) or backwards (n - t[a]). Graded, backwards is 1 - s: the reversed
+  // series at n - t, bit for bit (tfi.hpp: graded parameters make 1 - s
+  // exact), so one series per axis serves every edge and face. Equal
+  // spacing keeps t / n in each entity's own frame: weight(n - t, n). Two
+  // divisions per axis instead of one per edge and face side.
+  double s[3], along[3][2];
+  for (int a = 0; a < 3; ++a) {
+    s[a] = tfi::param(t[a], h.n[a], h.grading[a]);
+    const bool equal = h.grading[a].kind == tfi::Spacing::Equal;
+    along[a][0] = equal ? tfi::weight(t[a], h.n[a]) : s[a];
+    along[a][1] = equal ? tfi::weight(h.n[a] - t[a], h.n[a]) : 1.0 - s[a];
+  }
+  const bool curved = h.curved();
   for (int q = 0; q < 12; ++q) {
-    const Id n = h.n[q / 4], tc = h.rev(q) ? n - t[q / 4] : t[q / 4];
-    if (h.curved()) {
-      ep[q] = edge_point(edge_of(h, q), tc);
+    const bool rev = h.rev(q);
+    if (curved) {
+      const Id n = h.n[q / 4];
+      ep[q] = edge_point(edge_of(h, q), rev ? n - t[q / 4] : t[q / 4]);
     } else {
       // Canonical direction: lo -> hi vertex id; rev means local end 1 is lo.
-      const bool rev = h.rev(q);
-      ep[q] = lerp(corner[kHexEdge[q][rev ? 1 : 0]], corner[kHexEdge[q][rev ? 0 : 1]], along(q / 4, rev, tc));
+      ep[q] = lerp(corner[kHexEdge[q][rev ? 1 : 0]], corner[kHexEdge[q][rev ? 0 : 1]], along[q / 4][rev]);
     }
     e[0][q] = ep[q].x, e[1][q] = ep[q].y, e[2][q] = ep[q].z;
   }
   for (int q = 0; q < 6; ++q) {
     const FaceCode code = h.code(q);
-    const auto [nu, nv] = face_intervals(h, q, Mode::Volume);
-    const FaceMap fm = face_map(code, nu, nv);
     const int A = kHexFaceAxes[q][0], B = kHexFaceAxes[q][1];
-    const Id a = t[A], b = t[B];
     Vec3 x;
-    if (h.curved()) {
-      x = face_point(R.face(h.face[q]), fm.u(a, b), fm.v(a, b));
+    if (curved) {
+      const auto [nu, nv] = face_intervals(h, q, Mode::Volume);
+      const FaceMap fm = face_map(code, nu, nv);
+      x = face_point(R.face(h.face[q]), fm.u(t[A], t[B]), fm.v(t[A], t[B]));
     } else {
-      const auto cc = face_canonical_corners(Mode::Volume, q, code);
-      Vec3 sides[4];
+      const auto& cc = face_canonical_corners(Mode::Volume, q, code);
+      Uninitialised<Vec3, 4> sides;
       for (int side = 0; side < 4; ++side) sides[side] = ep[hex_face_side_edge(q, code, side)];
       const Vec3 pc[4] = {corner[cc[0]], corner[cc[1]], corner[cc[2]], corner[cc[3]]};
-      // Canonical u runs along local axis A (du/da = up) or B (uq), v likewise.
-      const double wu = fm.up ? along(A, fm.up < 0, fm.u(a, b)) : along(B, fm.uq < 0, fm.u(a, b));
-      const double wv = fm.vp ? along(A, fm.vp < 0, fm.v(a, b)) : along(B, fm.vq < 0, fm.v(a, b));
-      x = coons_point(wu, wv, sides, pc);
+      // Canonical u runs along local axis A (du/da = up) or B (uq), v
+      // likewise; a step of -1 reads that axis backwards (u = nu - t[A]).
+      const FaceMap fm = face_map(code, 1, 1);
+      const double wu = fm.up ? along[A][fm.up < 0] : along[B][fm.uq < 0];
+      const double wv = fm.vp ? along[A][fm.vp < 0] : along[B][fm.vq < 0];
+      x = coons_point(wu, wv, sides.data(), pc);
     }
     f[0][q] = x.x, f[1][q] = x.y, f[2][q] = x.z;
   }

@@ -21,7 +21,8 @@ Vec3 FineMesh::node(Id id, MeshCursor& cur) const {
   if (id < 0 || id >= num_nodes())
     throw Error(ErrorKind::Usage, "node id " + std::to_string(id) + " is out of range (the mesh has " +
                                       std::to_string(num_nodes()) + " nodes)");
-  ElementRow row;
+  detail::Uninitialised<ElementRow> storage;  // locate_node writes every field
+  ElementRow& row = *storage;
   NodeOwner owner;
   const NodeRef ref = dicer::locate_node(tables_, id, cur, &row, &owner);
   const detail::Evaluator E(tables_, cur);
@@ -65,7 +66,8 @@ FineElement FineMesh::element(Id id, MeshCursor& cur) const {
                                       std::to_string(num_elements()) + " elements)");
   FineElement el;
   el.id = id;
-  ElementRow h;
+  detail::Uninitialised<ElementRow> storage;  // locate_element writes every field
+  ElementRow& h = *storage;
   el.coarse_element = dicer::locate_element(tables_, id, el.ijk, cur, &h);
   const detail::Evaluator E(tables_, cur);
   el.block = h.block;
