@@ -6,17 +6,22 @@
 //       pages read, peak cache residency
 //   BM_RandomNode/<store|memory>, BM_RandomElement/<store|memory>
 //       node(id) / element(id) at random ids, warm 64 MiB cache: Time = ns/query
+//   BM_RandomNodeBatch/<store|memory>/<ids>/<sorted>, BM_RandomElementBatch/...
+//       nodes(ids) / elements(ids), `ids` random ids per call (sorted 1:
+//       in increasing order): counter ns_per_id
 //   BM_SweepPages/<ordered 1|input order 0>  pages read per 1e6 fine elements
 //       swept under a 1 MiB budget, Morton-ordered store vs input order
 #include <benchmark/benchmark.h>
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <random>
+#include <span>
 #include <string>
 
 #include "bench_util.hpp"
@@ -90,16 +95,27 @@ void BM_Sweep(benchmark::State& st) {
   st.counters["cache_peak_MiB"] = static_cast<double>(cs.peak_resident_bytes) / (1 << 20);
 }
 
+// What BM_Random* query: the disk at interval 8, from its store under a
+// 64 MiB cache or in memory, and 65,536 random node (element) ids of it.
+template <bool Element>
+struct RandomQueries {
+  FineMesh opened;
+  const FineMesh* m;
+  std::vector<Id> ids = std::vector<Id>(1 << 16);
+  explicit RandomQueries(bool from_store)
+      : opened(from_store ? read_store(store_path(8, true), StoreOptions{64ull << 20, 4}) : FineMesh()),
+        m(from_store ? &opened : &memory_mesh(8)) {
+    std::mt19937_64 rng(7);
+    const Id n = Element ? m->num_elements() : m->num_nodes();
+    for (auto& i : ids) i = std::uniform_int_distribution<Id>(0, n - 1)(rng);
+  }
+};
+
 template <bool Element>
 void BM_Random(benchmark::State& st) {
-  const Id interval = 8;
-  const bool from_store = st.range(0) != 0;
-  FineMesh opened = from_store ? read_store(store_path(interval, true), StoreOptions{64ull << 20, 4}) : FineMesh();
-  const FineMesh& m = from_store ? opened : memory_mesh(interval);
-  std::mt19937_64 rng(7);
-  const Id n = Element ? m.num_elements() : m.num_nodes();
-  std::vector<Id> ids(1 << 16);
-  for (auto& i : ids) i = std::uniform_int_distribution<Id>(0, n - 1)(rng);
+  const RandomQueries<Element> q(st.range(0) != 0);
+  const FineMesh& m = *q.m;
+  const std::vector<Id>& ids = q.ids;
   MeshCursor cur;
   for (Id i : ids) {  // warm the cache
     if constexpr (Element) benchmark::DoNotOptimize(m.element(i, cur));
@@ -110,6 +126,38 @@ void BM_Random(benchmark::State& st) {
     if constexpr (Element) benchmark::DoNotOptimize(m.element(ids[k++ & 0xffff], cur));
     else benchmark::DoNotOptimize(m.node(ids[k++ & 0xffff], cur));
   }
+}
+
+// nodes(ids) / elements(ids): `batch` of BM_Random's ids per call; Time =
+// ns per call, ns_per_id the figure to set beside BM_RandomNode /
+// BM_RandomElement.
+template <bool Element>
+void BM_RandomBatch(benchmark::State& st) {
+  RandomQueries<Element> q(st.range(0) != 0);
+  const FineMesh& m = *q.m;
+  std::vector<Id>& ids = q.ids;
+  const auto batch = static_cast<size_t>(st.range(1));
+  if (st.range(2) != 0)  // each call's ids in increasing order (a node set, say): no sort inside
+    for (size_t k = 0; k < ids.size() / batch; ++k)
+      std::sort(ids.begin() + static_cast<std::ptrdiff_t>(k * batch),
+                ids.begin() + static_cast<std::ptrdiff_t>((k + 1) * batch));
+  std::vector<Vec3> pts(batch);
+  std::vector<FineElement> els(batch);
+  MeshCursor cur;
+  auto call = [&](size_t k) {
+    const std::span<const Id> some = std::span<const Id>(ids).subspan((k * batch) % ids.size(), batch);
+    if constexpr (Element) m.elements(some, els, cur);
+    else m.nodes(some, pts, cur);
+  };
+  for (size_t k = 0; k < ids.size() / batch; ++k) call(k);  // warm the cache
+  size_t k = 0;
+  for (auto _ : st) {
+    call(k++);
+    benchmark::DoNotOptimize(pts.data());
+    benchmark::DoNotOptimize(els.data());
+  }
+  st.counters["ns_per_id"] = benchmark::Counter(static_cast<double>(st.iterations() * batch) * 1e-9,
+                                                benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
 }
 
 void BM_SweepPages(benchmark::State& st) {
@@ -136,6 +184,8 @@ void BM_SweepPages(benchmark::State& st) {
 BENCHMARK(BM_Sweep)->Args({64, 1})->Args({64, 0})->Iterations(1)->Unit(benchmark::kSecond);
 BENCHMARK_TEMPLATE(BM_Random, false)->Arg(1)->Arg(0)->Name("BM_RandomNode");
 BENCHMARK_TEMPLATE(BM_Random, true)->Arg(1)->Arg(0)->Name("BM_RandomElement");
+BENCHMARK_TEMPLATE(BM_RandomBatch, false)->ArgsProduct({{1, 0}, {4096, 65536}, {0, 1}})->Name("BM_RandomNodeBatch");
+BENCHMARK_TEMPLATE(BM_RandomBatch, true)->ArgsProduct({{1, 0}, {4096, 65536}, {0, 1}})->Name("BM_RandomElementBatch");
 BENCHMARK(BM_SweepPages)->Arg(1)->Arg(0)->Iterations(1);
 
 int main(int argc, char** argv) {

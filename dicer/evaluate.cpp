@@ -113,10 +113,11 @@ Vec3 Evaluator::face_point(const FaceRow& f, Id u, Id v) const {
 // edge's ends and a face's corners are hex corners, every interval the
 // hex's own along that axis); a curved one from the owners' rows. The
 // values, and so the bits, are those the owners compute.
-Vec3 Evaluator::cell_point(const ElementRow& h, Id hid, Id i, Id j, Id k) const {
+Vec3 Evaluator::cell_point(const ElementRow& h, Id hid, Id i, Id j, Id k, const Vec3* corners) const {
   const Id t[3] = {i, j, k};
-  Uninitialised<Vec3, 8> corner;
-  R.corner_xyz(hid, corner.data());
+  Uninitialised<Vec3, 8> read;
+  if (!corners) R.corner_xyz(hid, read.data());
+  const Vec3* corner = corners ? corners : read.data();
   double f[3][6], e[3][12], c[3][8];
   Uninitialised<Vec3, 12> ep;
   // The point's parameter along each axis, and the weight every edge and
@@ -251,12 +252,14 @@ Id Evaluator::grid_node_id(const ElementRow& h, Id i, Id j, Id k) const {
   return ids::cell_node(h.cell_node, h.n, i, j, k);
 }
 
-Vec3 Evaluator::straight_owned_point(const ElementRow& h, Id hid, int slot, const NodeRef& r) const {
+Vec3 Evaluator::straight_owned_point(const ElementRow& h, Id hid, int slot, const NodeRef& r,
+                                     const Vec3* corners) const {
   DICER_ASSERT(!h.curved() && r.kind != EntityKind::Cell, "straight_owned_point: a straight element's own boundary");
   const Mode m = mode();
   const bool vol = m == Mode::Volume;
-  Vec3 corner[8];
-  R.corner_xyz(hid, corner);
+  Uninitialised<Vec3, 8> read;
+  if (!corners) R.corner_xyz(hid, read.data());
+  const Vec3* corner = corners ? corners : read.data();
   if (r.kind == EntityKind::Vertex) return corner[slot];
   // Local edge k at canonical t, as edge_point: lo -> hi vertex id.
   auto edge_at = [&](int k, Id t) {
@@ -271,7 +274,7 @@ Vec3 Evaluator::straight_owned_point(const ElementRow& h, Id hid, int slot, cons
   const auto [nu, nv] = face_intervals(h, slot, m);
   const auto cc = face_canonical_corners(m, slot, code);
   const Id u = r.local[0], v = r.local[1];
-  Vec3 sides[4];
+  Uninitialised<Vec3, 4> sides;
   for (int side = 0; side < 4; ++side) {
     const Id len = side < 2 ? nu : nv, s = side < 2 ? u : v;
     const bool forward = h.corner[cc[kQuadEdge[side][0]]] < h.corner[cc[kQuadEdge[side][1]]];
@@ -279,7 +282,7 @@ Vec3 Evaluator::straight_owned_point(const ElementRow& h, Id hid, int slot, cons
   }
   const Vec3 p[4] = {corner[cc[0]], corner[cc[1]], corner[cc[2]], corner[cc[3]]};
   const auto g = face_grading(m, h, slot);
-  return coons_point(tfi::param(u, nu, g[0]), tfi::param(v, nv, g[1]), sides, p);
+  return coons_point(tfi::param(u, nu, g[0]), tfi::param(v, nv, g[1]), sides.data(), p);
 }
 
 Vec3 Evaluator::node(const NodeRef& r) const {

@@ -50,13 +50,15 @@ struct Evaluator {
   // Face point at canonical (u, v), moved when bounded.
   Vec3 face_point(const FaceRow& f, Id u, Id v) const;
   // Interior point (i, j, k) of element h, row hid (0 < i < n1 ...).
-  Vec3 cell_point(const ElementRow& h, Id hid, Id i, Id j, Id k) const;
+  // `corners`: h's corner coordinates (corner_xyz) when already read.
+  Vec3 cell_point(const ElementRow& h, Id hid, Id i, Id j, Id k, const Vec3* corners = nullptr) const;
   // A vertex, edge or face node that straight element h owns, at local
   // slot `slot` (NodeOwner), from h's corners alone: the values and bits
   // of node(r) (a straight element's edges and faces are straight: the
   // inputs are copies of the same corner coordinates), without reading the
   // entity's rows or its vertices' owners.
-  Vec3 straight_owned_point(const ElementRow& h, Id hid, int slot, const NodeRef& r) const;
+  Vec3 straight_owned_point(const ElementRow& h, Id hid, int slot, const NodeRef& r,
+                            const Vec3* corners = nullptr) const;
   // The owner's view of grid point (i, j, k) of element h.
   NodeRef grid_node(const ElementRow& h, Id hid, Id i, Id j, Id k) const;
   // Its node id, from the element row alone.

@@ -138,32 +138,37 @@ Id owner_element(const MeshTables& t, Id id, MeshCursor& cur) {
 
 NodeRef locate_node(const MeshTables& t, Id id, MeshCursor& cur, ElementRow* owner_row, NodeOwner* owner) {
   const Id hid = owner_element(t, id, cur);
-  const RowReader R(t, cur);
   ElementRow local;
   ElementRow& h = owner_row ? *owner_row : local;
-  R.element(hid, h);
+  RowReader(t, cur).element(hid, h);
+  return owned_node(t, hid, h, id, cur, owner);
+}
+
+NodeRef owned_node(const MeshTables& t, Id hid, const ElementRow& h, Id id, MeshCursor& cur, NodeOwner* owner) {
   const bool vol = t.mode == Mode::Volume;
+  const int corners = vol ? 8 : 4, edges = vol ? 12 : 4, faces = vol ? 6 : 1;
   auto at = [&](int slot, NodeRef r) {
     if (owner) *owner = NodeOwner{hid, slot};
     return r;
   };
   if (vol && id >= h.cell_node && id - h.cell_node < ids::cell_nodes(h.n))
     return at(-1, NodeRef{EntityKind::Cell, hid, ids::cell_local(id - h.cell_node, h.n)});
-  for (int k = 0; k < R.corners(); ++k)
+  for (int k = 0; k < corners; ++k)
     if (h.corner_node[k] == id) return at(k, NodeRef{EntityKind::Vertex, h.corner[k], {0, 0, 0}});
-  for (int k = 0; k < R.edges(); ++k) {
+  for (int k = 0; k < edges; ++k) {
     const Id n = h.n[vol ? k / 4 : k / 2];
     if (h.owns(h.edge_node[k]) && id >= h.edge_node[k] && id - h.edge_node[k] < ids::edge_nodes(n))
       return at(k, NodeRef{EntityKind::Edge, h.edge[k], {id - h.edge_node[k] + 1, 0, 0}});
   }
-  for (int k = 0; k < R.faces(); ++k) {
+  for (int k = 0; k < faces; ++k) {
     const auto [nu, nv] = face_intervals(h, k, t.mode);
     if (h.owns(h.face_node[k]) && id >= h.face_node[k] && id - h.face_node[k] < ids::face_nodes(nu, nv)) {
       const auto uv = ids::face_local(id - h.face_node[k], nu);
       return at(k, NodeRef{EntityKind::Face, h.face[k], {uv[0], uv[1], 0}});
     }
   }
-  R.corrupt(RowTable::Elements, hid, "node " + std::to_string(id) + " is in none of the entities the element owns");
+  RowReader(t, cur).corrupt(RowTable::Elements, hid,
+                            "node " + std::to_string(id) + " is in none of the entities the element owns");
 }
 
 Id node_id(const MeshTables& t, const NodeRef& r, MeshCursor& cur) {

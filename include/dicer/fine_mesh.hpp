@@ -155,6 +155,17 @@ class FineMesh {
   Vec3 node(Id id, MeshCursor& cur) const;
   FineElement element(Id id, MeshCursor& cur) const;
   Vec3 node(const NodeRef& ref, MeshCursor& cur) const;
+  // Many queries at once: out[q] = node(ids[q], cur) (element(ids[q],
+  // cur)), bit for bit, ids in any order, repeats allowed; Error{Usage}
+  // unless out.size() == ids.size(). The ids are visited in increasing
+  // order (sorted through an index when they are not already: O(n log n)
+  // time, 8n bytes), so each coarse element is searched for, decoded and
+  // has its corners read once for all the ids it holds: much cheaper per id
+  // than one call each when ids share coarse elements (bench/README).
+  // Errors as one call each, the lowest bad id's; out is then partly
+  // written.
+  void nodes(std::span<const Id> ids, std::span<Vec3> out, MeshCursor& cur) const;
+  void elements(std::span<const Id> ids, std::span<FineElement> out, MeshCursor& cur) const;
 
   // Numbering (DESIGN.md invariant 3), see numbering.hpp for the layout.
   // The nodes coarse elements [first, end) own: one id range.

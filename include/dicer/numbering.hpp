@@ -114,6 +114,11 @@ struct NodeOwner {
 // `owner` the element and the slot.
 NodeRef locate_node(const MeshTables& t, Id id, MeshCursor& cur, ElementRow* owner_row = nullptr,
                     NodeOwner* owner = nullptr);
+// The entity of element hid (its decoded row h) holding node id, which h
+// owns (owner_element(id) == hid): locate_node after the search and the
+// decode. Corrupt when none of h's entities holds id.
+NodeRef owned_node(const MeshTables& t, Id hid, const ElementRow& h, Id id, MeshCursor& cur,
+                   NodeOwner* owner = nullptr);
 Id node_id(const MeshTables& t, const NodeRef& r, MeshCursor& cur);
 // Fine element id -> coarse element h and (i, j, k); `row` as above.
 Id locate_element(const MeshTables& t, Id id, std::array<Id, 3>& ijk, MeshCursor& cur, ElementRow* row = nullptr);

@@ -175,6 +175,11 @@ IdSelection select_ids(const char* what, const py::object& first, const py::obje
   return sel;
 }
 
+// Ids per call of FineMesh::nodes / elements for nodes(ids) and
+// elements(ids): their work space stays bounded (under 30 MiB) whatever
+// the number of ids.
+constexpr size_t kIdsPerCall = size_t{1} << 18;
+
 py::array nodes(const Store& s, const py::object& first, const py::object& stop) {
   const Mesh m = s.get();
   const IdSelection sel = select_ids("node", first, stop, m->num_nodes());
@@ -188,10 +193,17 @@ py::array nodes(const Store& s, const py::object& first, const py::object& stop)
       Vec3 p;
       for (size_t i = 0; cur.next(id, p); ++i) xyz[3 * i] = p.x, xyz[3 * i + 1] = p.y, xyz[3 * i + 2] = p.z;
     } else {
+      // FineMesh::nodes, a bounded piece at a time: each piece visits its
+      // ids in order, sharing every coarse element's search and row.
       MeshCursor cur;
-      for (size_t i = 0; i < sel.ids.size(); ++i) {
-        const Vec3 p = m->node(sel.ids[i], cur);
-        xyz[3 * i] = p.x, xyz[3 * i + 1] = p.y, xyz[3 * i + 2] = p.z;
+      std::vector<Vec3> piece(std::min(sel.ids.size(), kIdsPerCall));
+      for (size_t i0 = 0; i0 < sel.ids.size(); i0 += piece.size()) {
+        const size_t n = std::min(piece.size(), sel.ids.size() - i0);
+        m->nodes(std::span<const Id>(sel.ids).subspan(i0, n), std::span<Vec3>(piece).first(n), cur);
+        for (size_t i = 0; i < n; ++i) {
+          const Vec3& p = piece[i];
+          xyz[3 * (i0 + i)] = p.x, xyz[3 * (i0 + i) + 1] = p.y, xyz[3 * (i0 + i) + 2] = p.z;
+        }
       }
     }
   }
@@ -233,7 +245,12 @@ ElementRows element_rows(const Store& s, const py::object& first, const py::obje
     for (size_t i = 0; cur.next(e); ++i) put(i, e);
   } else {
     MeshCursor cur;
-    for (size_t i = 0; i < sel.ids.size(); ++i) put(i, m.element(sel.ids[i], cur));
+    std::vector<FineElement> piece(std::min(sel.ids.size(), kIdsPerCall));
+    for (size_t i0 = 0; i0 < sel.ids.size(); i0 += piece.size()) {
+      const size_t n = std::min(piece.size(), sel.ids.size() - i0);
+      m.elements(std::span<const Id>(sel.ids).subspan(i0, n), std::span<FineElement>(piece).first(n), cur);
+      for (size_t i = 0; i < n; ++i) put(i0 + i, piece[i]);
+    }
   }
   return r;
 }

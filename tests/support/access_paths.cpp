@@ -3,8 +3,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <bit>
 #include <cstdint>
+#include <random>
 #include <vector>
 
 #include "dicer/batch.hpp"
@@ -59,12 +61,45 @@ void expect_paths_bit_identical(const FineMesh& f, const std::string& store_path
     EXPECT_EQ(batched, f.num_nodes());
   }
 
+  // Batched queries over every id, shuffled, with repeats: node(id)'s and
+  // element(id)'s bits, in memory and (below) from the store.
+  std::mt19937_64 rng(static_cast<std::uint64_t>(f.num_nodes()));
+  auto check_batched_queries = [&](const FineMesh& m, const char* where) {
+    std::vector<Id> ids;
+    for (Id id = 0; id < m.num_nodes(); ++id) ids.push_back(id);
+    for (Id r = 0; r < m.num_nodes() / 4; ++r) ids.push_back(std::uniform_int_distribution<Id>(0, m.num_nodes() - 1)(rng));
+    std::shuffle(ids.begin(), ids.end(), rng);
+    std::vector<Vec3> pts(ids.size());
+    MeshCursor cur;
+    m.nodes(ids, pts, cur);
+    for (size_t q = 0; q < ids.size(); ++q)
+      ASSERT_TRUE(same_bits(pts[q], by_id[static_cast<size_t>(ids[q])])) << where << " nodes(), node " << ids[q];
+    ids.clear();
+    for (Id e = 0; e < m.num_elements(); ++e) ids.push_back(e);
+    for (Id r = 0; r < m.num_elements() / 4; ++r)
+      ids.push_back(std::uniform_int_distribution<Id>(0, m.num_elements() - 1)(rng));
+    std::shuffle(ids.begin(), ids.end(), rng);
+    std::vector<FineElement> els(ids.size());
+    m.elements(ids, els, cur);
+    for (size_t q = 0; q < ids.size(); ++q) {
+      const FineElement one = f.element(ids[q]);
+      ASSERT_EQ(els[q].id, one.id) << where;
+      ASSERT_EQ(els[q].nodes, one.nodes) << where << " elements(), element " << ids[q];
+      ASSERT_EQ(els[q].num_nodes, one.num_nodes);
+      ASSERT_EQ(els[q].coarse_element, one.coarse_element);
+      ASSERT_EQ(els[q].block, one.block);
+      ASSERT_EQ(els[q].ijk, one.ijk) << where << " elements(), element " << ids[q];
+    }
+  };
+  check_batched_queries(f, "in memory");
+
   write_store(f, store_path);
   const FineMesh s = read_store(store_path, StoreOptions{4ull << 20, 0});
   EXPECT_EQ(s.num_bounding_nodes(), f.num_bounding_nodes());
   EXPECT_EQ(s.info().source_order, f.info().source_order);
   EXPECT_EQ(s.sheet_gradings(), f.sheet_gradings());
   for (Id id = 0; id < s.num_nodes(); ++id) ASSERT_TRUE(same_bits(s.node(id), by_id[id])) << "store node " << id;
+  check_batched_queries(s, "store");
   NodeCursor sc(s);
   Id id;
   Vec3 p;
