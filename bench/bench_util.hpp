@@ -1,6 +1,6 @@
 #pragma once
 // Helpers shared by the benchmark binaries: peak-RSS probes, clocks,
-// environment overrides and a generated box of coarse hexes.
+// environment overrides, and (box_mesh.hpp) a generated box of coarse hexes.
 #include <benchmark/benchmark.h>
 #include <malloc.h>
 
@@ -10,6 +10,7 @@
 #include <fstream>
 #include <string>
 
+#include "box_mesh.hpp"
 #include "dicer/coarse_mesh.hpp"
 
 namespace dicer::bench {
@@ -64,33 +65,6 @@ inline void write_xyz(double* x, double* y, double* z, size_t n, double v) {
   benchmark::DoNotOptimize(y);
   benchmark::DoNotOptimize(z);
   benchmark::ClobberMemory();
-}
-
-// nx x ny x nz unit hexes in one block, vertices numbered x fastest, hexes
-// in HEX8 order (bottom face then top face, counter-clockwise seen from +z):
-// the mesh scripts/bench_box_msh.py writes as MSH, built in memory so a
-// benchmark needs no input file.
-inline CoarseMesh box_coarse_mesh(Id nx, Id ny, Id nz) {
-  CoarseMesh m;
-  m.source = "box " + std::to_string(nx) + "x" + std::to_string(ny) + "x" + std::to_string(nz);
-  auto v = [&](Id i, Id j, Id k) { return i + (nx + 1) * (j + (ny + 1) * k); };
-  for (Id k = 0; k <= nz; ++k)
-    for (Id j = 0; j <= ny; ++j)
-      for (Id i = 0; i <= nx; ++i) {
-        m.x.push_back(static_cast<double>(i)), m.y.push_back(static_cast<double>(j)), m.z.push_back(static_cast<double>(k));
-        m.vertex_file_id.push_back(v(i, j, k) + 1);
-      }
-  for (Id k = 0; k < nz; ++k)
-    for (Id j = 0; j < ny; ++j)
-      for (Id i = 0; i < nx; ++i) {
-        for (Id c : {v(i, j, k), v(i + 1, j, k), v(i + 1, j + 1, k), v(i, j + 1, k), v(i, j, k + 1), v(i + 1, j, k + 1),
-                     v(i + 1, j + 1, k + 1), v(i, j + 1, k + 1)})
-          m.conn.push_back(c);
-        m.element_file_id.push_back(static_cast<Id>(m.element_file_id.size()) + 1);
-        m.element_block.push_back(0);
-      }
-  m.blocks.push_back(Block{1, "box"});
-  return m;
 }
 
 }  // namespace dicer::bench

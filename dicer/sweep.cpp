@@ -8,6 +8,7 @@
 #include <cstring>
 #include <exception>
 #include <mutex>
+#include <optional>
 #include <thread>
 #include <vector>
 
@@ -220,12 +221,17 @@ SweepResult sweep(const FineMesh& mesh, unsigned threads, const std::function<vo
     ne = efirst(end_coarse) - efirst(first_coarse);
   }
   const Id total = nn + ne;
-  const std::vector<Id> split = detail::split_work(mesh, threads, first_coarse, end_coarse);
+  // Chunks of about equal work, taken by whichever thread is free: a static
+  // split of one range per thread left the whole sweep waiting on its
+  // slowest core (16 cores: bench/README.md, thread scaling).
+  const unsigned chunks = threads == 1 ? 1 : threads * kSweepChunksPerThread;
+  const std::vector<Id> split = detail::split_work(mesh, chunks, first_coarse, end_coarse);
+  std::atomic<unsigned> next_chunk{0};
   std::atomic<Id> done{0};
   std::vector<std::uint64_t> sums(threads, 0);
   std::vector<std::exception_ptr> errors(threads);
-  // One pass over coarse elements in store order, a batch (slab) at a
-  // time: each page of the store is read once per sweep.
+  // Coarse elements in store order, a batch (slab) at a time: each chunk a
+  // contiguous run, so a page of the store is read about once per sweep.
   auto work = [&](unsigned t) {
     try {
       std::uint64_t sum = 0;
@@ -234,19 +240,24 @@ SweepResult sweep(const FineMesh& mesh, unsigned threads, const std::function<vo
       BatchOptions opt;
       opt.grid = mesh.mode() == Mode::Volume;
       opt.conn = !opt.grid;
-      BatchCursor batches(mesh, split[t], split[t + 1], opt);
+      std::optional<BatchCursor> batches;
       FineBatch b;
-      while (batches.next(b)) {
-        sum += checksum_nodes(b.node_begin, b.x, b.y, b.z);
-        sum += opt.grid ? checksum_hex_grid(b.element_begin, b.n, b.num_elements() / (b.n[0] * b.n[1]), b.grid)
-                        : checksum_elements(b.element_begin, b.corners, b.conn);
-        local += b.num_nodes() + b.num_elements();
-        if (local >= 65536) done += local, local = 0;
+      for (unsigned c = next_chunk++; c < chunks; c = next_chunk++) {
+        if (batches) batches->reset(split[c], split[c + 1]);
+        else batches.emplace(mesh, split[c], split[c + 1], opt);
+        while (batches->next(b)) {
+          sum += checksum_nodes(b.node_begin, b.x, b.y, b.z);
+          sum += opt.grid ? checksum_hex_grid(b.element_begin, b.n, b.num_elements() / (b.n[0] * b.n[1]), b.grid)
+                          : checksum_elements(b.element_begin, b.corners, b.conn);
+          local += b.num_nodes() + b.num_elements();
+          if (local >= 65536) done += local, local = 0;
+        }
       }
       done += local;
       sums[t] = sum;
     } catch (...) {
       errors[t] = std::current_exception();
+      next_chunk = chunks;  // the others stop after their current chunk
     }
   };
   // Workers count themselves out, so the progress loop wakes the moment the

@@ -1,9 +1,10 @@
 #pragma once
 // Sweep: visit every fine node and element once, a batch at a time
-// (batch.hpp), coarse elements split into contiguous ranges over threads,
-// and fold them into an order-independent checksum: the same for every
-// thread count and cache budget (a test pins it), so two sweeps, two
-// machines or two stores of the same mesh can be compared by one number.
+// (batch.hpp), coarse elements cut into contiguous chunks of about equal
+// work that free threads take in turn (kSweepChunksPerThread), and fold
+// them into an order-independent checksum: the same for every thread count
+// and cache budget (a test pins it), so two sweeps, two machines or two
+// stores of the same mesh can be compared by one number.
 //
 // The checksum (since 0.3: cheaper than the chained mixes before, so the
 // values differ from earlier versions'), all arithmetic mod 2^64:
@@ -39,6 +40,9 @@ struct SweepResult {
 // progress(done, total) is called from the calling thread only, in units of
 // nodes + elements.
 inline constexpr unsigned kSweepPagesPerThread = 20;
+// With several threads the coarse elements are cut into this many chunks of
+// about equal work per thread, each taken by the next free thread.
+inline constexpr unsigned kSweepChunksPerThread = 8;
 // [first_coarse, end_coarse) restricts the sweep to those coarse elements
 // (end -1: the last): their fine elements and the nodes they own (an MPI
 // rank's chunk); the checksums of a partition of the mesh add up to the

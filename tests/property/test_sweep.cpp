@@ -113,7 +113,7 @@ TEST(Sweep, AFailingThreadEndsTheSweepWithItsError) {
   test::TempDir tmp;
   const std::string store = tmp.path("box.dice.h5");
   write_store(FineMesh::dice(test::random_box(spec, rng), r), store);
-  // Page 3 of 5: only the second thread's half reads it (opening reads the last).
+  // Page 3 of 5: read by whichever thread takes the chunks over it (opening reads the last).
   const std::string bad = test::edited_copy(store, tmp.path("bad.dice.h5"), [](hid_t f) {
     test::forge_page(f, "topology/elements", 3, [](std::vector<std::uint8_t>& page) { page[8] ^= 0x10; }, false);
   });
