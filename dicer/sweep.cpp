@@ -96,12 +96,16 @@ DICER_HASH_CLONES std::uint64_t sum_fmix_run(std::uint64_t h0, std::uint64_t ste
   return sum;
 }
 
-// Whether p[1..m] are consecutive ids (p[t + 1] = p[t] + 1 mod 2^64, the
-// arithmetic of the terms: no overflow on any input).
-bool consecutive(const Id* p, std::int64_t m) {
+// The common difference of p[1..m] (mod 2^64, the arithmetic of the terms:
+// no overflow on any input) when they are an arithmetic progression, any
+// step (a cell's interior rows step by 1, a face's rows by 1, -1, or a
+// row of the face's canonical grid, an edge's by 1 or -1); nullopt if not.
+std::optional<std::uint64_t> progression(const Id* p, std::int64_t m) {
+  const auto at = [p](std::int64_t t) { return static_cast<std::uint64_t>(p[t]); };
+  const std::uint64_t d = at(2) - at(1);
   bool ok = true;
-  for (std::int64_t t = 1; t < m; ++t) ok &= static_cast<std::uint64_t>(p[t + 1]) - static_cast<std::uint64_t>(p[t]) == 1;
-  return ok;
+  for (std::int64_t t = 2; t < m; ++t) ok &= at(t + 1) - at(t) == d;
+  return ok ? std::optional<std::uint64_t>(d) : std::nullopt;
 }
 
 }  // namespace
@@ -114,13 +118,16 @@ std::uint64_t checksum_hex_grid(Id first, const std::array<Id, 3>& n, Id layers,
                                       " ids for " + std::to_string(layers) + " layers of " + std::to_string(n[0]) +
                                       " x " + std::to_string(n[1]));
   const Id ni = n[0] + 1;
-  // Each grid row's interior [1, n0 - 1] checked once.
+  // Each grid row's interior [1, n0 - 1] checked once: its step, if it is a
+  // progression (n0 >= 3: at least two interior points).
   const Id rows = (n[1] + 1) * (layers + 1);
-  thread_local std::vector<char> run;  // warm after the first batch: no allocation per batch
-  run.resize(static_cast<size_t>(rows));
-  for (Id r = 0; r < rows; ++r) run[r] = n[0] >= 3 && consecutive(grid.data() + r * ni, n[0] - 1);
-  std::uint64_t step = K[4];
-  for (int q = 5; q < 13; ++q) step += K[q];
+  thread_local std::vector<std::uint64_t> step_of;  // warm after the first batch: no allocation per batch
+  thread_local std::vector<char> run;
+  step_of.resize(static_cast<size_t>(rows)), run.resize(static_cast<size_t>(rows));
+  for (Id r = 0; r < rows; ++r) {
+    const auto d = n[0] >= 3 ? progression(grid.data() + r * ni, n[0] - 1) : std::nullopt;
+    run[r] = d.has_value(), step_of[r] = d.value_or(0);
+  }
   std::uint64_t sum = 0;
   auto id = static_cast<std::uint64_t>(first);
   for (Id k = 0; k < layers; ++k)
@@ -132,8 +139,13 @@ std::uint64_t checksum_hex_grid(Id first, const std::array<Id, 3>& n, Id layers,
         sum += sum_hex_row(id, rows, 0, n[0]);
         continue;
       }
-      // Elements 1 .. n0 - 2 read only the rows' consecutive interiors: each
-      // argument is the one before plus `step`. The two end elements in full.
+      // Elements 1 .. n0 - 2 read only the rows' interiors, each a
+      // progression: each term's argument is the one before plus `step`
+      // (K4 for the id, each corner's key times its row's step). The two
+      // end elements in full.
+      const std::uint64_t row_step[4] = {step_of[ra], step_of[ra + 1], step_of[rc], step_of[rc + 1]};
+      std::uint64_t step = K[4];
+      for (int q = 0; q < 8; ++q) step += row_step[kHexCorner[q][1] + 2 * kHexCorner[q][2]] * K[5 + q];
       sum += sum_hex_row(id, rows, 0, 1) + sum_hex_row(id, rows, n[0] - 1, 1);
       std::uint64_t h = (id + 1) * K[4];  // element 1's argument
       for (int q = 0; q < 8; ++q) h += static_cast<std::uint64_t>(grid_cell_corner(rows, 1, q)) * K[5 + q];

@@ -7,7 +7,9 @@
 // stores of the same mesh can be compared by one number.
 //
 // The checksum (since 0.3: cheaper than the chained mixes before, so the
-// values differ from earlier versions'), all arithmetic mod 2^64:
+// values differ from earlier versions'; since 0.4 interior coordinates come
+// from tfi.hpp's factored hex TFI, whose last bits can differ from 0.3's),
+// all arithmetic mod 2^64:
 //   fmix(h)      = murmur3's 64-bit finaliser: h ^= h >> 33; h *= 0xff51afd7ed558ccd;
 //                  h ^= h >> 33; h *= 0xc4ceb9fe1a85ec53; h ^= h >> 33
 //   node term    = fmix(id*K0 ^ bits(x)*K1 ^ bits(y)*K2 ^ bits(z)*K3)
@@ -66,12 +68,14 @@ std::uint64_t checksum_elements(Id first, int corners, std::span<const Id> conn)
 // layers of an n[0] x n[1] grid (ids first, first + 1, ... in i, j, layer
 // order), their corners read from `grid` (FineBatch::grid's layout:
 // (n[0] + 1)(n[1] + 1)(layers + 1) node ids). Cheaper: no connectivity is
-// formed, and along a row where all four grid rows it reads hold
-// consecutive ids (a cell's interior), each term's argument is the
-// previous one's plus a constant (K4 + K5 + ... + K12), so only fmix is
-// computed per element there. Error{Usage} when n[0] or n[1] < 1, layers
-// < 0 or grid has the wrong size. Each calling thread keeps one byte per
-// grid row of work space (allocated on its first call).
+// formed, and along a row where the interiors of all four grid rows it
+// reads are arithmetic progressions (a cell's interior steps by 1, a face's
+// or an edge's by a constant of either sign), each term's argument is the
+// previous one's plus a constant (K4 plus each corner's key times its grid
+// row's step), so only fmix is computed per element there. Error{Usage}
+// when n[0] or n[1] < 1, layers < 0 or grid has the wrong size. Each
+// calling thread keeps nine bytes per grid row of work space (allocated on
+// its first call).
 std::uint64_t checksum_hex_grid(Id first, const std::array<Id, 3>& n, Id layers, std::span<const Id> grid);
 
 }  // namespace dicer

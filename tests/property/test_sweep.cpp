@@ -132,7 +132,8 @@ TEST(Sweep, AFailingThreadEndsTheSweepWithItsError) {
 
 // checksum_hex_grid is checksum_elements over the grid's hexes, written
 // here from batch.hpp's layout and kHexCorner order, on grids whose rows
-// are consecutive (its shortcut), broken anywhere in a row (first, inside,
+// are progressions (its shortcut: steps 1, -1, 0, a face row's stride,
+// steps that wrap past 2^63), broken anywhere in a row (first, inside,
 // last point), or random; every n[0] from 1 (no interior) up.
 TEST(Sweep, GridChecksumEqualsTheTermsOfItsHexes) {
   std::mt19937_64 rng(17);
@@ -145,8 +146,11 @@ TEST(Sweep, GridChecksumEqualsTheTermsOfItsHexes) {
     for (Id r = 0; r < (n[1] + 1) * (layers + 1); ++r) {
       Id* row = grid.data() + r * ni;
       const Id base = big(rng);
-      for (Id i = 0; i < ni; ++i) row[i] = base + i;  // consecutive
-      switch (trial % 5 == 0 ? 0 : rng() % 4) {  // every fifth grid wholly consecutive: the shortcut's case
+      // A progression (mod 2^64, as the ids' arithmetic in the terms).
+      const Id steps[6] = {1, 1, -1, 0, n[0] + 1, static_cast<Id>(rng() | (std::uint64_t{1} << 62))};
+      const auto step = static_cast<std::uint64_t>(steps[rng() % 6]);
+      for (Id i = 0; i < ni; ++i) row[i] = static_cast<Id>(static_cast<std::uint64_t>(base) + step * static_cast<std::uint64_t>(i));
+      switch (trial % 5 == 0 ? 0 : rng() % 4) {  // every fifth grid wholly progressions: the shortcut's case
         case 0: break;
         case 1: row[rng() % ni] = big(rng); break;  // one point anywhere
         case 2: if (ni > 2) row[1 + rng() % (ni - 2)] += 1; break;  // an interior point off by one
