@@ -108,7 +108,8 @@ Vec3 Evaluator::face_point(const FaceRow& f, Id u, Id v) const {
 }
 
 // The 12 edge points and 6 face points of the hex at the point's
-// parameters, then tfi::hex_row + tfi::hex_point as the block fill does.
+// parameters, then tfi::hex_plane, hex_row, hex_column and hex_point as the
+// block fill does.
 // A straight element takes every input from its row and its corners (an
 // edge's ends and a face's corners are hex corners, every interval the
 // hex's own along that axis); a curved one from the owners' rows. The
@@ -172,8 +173,10 @@ Vec3 Evaluator::cell_point(const ElementRow& h, Id hid, Id i, Id j, Id k, const 
   const double u = s[0], v = s[1], w = s[2];
   double out[3];
   for (int d = 0; d < 3; ++d) {
-    const tfi::HexRow row = tfi::hex_row(v, w, f[d][0], f[d][1], e[d], c[d]);
-    out[d] = tfi::hex_point(row, u, 1.0 - u, f[d][2], f[d][3], f[d][4], f[d][5], e[d][0], e[d][1], e[d][2], e[d][3]);
+    const tfi::HexPlane plane = tfi::hex_plane(w, e[d] + 8, c[d]);
+    const tfi::HexRow row = tfi::hex_row(plane, v, f[d][0], f[d][1], e[d][4], e[d][5], e[d][6], e[d][7]);
+    const tfi::HexColumn col = tfi::hex_column(plane, f[d][2], f[d][3], e[d][0], e[d][1], e[d][2], e[d][3]);
+    out[d] = tfi::hex_point(row, col, u, v, w, f[d][4], f[d][5]);
   }
   return {out[0], out[1], out[2]};
 }

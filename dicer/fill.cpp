@@ -89,39 +89,44 @@ void fill_boundary(const detail::Evaluator& E, std::uint64_t mesh, const Element
 }
 
 // Hex interior, one coordinate, from the block's boundary values:
-// tfi::hex_row once per (j, k), tfi::hex_point along i, the same two calls
-// Evaluator::cell_point() makes, fed the same boundary values (clones.hpp:
-// every clone gives the same bits).
+// tfi::hex_plane once per plane, hex_column once per (i, k), hex_row once
+// per (j, k), hex_point for each point, the calls Evaluator::cell_point() makes,
+// fed the same boundary values (clones.hpp: every clone gives the same bits).
 // One interior plane k (0 < k < n[2]) of one coordinate: a0 and aN are the
 // planes k = 0 and k = n[2], ak plane k with its ring (i or j at 0 or n)
 // filled; all three with row stride n[0] + 1. A plane at a time, so a block
 // can be produced in slabs (cursors hold O(n^2), not O(n^3)).
-// u, U: the i-axis parameters and their complements, v the j-axis
-// parameters, w plane k's (tfi::Series of the element's gradings).
+// u, v: the i- and j-axis parameters, w plane k's (tfi::Series of the
+// element's gradings); P, G: room for n[0] column terms each.
 // The interior goes to dst: point (i, j) at dst[(j - 1) dj + i - 1] (ak's
 // own rows: dst = ak + n[0] + 2, dj = n[0] + 1; compact: dj = n[0] - 1).
 DICER_CLONES void hex_interior_plane(const double* a0, const double* aN, const double* ak, std::array<Id, 3> n,
-                                     const double* u, const double* U, const double* v, double w, double* dst,
-                                     Id dj) {
+                                     const double* u, const double* v, double w, double* dst, Id dj, double* P,
+                                     double* G) {
   const Id sj = n[0] + 1;
   const Id n1 = n[1] * sj;
   double c[8];
   for (int q = 0; q < 8; ++q) c[q] = (kHexCorner[q][2] ? aN : a0)[kHexCorner[q][0] * n[0] + kHexCorner[q][1] * n1];
-  const double* e0 = a0;       // (i, 0, 0)
-  const double* e1 = a0 + n1;  // (i, n1, 0)
-  const double* e2 = aN;       // (i, 0, n2)
-  const double* e3 = aN + n1;  // (i, n1, n2)
-  const double* f2 = ak;       // (i, 0, k)
-  const double* f3 = ak + n1;  // (i, n1, k)
+  const double ek[4] = {ak[0], ak[n[0]], ak[n[0] + n1], ak[n1]};  // the k-edges e8..e11 at plane k
+  const tfi::HexPlane plane = tfi::hex_plane(w, ek, c);
+  // Columns: the j = 0 and j = n1 faces (ak's first and last rows) and the
+  // four i-edges (i, 0 | n1, 0 | n2).
+  const double* e0 = a0;
+  const double* e1 = a0 + n1;
+  const double* e2 = aN;
+  const double* e3 = aN + n1;
+  for (Id i = 1; i < n[0]; ++i) {
+    const tfi::HexColumn col = tfi::hex_column(plane, ak[i], ak[n1 + i], e0[i], e1[i], e2[i], e3[i]);
+    P[i] = col.P, G[i] = col.G;
+  }
   for (Id j = 1; j < n[1]; ++j) {
-    const double* f4 = a0 + j * sj;  // (i, j, 0)
-    const double* f5 = aN + j * sj;  // (i, j, n2)
-    const double e[12] = {0, 0, 0, 0, a0[j * sj], a0[n[0] + j * sj], aN[j * sj], aN[n[0] + j * sj],
-                          ak[0], ak[n[0]], ak[n[0] + n1], ak[n1]};
-    const tfi::HexRow row = tfi::hex_row(v[j], w, ak[j * sj], ak[n[0] + j * sj], e, c);
+    const Id r = j * sj;
+    const double* f4 = a0 + r;  // (i, j, 0)
+    const double* f5 = aN + r;  // (i, j, n2)
+    const double vj = v[j];
+    const tfi::HexRow row = tfi::hex_row(plane, vj, ak[r], ak[n[0] + r], a0[r], a0[n[0] + r], aN[r], aN[n[0] + r]);
     double* out = dst + (j - 1) * dj;
-    for (Id i = 1; i < n[0]; ++i)
-      out[i - 1] = tfi::hex_point(row, u[i], U[i], f2[i], f3[i], f4[i], f5[i], e0[i], e1[i], e2[i], e3[i]);
+    for (Id i = 1; i < n[0]; ++i) out[i - 1] = tfi::hex_point(row, {P[i], G[i]}, u[i], vj, w, f4[i], f5[i]);
   }
 }
 
@@ -177,10 +182,10 @@ void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool c
   auto& s = b.scratch;
   if (coords && vol) {
     // The three axes' parameters, once per slab (O(n)): the kernel reads tables.
-    s.u.resize(static_cast<size_t>(n[0])), s.U.resize(static_cast<size_t>(n[0]));
+    s.u.resize(static_cast<size_t>(n[0])), s.P.resize(static_cast<size_t>(n[0])), s.G.resize(static_cast<size_t>(n[0]));
     s.v.resize(static_cast<size_t>(n[1])), s.w.resize(static_cast<size_t>(n[2]));
     const tfi::Series su(n[0], h.grading[0]), sv(n[1], h.grading[1]), sw(n[2], h.grading[2]);
-    for (Id i = 1; i < n[0]; ++i) s.u[i] = su.at(i), s.U[i] = 1.0 - s.u[i];
+    for (Id i = 1; i < n[0]; ++i) s.u[i] = su.at(i);
     for (Id j = 1; j < n[1]; ++j) s.v[j] = sv.at(j);
     for (Id k = std::max<Id>(k0, 1); k < std::min(k1 + 1, n[2]); ++k) s.w[k] = sw.at(k);
   }
@@ -213,8 +218,8 @@ void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool c
     for (int d = 0; d < 3 && coords; ++d) {
       ring_copy(B.x[d].data() + ring, X[d]);
       double* dst = interior ? interior[d] + (k - k0 - 1) * in : X[d] + ni + 1;
-      hex_interior_plane(B.x[d].data(), B.x[d].data() + pp, X[d], n, s.u.data(), s.U.data(), s.v.data(), s.w[k], dst,
-                         interior ? n[0] - 1 : ni);
+      hex_interior_plane(B.x[d].data(), B.x[d].data() + pp, X[d], n, s.u.data(), s.v.data(), s.w[k], dst,
+                         interior ? n[0] - 1 : ni, s.P.data(), s.G.data());
     }
   }
 

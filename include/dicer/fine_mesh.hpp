@@ -67,7 +67,7 @@ struct FineBlock {
   struct Scratch {
     Vec3 corner[8];
     std::vector<double> edge[12][3], face[6][3];  // the element's edges' and faces' points, canonical order
-    std::vector<double> bottom[3], top[3], left[3], right[3], s, t, u, U, v, w;
+    std::vector<double> bottom[3], top[3], left[3], right[3], s, t, u, v, w, P, G;
     // The boundary (corners, edges, faces) of the element filled last, so a
     // block produced slab by slab evaluates it once: planes k = 0 and k = n[2]
     // whole, then for each 0 < k < n[2] the ring of plane k (j = 0, j = n[1],

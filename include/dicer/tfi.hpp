@@ -173,37 +173,63 @@ inline double coons(double s, double t, double bottom, double top, double left, 
   return (T * bottom + t * top) + (S * left + s * right) - ((S * T * p0 + s * T * p1) + (s * t * p2 + S * t * p3));
 }
 
-// Trilinear transfinite (Gordon-Hall) interpolation of a hex at (u, v, w),
-// written in two stages so a block can reuse the first along a row of i:
+// Trilinear transfinite (Gordon-Hall) interpolation of a hex at (u, v, w):
+// the usual sum of six face blends, minus twelve edge blends, plus eight
+// corner blends, factored so a block does three multiplies and six adds
+// per point and coordinate, a few per row and column, the rest per plane:
 //
-//   X = U A + u B + (V f2 + v f3) + (W f4 + w f5) - (VW e0 + vW e1 + Vw e2 + vw e3)
-//   A = f0 - (W e4 + w e6) - (V e8 + v e11) + (VW c0 + vW c3 + Vw c4 + vw c7)
-//   B = f1 - (W e5 + w e7) - (V e9 + v e10) + (VW c1 + vW c2 + Vw c5 + vw c6)
+//   X  = (A + u D) + (P + v G) + (f4 + w (f5 - f4))
+//   A  = (f0 - (W e4 + w e6)) + (a0 + v da),  B likewise from f1, e5, e7, b0, db;  D = B - A   row (j, k)
+//   P  = f2 - (W e0 + w e2),  Q = f3 - (W e1 + w e3),  G = Q - P                           column (i, k)
+//   a0 = (W c0 + w c4) - e8,  a1 = (W c3 + w c7) - e11,  da = a1 - a0                      plane k
+//   b0 = (W c1 + w c5) - e9,  b1 = (W c2 + w c6) - e10,  db = b1 - b0
 //
-// which is the usual sum of six face blends, minus twelve edge blends, plus
-// eight corner blends. Face values f0..f5 at the point's projections (faces
-// i=0, i=1, j=0, j=1, k=0, k=1), edge values e0..e11 (orientation.hpp's
-// kHexEdge order) at the point's parameter, corners c0..c7 (kHexCorner).
+// with U = 1 - u, V = 1 - v, W = 1 - w: U A + u B = A + u D; the four
+// i-edges' blends fold into the j-faces' (V f2 + v f3 - (VW e0 + vW e1 +
+// Vw e2 + vw e3) = P + v G), and the k-edges' into the corners' (the
+// i = 0 face's share V ((W c0 + w c4) - e8) + v ((W c3 + w c7) - e11)).
+// Face values f0..f5 at the point's projections (faces i=0, i=1, j=0, j=1,
+// k=0, k=1), edge values e0..e11 (orientation.hpp's kHexEdge order) at the
+// point's parameter, corners c0..c7 (kHexCorner). Interior points only
+// (0 < u, v, w < 1): the boundary is its entities' own. Every path calls
+// these four with the same inputs, so the bits agree (contraction is off).
+struct HexPlane {
+  double w, W;            // plane k's weights
+  double a0, da, b0, db;  // the corners and k-edges, folded
+};
 struct HexRow {
-  double V, v, W, w, VW, vW, Vw, vw;  // weights of the row (j, k)
-  double A, B;                        // the i-independent parts
+  double A, D;  // the i-independent parts of row (j, k)
+};
+struct HexColumn {
+  double P, G;  // the j-independent parts of column (i, k)
 };
 
-inline HexRow hex_row(double v, double w, double f0, double f1, const double* e, const double* c) {
-  HexRow r;
-  r.v = v, r.w = w, r.V = 1.0 - v, r.W = 1.0 - w;
-  r.VW = r.V * r.W, r.vW = r.v * r.W, r.Vw = r.V * r.w, r.vw = r.v * r.w;
-  r.A = ((f0 - (r.W * e[4] + r.w * e[6])) - (r.V * e[8] + r.v * e[11])) +
-        ((r.VW * c[0] + r.vW * c[3]) + (r.Vw * c[4] + r.vw * c[7]));
-  r.B = ((f1 - (r.W * e[5] + r.w * e[7])) - (r.V * e[9] + r.v * e[10])) +
-        ((r.VW * c[1] + r.vW * c[2]) + (r.Vw * c[5] + r.vw * c[6]));
-  return r;
+// e: the four k-edges' values e8..e11 at w; c: corners c0..c7.
+inline HexPlane hex_plane(double w, const double* e, const double* c) {
+  HexPlane p;
+  p.w = w, p.W = 1.0 - w;
+  p.a0 = (p.W * c[0] + w * c[4]) - e[0];
+  p.da = ((p.W * c[3] + w * c[7]) - e[3]) - p.a0;
+  p.b0 = (p.W * c[1] + w * c[5]) - e[1];
+  p.db = ((p.W * c[2] + w * c[6]) - e[2]) - p.b0;
+  return p;
 }
 
-inline double hex_point(const HexRow& r, double u, double U, double f2, double f3, double f4, double f5, double e0,
-                        double e1, double e2, double e3) {
-  return ((U * r.A + u * r.B) + ((r.V * f2 + r.v * f3) + (r.W * f4 + r.w * f5))) -
-         ((r.VW * e0 + r.vW * e1) + (r.Vw * e2 + r.vw * e3));
+// f0, f1: the i = 0 and i = 1 faces at (v, w); e4..e7 the j-edges at v.
+inline HexRow hex_row(const HexPlane& p, double v, double f0, double f1, double e4, double e5, double e6, double e7) {
+  const double A = (f0 - (p.W * e4 + p.w * e6)) + (p.a0 + v * p.da);
+  const double B = (f1 - (p.W * e5 + p.w * e7)) + (p.b0 + v * p.db);
+  return {A, B - A};
+}
+
+// f2, f3: the j = 0 and j = 1 faces at (u, w); e0..e3 the i-edges at u.
+inline HexColumn hex_column(const HexPlane& p, double f2, double f3, double e0, double e1, double e2, double e3) {
+  const double P = f2 - (p.W * e0 + p.w * e2), Q = f3 - (p.W * e1 + p.w * e3);
+  return {P, Q - P};
+}
+
+inline double hex_point(const HexRow& r, const HexColumn& c, double u, double v, double w, double f4, double f5) {
+  return ((r.A + u * r.D) + (c.P + v * c.G)) + (f4 + w * (f5 - f4));
 }
 
 // Bounding fine arrays (nodes moved onto the CAD or onto a second-order

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <cfloat>
 #include <cmath>
 #include <map>
 #include <random>
@@ -23,6 +24,7 @@
 #include "dicer/tfi.hpp"
 #include "dicer/verify.hpp"
 #include "access_paths.hpp"
+#include "gordon_hall.hpp"
 #include "random_mesh.hpp"
 #include "store_forge.hpp"
 #include "test_support.hpp"
@@ -189,6 +191,42 @@ double boundary_distance(const FineMesh& f, const CoarseMesh& input, const std::
   return worst;
 }
 
+// Every interior grid point of every coarse hex against the textbook
+// Gordon-Hall sum (gordon_hall.hpp) of the block's own boundary points, at
+// the axes' series parameters; returns the largest error over the sum of
+// the magnitudes it used. Curved edges and faces make every term count (a
+// straight hex's face terms cancel its edge terms).
+double interior_error(const FineMesh& f) {
+  FineBlock b;
+  MeshCursor cur;
+  double worst = 0;
+  for (Id h = 0; h < f.num_coarse_elements(); ++h) {
+    const auto grading = RowReader(f.tables(), cur).element(h).grading;
+    f.fill_block(h, b);
+    const std::array<Id, 3> n = b.n;
+    for (Id k = 1; k < n[2]; ++k)
+      for (Id j = 1; j < n[1]; ++j)
+        for (Id i = 1; i < n[0]; ++i) {
+          const std::array<Id, 3> t{i, j, k};
+          const std::array<double, 3> s{tfi::param(i, n[0], grading[0]), tfi::param(j, n[1], grading[1]),
+                                        tfi::param(k, n[2], grading[2])};
+          const Id g = b.point_index(i, j, k);
+          const double* xyz[3] = {b.x.data(), b.y.data(), b.z.data()};
+          for (int d = 0; d < 3; ++d) {
+            const test::GordonHall want = test::gordon_hall(
+                [&](std::array<int, 3> side) {
+                  Id p[3];
+                  for (int a = 0; a < 3; ++a) p[a] = side[a] == 2 ? t[a] : side[a] * n[a];
+                  return xyz[d][b.point_index(p[0], p[1], p[2])];
+                },
+                s);
+            worst = std::max(worst, static_cast<double>(std::fabs(xyz[d][g] - want.x) / want.magnitude));
+          }
+        }
+  }
+  return worst;
+}
+
 IntervalRequest random_intervals(const FineMesh& probe, std::mt19937_64& rng) {
   IntervalRequest req;
   std::uniform_int_distribution<Id> n(1, 4), global(2, 4);
@@ -248,6 +286,10 @@ TEST_P(RandomSecondOrder, BoundaryOnTheQuadraticMapAndEveryPathBitIdentical) {
     // The fine nodes on coarse edges and faces lie on the quadratic map, to
     // rounding (the diagonal is ~5).
     EXPECT_LE(boundary_distance(f, input, where), 1e-13);
+    // The interior: the hex TFI of that boundary, to a few roundings.
+    if (f.mode() == Mode::Volume) {
+      EXPECT_LE(interior_error(f), 4 * DBL_EPSILON);
+    }
     // Bent boundaries: far from a first-order dice of the same corners.
     CoarseMesh linear = input;
     linear.mid.clear(), linear.mid_x.clear(), linear.mid_y.clear(), linear.mid_z.clear(), linear.mid_file_id.clear();
