@@ -38,11 +38,16 @@ inline std::uint64_t node_term(std::uint64_t id, std::uint64_t x, std::uint64_t 
   return fmix((id * K[0]) ^ (x * K[1]) ^ (y * K[2]) ^ (z * K[3]));
 }
 
+// fmix's argument for an element: id K4 + node[0] K5 + ...
 template <int C>
-inline std::uint64_t element_term(std::uint64_t id, const Id* nodes) {
+inline std::uint64_t element_arg(std::uint64_t id, const Id* nodes) {
   std::uint64_t h = id * K[4];
   for (int q = 0; q < C; ++q) h += static_cast<std::uint64_t>(nodes[q]) * K[5 + q];
-  return fmix(h);
+  return h;
+}
+template <int C>
+inline std::uint64_t element_term(std::uint64_t id, const Id* nodes) {
+  return fmix(element_arg<C>(id, nodes));
 }
 
 // The loops over a batch: independent terms, no branch, so the compiler
@@ -88,13 +93,36 @@ DICER_HASH_CLONES std::uint64_t sum_hex_row(std::uint64_t first, const Id* const
   return sum;
 }
 
-// fmix(h0 + i * step), i < m: the terms of a run of elements whose
-// arguments step by a constant.
-DICER_HASH_CLONES std::uint64_t sum_fmix_run(std::uint64_t h0, std::uint64_t step, std::int64_t m) {
+// fmix(a[i]), i < n: the terms whose arguments are already formed.
+DICER_HASH_CLONES std::uint64_t sum_fmix(const std::uint64_t* a, std::int64_t n) {
   std::uint64_t sum = 0;
-  for (std::int64_t i = 0; i < m; ++i) sum += fmix(h0 + static_cast<std::uint64_t>(i) * step);
+  for (std::int64_t i = 0; i < n; ++i) sum += fmix(a[i]);
   return sum;
 }
+
+// Arguments gathered across rows, hashed kArgs at a time: one vector loop
+// (and one horizontal sum) per kArgs terms instead of per row of ~n0.
+class ArgBuffer {
+ public:
+  static constexpr size_t kArgs = 1024;
+  void put(std::uint64_t h) {
+    a_[used_++] = h;
+    if (used_ == kArgs) flush();
+  }
+  void flush() {
+    sum_ += sum_fmix(a_, static_cast<std::int64_t>(used_));
+    used_ = 0;
+  }
+  std::uint64_t sum() {
+    flush();
+    return sum_;
+  }
+
+ private:
+  std::uint64_t a_[kArgs];
+  size_t used_ = 0;
+  std::uint64_t sum_ = 0;
+};
 
 // The common difference of p[1..m] (mod 2^64, the arithmetic of the terms:
 // no overflow on any input) when they are an arithmetic progression, any
@@ -129,6 +157,7 @@ std::uint64_t checksum_hex_grid(Id first, const std::array<Id, 3>& n, Id layers,
     run[r] = d.has_value(), step_of[r] = d.value_or(0);
   }
   std::uint64_t sum = 0;
+  ArgBuffer args;  // 8 KiB on the stack
   auto id = static_cast<std::uint64_t>(first);
   for (Id k = 0; k < layers; ++k)
     for (Id j = 0; j < n[1]; ++j, id += static_cast<std::uint64_t>(n[0])) {
@@ -142,16 +171,21 @@ std::uint64_t checksum_hex_grid(Id first, const std::array<Id, 3>& n, Id layers,
       // Elements 1 .. n0 - 2 read only the rows' interiors, each a
       // progression: each term's argument is the one before plus `step`
       // (K4 for the id, each corner's key times its row's step). The two
-      // end elements in full.
+      // end elements' arguments in full.
       const std::uint64_t row_step[4] = {step_of[ra], step_of[ra + 1], step_of[rc], step_of[rc + 1]};
       std::uint64_t step = K[4];
       for (int q = 0; q < 8; ++q) step += row_step[kHexCorner[q][1] + 2 * kHexCorner[q][2]] * K[5 + q];
-      sum += sum_hex_row(id, rows, 0, 1) + sum_hex_row(id, rows, n[0] - 1, 1);
-      std::uint64_t h = (id + 1) * K[4];  // element 1's argument
-      for (int q = 0; q < 8; ++q) h += static_cast<std::uint64_t>(grid_cell_corner(rows, 1, q)) * K[5 + q];
-      sum += sum_fmix_run(h, step, n[0] - 2);
+      auto arg = [&](Id i) {
+        Id nodes[8];
+        for (int q = 0; q < 8; ++q) nodes[q] = grid_cell_corner(rows, i, q);
+        return element_arg<8>(id + static_cast<std::uint64_t>(i), nodes);
+      };
+      args.put(arg(0));
+      std::uint64_t h = arg(1);
+      for (Id i = 1; i < n[0] - 1; ++i, h += step) args.put(h);
+      args.put(arg(n[0] - 1));
     }
-  return sum;
+  return sum + args.sum();
 }
 
 std::uint64_t node_checksum_term(Id id, const Vec3& x) {

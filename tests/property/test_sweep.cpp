@@ -134,13 +134,17 @@ TEST(Sweep, AFailingThreadEndsTheSweepWithItsError) {
 // here from batch.hpp's layout and kHexCorner order, on grids whose rows
 // are progressions (its shortcut: steps 1, -1, 0, a face row's stride,
 // steps that wrap past 2^63), broken anywhere in a row (first, inside,
-// last point), or random; every n[0] from 1 (no interior) up.
+// last point), or random; every n[0] from 1 (no interior) up, and rows
+// of over a thousand.
 TEST(Sweep, GridChecksumEqualsTheTermsOfItsHexes) {
   std::mt19937_64 rng(17);
   const std::uint64_t* K = kChecksumKeys;
   for (int trial = 0; trial < 400; ++trial) {
-    const std::array<Id, 3> n{1 + trial % 7, 1 + (trial / 7) % 4, 3};
-    const Id layers = trial % 3, ni = n[0] + 1, pp = ni * (n[1] + 1);
+    // The last trials: rows of over a thousand hexes (the terms are hashed
+    // in buffers of 1024 across rows: a buffer fills inside a row).
+    const bool wide = trial >= 396;
+    const std::array<Id, 3> n{wide ? 1000 + 37 * (trial - 396) : 1 + trial % 7, wide ? 2 : 1 + (trial / 7) % 4, 3};
+    const Id layers = wide ? 1 + trial % 2 : trial % 3, ni = n[0] + 1, pp = ni * (n[1] + 1);
     std::vector<Id> grid(static_cast<size_t>(pp * (layers + 1)));
     std::uniform_int_distribution<Id> big(0, Id{1} << 45);
     for (Id r = 0; r < (n[1] + 1) * (layers + 1); ++r) {
@@ -150,7 +154,7 @@ TEST(Sweep, GridChecksumEqualsTheTermsOfItsHexes) {
       const Id steps[6] = {1, 1, -1, 0, n[0] + 1, static_cast<Id>(rng() | (std::uint64_t{1} << 62))};
       const auto step = static_cast<std::uint64_t>(steps[rng() % 6]);
       for (Id i = 0; i < ni; ++i) row[i] = static_cast<Id>(static_cast<std::uint64_t>(base) + step * static_cast<std::uint64_t>(i));
-      switch (trial % 5 == 0 ? 0 : rng() % 4) {  // every fifth grid wholly progressions: the shortcut's case
+      switch (trial % 5 == 0 || wide ? 0 : rng() % 4) {  // every fifth grid, and the wide: the shortcut throughout
         case 0: break;
         case 1: row[rng() % ni] = big(rng); break;  // one point anywhere
         case 2: if (ni > 2) row[1 + rng() % (ni - 2)] += 1; break;  // an interior point off by one
