@@ -131,6 +131,22 @@ struct Palette {
   }
 };
 
+
+// x, y, z of nodes [first, first + count): FineMesh::nodes over pieces of
+// consecutive ids (one owner search, row decode and corner read per coarse
+// element, not per node), the bits of node(id). ids, pts: reused work space.
+void run_coords(const FineMesh& mesh, Id first, Id count, MeshCursor& cur, std::vector<Id>& ids,
+                std::vector<Vec3>& pts, double* x, double* y, double* z) {
+  constexpr Id kPiece = 4096;
+  for (Id a = 0; a < count; a += kPiece) {
+    const Id m = std::min(kPiece, count - a);
+    ids.resize(static_cast<size_t>(m)), pts.resize(static_cast<size_t>(m));
+    for (Id q = 0; q < m; ++q) ids[q] = first + a + q;
+    mesh.nodes(ids, pts, cur);
+    for (Id q = 0; q < m; ++q) x[a + q] = pts[q].x, y[a + q] = pts[q].y, z[a + q] = pts[q].z;
+  }
+}
+
 }  // namespace
 
 ChunkStream::ChunkStream(const FineMesh& mesh, ChunkRange range, const MeshSets& sets,
@@ -238,15 +254,19 @@ ChunkStream::ChunkStream(const FineMesh& mesh, ChunkRange range, const MeshSets&
   runs_of(shared_uses, interfaces_);
   ghost_local_.push_back(0);
   for (const Run& g : ghosts_) ghost_local_.push_back(ghost_local_.back() + g.count);
-  // Ghost coordinates: random access, the same bits as a batch (invariant 2).
+  // Ghost coordinates: runs of ids by the batched query, the same bits as a
+  // batch (invariant 2).
   const Id ng = num_ghosts();
   gx_.resize(static_cast<size_t>(ng)), gy_.resize(gx_.size()), gz_.resize(gx_.size());
-  for (size_t k = 0; k < ghosts_.size(); ++k)
-    for (Id q = 0; q < ghosts_[k].count; ++q) {
-      const Vec3 p = mesh.node(ghosts_[k].first + q, cur);
-      const auto l = static_cast<size_t>(ghost_local_[k] + q);
-      gx_[l] = p.x, gy_[l] = p.y, gz_[l] = p.z;
+  {
+    std::vector<Id> ids;
+    std::vector<Vec3> pts;
+    for (size_t k = 0; k < ghosts_.size(); ++k) {
+      const auto l = static_cast<size_t>(ghost_local_[k]);
+      run_coords(mesh, ghosts_[k].first, ghosts_[k].count, cur, ids, pts, gx_.data() + l, gy_.data() + l,
+                 gz_.data() + l);
     }
+  }
 
   // Sets in local numbering.
   for (auto& m : side_sets_) {
@@ -385,6 +405,8 @@ void ChunkStream::nodes(const NodePass& pass, const std::function<void(const Nod
   const std::int32_t v = pass.lowest_user;
   MeshCursor cur;
   std::vector<double> xyz[3];
+  std::vector<Id> ids;
+  std::vector<Vec3> pts;
   for (Id i = 0; i < span;) {
     if (v >= 0 && block_[static_cast<size_t>(i)] != v) {
       // Another block's element: only its interface runs that block v
@@ -396,10 +418,7 @@ void ChunkStream::nodes(const NodePass& pass, const std::function<void(const Nod
         if (user_sets_[it->users].front() != v) continue;
         for (auto& c : xyz) c.resize(static_cast<size_t>(it->count));
         if (pass.coords)
-          for (Id q = 0; q < it->count; ++q) {
-            const Vec3 p = mesh_.node(it->first + q, cur);
-            xyz[0][q] = p.x, xyz[1][q] = p.y, xyz[2][q] = p.z;
-          }
+          run_coords(mesh_, it->first, it->count, cur, ids, pts, xyz[0].data(), xyz[1].data(), xyz[2].data());
         out.range(it->first, it->first + it->count, block_[static_cast<size_t>(i)], pass.coords ? xyz[0].data() : nullptr,
                   pass.coords ? xyz[1].data() : nullptr, pass.coords ? xyz[2].data() : nullptr);
       }
