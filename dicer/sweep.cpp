@@ -148,14 +148,12 @@ std::uint64_t checksum_hex_grid(Id first, const std::array<Id, 3>& n, Id layers,
   const Id ni = n[0] + 1;
   // Each grid row's interior [1, n0 - 1] checked once: its step, if it is a
   // progression (n0 >= 3: at least two interior points).
-  const Id rows = (n[1] + 1) * (layers + 1);
-  thread_local std::vector<std::uint64_t> step_of;  // warm after the first batch: no allocation per batch
-  thread_local std::vector<char> run;
-  step_of.resize(static_cast<size_t>(rows)), run.resize(static_cast<size_t>(rows));
-  for (Id r = 0; r < rows; ++r) {
-    const auto d = n[0] >= 3 ? progression(grid.data() + r * ni, n[0] - 1) : std::nullopt;
-    run[r] = d.has_value(), step_of[r] = d.value_or(0);
-  }
+  const Id grid_rows = (n[1] + 1) * (layers + 1);
+  // Warm after the first batch: no allocation per batch.
+  thread_local std::vector<std::optional<std::uint64_t>> step_of;
+  step_of.resize(static_cast<size_t>(grid_rows));
+  for (Id r = 0; r < grid_rows; ++r)
+    step_of[r] = n[0] >= 3 ? progression(grid.data() + r * ni, n[0] - 1) : std::nullopt;
   std::uint64_t sum = 0;
   ArgBuffer args;  // 8 KiB on the stack
   auto id = static_cast<std::uint64_t>(first);
@@ -164,7 +162,8 @@ std::uint64_t checksum_hex_grid(Id first, const std::array<Id, 3>& n, Id layers,
       const Id ra = j + (n[1] + 1) * k, rc = ra + n[1] + 1;
       const Id* const rows[4] = {grid.data() + ra * ni, grid.data() + (ra + 1) * ni, grid.data() + rc * ni,
                                  grid.data() + (rc + 1) * ni};
-      if (!(run[ra] && run[ra + 1] && run[rc] && run[rc + 1])) {
+      const std::optional<std::uint64_t> row_step[4] = {step_of[ra], step_of[ra + 1], step_of[rc], step_of[rc + 1]};
+      if (!(row_step[0] && row_step[1] && row_step[2] && row_step[3])) {
         sum += sum_hex_row(id, rows, 0, n[0]);
         continue;
       }
@@ -172,9 +171,8 @@ std::uint64_t checksum_hex_grid(Id first, const std::array<Id, 3>& n, Id layers,
       // progression: each term's argument is the one before plus `step`
       // (K4 for the id, each corner's key times its row's step). The two
       // end elements' arguments in full.
-      const std::uint64_t row_step[4] = {step_of[ra], step_of[ra + 1], step_of[rc], step_of[rc + 1]};
       std::uint64_t step = K[4];
-      for (int q = 0; q < 8; ++q) step += row_step[kHexCorner[q][1] + 2 * kHexCorner[q][2]] * K[5 + q];
+      for (int q = 0; q < 8; ++q) step += *row_step[grid_cell_row(q)] * K[5 + q];
       auto arg = [&](Id i) {
         Id nodes[8];
         for (int q = 0; q < 8; ++q) nodes[q] = grid_cell_corner(rows, i, q);

@@ -131,7 +131,6 @@ struct Palette {
   }
 };
 
-
 // x, y, z of nodes [first, first + count): FineMesh::nodes over pieces of
 // consecutive ids (one owner search, row decode and corner read per coarse
 // element, not per node), the bits of node(id). ids, pts: reused work space.

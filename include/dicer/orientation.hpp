@@ -31,9 +31,11 @@ inline constexpr int kHexCorner[8][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1,
 // rows[3] (j + 1, k + 1), and the cell's corner 0 is point i of rows[0]
 // (quads: rows[0..1], q < 4). Block connectivity and the sweep's checksum
 // read cells this way; a constant q folds to one load.
+// grid_cell_row(q): which of the four rows corner q is read from.
+constexpr int grid_cell_row(int q) { return kHexCorner[q][1] + 2 * kHexCorner[q][2]; }
 template <class T>
 constexpr T grid_cell_corner(const T* const* rows, std::int64_t i, int q) {
-  return rows[kHexCorner[q][1] + 2 * kHexCorner[q][2]][i + kHexCorner[q][0]];
+  return rows[grid_cell_row(q)][i + kHexCorner[q][0]];
 }
 
 // Local hex edges: 0-3 run along i, 4-7 along j, 8-11 along k, each from its

@@ -74,7 +74,7 @@ std::uint64_t checksum_elements(Id first, int corners, std::span<const Id> conn)
 // previous one's plus a constant (K4 plus each corner's key times its grid
 // row's step), so only fmix is computed per element there. Error{Usage}
 // when n[0] or n[1] < 1, layers < 0 or grid has the wrong size. Each
-// calling thread keeps nine bytes per grid row of work space (allocated on
+// calling thread keeps 16 bytes per grid row of work space (allocated on
 // its first call).
 std::uint64_t checksum_hex_grid(Id first, const std::array<Id, 3>& n, Id layers, std::span<const Id> grid);
 
