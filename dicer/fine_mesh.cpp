@@ -44,13 +44,19 @@ Vec3 owned_point(const detail::Evaluator& E, const ElementRow& h, Id hid, const 
   return E.node(ref);
 }
 
+// Whether every corner of hex cell ijk of element h lies inside h.
+bool interior_cell(const ElementRow& h, const std::array<Id, 3>& ijk) {
+  const auto [i, j, k] = ijk;
+  return i > 0 && j > 0 && k > 0 && i + 1 < h.n[0] && j + 1 < h.n[1] && k + 1 < h.n[2];
+}
+
 // The corner node ids of fine element el.ijk of element h.
 void element_corners(const detail::Evaluator& E, const ElementRow& h, Mode mode, FineElement& el) {
   const auto [i, j, k] = el.ijk;
   const bool vol = mode == Mode::Volume;
   el.block = h.block;
   el.num_nodes = vol ? 8 : 4;
-  if (vol && i > 0 && j > 0 && k > 0 && i + 1 < h.n[0] && j + 1 < h.n[1] && k + 1 < h.n[2]) {
+  if (vol && interior_cell(h, el.ijk)) {
     // Every corner inside the cell (most elements at large intervals): the
     // cell's own ids, with no entity lookup per corner.
     for (int q = 0; q < 8; ++q)
@@ -116,11 +122,25 @@ bool visit_order(const char* what, std::span<const Id> ids, size_t room, std::ve
 
 Vec3 FineMesh::node(Id id, MeshCursor& cur) const {
   check_node_id(*this, id);
-  detail::Uninitialised<ElementRow> storage;  // locate_node writes every field
+  detail::Uninitialised<ElementRow> storage;  // element_grid / element write every field
   ElementRow& row = *storage;
+  const Id hid = owner_element(tables_, id, cur);
+  const detail::Evaluator E(tables_, cur);
+  E.R.prefetch_corners(hid);  // read last, by the TFI: its miss overlaps the row's
+  if (mode() == Mode::Volume) {
+    // Most nodes lie inside a straight element (two thirds at interval 8,
+    // more above): its grid and corners place them, and the row's entity
+    // columns, most of its cache lines, stay unread.
+    E.R.element_grid(hid, row);
+    if (!row.curved() && id >= row.cell_node && id - row.cell_node < ids::cell_nodes(row.n)) {
+      const auto l = ids::cell_local(id - row.cell_node, row.n);
+      return E.cell_point(row, hid, l[0], l[1], l[2], nullptr);
+    }
+  }
+  mode() == Mode::Volume ? E.R.element_entities(hid, row) : E.R.element(hid, row);
   NodeOwner owner;
-  const NodeRef ref = dicer::locate_node(tables_, id, cur, &row, &owner);
-  return owned_point(detail::Evaluator(tables_, cur), row, owner.element, ref, owner, nullptr);
+  const NodeRef ref = owned_node(tables_, hid, row, id, cur, &owner);
+  return owned_point(E, row, hid, ref, owner, nullptr);
 }
 
 void FineMesh::nodes(std::span<const Id> ids, std::span<Vec3> out, MeshCursor& cur) const {
@@ -181,8 +201,14 @@ FineElement FineMesh::element(Id id, MeshCursor& cur) const {
   el.id = id;
   detail::Uninitialised<ElementRow> storage;  // locate_element writes every field
   ElementRow& h = *storage;
-  el.coarse_element = dicer::locate_element(tables_, id, el.ijk, cur, &h);
-  element_corners(detail::Evaluator(tables_, cur), h, mode(), el);
+  const bool vol = mode() == Mode::Volume;
+  // A cell inside the interior (most, at large intervals) takes its node
+  // ids from the grid alone (element_corners' first case): no entity
+  // columns read.
+  el.coarse_element = dicer::locate_element(tables_, id, el.ijk, cur, &h, vol);
+  const detail::Evaluator E(tables_, cur);
+  if (vol && !interior_cell(h, el.ijk)) E.R.element_entities(el.coarse_element, h);
+  element_corners(E, h, mode(), el);
   return el;
 }
 

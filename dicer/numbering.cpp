@@ -95,19 +95,27 @@ Id search_elements(const MeshTables& t, Id x, bool by_node, MeshCursor& cur) {
   const std::vector<std::int64_t>& index = by_node ? t.node_index : t.element_index;
   const Id rpp = t.elements.rows_per_page();
   Id lo = 0, hi = t.elements.rows();  // first row with value > x lies in [lo, hi]
-  Id guess = -1;
+  RowReader::SearchHints hints;
+  const RowReader::SearchHints* hinted = nullptr;
   if (!index.empty()) {
-    const Id p = static_cast<Id>(std::upper_bound(index.begin(), index.end(), x) - index.begin()) - 1;
+    // std::upper_bound without branches: random ids make each comparison a
+    // coin toss, and a mispredicted branch per level cost more than the
+    // (cached) loads; cmov instead. The answer lies in [b, b + len].
+    const std::int64_t* b = index.data();
+    for (size_t len = index.size(); len > 1;) {
+      const size_t half = len / 2;
+      b = b[half] <= x ? b + half : b;
+      len -= half;
+    }
+    const Id p = static_cast<Id>(b - index.data()) + (*b <= x) - 1;
     if (p < 0) return -1;
     lo = p * rpp;
     hi = std::min(t.elements.rows(), lo + rpp);
-    // Values grow about evenly across a page (every element owns about the
-    // same): x's share of the page's range, from the index alone.
-    if (static_cast<size_t>(p + 1) < index.size() && index[p + 1] > index[p] && hi > lo) {
-      const double share = (static_cast<double>(x) - static_cast<double>(index[p])) /
-                           (static_cast<double>(index[p + 1]) - static_cast<double>(index[p]));
-      guess = lo + std::clamp<Id>(static_cast<Id>(share * static_cast<double>(hi - lo)), 0, hi - lo - 1);
-    }
+    // The page's first value and the next page's (past the last page: the
+    // id count) steer the search's first probe, from the index alone.
+    hints.at_lo = index[p];
+    hints.at_hi = static_cast<size_t>(p + 1) < index.size() ? index[p + 1] : (by_node ? t.fine_nodes : t.fine_elements);
+    hinted = &hints;
   }
   if (index.empty() && hi - lo > t.elements.run(lo)) {  // paged without an index: not a store we write
     while (lo < hi) {
@@ -117,7 +125,7 @@ Id search_elements(const MeshTables& t, Id x, bool by_node, MeshCursor& cur) {
     }
     return lo - 1;
   }
-  return R.search_first(lo, hi, x, by_node, guess) - 1;
+  return R.search_first(lo, hi, x, by_node, hinted) - 1;
 }
 
 }  // namespace
@@ -188,13 +196,14 @@ Id node_id(const MeshTables& t, const NodeRef& r, MeshCursor& cur) {
   return -1;
 }
 
-Id locate_element(const MeshTables& t, Id id, std::array<Id, 3>& ijk, MeshCursor& cur, ElementRow* row_out) {
+Id locate_element(const MeshTables& t, Id id, std::array<Id, 3>& ijk, MeshCursor& cur, ElementRow* row_out,
+                  bool grid_only) {
   const Id h = search_elements(t, id, false, cur);
   const RowReader R(t, cur);
   if (h < 0) R.corrupt(RowTable::Elements, 0, "no coarse element holds fine element " + std::to_string(id));
   ElementRow local;
   ElementRow& row = row_out ? *row_out : local;
-  R.element(h, row);
+  grid_only ? R.element_grid(h, row) : R.element(h, row);
   const Id l = id - row.element_first;
   if (l < 0 || l >= row.n[0] * row.n[1] * row.n[2])
     R.corrupt(RowTable::Elements, h, "fine element " + std::to_string(id) + " lies past the element's own");

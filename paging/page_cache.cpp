@@ -57,15 +57,6 @@ enum class State : std::uint8_t { Free, Loading, Ready, Failed };
 enum class Policy : std::uint8_t { Demand, ReadAhead };
 constexpr std::uint64_t kReadAheadHeadroom = 4;
 
-struct ArrayInfo {
-  std::uint64_t pages = 0;           // pages of the array (set_array_pages)
-  std::uint64_t last_pin = 0;        // page of the last pin() on this array
-  bool has_last = false;             // last_pin is meaningful
-  std::uint64_t ra_next = 0;         // first page the current read-ahead window has not scheduled yet
-  std::uint64_t max_page_bytes = 0;  // largest decoded page admitted so far (read-ahead's size estimate)
-  std::vector<bool> read;            // pages loaded since the last reset_stats (1 bit each)
-};
-
 // Fixed-capacity FIFO of keys to read ahead: scheduling never allocates
 // (it can happen on the hit path); when full, new requests are dropped.
 class KeyRing {
@@ -141,11 +132,27 @@ struct PageCache::Impl {
   std::condition_variable_any load_done;  // some Loading entry left that state
   std::condition_variable_any work;       // worker: queue not empty or stop
 
-  std::unordered_map<PageKey, Entry*, PageKeyHash> map;  // Loading and Ready entries
+  struct ArrayInfo {
+    std::uint64_t pages = 0;           // pages of the array (set_array_pages)
+    std::uint64_t last_pin = 0;        // page of the last pin() on this array
+    bool has_last = false;             // last_pin is meaningful
+    std::uint64_t ra_next = 0;         // first page the current read-ahead window has not scheduled yet
+    std::uint64_t max_page_bytes = 0;  // largest decoded page admitted so far (read-ahead's size estimate)
+    std::vector<bool> read;            // pages loaded since the last reset_stats (1 bit each)
+    // Its Loading and Ready entries by page (declared pages only; the map
+    // holds the rest): a pin finds its page with one load, not a hash probe.
+    std::vector<Entry*> entry;
+  };
+
+
+  std::unordered_map<PageKey, Entry*, PageKeyHash> map;  // Loading and Ready entries of undeclared pages
   std::deque<Entry> slots;                               // stable addresses; index order = clock order
   std::vector<Entry*> free_slots;
   std::size_t hand = 0;
-  std::unordered_map<std::uint32_t, ArrayInfo> arrays;
+  std::unordered_map<std::uint32_t, ArrayInfo> arrays;  // node-based: the pointers in `direct` stay valid
+  // arrays[a] for the small ids stores use (a < kDirect), by index.
+  static constexpr std::uint32_t kDirect = 4096;
+  std::vector<ArrayInfo*> direct;
   std::unordered_set<std::uint64_t> read_undeclared;  // the same for arrays without a page count (rare)
   // Counts a load: pages_read, and distinct_pages_read the first time this
   // page is loaded since the last reset (a bitmap per declared array).
@@ -169,8 +176,28 @@ struct PageCache::Impl {
   std::thread worker;
 
   ArrayInfo* array_info(std::uint32_t a) {
+    if (a < direct.size()) return direct[a];
+    if (a < kDirect) return nullptr;  // never declared
     auto it = arrays.find(a);
     return it == arrays.end() ? nullptr : &it->second;
+  }
+
+  // The Loading or Ready entry of key (nullptr: none); ai: its array's info.
+  Entry* find(const ArrayInfo* ai, PageKey key) const {
+    if (ai && key.page < ai->entry.size()) return ai->entry[key.page];
+    auto it = map.find(key);
+    return it == map.end() ? nullptr : it->second;
+  }
+  Entry* find(PageKey key) { return find(array_info(key.array), key); }
+  void index(Entry* e) {
+    ArrayInfo* ai = array_info(e->key.array);
+    if (ai && e->key.page < ai->entry.size()) ai->entry[e->key.page] = e;
+    else map.emplace(e->key, e);
+  }
+  void unindex(PageKey key) {
+    ArrayInfo* ai = array_info(key.array);
+    if (ai && key.page < ai->entry.size()) ai->entry[key.page] = nullptr;
+    else map.erase(key);
   }
 
   Entry* new_entry(PageKey key) {
@@ -187,7 +214,7 @@ struct PageCache::Impl {
     e->referenced = false;
     e->prefetched = false;
     e->error = nullptr;
-    map.emplace(key, e);
+    index(e);
     return e;
   }
 
@@ -203,7 +230,7 @@ struct PageCache::Impl {
     assert(e->state == State::Ready && e->pins == 0);
     st.resident_bytes -= e->data.size();
     ++st.evictions;
-    map.erase(e->key);
+    unindex(e->key);
     free_entry(e);
   }
 
@@ -211,7 +238,7 @@ struct PageCache::Impl {
   void fail(Entry* e, std::exception_ptr err) {
     e->state = State::Failed;
     e->error = std::move(err);
-    map.erase(e->key);
+    unindex(e->key);
     load_done.notify_all();
     if (e->pins == 0) free_entry(e);
   }
@@ -319,7 +346,7 @@ struct PageCache::Impl {
     bool pushed = false;
     for (std::uint64_t q = first; q <= last && !queue.full(); ++q) {
       const PageKey k{key.array, q};
-      if (map.find(k) == map.end()) queue.push(k), pushed = true;
+      if (find(&ai, k) == nullptr) queue.push(k), pushed = true;
     }
     ai.ra_next = last + 1;
     if (pushed && worker.joinable()) work.notify_one();
@@ -332,7 +359,7 @@ struct PageCache::Impl {
       ArrayInfo* ai = array_info(key.array);
       if (ai == nullptr || key.page >= ai->pages) return;
       if (ai->has_last && key.page <= ai->last_pin) return;  // the stream is already past it
-      if (map.find(key) != map.end()) return;
+      if (find(ai, key) != nullptr) return;
       if (!readahead_room(ai->max_page_bytes)) return;  // cache full of pages not to evict: skip
       Entry* e = new_entry(key);
       e->prefetched = true;
@@ -400,7 +427,7 @@ PageCache::~PageCache() {
 PageCache::Handle PageCache::pin(PageKey key) {
   Impl& m = *impl_;
   Lock lock(m.mu);
-  ArrayInfo* ai = m.array_info(key.array);
+  Impl::ArrayInfo* ai = m.array_info(key.array);
   if (ai != nullptr && key.page >= ai->pages)
     throw Error(ErrorKind::Usage, "page cache: page " + key_text(key) + " is beyond the end of the array (" +
                                       std::to_string(ai->pages) + " pages)");
@@ -413,8 +440,7 @@ PageCache::Handle PageCache::pin(PageKey key) {
   }
   const bool sync_read_ahead = !m.worker.joinable();
 
-  if (auto it = m.map.find(key); it != m.map.end()) {  // hit, or the load is in flight
-    Entry* e = it->second;
+  if (Entry* e = m.find(ai, key)) {  // hit, or the load is in flight
     ++m.st.hits;
     ++e->pins;
     if (!sequential) e->referenced = true;
@@ -467,10 +493,24 @@ PageCache::Handle PageCache::pin(PageKey key) {
 
 void PageCache::set_array_pages(std::uint32_t array, std::uint64_t pages) {
   std::lock_guard<SpinMutex> lock(impl_->mu);
-  ArrayInfo& ai = impl_->arrays[array];
+  Impl& m = *impl_;
+  Impl::ArrayInfo& ai = m.arrays[array];
+  if (array < Impl::kDirect) {
+    if (m.direct.size() <= array) m.direct.resize(array + 1, nullptr);
+    m.direct[array] = &ai;
+  }
+  // Re-index the array's entries under the new page count.
+  std::vector<Entry*> mine;
+  for (Entry* e : ai.entry)
+    if (e) mine.push_back(e);
+  for (const auto& [key, e] : m.map)
+    if (key.array == array) mine.push_back(e);
+  for (Entry* e : mine) m.unindex(e->key);
   ai.pages = pages;
   ai.ra_next = 0;
   ai.read.assign(static_cast<std::size_t>(pages), false);
+  ai.entry.assign(static_cast<std::size_t>(pages), nullptr);
+  for (Entry* e : mine) m.index(e);
 }
 
 CacheStats PageCache::stats() const {

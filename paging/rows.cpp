@@ -231,25 +231,55 @@ void RowReader::check_grid(Id h, const std::array<Id, 3>& n, Id element_first, s
   if (!range_ok(element_first, cells, t_.fine_elements)) corrupt(RowTable::Elements, h, "fine element ids outside the mesh");
 }
 
-void RowReader::element(Id h, ElementRow& o) const {
+// The scalar columns (node_first on), shared by element() and element_grid():
+// decoded and checked the same way.
+void RowReader::element_scalars(Id h, ElementRow& o) const {
   if (h < 0 || h >= t_.elements.rows()) corrupt(RowTable::Elements, h, "element id out of range");
   const ElementCols L = ElementCols::of(t_.mode);
   const std::int64_t* r = t_.elements.row(h, c_.elements);
-  if (L.c < 8) o = ElementRow{};  // surface rows leave the volume-only entries zero
-  for (int k = 0; k < L.c; ++k) o.corner[k] = r[L.corner() + k], o.corner_node[k] = r[L.corner_node() + k];
-  for (int k = 0; k < L.e; ++k) o.edge[k] = r[L.edge() + k], o.edge_node[k] = r[L.edge_node() + k];
-  for (int k = 0; k < L.f; ++k) o.face[k] = r[L.face() + k], o.face_node[k] = r[L.face_node() + k];
   o.node_first = r[L.node_first()], o.element_first = r[L.element_first()], o.cell_node = r[L.cell_node()];
   o.file_id = r[L.file_id()];
   const std::int64_t block = r[L.block()];
   o.flags = static_cast<std::uint64_t>(r[L.flags()]);
   o.n = {r[L.n()], r[L.n() + 1], r[L.n() + 2]};
-
   check_grid(h, o.n, o.element_first, o.flags);
   element_grading(*this, h, r, L, o.grading);
-  // The other fields in one pass without branches (random queries decode a
-  // row per call); which field failed is looked for only when one did. The
-  // grid is valid now, so every count below is under kMaxElementPoints.
+  // The grid is valid now, so the interior count is under kMaxElementPoints.
+  const Id interior = (o.n[0] - 1) * (o.n[1] - 1) * (t_.mode == Mode::Volume ? o.n[2] - 1 : 1);
+  const bool ok = (block >= 0) & (block < t_.blocks) & (o.cell_node >= 0) &
+                  (static_cast<std::uint64_t>(o.cell_node) + static_cast<std::uint64_t>(interior) <=
+                   static_cast<std::uint64_t>(t_.fine_nodes)) &
+                  (o.node_first >= 0) & (o.node_first <= o.cell_node);
+  if (!ok) {
+    if (block < 0 || block >= t_.blocks) corrupt(RowTable::Elements, h, "block index " + std::to_string(block) + " out of range");
+    corrupt(RowTable::Elements, h, "owned node ids out of range");
+  }
+  o.block = static_cast<std::int32_t>(block);
+}
+
+void RowReader::element_grid(Id h, ElementRow& o) const {
+  element_scalars(h, o);
+  // Entity columns unread: ids no table holds, so a caller that uses one
+  // anyway meets a Corrupt error, not a wrong row.
+  o.corner.fill(-1), o.corner_node.fill(-1), o.edge.fill(-1), o.edge_node.fill(-1);
+  o.face.fill(-1), o.face_node.fill(-1);
+}
+
+void RowReader::element(Id h, ElementRow& o) const {
+  if (t_.mode == Mode::Surface) o = ElementRow{};  // surface rows leave the volume-only entries zero
+  element_scalars(h, o);
+  element_entities(h, o);
+}
+
+void RowReader::element_entities(Id h, ElementRow& o) const {
+  const ElementCols L = ElementCols::of(t_.mode);
+  if (h < 0 || h >= t_.elements.rows()) corrupt(RowTable::Elements, h, "element id out of range");
+  const std::int64_t* r = t_.elements.row(h, c_.elements);
+  for (int k = 0; k < L.c; ++k) o.corner[k] = r[L.corner() + k], o.corner_node[k] = r[L.corner_node() + k];
+  for (int k = 0; k < L.e; ++k) o.edge[k] = r[L.edge() + k], o.edge_node[k] = r[L.edge_node() + k];
+  for (int k = 0; k < L.f; ++k) o.face[k] = r[L.face() + k], o.face_node[k] = r[L.face_node() + k];
+  // The entity columns in one pass without branches (random queries decode
+  // a row per call); which one failed is looked for only when one did.
   const bool vol = t_.mode == Mode::Volume;
   const Id V = t_.num_vertices(), N = t_.fine_nodes;
   auto below = [](Id x, Id limit) { return static_cast<std::uint64_t>(x) < static_cast<std::uint64_t>(limit); };
@@ -257,26 +287,22 @@ void RowReader::element(Id h, ElementRow& o) const {
   auto run = [N](Id first, Id count) {
     return (first >= 0) & (static_cast<std::uint64_t>(first) + static_cast<std::uint64_t>(count) <= static_cast<std::uint64_t>(N));
   };
-  bool ok = below(block, t_.blocks);
+  bool ok = true;
   for (int k = 0; k < L.c; ++k) ok &= below(o.corner[k], V) & below(o.corner_node[k], N);
   for (int k = 0; k < L.e; ++k) ok &= below(o.edge[k], t_.edges.rows()) & run(o.edge_node[k], o.n[vol ? k / 4 : k / 2] - 1);
   for (int k = 0; k < L.f; ++k) {
     const Id a = o.n[vol ? kHexFaceAxes[k][0] : 0] - 1, b = o.n[vol ? kHexFaceAxes[k][1] : 1] - 1;
     ok &= below(o.face[k], t_.faces.rows()) & run(o.face_node[k], a * b);
   }
-  const Id interior = (o.n[0] - 1) * (o.n[1] - 1) * (vol ? o.n[2] - 1 : 1);
-  ok &= run(o.cell_node, interior) & (o.node_first >= 0) & (o.node_first <= o.cell_node);
-  if (!ok) element_failure(h, o, block);
-  o.block = static_cast<std::int32_t>(block);
+  if (!ok) element_failure(h, o);
 }
 
-// The checks of element() one by one, for the message: which field of row
-// h is wrong. Only called when one is.
-void RowReader::element_failure(Id h, const ElementRow& o, std::int64_t block) const {
+// The entity checks of element() one by one, for the message: which field
+// of row h is wrong. Only called when one is.
+void RowReader::element_failure(Id h, const ElementRow& o) const {
   const ElementCols L = ElementCols::of(t_.mode);
   const bool vol = t_.mode == Mode::Volume;
   const auto RT = RowTable::Elements;
-  if (block < 0 || block >= t_.blocks) corrupt(RT, h, "block index " + std::to_string(block) + " out of range");
   for (int k = 0; k < L.c; ++k)
     if (o.corner[k] < 0 || o.corner[k] >= t_.num_vertices() || o.corner_node[k] < 0 || o.corner_node[k] >= t_.fine_nodes)
       corrupt(RT, h, "corner " + std::to_string(k) + " out of range");
@@ -290,9 +316,6 @@ void RowReader::element_failure(Id h, const ElementRow& o, std::int64_t block) c
     if (o.face[k] < 0 || o.face[k] >= t_.faces.rows() || !range_ok(o.face_node[k], a * b, t_.fine_nodes))
       corrupt(RT, h, "face " + std::to_string(k) + " out of range");
   }
-  const i128 interior = vol ? i128{o.n[0] - 1} * (o.n[1] - 1) * (o.n[2] - 1) : i128{o.n[0] - 1} * (o.n[1] - 1);
-  if (!range_ok(o.cell_node, interior, t_.fine_nodes) || o.node_first < 0 || o.node_first > o.cell_node)
-    corrupt(RT, h, "owned node ids out of range");
   DICER_ASSERT(false, "element(): the branch-free checks and these agree");
 }
 
@@ -304,6 +327,14 @@ void RowReader::corner_xyz(Id h, Vec3* out) const {
     if (!std::isfinite(out[k].x) || !std::isfinite(out[k].y) || !std::isfinite(out[k].z))
       corrupt(RowTable::Corners, h, "coordinate is not finite");
   }
+}
+
+void RowReader::prefetch_corners(Id h) const {
+  if (h < 0 || h >= t_.corners.rows()) return;
+  const char* r = reinterpret_cast<const char*>(t_.corners.row(h, c_.corners));
+  const std::size_t bytes = sizeof(double) * 3 * static_cast<std::size_t>(corners());
+  for (std::size_t b = 0; b < bytes; b += 64) __builtin_prefetch(r + b);
+  __builtin_prefetch(r + bytes - 1);
 }
 
 ElementBounds RowReader::bounds(Id h) const {
@@ -357,7 +388,7 @@ Id RowReader::element_first(Id h) const {
   return t_.elements.row(h, c_.elements)[ElementCols::of(t_.mode).element_first()];
 }
 
-Id RowReader::search_first(Id lo, Id hi, Id x, bool by_node, Id guess) const {
+Id RowReader::search_first(Id lo, Id hi, Id x, bool by_node, const SearchHints* hints) const {
   if (lo >= hi) return lo;
   const ElementCols L = ElementCols::of(t_.mode);
   const int col = by_node ? L.node_first() : L.element_first();
@@ -366,31 +397,48 @@ Id RowReader::search_first(Id lo, Id hi, Id x, bool by_node, Id guess) const {
   DICER_ASSERT(lo >= 0 && hi <= t_.elements.rows() && hi - lo <= t_.elements.run(lo), "search_first: one page");
   const std::int64_t* base = t_.elements.row(lo, c_.elements) + col;
   auto at = [&](Id r) { return base[(r - lo) * w]; };
-  Id a = lo, b = hi;  // the answer lies in [a, b]
-  if (guess >= lo && guess < hi) {
-    if (at(guess) <= x) {
-      a = guess + 1;
-      for (Id step = 1; guess + step < hi; step *= 2) {
-        if (at(guess + step) > x) {
-          b = guess + step;
-          break;
-        }
-        a = guess + step + 1;
-      }
-    } else {
-      b = guess;
-      for (Id step = 1; guess - step >= lo; step *= 2) {
-        if (at(guess - step) <= x) {
-          a = guess - step + 1;
-          break;
-        }
-        b = guess - step;
-      }
+  // The answer lies in [a, b]: rows below a hold values <= x (or lie below
+  // lo), row b one > x (or b == hi). va at row pa and vb at row pb: values
+  // read or hinted, which only steer the probes.
+  Id a = lo, b = hi, pa = lo, pb = hi;
+  std::int64_t va, vb;
+  if (hints) {
+    va = hints->at_lo, vb = hints->at_hi;
+  } else {
+    va = at(lo);
+    if (va > x) return lo;
+    a = lo + 1;
+    vb = at(hi - 1);
+    if (vb <= x) return hi;
+    b = pb = hi - 1;
+  }
+  // Interpolation: every row owns about as many ids as its neighbours, so
+  // the straight line through (pa, va) and (pb, vb) lands on or next to the
+  // answer (2 probes where bisection took log2 of the page's rows, each a
+  // cache line of a ~450-byte row). Each probe lies inside the bracket and
+  // shrinks it, whatever the values; after four, bisection bounds the rest.
+  for (int probe = 0; probe < 4 && a < b; ++probe) {
+    Id m = a + (b - a) / 2;
+    if (vb > va && x >= va && pb > pa) {
+      // The first row above x on that line (rows pa + 1, pa + 2, ... at
+      // even steps): pa + 1 + floor((x - va) / step).
+      const double rows = (static_cast<double>(x) - static_cast<double>(va)) * static_cast<double>(pb - pa) /
+                          (static_cast<double>(vb) - static_cast<double>(va));
+      m = std::clamp(pa + 1 + static_cast<Id>(std::min(rows, static_cast<double>(pb - pa))), a, b - 1);
     }
+    if (probe == 0) {
+      // The next probe is most often a neighbour: its cache line now, so
+      // that its miss overlaps this one's instead of following it.
+      if (m > lo) __builtin_prefetch(base + (m - 1 - lo) * w);
+      if (m + 1 < hi) __builtin_prefetch(base + (m + 1 - lo) * w);
+    }
+    const std::int64_t v = at(m);
+    if (v <= x) a = m + 1, va = v, pa = m;
+    else b = pb = m, vb = v;
   }
   while (a < b) {
     const Id mid = a + (b - a) / 2;
-    if (base[(mid - lo) * w] <= x) a = mid + 1;
+    if (at(mid) <= x) a = mid + 1;
     else b = mid;
   }
   return a;

@@ -48,7 +48,8 @@
 // single sweep whose budget holds at least read_ahead_pages + 3 pages, every
 // page is read exactly once (tests/unit/test_page_cache.cpp).
 //
-// Cost. Hit: one mutex lock, one hash lookup, O(1), no allocation (when a
+// Cost. Hit: one mutex lock and one page-table load (a hash lookup for an
+// array never declared or with an id of 4096 or more), O(1), no allocation (when a
 // hit extends a read-ahead window it also does read_ahead_pages lookups and,
 // without a background worker, the loads). Miss: one loader call made
 // without the lock, plus amortised O(1) clock steps (O(resident pages) in
@@ -178,7 +179,8 @@ class PageCache {
   std::uint64_t distinct_pages_read(std::uint32_t array) const;
   // All counters to 0, except resident_bytes (kept) and peak_resident_bytes
   // (set to the current resident_bytes); distinct pages count afresh.
-  // Memory: one bit per page of each declared array.
+  // Memory: 8 bytes and one bit per page of each declared array (its page
+  // table and read bitmap).
   void reset_stats();
   std::uint64_t budget() const noexcept { return budget_; }
   // Resident pages with at least one handle on them now (O(resident pages); diagnostics and tests).

@@ -120,8 +120,11 @@ NodeRef locate_node(const MeshTables& t, Id id, MeshCursor& cur, ElementRow* own
 NodeRef owned_node(const MeshTables& t, Id hid, const ElementRow& h, Id id, MeshCursor& cur,
                    NodeOwner* owner = nullptr);
 Id node_id(const MeshTables& t, const NodeRef& r, MeshCursor& cur);
-// Fine element id -> coarse element h and (i, j, k); `row` as above.
-Id locate_element(const MeshTables& t, Id id, std::array<Id, 3>& ijk, MeshCursor& cur, ElementRow* row = nullptr);
+// Fine element id -> coarse element h and (i, j, k); `row` as above, or
+// with `grid_only` its grid alone (RowReader::element_grid: entity
+// columns -1), all a cell inside the element's interior needs.
+Id locate_element(const MeshTables& t, Id id, std::array<Id, 3>& ijk, MeshCursor& cur, ElementRow* row = nullptr,
+                  bool grid_only = false);
 // The coarse element owning node `id` (the last with node_first <= id).
 Id owner_element(const MeshTables& t, Id id, MeshCursor& cur);
 

@@ -42,8 +42,10 @@ const Store& store(bool volume) {
   Store& out = s[volume];
   if (out.path.empty()) {
     out.path = dir.path(volume ? "v.dice.h5" : "s.dice.h5");
+    // Interval 3 in volume: row 1 has an interior cell (1, 1, 1), whose
+    // query reads the row's grid alone (RowReader::element_grid).
     const auto r = test::run_cli({"dice", test::data_path(volume ? "cardinal_sphere.e" : "libmesh_cylinder_shell.exo"),
-                                  "--interval", "2", "-o", out.path});
+                                  "--interval", volume ? "3" : "2", "-o", out.path});
     if (r.exit_code != 0) throw std::runtime_error(r.err);
     hid_t f = H5Fopen(out.path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
     out.V = attr(f, "coarse_vertices"), out.E = attr(f, "coarse_edges"), out.F = attr(f, "coarse_faces");
@@ -154,6 +156,33 @@ void run_all(bool volume) {
     EXPECT_EQ(r.exit_code, 8) << r.err;
     EXPECT_NE(r.err.find(c.dataset + " row " + std::to_string(row) + ":"), std::string::npos) << r.err;
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    if (c.dataset == "topology/elements" && volume) {
+      // node(id) of an interior node and element(id) of an interior cell
+      // read only some columns of their row (element_grid): any other
+      // column crafted must leave their answer exactly the intact store's,
+      // and a column they read must make them fail, naming the table.
+      FineMesh m = read_store(s.path);
+      MeshCursor cur;
+      const ElementRow h = RowReader(m.tables(), cur).element(row);
+      ASSERT_EQ(h.n, (std::array<Id, 3>{3, 3, 3}));
+      const Id node = h.cell_node, element = h.element_first + 1 + 3 * (1 + 3 * 1);  // cell (1, 1, 1)
+      for (const auto& what : {std::pair<std::string, Id>{"--node", node}, {"--element", element}}) {
+        const test::CliResult good = test::run_cli({"query", s.path, what.first, std::to_string(what.second)});
+        ASSERT_EQ(good.exit_code, 0) << good.err;
+        const test::CliResult q = test::run_cli({"query", bad, what.first, std::to_string(what.second)});
+        SCOPED_TRACE(what.first + " " + std::to_string(what.second));
+        if (q.exit_code == 0) {
+          EXPECT_EQ(q.out, good.out);
+        } else {
+          EXPECT_EQ(q.exit_code, 8) << q.err;
+          EXPECT_NE(q.err.find("topology/elements row "), std::string::npos) << q.err;
+          EXPECT_EQ(std::count(q.err.begin(), q.err.end(), '\n'), 1) << q.err;
+        }
+        if (c.col >= 2 * (8 + 12 + 6)) {  // the scalar columns: element_grid reads each
+          EXPECT_EQ(q.exit_code, 8) << q.out;
+        }
+      }
+    }
     if (c.dataset == "topology/elements" && (c.what == std::string("element_first") || c.what == std::string("flags") ||
                                               c.what == std::string("interval") || c.what == std::string("grading") ||
                                               c.what == std::string("ratio"))) {

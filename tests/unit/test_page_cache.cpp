@@ -9,6 +9,7 @@
 #include <atomic>
 #include <condition_variable>
 #include <cstring>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <random>
@@ -527,4 +528,40 @@ TEST(PageCache, ConcurrentSweepsReadEachPageOnce) {
     for (std::uint32_t a = 0; a < kThreads; ++a)
       for (std::uint64_t p = 0; p < kPages; ++p) ASSERT_EQ(pages.loads({a, p}), 1) << a << "/" << p;
   }
+}
+
+// A declared array's pages are found through its page table, others (and
+// ids past the table's range) through the hash map; declaring or
+// re-declaring a page count moves resident pages between the two. Any
+// lookup that lost a page would load it again: the loads are counted.
+TEST(PageCache, ResidentPagesStayFoundAcrossDeclarations) {
+  std::map<std::pair<std::uint32_t, std::uint64_t>, int> loads;
+  PageCache cache(
+      [&](PageKey k, std::vector<std::uint8_t>& out) -> std::uint64_t {
+        ++loads[{k.array, k.page}];
+        out.resize(page_bytes(k));
+        for (std::size_t i = 0; i < out.size(); ++i) out[i] = byte_at(k, i);
+        return out.size();
+      },
+      opts(1 << 20, 0, false));
+  const std::uint32_t arrays[] = {0, 3, 4095, 4096, 1u << 31};
+  auto pin_all = [&](std::uint64_t pages) {
+    for (std::uint32_t a : arrays)
+      for (std::uint64_t p = 0; p < pages; ++p) {
+        const PageCache::Handle h = cache.pin({a, p});
+        EXPECT_TRUE(content_ok(h)) << a << " " << p;
+      }
+  };
+  pin_all(6);                                              // undeclared: the map
+  for (std::uint32_t a : arrays) cache.set_array_pages(a, 4);  // pages 0-3 move to the tables, 4-5 stay
+  pin_all(4);
+  const PageCache::Handle held = cache.pin({4096, 2});  // pinned while re-declared
+  for (std::uint32_t a : arrays) cache.set_array_pages(a, 8);
+  pin_all(6);
+  EXPECT_TRUE(content_ok(held));
+  for (std::uint32_t a : arrays) {
+    for (std::uint64_t p = 0; p < 6; ++p) EXPECT_EQ((loads[{a, p}]), 1) << "array " << a << " page " << p;
+    EXPECT_EQ(kind_of([&] { cache.pin({a, 8}); }), ErrorKind::Usage);
+  }
+  EXPECT_EQ(cache.stats().evictions, 0u);
 }
