@@ -89,7 +89,7 @@ Numbering::Numbering(const Topology& t, std::vector<Id> edge_n) : edge_n_(std::m
 namespace {
 
 // Last element whose column value (node_first or element_first) is <= x:
-// the page index picks the page, a binary search the row.
+// the page index picks the page, an interpolation search the row.
 Id search_elements(const MeshTables& t, Id x, bool by_node, MeshCursor& cur) {
   const RowReader R(t, cur);
   const std::vector<std::int64_t>& index = by_node ? t.node_index : t.element_index;

@@ -494,22 +494,36 @@ PageCache::Handle PageCache::pin(PageKey key) {
 void PageCache::set_array_pages(std::uint32_t array, std::uint64_t pages) {
   std::lock_guard<SpinMutex> lock(impl_->mu);
   Impl& m = *impl_;
-  Impl::ArrayInfo& ai = m.arrays[array];
-  if (array < Impl::kDirect) {
-    if (m.direct.size() <= array) m.direct.resize(array + 1, nullptr);
-    m.direct[array] = &ai;
-  }
-  // Re-index the array's entries under the new page count.
+  // Everything that allocates first: a bad_alloc leaves the cache as it was.
+  std::vector<bool> read(static_cast<std::size_t>(pages), false);
+  std::vector<Entry*> table(static_cast<std::size_t>(pages), nullptr);
+  if (array < Impl::kDirect && m.direct.size() <= array) m.direct.resize(array + 1, nullptr);
+  const auto [it, fresh] = m.arrays.try_emplace(array);
+  Impl::ArrayInfo& ai = it->second;
   std::vector<Entry*> mine;
+  try {
+    std::size_t held = 0;
+    for (Entry* e : ai.entry) held += e != nullptr;
+    for (const auto& [key, e] : m.map) held += key.array == array;
+    mine.reserve(held);
+    m.map.reserve(m.map.size() + held);  // room for pages past a smaller count: no rehash below
+  } catch (...) {
+    if (fresh) m.arrays.erase(it);
+    throw;
+  }
+  if (array < Impl::kDirect) m.direct[array] = &ai;
   for (Entry* e : ai.entry)
     if (e) mine.push_back(e);
   for (const auto& [key, e] : m.map)
     if (key.array == array) mine.push_back(e);
+  // Then the re-indexing. Only resident pages past a smaller new count
+  // allocate (a map node each), which no store does: a store declares
+  // each array once, before its first pin.
   for (Entry* e : mine) m.unindex(e->key);
   ai.pages = pages;
   ai.ra_next = 0;
-  ai.read.assign(static_cast<std::size_t>(pages), false);
-  ai.entry.assign(static_cast<std::size_t>(pages), nullptr);
+  ai.read.swap(read);
+  ai.entry.swap(table);
   for (Entry* e : mine) m.index(e);
 }
 

@@ -272,6 +272,8 @@ void RowReader::element(Id h, ElementRow& o) const {
 }
 
 void RowReader::element_entities(Id h, ElementRow& o) const {
+  DICER_ASSERT(interval_ok(o.n[0]) && interval_ok(o.n[1]) && interval_ok(o.n[2]),
+               "element_entities: the grid of element_grid comes first");
   const ElementCols L = ElementCols::of(t_.mode);
   if (h < 0 || h >= t_.elements.rows()) corrupt(RowTable::Elements, h, "element id out of range");
   const std::int64_t* r = t_.elements.row(h, c_.elements);
@@ -414,17 +416,19 @@ Id RowReader::search_first(Id lo, Id hi, Id x, bool by_node, const SearchHints* 
   }
   // Interpolation: every row owns about as many ids as its neighbours, so
   // the straight line through (pa, va) and (pb, vb) lands on or next to the
-  // answer (2 probes where bisection took log2 of the page's rows, each a
-  // cache line of a ~450-byte row). Each probe lies inside the bracket and
+  // answer: about 2 probes, each a cache line of a ~520-byte row, where a
+  // bisection of a page takes 7. Each probe lies inside the bracket and
   // shrinks it, whatever the values; after four, bisection bounds the rest.
   for (int probe = 0; probe < 4 && a < b; ++probe) {
     Id m = a + (b - a) / 2;
     if (vb > va && x >= va && pb > pa) {
       // The first row above x on that line (rows pa + 1, pa + 2, ... at
       // even steps): pa + 1 + floor((x - va) / step).
-      const double rows = (static_cast<double>(x) - static_cast<double>(va)) * static_cast<double>(pb - pa) /
-                          (static_cast<double>(vb) - static_cast<double>(va));
-      m = std::clamp(pa + 1 + static_cast<Id>(std::min(rows, static_cast<double>(pb - pa))), a, b - 1);
+      // Differences exact in 128 bits, then rounded: vb - va >= 1, so the
+      // quotient is finite and >= 0 for any values (no NaN to convert).
+      const double span = static_cast<double>(pb - pa);
+      const double rows = static_cast<double>(i128{x} - va) * span / static_cast<double>(i128{vb} - va);
+      m = std::clamp(pa + 1 + static_cast<Id>(rows < span ? rows : span), a, b - 1);
     }
     if (probe == 0) {
       // The next probe is most often a neighbour: its cache line now, so

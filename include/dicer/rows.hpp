@@ -164,19 +164,22 @@ class RowReader {
   // Element h's grid alone: node_first, element_first, cell_node, file_id,
   // block, flags, n and grading, validated as element() validates them,
   // without the entity columns (corner, edge and face ids and node ids: 80%
-  // of the row, 6 of its 8 cache lines), which are set to -1. Enough for a
-  // node or cell inside a straight element's interior (FineMesh::node,
-  // element); anything that needs an entity reads element().
+  // of the row; the rest is 2 or 3 of its cache lines), which are set to
+  // -1. Enough for a node or cell inside a straight element's interior
+  // (FineMesh::node, element); anything that needs an entity reads element().
   void element_grid(Id h, ElementRow& o) const;
-  // The rest of the row into `o`, which element_grid(h, o) filled: the two
-  // are element(h, o), each column read once.
+  // The rest of row h into `o`, which element_grid(h, o) filled (its grid
+  // valid: the entity checks size by it); volume mode, where the two are
+  // element(h, o), each column read once. Surface rows use element().
   void element_entities(Id h, ElementRow& o) const;
   // The element's corner coordinates (corners() of them), as `corners`
   // stores them: bit-identical to xyz() of its corner vertices.
   void corner_xyz(Id h, Vec3* out) const;
   // Asks the memory system for element h's corner row without waiting for
-  // it (a random query's misses then overlap); no check, no effect on
-  // results. An id outside the table does nothing.
+  // it (a random query's misses then overlap), for callers about to read
+  // it with corner_xyz: the row's page is pinned as corner_xyz would (a
+  // page that fails to load throws here), the values are not checked. An
+  // id outside the table does nothing.
   void prefetch_corners(Id h) const;
   // Element h's bounds: finite, lo <= hi (Corrupt otherwise).
   ElementBounds bounds(Id h) const;
@@ -199,8 +202,9 @@ class RowReader {
   // The first row in [lo, hi) whose node_first (by_node) or element_first
   // exceeds x (hi if none), over rows that share one page (Table::run),
   // through one row pointer. Unvalidated like the two above. An
-  // interpolation search: about 2-3 rows touched when rows own about as many
-  // ids as their neighbours, O(log(hi - lo)) at worst. `hints`: the values
+  // interpolation search: about 2 rows touched when rows own about as many
+  // ids as their neighbours (plus the two end rows without hints),
+  // O(log(hi - lo)) at worst. `hints`: the values
   // at row lo and at row hi (the next page's first row), when the caller
   // knows them (the page index); they only steer the probes, so any hints
   // give the same answer. Without them the two end rows are read.

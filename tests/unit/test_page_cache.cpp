@@ -559,6 +559,11 @@ TEST(PageCache, ResidentPagesStayFoundAcrossDeclarations) {
   for (std::uint32_t a : arrays) cache.set_array_pages(a, 8);
   pin_all(6);
   EXPECT_TRUE(content_ok(held));
+  for (std::uint32_t a : arrays) cache.set_array_pages(a, 2);  // pages 2-5 back to the map, held among them
+  for (std::uint32_t a : arrays) EXPECT_EQ(kind_of([&] { cache.pin({a, 2}); }), ErrorKind::Usage);
+  pin_all(2);
+  for (std::uint32_t a : arrays) cache.set_array_pages(a, 8);
+  pin_all(6);
   for (std::uint32_t a : arrays) {
     for (std::uint64_t p = 0; p < 6; ++p) EXPECT_EQ((loads[{a, p}]), 1) << "array " << a << " page " << p;
     EXPECT_EQ(kind_of([&] { cache.pin({a, 8}); }), ErrorKind::Usage);
