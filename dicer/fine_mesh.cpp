@@ -131,12 +131,14 @@ Vec3 FineMesh::node(Id id, MeshCursor& cur) const {
     // more above): its grid and corners place them, and the row's entity
     // columns, most of its cache lines, stay unread.
     E.R.element_grid(hid, row);
-    // A straight element's nodes all come from its corners (cell_point,
-    // straight_owned_point): their row's miss overlaps what follows.
-    if (!row.curved()) E.R.prefetch_corners(hid);
-    if (!row.curved() && id >= row.cell_node && id - row.cell_node < ids::cell_nodes(row.n)) {
-      const auto l = ids::cell_local(id - row.cell_node, row.n);
-      return E.cell_point(row, hid, l[0], l[1], l[2], nullptr);
+    if (!row.curved()) {
+      // A straight element's nodes all come from its corners (cell_point,
+      // straight_owned_point): their row's miss overlaps what follows.
+      E.R.prefetch_corners(hid);
+      if (id >= row.cell_node && id - row.cell_node < ids::cell_nodes(row.n)) {
+        const auto l = ids::cell_local(id - row.cell_node, row.n);
+        return E.cell_point(row, hid, l[0], l[1], l[2], nullptr);
+      }
     }
   }
   mode() == Mode::Volume ? E.R.element_entities(hid, row) : E.R.element(hid, row);

@@ -144,7 +144,6 @@ struct PageCache::Impl {
     std::vector<Entry*> entry;
   };
 
-
   std::unordered_map<PageKey, Entry*, PageKeyHash> map;  // Loading and Ready entries of undeclared pages
   std::deque<Entry> slots;                               // stable addresses; index order = clock order
   std::vector<Entry*> free_slots;

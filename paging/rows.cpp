@@ -246,14 +246,9 @@ void RowReader::element_scalars(Id h, ElementRow& o) const {
   element_grading(*this, h, r, L, o.grading);
   // The grid is valid now, so the interior count is under kMaxElementPoints.
   const Id interior = (o.n[0] - 1) * (o.n[1] - 1) * (t_.mode == Mode::Volume ? o.n[2] - 1 : 1);
-  const bool ok = (block >= 0) & (block < t_.blocks) & (o.cell_node >= 0) &
-                  (static_cast<std::uint64_t>(o.cell_node) + static_cast<std::uint64_t>(interior) <=
-                   static_cast<std::uint64_t>(t_.fine_nodes)) &
-                  (o.node_first >= 0) & (o.node_first <= o.cell_node);
-  if (!ok) {
-    if (block < 0 || block >= t_.blocks) corrupt(RowTable::Elements, h, "block index " + std::to_string(block) + " out of range");
+  if (block < 0 || block >= t_.blocks) corrupt(RowTable::Elements, h, "block index " + std::to_string(block) + " out of range");
+  if (!range_ok(o.cell_node, interior, t_.fine_nodes) || o.node_first < 0 || o.node_first > o.cell_node)
     corrupt(RowTable::Elements, h, "owned node ids out of range");
-  }
   o.block = static_cast<std::int32_t>(block);
 }
 
