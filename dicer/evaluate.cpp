@@ -25,6 +25,15 @@ Vec3 coons_point(double a, double b, const Vec3* s, const Vec3* p) {
           tfi::coons(a, b, s[0].z, s[1].z, s[2].z, s[3].z, p[0].z, p[1].z, p[2].z, p[3].z)};
 }
 
+// The bilinear patch of p[0..3] at (a, b): a straight face's point (tfi.hpp).
+Vec3 bilinear_point(double a, double b, const Vec3* p) {
+  auto at = [&](double Vec3::*d) {
+    const double q[4] = {p[0].*d, p[1].*d, p[2].*d, p[3].*d};
+    return tfi::bilinear_point(tfi::bilinear_row(b, q), a);
+  };
+  return {at(&Vec3::x), at(&Vec3::y), at(&Vec3::z)};
+}
+
 // The interior points of an edge from a to b, one coordinate, at
 // parameters s[1..n-1], as edge_point computes each.
 DICER_CLONES void edge_fill(double a, double b, const double* s, Id n, double* out) {
@@ -40,6 +49,15 @@ DICER_CLONES void coons_fill(const double* s, const double* t, Id nu, Id nv, con
   for (Id v = 1; v < nv; ++v, out += nu - 1) {
     const double tv = t[v], l = left[v], r = right[v];
     for (Id u = 1; u < nu; ++u) out[u - 1] = tfi::coons(s[u], tv, bottom[u], top[u], l, r, p0, p1, p2, p3);
+  }
+}
+
+// coons_fill for a straight face: its bilinear patch (tfi.hpp), as
+// bilinear_point computes each.
+DICER_CLONES void bilinear_fill(const double* s, const double* t, Id nu, Id nv, const double* p, double* out) {
+  for (Id v = 1; v < nv; ++v, out += nu - 1) {
+    const tfi::Bilinear row = tfi::bilinear_row(t[v], p);
+    for (Id u = 1; u < nu; ++u) out[u - 1] = tfi::bilinear_point(row, s[u]);
   }
 }
 
@@ -98,80 +116,57 @@ Vec3 Evaluator::face_side(const FaceRow& f, int k, const EdgeRow& e, Id s) const
 Vec3 Evaluator::face_point(const FaceRow& f, Id u, Id v) const {
   const int side = v == 0 ? 0 : v == f.nv ? 1 : u == 0 ? 2 : u == f.nu ? 3 : -1;
   if (side >= 0) return face_side(f, side, face_side_row(f, side), side < 2 ? u : v);
-  const EdgeRow e[4] = {face_side_row(f, 0), face_side_row(f, 1), face_side_row(f, 2), face_side_row(f, 3)};
-  const Vec3 sides[4] = {face_side(f, 0, e[0], u), face_side(f, 1, e[1], u), face_side(f, 2, e[2], v),
-                         face_side(f, 3, e[3], v)};
-  const Vec3 p[4] = {R.xyz(f.v[0]), R.xyz(f.v[1]), R.xyz(f.v[2]), R.xyz(f.v[3])};
-  const auto g = R.face_grading(f, e);
-  const Vec3 x = coons_point(tfi::param(u, f.nu, g[0]), tfi::param(v, f.nv, g[1]), sides, p);
+  const Vec3 x = face_tfi(f, u, v, f.bound >= 0);
   return f.bound < 0 ? x : moved(x, ids::face_node(f.bound, f.nu, u, v));
 }
 
-// The 12 edge points and 6 face points of the hex at the point's
-// parameters, then tfi::hex_plane, hex_row, hex_column and hex_point as the
-// block fill does.
-// A straight element takes every input from its row and its corners (an
-// edge's ends and a face's corners are hex corners, every interval the
-// hex's own along that axis); a curved one from the owners' rows. The
-// values, and so the bits, are those the owners compute.
+Vec3 Evaluator::face_tfi(const FaceRow& f, Id u, Id v, bool coons) const {
+  const EdgeRow e[4] = {face_side_row(f, 0), face_side_row(f, 1), face_side_row(f, 2), face_side_row(f, 3)};
+  const Vec3 p[4] = {R.xyz(f.v[0]), R.xyz(f.v[1]), R.xyz(f.v[2]), R.xyz(f.v[3])};
+  const auto g = R.face_grading(f, e);
+  const double a = tfi::param(u, f.nu, g[0]), b = tfi::param(v, f.nv, g[1]);
+  if (!coons && e[0].bound < 0 && e[1].bound < 0 && e[2].bound < 0 && e[3].bound < 0) return bilinear_point(a, b, p);
+  const Vec3 sides[4] = {face_side(f, 0, e[0], u), face_side(f, 1, e[1], u), face_side(f, 2, e[2], v),
+                         face_side(f, 3, e[3], v)};
+  return coons_point(a, b, sides, p);
+}
+
+// A straight hex's point is the trilinear blend of its corners; a curved
+// one's the Boolean sum of its 12 edge points and 6 face points at the
+// point's parameters, their owners' values (edge_point, face_point), through
+// tfi::hex_plane, hex_row, hex_column and hex_point. Both as the block fill
+// computes them, so the bits agree.
 Vec3 Evaluator::cell_point(const ElementRow& h, Id hid, Id i, Id j, Id k, const Vec3* corners) const {
   const Id t[3] = {i, j, k};
   Uninitialised<Vec3, 8> read;
   if (!corners) R.corner_xyz(hid, read.data());
   const Vec3* corner = corners ? corners : read.data();
-  double f[3][6], e[3][12], c[3][8];
-  Uninitialised<Vec3, 12> ep;
-  // The point's parameter along each axis, and the weight every edge and
-  // face side along axis a takes there: read forwards (canonical index
-  // t[a]) or backwards (n - t[a]). Graded, backwards is 1 - s: the reversed
-  // series at n - t, bit for bit (tfi.hpp: graded parameters make 1 - s
-  // exact), so one series per axis serves every edge and face. Equal
-  // spacing keeps t / n in each entity's own frame: weight(n - t, n). Two
-  // divisions per axis instead of one per edge and face side.
-  double s[3], along[3][2];
-  for (int a = 0; a < 3; ++a) {
-    s[a] = tfi::param(t[a], h.n[a], h.grading[a]);
-    const bool equal = h.grading[a].kind == tfi::Spacing::Equal;
-    along[a][0] = equal ? tfi::weight(t[a], h.n[a]) : s[a];
-    along[a][1] = equal ? tfi::weight(h.n[a] - t[a], h.n[a]) : 1.0 - s[a];
-  }
-  const bool curved = h.curved();
-  for (int q = 0; q < 12; ++q) {
-    const bool rev = h.rev(q);
-    if (curved) {
-      const Id n = h.n[q / 4];
-      ep[q] = edge_point(edge_of(h, q), rev ? n - t[q / 4] : t[q / 4]);
-    } else {
-      // Canonical direction: lo -> hi vertex id; rev means local end 1 is lo.
-      ep[q] = lerp(corner[kHexEdge[q][rev ? 1 : 0]], corner[kHexEdge[q][rev ? 0 : 1]], along[q / 4][rev]);
+  double c[3][8];
+  for (int q = 0; q < 8; ++q) c[0][q] = corner[q].x, c[1][q] = corner[q].y, c[2][q] = corner[q].z;
+  const double u = tfi::param(i, h.n[0], h.grading[0]), v = tfi::param(j, h.n[1], h.grading[1]),
+               w = tfi::param(k, h.n[2], h.grading[2]);
+  double out[3];
+  if (!h.curved()) {
+    for (int d = 0; d < 3; ++d) {
+      double q[4];
+      tfi::trilinear_plane(w, c[d], q);
+      out[d] = tfi::bilinear_point(tfi::bilinear_row(v, q), u);
     }
-    e[0][q] = ep[q].x, e[1][q] = ep[q].y, e[2][q] = ep[q].z;
+    return {out[0], out[1], out[2]};
+  }
+  double f[3][6], e[3][12];
+  for (int q = 0; q < 12; ++q) {
+    const Id n = h.n[q / 4];
+    const Vec3 x = edge_point(edge_of(h, q), h.rev(q) ? n - t[q / 4] : t[q / 4]);
+    e[0][q] = x.x, e[1][q] = x.y, e[2][q] = x.z;
   }
   for (int q = 0; q < 6; ++q) {
-    const FaceCode code = h.code(q);
     const int A = kHexFaceAxes[q][0], B = kHexFaceAxes[q][1];
-    Vec3 x;
-    if (curved) {
-      const auto [nu, nv] = face_intervals(h, q, Mode::Volume);
-      const FaceMap fm = face_map(code, nu, nv);
-      x = face_point(R.face(h.face[q]), fm.u(t[A], t[B]), fm.v(t[A], t[B]));
-    } else {
-      const auto& cc = face_canonical_corners(Mode::Volume, q, code);
-      Uninitialised<Vec3, 4> sides;
-      for (int side = 0; side < 4; ++side) sides[side] = ep[hex_face_side_edge(q, code, side)];
-      const Vec3 pc[4] = {corner[cc[0]], corner[cc[1]], corner[cc[2]], corner[cc[3]]};
-      // Canonical u runs along local axis A (du/da = up) or B (uq), v
-      // likewise; a step of -1 reads that axis backwards (u = nu - t[A]).
-      const FaceMap fm = face_map(code, 1, 1);
-      const double wu = fm.up ? along[A][fm.up < 0] : along[B][fm.uq < 0];
-      const double wv = fm.vp ? along[A][fm.vp < 0] : along[B][fm.vq < 0];
-      x = coons_point(wu, wv, sides.data(), pc);
-    }
+    const auto [nu, nv] = face_intervals(h, q, Mode::Volume);
+    const FaceMap fm = face_map(h.code(q), nu, nv);
+    const Vec3 x = face_point(R.face(h.face[q]), fm.u(t[A], t[B]), fm.v(t[A], t[B]));
     f[0][q] = x.x, f[1][q] = x.y, f[2][q] = x.z;
   }
-  for (int q = 0; q < 8; ++q) c[0][q] = corner[q].x, c[1][q] = corner[q].y, c[2][q] = corner[q].z;
-  const double u = s[0], v = s[1], w = s[2];
-  double out[3];
   for (int d = 0; d < 3; ++d) {
     const tfi::HexPlane plane = tfi::hex_plane(w, e[d] + 8, c[d]);
     const tfi::HexRow row = tfi::hex_row(plane, v, f[d][0], f[d][1], e[d][4], e[d][5], e[d][6], e[d][7]);
@@ -271,21 +266,14 @@ Vec3 Evaluator::straight_owned_point(const ElementRow& h, Id hid, int slot, cons
     return lerp(corner[h.rev(k) ? b : a], corner[h.rev(k) ? a : b], tfi::param(t, n, h.edge_grading(k, m)));
   };
   if (r.kind == EntityKind::Edge) return edge_at(slot, r.local[0]);
-  // Face: interior point (u, v), as face_point: its sides at the point's
-  // parameters, each from its edge in that edge's canonical direction.
+  // Face: interior point (u, v) of a straight face, as face_point: the
+  // bilinear patch of its canonical corners.
   const FaceCode code = h.code(slot);
   const auto [nu, nv] = face_intervals(h, slot, m);
   const auto cc = face_canonical_corners(m, slot, code);
-  const Id u = r.local[0], v = r.local[1];
-  Uninitialised<Vec3, 4> sides;
-  for (int side = 0; side < 4; ++side) {
-    const Id len = side < 2 ? nu : nv, s = side < 2 ? u : v;
-    const bool forward = h.corner[cc[kQuadEdge[side][0]]] < h.corner[cc[kQuadEdge[side][1]]];
-    sides[side] = edge_at(face_side_edge(m, slot, code, side), forward ? s : len - s);
-  }
   const Vec3 p[4] = {corner[cc[0]], corner[cc[1]], corner[cc[2]], corner[cc[3]]};
   const auto g = face_grading(m, h, slot);
-  return coons_point(tfi::param(u, nu, g[0]), tfi::param(v, nv, g[1]), sides.data(), p);
+  return bilinear_point(tfi::param(r.local[0], nu, g[0]), tfi::param(r.local[1], nv, g[1]), p);
 }
 
 Vec3 Evaluator::node(const NodeRef& r) const {
@@ -313,6 +301,7 @@ void element_boundary(const Evaluator& E, const ElementRow& h, Id hid, FineBlock
 
   Id series_n = -1;  // the edge parameters held in out.s
   tfi::Grading series_g;
+  bool bound_edge[12] = {};  // local edge k's nodes are moved
   for (int k = 0; k < ne; ++k) {
     if (!need_edge[k]) continue;
     const Id n = h.n[vol ? k / 4 : k / 2];
@@ -320,6 +309,7 @@ void element_boundary(const Evaluator& E, const ElementRow& h, Id hid, FineBlock
     for (auto& a : pts) a.resize(static_cast<size_t>(std::max<Id>(n - 1, 0)));
     if (curved) {
       const EdgeRow er = E.edge_of(h, k);
+      bound_edge[k] = er.bound >= 0;
       for (Id t = 1; t < n; ++t) {
         const Vec3 x = E.edge_point(er, t);
         pts[0][t - 1] = x.x, pts[1][t - 1] = x.y, pts[2][t - 1] = x.z;
@@ -347,9 +337,19 @@ void element_boundary(const Evaluator& E, const ElementRow& h, Id hid, FineBlock
     const FaceCode code = h.code(lf);
     const auto [nu, nv] = face_intervals(h, lf, mode);
     const auto cc = face_canonical_corners(mode, lf, code);
+    const size_t m = static_cast<size_t>(ids::face_nodes(nu, nv));
+    Id bound = -1;  // the face's first bounding row, as face_point reads it
+    if (curved && m > 0) {
+      const FaceRow fr = E.R.face(h.face[lf]);
+      if (fr.nu != nu || fr.nv != nv) E.R.corrupt(RowTable::Faces, h.face[lf], "intervals disagree with an element using the face");
+      bound = fr.bound;
+    }
+    // Straight (face_tfi): unmoved, and so are its four sides.
+    bool straight = bound < 0;
+    for (int side = 0; side < 4; ++side) straight &= !bound_edge[face_side_edge(mode, lf, code, side)];
     // Sides in the face's canonical frame, at parameters 1..len-1.
     std::vector<double>* side_out[4] = {s.bottom, s.top, s.left, s.right};
-    for (int side = 0; side < 4; ++side) {
+    for (int side = 0; side < 4 && !straight; ++side) {
       const int le = face_side_edge(mode, lf, code, side);
       const Id len = side < 2 ? nu : nv;
       const bool forward = h.corner[cc[kQuadEdge[side][0]]] < h.corner[cc[kQuadEdge[side][1]]];
@@ -364,7 +364,6 @@ void element_boundary(const Evaluator& E, const ElementRow& h, Id hid, FineBlock
     const tfi::Series su(nu, g[0]), sv(nv, g[1]);
     for (Id u = 1; u < nu; ++u) s.s[u] = su.at(u);
     for (Id v = 1; v < nv; ++v) s.t[v] = sv.at(v);
-    const size_t m = static_cast<size_t>(ids::face_nodes(nu, nv));
     for (int d = 0; d < 3; ++d) {
       auto comp = [&](const Vec3& p) { return d == 0 ? p.x : d == 1 ? p.y : p.z; };
       const double p0 = comp(out.corner[cc[0]]), p1 = comp(out.corner[cc[1]]), p2 = comp(out.corner[cc[2]]),
@@ -372,18 +371,17 @@ void element_boundary(const Evaluator& E, const ElementRow& h, Id hid, FineBlock
       auto& face = out.face[lf][d];
       face.resize(m);
       const double p[4] = {p0, p1, p2, p3};
-      coons_fill(s.s.data(), s.t.data(), nu, nv, s.bottom[d].data(), s.top[d].data(), s.left[d].data(),
-                 s.right[d].data(), p, face.data());
+      if (straight)
+        bilinear_fill(s.s.data(), s.t.data(), nu, nv, p, face.data());
+      else
+        coons_fill(s.s.data(), s.t.data(), nu, nv, s.bottom[d].data(), s.top[d].data(), s.left[d].data(),
+                   s.right[d].data(), p, face.data());
     }
-    if (curved && m > 0) {
-      const FaceRow fr = E.R.face(h.face[lf]);
-      if (fr.nu != nu || fr.nv != nv) E.R.corrupt(RowTable::Faces, h.face[lf], "intervals disagree with an element using the face");
-      if (fr.bound >= 0)  // the stored corrections, as face_point applies them
-        for (size_t q = 0; q < m; ++q) {
-          const Vec3 x = E.moved({out.face[lf][0][q], out.face[lf][1][q], out.face[lf][2][q]}, fr.bound + static_cast<Id>(q));
-          out.face[lf][0][q] = x.x, out.face[lf][1][q] = x.y, out.face[lf][2][q] = x.z;
-        }
-    }
+    if (bound >= 0)  // the stored corrections, as face_point applies them
+      for (size_t q = 0; q < m; ++q) {
+        const Vec3 x = E.moved({out.face[lf][0][q], out.face[lf][1][q], out.face[lf][2][q]}, bound + static_cast<Id>(q));
+        out.face[lf][0][q] = x.x, out.face[lf][1][q] = x.y, out.face[lf][2][q] = x.z;
+      }
   }
 }
 

@@ -49,6 +49,12 @@ struct Evaluator {
   Vec3 face_side(const FaceRow& f, int k, const EdgeRow& e, Id s) const;
   // Face point at canonical (u, v), moved when bounded.
   Vec3 face_point(const FaceRow& f, Id u, Id v) const;
+  // Interior face point before any move: the bilinear patch of its corners
+  // when its sides are unmoved and `coons` is false (a straight face), else
+  // the Coons patch of its sides (tfi.hpp). face_point passes coons = the
+  // face is moved, and a move's prediction true: a moved face's nodes are
+  // corrections to its Coons patch.
+  Vec3 face_tfi(const FaceRow& f, Id u, Id v, bool coons) const;
   // Interior point (i, j, k) of element h, row hid (0 < i < n1 ...).
   // `corners`: h's corner coordinates (corner_xyz) when already read.
   Vec3 cell_point(const ElementRow& h, Id hid, Id i, Id j, Id k, const Vec3* corners = nullptr) const;

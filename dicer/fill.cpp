@@ -88,6 +88,13 @@ void fill_boundary(const detail::Evaluator& E, std::uint64_t mesh, const Element
   }
 }
 
+// The hex's corners c0..c7 (kHexCorner) of one coordinate, from the block's
+// planes k = 0 (a0) and k = n[2] (aN), row stride n[0] + 1.
+void block_corners(const double* a0, const double* aN, const std::array<Id, 3>& n, double* c) {
+  const Id n1 = n[1] * (n[0] + 1);
+  for (int q = 0; q < 8; ++q) c[q] = (kHexCorner[q][2] ? aN : a0)[kHexCorner[q][0] * n[0] + kHexCorner[q][1] * n1];
+}
+
 // Hex interior, one coordinate, from the block's boundary values:
 // tfi::hex_plane once per plane, hex_column once per (i, k), hex_row once
 // per (j, k), hex_point for each point, the calls Evaluator::cell_point() makes,
@@ -106,7 +113,7 @@ DICER_CLONES void hex_interior_plane(const double* a0, const double* aN, const d
   const Id sj = n[0] + 1;
   const Id n1 = n[1] * sj;
   double c[8];
-  for (int q = 0; q < 8; ++q) c[q] = (kHexCorner[q][2] ? aN : a0)[kHexCorner[q][0] * n[0] + kHexCorner[q][1] * n1];
+  block_corners(a0, aN, n, c);
   const double ek[4] = {ak[0], ak[n[0]], ak[n[0] + n1], ak[n1]};  // the k-edges e8..e11 at plane k
   const tfi::HexPlane plane = tfi::hex_plane(w, ek, c);
   // Columns: the j = 0 and j = n1 faces (ak's first and last rows) and the
@@ -127,6 +134,21 @@ DICER_CLONES void hex_interior_plane(const double* a0, const double* aN, const d
     const tfi::HexRow row = tfi::hex_row(plane, vj, ak[r], ak[n[0] + r], a0[r], a0[n[0] + r], aN[r], aN[n[0] + r]);
     double* out = dst + (j - 1) * dj;
     for (Id i = 1; i < n[0]; ++i) out[i - 1] = tfi::hex_point(row, {P[i], G[i]}, u[i], vj, w, f4[i], f5[i]);
+  }
+}
+
+// hex_interior_plane for a straight hex: tfi::trilinear_plane, then
+// bilinear_row and _point, as Evaluator::cell_point() calls them. The ring,
+// edges and faces are not read.
+DICER_CLONES void straight_interior_plane(const double* a0, const double* aN, std::array<Id, 3> n, const double* u,
+                                          const double* v, double w, double* dst, Id dj) {
+  double c[8], q[4];
+  block_corners(a0, aN, n, c);
+  tfi::trilinear_plane(w, c, q);
+  for (Id j = 1; j < n[1]; ++j) {
+    const tfi::Bilinear row = tfi::bilinear_row(v[j], q);
+    double* out = dst + (j - 1) * dj;
+    for (Id i = 1; i < n[0]; ++i) out[i - 1] = tfi::bilinear_point(row, u[i]);
   }
 }
 
@@ -216,10 +238,14 @@ void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool c
     // Compact: the planes after k0 only (plane k0 ended the previous slab).
     if (interior && (k == k0 || in == 0)) continue;
     for (int d = 0; d < 3 && coords; ++d) {
-      ring_copy(B.x[d].data() + ring, X[d]);
+      if (!interior || h.curved()) ring_copy(B.x[d].data() + ring, X[d]);  // compact: only the TFI reads it
       double* dst = interior ? interior[d] + (k - k0 - 1) * in : X[d] + ni + 1;
-      hex_interior_plane(B.x[d].data(), B.x[d].data() + pp, X[d], n, s.u.data(), s.v.data(), s.w[k], dst,
-                         interior ? n[0] - 1 : ni, s.P.data(), s.G.data());
+      if (h.curved())
+        hex_interior_plane(B.x[d].data(), B.x[d].data() + pp, X[d], n, s.u.data(), s.v.data(), s.w[k], dst,
+                           interior ? n[0] - 1 : ni, s.P.data(), s.G.data());
+      else
+        straight_interior_plane(B.x[d].data(), B.x[d].data() + pp, n, s.u.data(), s.v.data(), s.w[k], dst,
+                                interior ? n[0] - 1 : ni);
     }
   }
 

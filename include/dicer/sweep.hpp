@@ -8,7 +8,9 @@
 //
 // The checksum (since 0.3: cheaper than the chained mixes before, so the
 // values differ from earlier versions'; since 0.4 interior coordinates come
-// from tfi.hpp's factored hex TFI, whose last bits can differ from 0.3's),
+// from tfi.hpp's factored hex TFI, and since 0.5 those of straight hexes and
+// faces from its trilinear and bilinear forms, each of whose last bits can
+// differ from the version before's),
 // all arithmetic mod 2^64:
 //   fmix(h)      = murmur3's 64-bit finaliser: h ^= h >> 33; h *= 0xff51afd7ed558ccd;
 //                  h ^= h >> 33; h *= 0xc4ceb9fe1a85ec53; h ^= h >> 33

@@ -166,7 +166,8 @@ inline double edge(double a, double b, double s) { return (1.0 - s) * a + s * b;
 
 // Coons patch at (s, t) in [0,1]^2 from the four boundary values at the same
 // parameters (bottom(s), top(s), left(t), right(t)) and the corners
-// p0 = (0,0), p1 = (1,0), p2 = (1,1), p3 = (0,1).
+// p0 = (0,0), p1 = (1,0), p2 = (1,1), p3 = (0,1): the interior of a face
+// that is moved or has a moved side (a straight face's: bilinear_* below).
 inline double coons(double s, double t, double bottom, double top, double left, double right, double p0,
                     double p1, double p2, double p3) {
   const double S = 1.0 - s, T = 1.0 - t;
@@ -191,7 +192,8 @@ inline double coons(double s, double t, double bottom, double top, double left, 
 // Face values f0..f5 at the point's projections (faces i=0, i=1, j=0, j=1,
 // k=0, k=1), edge values e0..e11 (orientation.hpp's kHexEdge order) at the
 // point's parameter, corners c0..c7 (kHexCorner). Interior points only
-// (0 < u, v, w < 1): the boundary is its entities' own. Every path calls
+// (0 < u, v, w < 1): the boundary is its entities' own. A curved hex's
+// interior (a straight one's: trilinear_plane below). Every path calls
 // these four with the same inputs, so the bits agree (contraction is off).
 struct HexPlane {
   double w, W;            // plane k's weights
@@ -230,6 +232,37 @@ inline HexColumn hex_column(const HexPlane& p, double f2, double f3, double e0, 
 
 inline double hex_point(const HexRow& r, const HexColumn& c, double u, double v, double w, double f4, double f5) {
   return ((r.A + u * r.D) + (c.P + v * c.G)) + (f4 + w * (f5 - f4));
+}
+
+// Straight entities (since 0.5). A face whose four sides are straight and
+// whose own nodes are not moved has the bilinear patch of its corners as
+// its Coons patch (the side terms cancel the corner terms), and a straight
+// hex (ElementRow::curved() false: every edge and face of it straight) the
+// trilinear blend of its corners as its Boolean sum. Both are computed
+// directly: one multiply and one add per point and coordinate instead of
+// coons' twelve and eight, or the factored hex sum's three and six, and no
+// side, edge or face value is read.
+//
+//   face:  X = A + s D,  A = T p0 + t p3,  D = (T p1 + t p2) - A           row t
+//   hex:   q_k = W c_k + w c_(k+4) (k < 4), then the face form over q      plane w
+//          with s = u, t = v
+//
+// p0..p3 as coons() orders them ((0,0), (1,0), (1,1), (0,1)); c0..c7
+// kHexCorner, whose c0..c3 run the same way in (i, j) and c4..c7 lie above
+// them. Interior points only. Every path (block fill, node(id), the
+// evaluator) calls these with the same inputs, so the bits agree.
+struct Bilinear {
+  double A, D;  // row t's terms
+};
+inline Bilinear bilinear_row(double t, const double* p) {
+  const double T = 1.0 - t;
+  const double A = T * p[0] + t * p[3];
+  return {A, (T * p[1] + t * p[2]) - A};
+}
+inline double bilinear_point(const Bilinear& r, double s) { return r.A + s * r.D; }
+inline void trilinear_plane(double w, const double* c, double* q) {
+  const double W = 1.0 - w;
+  for (int k = 0; k < 4; ++k) q[k] = W * c[k] + w * c[k + 4];
 }
 
 // Bounding fine arrays (nodes moved onto the CAD or onto a second-order

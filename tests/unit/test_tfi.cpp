@@ -1,6 +1,7 @@
 // tfi.hpp's factored hex TFI (hex_plane, hex_row, hex_column, hex_point) against the
 // textbook Boolean sum (gordon_hall.hpp) on random, unrelated face, edge and
-// corner values: the factoring is algebra, so the two agree to rounding.
+// corner values: the factoring is algebra, so the two agree to rounding;
+// and its straight forms (bilinear_row, _point; trilinear_plane) likewise.
 #include <gtest/gtest.h>
 
 #include <cfloat>
@@ -14,18 +15,34 @@
 namespace dicer {
 namespace {
 
+constexpr int kTrials = 200000;
+
+// Random values in [-1, 1], every fourth trial shifted by up to 1e6
+// (cancellation), and parameters inside (0, 1).
+struct RandomInputs {
+  std::mt19937_64 rng;
+  std::uniform_real_distribution<double> val{-1, 1}, par{0x1p-20, 1 - 0x1p-20};
+  explicit RandomInputs(unsigned seed) : rng(seed) {}
+  double shift(int trial) { return trial % 4 == 0 ? 1e6 * val(rng) : 0; }
+};
+
+void record_worst(double worst) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.3g", worst);
+  testing::Test::RecordProperty("worst_relative_error", text);
+}
+
 TEST(HexTfi, FactoredFormIsTheTextbookSum) {
-  std::mt19937_64 rng(5);
-  std::uniform_real_distribution<double> val(-1, 1), par(0x1p-20, 1 - 0x1p-20);
+  RandomInputs in(5);
   double worst = 0;
-  for (int trial = 0; trial < 200000; ++trial) {
+  for (int trial = 0; trial < kTrials; ++trial) {
     // Values by position: side[a] in {0, 1, 2} (low, high, free).
     double at[27];
-    for (double& x : at) x = val(rng);
+    for (double& x : at) x = in.val(in.rng);
     // Larger offsets now and then: cancellation between faces, edges and corners.
-    const double shift = trial % 4 == 0 ? 1e6 * val(rng) : 0;
+    const double shift = in.shift(trial);
     for (double& x : at) x += shift;
-    const std::array<double, 3> s{par(rng), par(rng), par(rng)};
+    const std::array<double, 3> s{in.par(in.rng), in.par(in.rng), in.par(in.rng)};
     auto pos = [&](int i, int j, int k) { return at[i + 3 * j + 9 * k]; };
     // tfi.hpp's inputs in its own order: faces i=0, i=1, j=0, j=1, k=0, k=1;
     // edges kHexEdge (axis q / 4, the other axes at the first corner's sides);
@@ -50,9 +67,81 @@ TEST(HexTfi, FactoredFormIsTheTextbookSum) {
     // margin, while a wrong coefficient or a 1e-13 perturbation exceeds it.
     ASSERT_LE(err, 4 * DBL_EPSILON) << "trial " << trial << ": " << x << " vs " << static_cast<double>(want.x);
   }
-  char text[32];
-  std::snprintf(text, sizeof text, "%.3g", worst);
-  RecordProperty("worst_relative_error", text);
+  record_worst(worst);
+}
+
+// A straight hex: edges the segments between its corners, faces the
+// bilinear patches. Its Boolean sum is the trilinear blend of the corners
+// (the edge and face terms cancel), which tfi::trilinear_plane and the
+// bilinear patch compute for its interior: against the textbook sum of its
+// entities' exact values, and so against the corners' blend, to rounding.
+TEST(HexTfi, TrilinearFormIsTheBooleanSumOfAStraightHex) {
+  RandomInputs in(11);
+  double worst = 0;
+  for (int trial = 0; trial < kTrials; ++trial) {
+    double c[8];
+    const double shift = in.shift(trial);
+    for (double& x : c) x = in.val(in.rng) + shift;
+    const std::array<double, 3> s{in.par(in.rng), in.par(in.rng), in.par(in.rng)};
+    // An entity point's value: the corners' blend over its free axes
+    // (side 2), in long double.
+    auto at = [&](std::array<int, 3> side) {
+      long double x = 0;
+      for (int q = 0; q < 8; ++q) {
+        long double w = 1;
+        for (int a = 0; a < 3; ++a) {
+          const int hi = kHexCorner[q][a];
+          if (side[a] == 2) w *= hi ? static_cast<long double>(s[a]) : 1.0L - static_cast<long double>(s[a]);
+          else if (side[a] != hi) w = 0;
+        }
+        x += w * static_cast<long double>(c[q]);
+      }
+      return static_cast<double>(x);
+    };
+    double q[4];
+    tfi::trilinear_plane(s[2], c, q);
+    const double x = tfi::bilinear_point(tfi::bilinear_row(s[1], q), s[0]);
+    const test::GordonHall want = test::gordon_hall(at, s);
+    const double err = static_cast<double>(std::fabs(static_cast<long double>(x) - want.x) / want.magnitude);
+    worst = std::max(worst, err);
+    // The same empirical margin as above; the entity values are rounded to
+    // double, a few eps of each, well inside it once summed.
+    ASSERT_LE(err, 4 * DBL_EPSILON) << "trial " << trial << ": " << x << " vs " << static_cast<double>(want.x);
+    // And the corners' blend itself (the point, all three axes free).
+    const long double blend = at({2, 2, 2});
+    ASSERT_LE(std::fabs(x - blend), 8 * DBL_EPSILON * (std::fabs(blend) + 1)) << "trial " << trial;
+  }
+  record_worst(worst);
+}
+
+// A straight face: its Coons patch (the textbook form, in long double, of
+// sides that are the segments between its corners) is the bilinear patch
+// tfi::bilinear_row and _point compute.
+TEST(FaceTfi, BilinearFormIsTheCoonsPatchOfStraightSides) {
+  RandomInputs in(13);
+  double worst = 0;
+  for (int trial = 0; trial < kTrials; ++trial) {
+    double p[4];
+    const double shift = in.shift(trial);
+    for (double& x : p) x = in.val(in.rng) + shift;
+    const long double s = in.par(in.rng), t = in.par(in.rng), S = 1 - s, T = 1 - t;
+    auto lerp = [](double a, double b, long double w) {
+      return static_cast<double>((1 - w) * static_cast<long double>(a) + w * static_cast<long double>(b));
+    };
+    // Sides as coons() takes them: bottom p0 -> p1 at s, top p3 -> p2 at s,
+    // left p0 -> p3 at t, right p1 -> p2 at t.
+    const long double bottom = lerp(p[0], p[1], s), top = lerp(p[3], p[2], s), left = lerp(p[0], p[3], t),
+                      right = lerp(p[1], p[2], t);
+    const long double coons = (T * bottom + t * top) + (S * left + s * right) -
+                              (S * T * p[0] + s * T * p[1] + s * t * p[2] + S * t * p[3]);
+    long double magnitude = std::fabs(bottom) + std::fabs(top) + std::fabs(left) + std::fabs(right);
+    for (double x : p) magnitude += std::fabs(static_cast<long double>(x));
+    const double x = tfi::bilinear_point(tfi::bilinear_row(static_cast<double>(t), p), static_cast<double>(s));
+    const double err = static_cast<double>(std::fabs(static_cast<long double>(x) - coons) / magnitude);
+    worst = std::max(worst, err);
+    ASSERT_LE(err, 4 * DBL_EPSILON) << "trial " << trial << ": " << x << " vs " << static_cast<double>(coons);
+  }
+  record_worst(worst);
 }
 
 }  // namespace
