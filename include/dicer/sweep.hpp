@@ -6,22 +6,28 @@
 // and cache budget (a test pins it), so two sweeps, two machines or two
 // stores of the same mesh can be compared by one number.
 //
-// The checksum (since 0.3: cheaper than the chained mixes before, so the
-// values differ from earlier versions'; since 0.4 interior coordinates come
-// from tfi.hpp's factored hex TFI, and since 0.5 those of straight hexes and
-// faces from its trilinear and bilinear forms, each of whose last bits can
-// differ from the version before's),
-// all arithmetic mod 2^64:
-//   fmix(h)      = murmur3's 64-bit finaliser: h ^= h >> 33; h *= 0xff51afd7ed558ccd;
-//                  h ^= h >> 33; h *= 0xc4ceb9fe1a85ec53; h ^= h >> 33
-//   node term    = fmix(id*K0 ^ bits(x)*K1 ^ bits(y)*K2 ^ bits(z)*K3)
-//   element term = fmix(id*K4 + node[0]*K5 + ... + node[c-1]*K(4+c)), c = 8 or 4 corners
+// The checksum, all arithmetic mod 2^64:
+//   mix(h)       = h ^= h >> 32; h *= 0xd6e8feb86659fd93; h ^= h >> 32
+//   node term    = mix(id*K0 ^ bits(x) ^ rotl(bits(y), 21) ^ rotl(bits(z), 42))
+//   element term = mix(id*K4 + node[0]*K5 + ... + node[c-1]*K(4+c)), c = 8 or 4 corners
 //   checksum     = sum of every node's and every element's term
-// with bits() the IEEE-754 bit pattern and K = kChecksumKeys (odd, so each
-// product is a bijection of its input: a change in any one id, coordinate
-// bit or corner always changes the term). Terms are independent, so the
-// sum vectorises; the final fmix ties the id to its coordinates (a node's
-// coordinates given to another id change the sum).
+// with bits() the IEEE-754 bit pattern, rotl a left rotation and
+// K = kChecksumKeys (odd, so each product is a bijection of its input; K1..K3
+// served 0.3-0.4's node term). Each step is a bijection of each input with
+// the others fixed, so a change in any one id, coordinate bit or corner
+// always changes the term; the rotations keep a coordinate's bits from
+// lining up with another's (x and y swapped changes the term), and mix ties
+// the id to its coordinates (a node's coordinates given to another id
+// change the sum). Terms are independent, so the sum vectorises: one 64-bit
+// multiply per node beyond the id's (which a vector loop steps by adding),
+// one per element.
+//
+// Values differ between versions: 0.3 replaced chained mixes by the sum of
+// terms; 0.4's interior coordinates came from tfi.hpp's factored hex TFI;
+// 0.5 computes straight hexes' and faces' interiors by their trilinear and
+// bilinear forms (last bits can differ) and replaced murmur3's finaliser
+// (two multiplies) and the coordinates' three keyed products by mix and the
+// rotations. Compare checksums only between the same version.
 #include <cstdint>
 #include <functional>
 #include <span>
@@ -74,7 +80,7 @@ std::uint64_t checksum_elements(Id first, int corners, std::span<const Id> conn)
 // reads are arithmetic progressions (a cell's interior steps by 1, a face's
 // or an edge's by a constant of either sign), each term's argument is the
 // previous one's plus a constant (K4 plus each corner's key times its grid
-// row's step), so only fmix is computed per element there. Error{Usage}
+// row's step), so only mix is computed per element there. Error{Usage}
 // when n[0] or n[1] < 1, layers < 0 or grid has the wrong size. Each
 // calling thread keeps 16 bytes per grid row of work space (allocated on
 // its first call).

@@ -19,24 +19,22 @@ namespace {
 
 // The checksum as sweep.hpp documents it, written here from that text
 // (not by calling the library's terms).
-std::uint64_t fmix(std::uint64_t h) {
-  h ^= h >> 33;
-  h *= 0xff51afd7ed558ccdull;
-  h ^= h >> 33;
-  h *= 0xc4ceb9fe1a85ec53ull;
-  h ^= h >> 33;
+std::uint64_t mix(std::uint64_t h) {
+  h ^= h >> 32;
+  h *= 0xd6e8feb86659fd93ull;
+  h ^= h >> 32;
   return h;
 }
 std::uint64_t bits(double x) { return std::bit_cast<std::uint64_t>(x); }
+std::uint64_t rotl(std::uint64_t x, int r) { return (x << r) | (x >> (64 - r)); }
 std::uint64_t node_term(Id id, const Vec3& p) {
-  const std::uint64_t* K = kChecksumKeys;
-  return fmix(static_cast<std::uint64_t>(id) * K[0] ^ bits(p.x) * K[1] ^ bits(p.y) * K[2] ^ bits(p.z) * K[3]);
+  return mix(static_cast<std::uint64_t>(id) * kChecksumKeys[0] ^ bits(p.x) ^ rotl(bits(p.y), 21) ^ rotl(bits(p.z), 42));
 }
 std::uint64_t element_term(const FineElement& e) {
   const std::uint64_t* K = kChecksumKeys;
   std::uint64_t h = static_cast<std::uint64_t>(e.id) * K[4];
   for (int q = 0; q < e.num_nodes; ++q) h += static_cast<std::uint64_t>(e.nodes[q]) * K[5 + q];
-  return fmix(h);
+  return mix(h);
 }
 
 }  // namespace
@@ -172,7 +170,7 @@ TEST(Sweep, GridChecksumEqualsTheTermsOfItsHexes) {
                                                    pp * (k + kHexCorner[q][2]))];
             h += static_cast<std::uint64_t>(id) * K[5 + q];
           }
-          want += fmix(h);
+          want += mix(h);
         }
     ASSERT_EQ(checksum_hex_grid(first, n, layers, grid), want) << "trial " << trial;
   }

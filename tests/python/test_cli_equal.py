@@ -347,22 +347,24 @@ _K = np.array([0x9e3779b97f4a7c15, 0xbf58476d1ce4e5b9, 0x94d049bb133111eb, 0xd6e
                0x9fb21c651e98df25], dtype=np.uint64)
 
 
-def _fmix(h):
-    h = h ^ (h >> np.uint64(33))
-    h = h * np.uint64(0xff51afd7ed558ccd)
-    h = h ^ (h >> np.uint64(33))
-    h = h * np.uint64(0xc4ceb9fe1a85ec53)
-    return h ^ (h >> np.uint64(33))
+def _mix(h):
+    h = h ^ (h >> np.uint64(32))
+    h = h * np.uint64(0xd6e8feb86659fd93)
+    return h ^ (h >> np.uint64(32))
+
+
+def _rotl(x, r):
+    return (x << np.uint64(r)) | (x >> np.uint64(64 - r))
 
 
 def _numpy_checksum(node_ids, xyz, element_ids, conn):
     with np.errstate(over="ignore"):
         b = np.ascontiguousarray(xyz).view(np.uint64)
-        nodes = _fmix((node_ids.astype(np.uint64) * _K[0]) ^ (b[:, 0] * _K[1]) ^ (b[:, 1] * _K[2]) ^ (b[:, 2] * _K[3]))
+        nodes = _mix((node_ids.astype(np.uint64) * _K[0]) ^ b[:, 0] ^ _rotl(b[:, 1], 21) ^ _rotl(b[:, 2], 42))
         h = element_ids.astype(np.uint64) * _K[4]
         for q in range(conn.shape[1]):
             h = h + conn[:, q].astype(np.uint64) * _K[5 + q]
-        return int(nodes.sum(dtype=np.uint64)) + int(_fmix(h).sum(dtype=np.uint64))
+        return int(nodes.sum(dtype=np.uint64)) + int(_mix(h).sum(dtype=np.uint64))
 
 
 @pytest.mark.parametrize("fixture", ["sphere_store", "shell_store"])
