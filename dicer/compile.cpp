@@ -309,7 +309,7 @@ void FineMesh::move_nodes(EntityKind kind, Id entity, std::span<const Vec3> xyz)
     FaceRow f = E.R.face(entity);
     if (f.bound >= 0) throw Error(ErrorKind::Usage, "move_nodes: face " + std::to_string(entity) + " moved twice");
     for (Id v = 1; v < f.nv; ++v)
-      for (Id u = 1; u < f.nu; ++u) pred.push_back(E.face_tfi(f, u, v, true));  // Coons of the moved sides
+      for (Id u = 1; u < f.nu; ++u) pred.push_back(E.face_tfi(f, u, v, true));  // Coons of its sides, moved or not
     if (xyz.size() == pred.size() && !pred.empty()) f.bound = first_row, write_row(tables_, entity, f);
   } else {
     throw Error(ErrorKind::Usage, "move_nodes: only edge and face nodes are moved");

@@ -40,9 +40,10 @@ DICER_CLONES void edge_fill(double a, double b, const double* s, Id n, double* o
   for (Id t = 1; t < n; ++t) out[t - 1] = tfi::edge(a, b, s[t]);
 }
 
-// The interior of a face, one coordinate, in canonical order (u fastest):
-// tfi::coons at parameters s[u], t[v] from the sides' values there and the
-// corners p[0..3], as face_point computes each (clones.hpp: same bits).
+// The interior of a face that is moved or has a moved side, one
+// coordinate, in canonical order (u fastest): tfi::coons at parameters
+// s[u], t[v] from the sides' values there and the corners p[0..3], as
+// face_tfi computes each (clones.hpp: same bits).
 DICER_CLONES void coons_fill(const double* s, const double* t, Id nu, Id nv, const double* bottom, const double* top,
                              const double* left, const double* right, const double* p, double* out) {
   const double p0 = p[0], p1 = p[1], p2 = p[2], p3 = p[3];
@@ -53,7 +54,7 @@ DICER_CLONES void coons_fill(const double* s, const double* t, Id nu, Id nv, con
 }
 
 // coons_fill for a straight face: its bilinear patch (tfi.hpp), as
-// bilinear_point computes each.
+// face_tfi computes each.
 DICER_CLONES void bilinear_fill(const double* s, const double* t, Id nu, Id nv, const double* p, double* out) {
   for (Id v = 1; v < nv; ++v, out += nu - 1) {
     const tfi::Bilinear row = tfi::bilinear_row(t[v], p);

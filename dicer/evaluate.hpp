@@ -74,10 +74,11 @@ struct Evaluator {
 
 // The boundary points of one coarse element, each computed by its owning
 // entity's function in that entity's canonical frame: edges (canonical
-// t = 1..n-1) and faces ((nu-1)(nv-1), u fastest), from the element's
-// corners alone when it is straight, from the edge and face rows (moved
-// nodes included) when curved. One definition for the block fill and the
-// node cursor.
+// t = 1..n-1) and faces ((nu-1)(nv-1), u fastest): a straight face (a
+// straight element's all) from the element's corners alone, the others
+// from the edge and face rows (moved nodes included); a curved element's
+// rows say which of its faces are straight. One definition for the block
+// fill and the node cursor.
 // Results in out.corner (from the corners table), out.edge[k][d] (edge
 // k's interior points, canonical order, index t - 1) and out.face[k][d]
 // (face k's, canonical order). Fills what `want_edge`/`want_face` ask for

@@ -1,7 +1,8 @@
 // Block filling: every grid point of one coarse element (or a slab of its
 // planes), ids and coordinates, as contiguous arrays. The boundary comes
 // from element_boundary (each entity's own function, evaluate.hpp), the
-// interior from the hex TFI a plane at a time.
+// interior a plane at a time: a curved hex's by the hex TFI, a straight
+// one's by the trilinear blend of its corners (tfi.hpp).
 #include <algorithm>
 
 #include "dicer/error.hpp"
@@ -95,7 +96,7 @@ void block_corners(const double* a0, const double* aN, const std::array<Id, 3>& 
   for (int q = 0; q < 8; ++q) c[q] = (kHexCorner[q][2] ? aN : a0)[kHexCorner[q][0] * n[0] + kHexCorner[q][1] * n1];
 }
 
-// Hex interior, one coordinate, from the block's boundary values:
+// A curved hex's interior, one coordinate, from the block's boundary values:
 // tfi::hex_plane once per plane, hex_column once per (i, k), hex_row once
 // per (j, k), hex_point for each point, the calls Evaluator::cell_point() makes,
 // fed the same boundary values (clones.hpp: every clone gives the same bits).

@@ -753,7 +753,8 @@ class Conformer {
       const Place how = settle(param ? Place::Parametric : Place::Closest, param ? par : proj, pred);
       if (how == Place::Predicted) return false;
       closest = how == Place::Closest;
-      // The nodes: predictions from the moved sides (the mesh's own faces).
+      // The nodes: from the face's current nodes (Coons of moved sides, or
+      // bilinear where none moved: within rounding of move_nodes' prediction).
       std::vector<Vec3> npred;
       for (Id v = 1; v < nv; ++v)
         for (Id u = 1; u < nu; ++u) npred.push_back(node(EntityKind::Face, f, u, v));

@@ -240,7 +240,7 @@ inline double hex_point(const HexRow& r, const HexColumn& c, double u, double v,
 // hex (ElementRow::curved() false: every edge and face of it straight) the
 // trilinear blend of its corners as its Boolean sum. Both are computed
 // directly: one multiply and one add per point and coordinate instead of
-// coons' twelve and eight, or the factored hex sum's three and six, and no
+// coons' twelve and nine, or the factored hex sum's three and six, and no
 // side, edge or face value is read.
 //
 //   face:  X = A + s D,  A = T p0 + t p3,  D = (T p1 + t p2) - A           row t
