@@ -288,7 +288,8 @@ VerifyReport verify_finish(const FineMesh& mesh, const std::vector<VerifyPart>& 
     for (Id e = 0; e < t.edges.rows(); ++e) nodes += R.edge(e).n - 1;
     // Gradings agree too: opposite sides of every face (face_grading is
     // Corrupt otherwise) and every element's axes with its edges' rows (a
-    // straight element's fill reads only its own row).
+    // straight element's fill reads only its own row), and so does every
+    // element's curved flag with its edges' and faces' bounding rows.
     for (Id f = 0; f < t.faces.rows(); ++f) {
       const FaceRow fr = R.face(f);
       nodes += static_cast<__int128>(R.edge(fr.e[0]).n - 1) * (R.edge(fr.e[2]).n - 1);
@@ -296,9 +297,18 @@ VerifyReport verify_finish(const FineMesh& mesh, const std::vector<VerifyPart>& 
     }
     for (Id h = 0; h < t.elements.rows(); ++h) {
       const ElementRow row = R.element(h);
-      for (int k = 0; k < R.edges(); ++k)
-        if (!(R.edge(row.edge[k]).grading == row.edge_grading(k, t.mode)))
+      bool moved = false;  // the curved flag's definition (FORMAT.md): a straight element's paths read no rows
+      for (int k = 0; k < R.edges(); ++k) {
+        const EdgeRow er = R.edge(row.edge[k]);
+        if (!(er.grading == row.edge_grading(k, t.mode)))
           R.corrupt(RowTable::Edges, row.edge[k], "grading disagrees with element " + std::to_string(h) + " using the edge");
+        moved |= er.bound >= 0;
+      }
+      for (int k = 0; k < R.faces(); ++k) moved |= R.face(row.face[k]).bound >= 0;
+      if (moved != row.curved())
+        R.corrupt(RowTable::Elements, h,
+                  moved ? "flagged straight, but an edge or face of it has moved nodes (bounding rows)"
+                        : "flagged curved, but no edge or face of it has moved nodes (bounding rows)");
       const __int128 n0 = R.edge(row.edge[0]).n, n1 = R.edge(row.edge[vol ? 4 : 2]).n, n2 = vol ? R.edge(row.edge[8]).n : 1;
       if (vol) nodes += (n0 - 1) * (n1 - 1) * (n2 - 1);
       elems += n0 * n1 * n2;

@@ -237,6 +237,36 @@ void run_all(bool volume) {
 TEST(CraftedRows, EveryColumnOfAVolumeStoreIsChecked) { run_all(true); }
 TEST(CraftedRows, EveryColumnOfASurfaceStoreIsChecked) { run_all(false); }
 
+// The curved flag (bit 30 of an element's flags) set on a straight
+// element: every column still valid, so only verify, which checks the bit
+// against the element's edge and face rows (FORMAT.md), can tell; it does,
+// naming the row. (A straight element's paths read no edge or face row,
+// so a flag that lies the other way would silently give its owner and its
+// curved neighbours different nodes.)
+TEST(CraftedRows, ACurvedFlagThatTheRowsDoNotBearOutIsCorruptForVerify) {
+  const Store& s = store(true);
+  const int row = 1, flags = 2 * (8 + 12 + 6) + 5;  // element_columns: base + 5
+  test::TempDir tmp;
+  const std::string bad = tmp.path("bad.dice.h5");
+  fs::copy_file(s.path, bad);
+  ASSERT_EQ(test::run_cli({"verify", bad}).exit_code, 0);
+  hid_t f = H5Fopen(bad.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+  const hsize_t w = width_of(f, "topology/elements");
+  test::forge_page(f, "topology/elements", 0, [&](std::vector<std::uint8_t>& page) {
+    std::int64_t v;
+    std::memcpy(&v, page.data() + (row * w + flags) * 8, 8);
+    ASSERT_EQ(v & (std::int64_t{1} << ElementRow::kCurvedBit), 0) << "the test store's elements are straight";
+    v |= std::int64_t{1} << ElementRow::kCurvedBit;
+    std::memcpy(page.data() + (row * w + flags) * 8, &v, 8);
+  }, true);
+  H5Fclose(f);
+  const test::CliResult r = test::run_cli({"verify", bad});
+  EXPECT_EQ(r.exit_code, 8) << r.err;
+  EXPECT_NE(r.err.find("topology/elements row 1: flagged curved, but no edge or face of it has moved nodes"),
+            std::string::npos)
+      << r.err;
+}
+
 // The page index the id searches rely on, lying by a little: the commands
 // that search by that id answer Corrupt, and so does verify (it checks the
 // index against the rows).
