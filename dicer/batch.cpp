@@ -75,8 +75,8 @@ bool BatchCursor::next(FineBatch& out) {
     double* const interior[3] = {xyz_[0].data() + own, xyz_[1].data() + own, xyz_[2].data() + own};
     mesh_.fill_slab(h_, k0, k1, block_, true, opt_.conn, vol ? interior : nullptr);
     if (k0 == 0) {
-      // fill_slab has just evaluated the element's whole boundary into the
-      // block's scratch (edges and faces in their canonical frames).
+      // fill_slab has just evaluated the element's owned entities (at
+      // least) into the block's scratch, in their canonical frames.
       const detail::Evaluator E(mesh_.tables(), block_.cursor);
       double* const front[3] = {xyz_[0].data(), xyz_[1].data(), xyz_[2].data()};
       const Id end = detail::own_boundary_nodes(E, row_, h_, block_.scratch, front, own);

@@ -293,10 +293,11 @@ void element_boundary(const Evaluator& E, const ElementRow& h, Id hid, FineBlock
   const bool vol = mode == Mode::Volume, curved = h.curved();
   const int ne = vol ? 12 : 4, nf = vol ? 6 : 1;
   E.R.corner_xyz(hid, out.corner);
-  // Faces need the edges along their sides.
+  // A curved element's faces need the edges along their sides (a straight
+  // one's are bilinear patches of its corners).
   bool need_edge[12] = {};
   for (int k = 0; k < ne; ++k) need_edge[k] = !want_edge || want_edge[k];
-  for (int lf = 0; lf < nf; ++lf)
+  for (int lf = 0; lf < nf && curved; ++lf)
     if (!want_face || want_face[lf])
       for (int side = 0; side < 4; ++side) need_edge[face_side_edge(mode, lf, h.code(lf), side)] = true;
 
@@ -391,8 +392,12 @@ void facet_points(const Evaluator& E, const ElementRow& h, Id hid, int slot, Fin
   const Mode mode = E.mode();
   const bool vol = mode == Mode::Volume;
   bool want_edge[12] = {}, want_face[6] = {};
-  if (vol) want_face[slot] = true;
-  else want_edge[slot] = true;
+  if (vol) {
+    want_face[slot] = true;
+    for (int side = 0; side < 4; ++side) want_edge[face_side_edge(mode, slot, h.code(slot), side)] = true;
+  } else {
+    want_edge[slot] = true;
+  }
   element_boundary(E, h, hid, s, want_edge, want_face);
   ids.clear(), xyz.clear();
   auto put = [&](Id i, Id j, Id k) {
@@ -437,6 +442,14 @@ void facet_points(const Evaluator& E, const ElementRow& h, Id hid, int slot, Fin
   }
 }
 
+void owned_entities(const ElementRow& h, Mode mode, bool want_edge[12], bool want_face[6]) {
+  const bool vol = mode == Mode::Volume;
+  const int ne = vol ? 12 : 4, nf = vol ? 6 : 1;
+  std::fill_n(want_edge, 12, false), std::fill_n(want_face, 6, false);
+  for (int k = 0; k < ne; ++k) want_edge[k] = h.owns(h.edge_node[k]) && h.n[vol ? k / 4 : k / 2] > 1;
+  for (int k = 0; k < nf; ++k) want_face[k] = h.owns(h.face_node[k]);
+}
+
 Id own_boundary_nodes(const Evaluator& E, const ElementRow& h, Id hid, const FineBlock::Scratch& s,
                       double* const out[3], Id size) {
   const Mode mode = E.mode();
@@ -444,9 +457,8 @@ Id own_boundary_nodes(const Evaluator& E, const ElementRow& h, Id hid, const Fin
   const int nc = E.R.corners(), ne = E.R.edges(), nf = E.R.faces();
   const Id first = h.node_first;
   const Id end = vol ? h.cell_node : h.cell_node + ids::face_nodes(h.n[0], h.n[1]);
-  bool want_edge[12] = {}, want_face[6] = {};
-  for (int k = 0; k < ne; ++k) want_edge[k] = h.owns(h.edge_node[k]) && h.n[vol ? k / 4 : k / 2] > 1;
-  for (int k = 0; k < nf; ++k) want_face[k] = h.owns(h.face_node[k]);
+  bool want_edge[12], want_face[6];
+  owned_entities(h, mode, want_edge, want_face);
   if (end < first) E.R.corrupt(RowTable::Elements, hid, "the element's own node ids run backwards");
   if (end - first != size) E.R.corrupt(RowTable::Elements, hid, "the element's own node range disagrees with its row");
   Id filled = 0;

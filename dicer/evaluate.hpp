@@ -86,12 +86,16 @@ struct Evaluator {
 void element_boundary(const Evaluator& E, const ElementRow& h, Id hid, FineBlock::Scratch& out,
                       const bool* want_edge = nullptr, const bool* want_face = nullptr);
 
+// The local edges and faces whose nodes element h owns (edges with
+// interior nodes only): what own_boundary_nodes copies.
+void owned_entities(const ElementRow& h, Mode mode, bool want_edge[12], bool want_face[6]);
+
 // The coordinates of the nodes element h owns outside its interior
 // (volume: ids [node_first, cell_node); surface: [node_first, cell_node +
 // its face's nodes)), in id order, into out[d][id - node_first] (`size`
 // values each): its owned corners, edges and faces, copied from `s`, which
-// must hold element h's whole boundary in canonical frames (fill_slab with
-// coordinates has just put it there: element_boundary). Returns the end of
+// must hold them (owned_entities) in canonical frames (fill_slab with
+// coordinates has just put them there: element_boundary). Returns the end of
 // that id range. Error{Corrupt} when the range is not `size` long or the
 // row's owned entities do not tile it.
 Id own_boundary_nodes(const Evaluator& E, const ElementRow& h, Id hid, const FineBlock::Scratch& s,

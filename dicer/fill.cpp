@@ -25,21 +25,31 @@ void gather_row(double* dst, Id gs, const double* src, Id cs, Id m) {
   for (Id t = 0; t < m; ++t) dst[gs * t] = src[cs * t];
 }
 
+using Held = FineBlock::Scratch::Boundary::Held;
+
 // The boundary of coarse element hid (corners, edges, faces) into b's
-// scratch (Boundary::index): ids from the element row alone, coordinates
-// (if asked) from element_boundary.
+// scratch (Boundary::index): ids from the element row alone; coordinates
+// from element_boundary, of what `held` asks (Boundary::Held): Owned
+// evaluates only the corners and owned entities and leaves B.x alone.
 void fill_boundary(const detail::Evaluator& E, std::uint64_t mesh, const ElementRow& h, Id hid, FineBlock& b,
-                   bool coords) {
+                   Held held) {
   const auto n = h.n;
   const Mode mode = E.mode();
   const bool vol = mode == Mode::Volume;
   auto& B = b.scratch.boundary;
-  B.mesh = mesh, B.h = hid, B.coords = coords, B.n = n, B.volume = vol;
+  B.mesh = mesh, B.h = hid, B.held = held, B.n = n, B.volume = vol;
   const size_t nb = static_cast<size_t>(B.size());
   B.id.resize(nb);
+  const bool coords = held == Held::All;
   for (int d = 0; d < 3; ++d) coords ? B.x[d].resize(nb) : B.x[d].clear();
   auto& s = b.scratch;
-  if (coords) detail::element_boundary(E, h, hid, s);
+  if (held == Held::Owned) {
+    bool want_edge[12], want_face[6];
+    detail::owned_entities(h, mode, want_edge, want_face);
+    detail::element_boundary(E, h, hid, s, want_edge, want_face);
+  } else if (coords) {
+    detail::element_boundary(E, h, hid, s);
+  }
   Id* ids = B.id.data();
   double* X[3] = {B.x[0].data(), B.x[1].data(), B.x[2].data()};
   auto grid = [&](const int* c, int axis, Id t) {  // boundary slot of corner c, moved to t along axis
@@ -89,11 +99,9 @@ void fill_boundary(const detail::Evaluator& E, std::uint64_t mesh, const Element
   }
 }
 
-// The hex's corners c0..c7 (kHexCorner) of one coordinate, from the block's
-// planes k = 0 (a0) and k = n[2] (aN), row stride n[0] + 1.
-void block_corners(const double* a0, const double* aN, const std::array<Id, 3>& n, double* c) {
-  const Id n1 = n[1] * (n[0] + 1);
-  for (int q = 0; q < 8; ++q) c[q] = (kHexCorner[q][2] ? aN : a0)[kHexCorner[q][0] * n[0] + kHexCorner[q][1] * n1];
+// The hex's corners c0..c7 (kHexCorner) of coordinate d.
+void block_corners(const Vec3* corner, int d, double* c) {
+  for (int q = 0; q < 8; ++q) c[q] = d == 0 ? corner[q].x : d == 1 ? corner[q].y : corner[q].z;
 }
 
 // A curved hex's interior, one coordinate, from the block's boundary values:
@@ -108,13 +116,12 @@ void block_corners(const double* a0, const double* aN, const std::array<Id, 3>& 
 // element's gradings); P, G: room for n[0] column terms each.
 // The interior goes to dst: point (i, j) at dst[(j - 1) dj + i - 1] (ak's
 // own rows: dst = ak + n[0] + 2, dj = n[0] + 1; compact: dj = n[0] - 1).
-DICER_CLONES void hex_interior_plane(const double* a0, const double* aN, const double* ak, std::array<Id, 3> n,
-                                     const double* u, const double* v, double w, double* dst, Id dj, double* P,
-                                     double* G) {
+// c: the corners (block_corners).
+DICER_CLONES void hex_interior_plane(const double* c, const double* a0, const double* aN, const double* ak,
+                                     std::array<Id, 3> n, const double* u, const double* v, double w, double* dst,
+                                     Id dj, double* P, double* G) {
   const Id sj = n[0] + 1;
   const Id n1 = n[1] * sj;
-  double c[8];
-  block_corners(a0, aN, n, c);
   const double ek[4] = {ak[0], ak[n[0]], ak[n[0] + n1], ak[n1]};  // the k-edges e8..e11 at plane k
   const tfi::HexPlane plane = tfi::hex_plane(w, ek, c);
   // Columns: the j = 0 and j = n1 faces (ak's first and last rows) and the
@@ -139,12 +146,11 @@ DICER_CLONES void hex_interior_plane(const double* a0, const double* aN, const d
 }
 
 // hex_interior_plane for a straight hex: tfi::trilinear_plane, then
-// bilinear_row and _point, as Evaluator::cell_point() calls them. The ring,
-// edges and faces are not read.
-DICER_CLONES void straight_interior_plane(const double* a0, const double* aN, std::array<Id, 3> n, const double* u,
-                                          const double* v, double w, double* dst, Id dj) {
-  double c[8], q[4];
-  block_corners(a0, aN, n, c);
+// bilinear_row and _point, as Evaluator::cell_point() calls them, from the
+// corners c alone.
+DICER_CLONES void straight_interior_plane(const double* c, std::array<Id, 3> n, const double* u, const double* v,
+                                          double w, double* dst, Id dj) {
+  double q[4];
   tfi::trilinear_plane(w, c, q);
   for (Id j = 1; j < n[1]; ++j) {
     const tfi::Bilinear row = tfi::bilinear_row(v[j], q);
@@ -186,7 +192,10 @@ void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool c
                                       std::to_string(vol ? n[2] : 0) + ")");
   if (interior) coords = true;
   auto& B = b.scratch.boundary;
-  if (B.mesh != serial_ || B.h != hid || (coords && !B.coords)) fill_boundary(E, serial_, h, hid, b, coords);
+  // The compact interior of a straight hex reads only its corners, and the
+  // batch only the owned entities besides (own_boundary_nodes).
+  const Held need = !coords ? Held::Ids : interior && !h.curved() ? Held::Owned : Held::All;
+  if (B.mesh != serial_ || B.h != hid || B.held < need) fill_boundary(E, serial_, h, hid, b, need);
   b.coarse_element = hid;
   b.n = n;
   b.block = h.block;
@@ -241,12 +250,13 @@ void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool c
     for (int d = 0; d < 3 && coords; ++d) {
       if (!interior || h.curved()) ring_copy(B.x[d].data() + ring, X[d]);  // compact: only the TFI reads it
       double* dst = interior ? interior[d] + (k - k0 - 1) * in : X[d] + ni + 1;
+      double c[8];
+      block_corners(s.corner, d, c);
       if (h.curved())
-        hex_interior_plane(B.x[d].data(), B.x[d].data() + pp, X[d], n, s.u.data(), s.v.data(), s.w[k], dst,
+        hex_interior_plane(c, B.x[d].data(), B.x[d].data() + pp, X[d], n, s.u.data(), s.v.data(), s.w[k], dst,
                            interior ? n[0] - 1 : ni, s.P.data(), s.G.data());
       else
-        straight_interior_plane(B.x[d].data(), B.x[d].data() + pp, n, s.u.data(), s.v.data(), s.w[k], dst,
-                                interior ? n[0] - 1 : ni);
+        straight_interior_plane(c, n, s.u.data(), s.v.data(), s.w[k], dst, interior ? n[0] - 1 : ni);
     }
   }
 

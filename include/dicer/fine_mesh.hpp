@@ -73,9 +73,15 @@ struct FineBlock {
     // whole, then for each 0 < k < n[2] the ring of plane k (j = 0, j = n[1],
     // i = 0, i = n[0]). O(n^2). Keyed on the mesh's identity and element.
     struct Boundary {
+      // What is held besides the ids: Owned = the corners and the entities
+      // the element owns, in `Scratch`'s canonical arrays (all a straight
+      // hex's batches read: its interior needs only corners); All = every
+      // entity, and x holds every boundary point.
+      enum class Held : std::uint8_t { Ids, Owned, All };
       std::uint64_t mesh = 0;
       Id h = -1;
-      bool coords = false, volume = true;
+      Held held = Held::Ids;
+      bool volume = true;
       std::array<Id, 3> n{};
       std::vector<Id> id;
       std::vector<double> x[3];
