@@ -104,9 +104,12 @@ DICER_HASH_CLONES std::uint64_t sum_mix(const std::uint64_t* a, std::int64_t n) 
 class ArgBuffer {
  public:
   static constexpr size_t kArgs = 1024;
-  void put(std::uint64_t h) {
-    a_[used_++] = h;
-    if (used_ == kArgs) flush();
+  // Room for m <= kArgs arguments, written by the caller.
+  std::uint64_t* take(size_t m) {
+    if (used_ + m > kArgs) flush();
+    std::uint64_t* at = a_ + used_;
+    used_ += m;
+    return at;
   }
   void flush() {
     sum_ += sum_mix(a_, static_cast<std::int64_t>(used_));
@@ -123,17 +126,27 @@ class ArgBuffer {
   std::uint64_t sum_ = 0;
 };
 
-// The common difference of p[1..m] (mod 2^64, the arithmetic of the terms:
-// no overflow on any input) when they are an arithmetic progression, any
-// step (a cell's interior rows step by 1, a face's rows by 1, -1, or a
-// row of the face's canonical grid, an edge's by 1 or -1); nullopt if not.
-std::optional<std::uint64_t> progression(const Id* p, std::int64_t m) {
+// Whether p[1..m] is an arithmetic progression (mod 2^64, the arithmetic
+// of the terms: no overflow on any input), any step (a cell's interior rows
+// step by 1, a face's rows by 1, -1, or a row of the face's canonical grid,
+// an edge's by 1 or -1); its common difference in d.
+bool progression(const Id* p, std::int64_t m, std::uint64_t& d) {
   const auto at = [p](std::int64_t t) { return static_cast<std::uint64_t>(p[t]); };
-  const std::uint64_t d = at(2) - at(1);
+  d = at(2) - at(1);
   bool ok = true;
   for (std::int64_t t = 2; t < m; ++t) ok &= at(t + 1) - at(t) == d;
-  return ok ? std::optional<std::uint64_t>(d) : std::nullopt;
+  return ok;
 }
+
+// The keys of the corners read from each of a cell's four grid rows,
+// summed (grid_cell_row): a row's step times its sum is what its corners
+// add to the step of a progression of arguments (products distribute mod
+// 2^64).
+constexpr std::array<std::uint64_t, 4> kRowKeys = [] {
+  std::array<std::uint64_t, 4> k{};
+  for (int q = 0; q < 8; ++q) k[grid_cell_row(q)] += kChecksumKeys[5 + q];
+  return k;
+}();
 
 }  // namespace
 
@@ -146,13 +159,17 @@ std::uint64_t checksum_hex_grid(Id first, const std::array<Id, 3>& n, Id layers,
                                       " x " + std::to_string(n[1]));
   const Id ni = n[0] + 1;
   // Each grid row's interior [1, n0 - 1] checked once: its step, if it is a
-  // progression (n0 >= 3: at least two interior points).
+  // progression (n0 >= 3: at least two interior points; a row of more than
+  // the buffer's room takes the general path).
   const Id grid_rows = (n[1] + 1) * (layers + 1);
+  const bool rows_may_step = n[0] >= 3 && n[0] <= static_cast<Id>(ArgBuffer::kArgs);
   // Warm after the first batch: no allocation per batch.
-  thread_local std::vector<std::optional<std::uint64_t>> step_of;
-  step_of.resize(static_cast<size_t>(grid_rows));
-  for (Id r = 0; r < grid_rows; ++r)
-    step_of[r] = n[0] >= 3 ? progression(grid.data() + r * ni, n[0] - 1) : std::nullopt;
+  thread_local std::vector<std::uint64_t> step_of;
+  thread_local std::vector<std::uint8_t> steps;
+  step_of.resize(static_cast<size_t>(grid_rows)), steps.resize(static_cast<size_t>(grid_rows));
+  std::uint64_t* const st = step_of.data();
+  std::uint8_t* const ok = steps.data();
+  for (Id r = 0; r < grid_rows; ++r) ok[r] = rows_may_step && progression(grid.data() + r * ni, n[0] - 1, st[r]);
   std::uint64_t sum = 0;
   ArgBuffer args;  // 8 KiB on the stack
   auto id = static_cast<std::uint64_t>(first);
@@ -161,26 +178,27 @@ std::uint64_t checksum_hex_grid(Id first, const std::array<Id, 3>& n, Id layers,
       const Id ra = j + (n[1] + 1) * k, rc = ra + n[1] + 1;
       const Id* const rows[4] = {grid.data() + ra * ni, grid.data() + (ra + 1) * ni, grid.data() + rc * ni,
                                  grid.data() + (rc + 1) * ni};
-      const std::optional<std::uint64_t> row_step[4] = {step_of[ra], step_of[ra + 1], step_of[rc], step_of[rc + 1]};
-      if (!(row_step[0] && row_step[1] && row_step[2] && row_step[3])) {
+      if (!(ok[ra] & ok[ra + 1] & ok[rc] & ok[rc + 1])) {
         sum += sum_hex_row(id, rows, 0, n[0]);
         continue;
       }
       // Elements 1 .. n0 - 2 read only the rows' interiors, each a
       // progression: each term's argument is the one before plus `step`
-      // (K4 for the id, each corner's key times its row's step). The two
+      // (K4 for the id, each row's step times its corners' keys). The two
       // end elements' arguments in full.
-      std::uint64_t step = K[4];
-      for (int q = 0; q < 8; ++q) step += *row_step[grid_cell_row(q)] * K[5 + q];
+      const std::uint64_t step =
+          K[4] + st[ra] * kRowKeys[0] + st[ra + 1] * kRowKeys[1] + st[rc] * kRowKeys[2] + st[rc + 1] * kRowKeys[3];
       auto arg = [&](Id i) {
         Id nodes[8];
         for (int q = 0; q < 8; ++q) nodes[q] = grid_cell_corner(rows, i, q);
         return element_arg<8>(id + static_cast<std::uint64_t>(i), nodes);
       };
-      args.put(arg(0));
+      const Id m = n[0];
+      std::uint64_t* const a = args.take(static_cast<size_t>(m));
+      a[0] = arg(0);
       std::uint64_t h = arg(1);
-      for (Id i = 1; i < n[0] - 1; ++i, h += step) args.put(h);
-      args.put(arg(n[0] - 1));
+      for (Id i = 1; i < m - 1; ++i, h += step) a[i] = h;
+      a[m - 1] = arg(m - 1);
     }
   return sum + args.sum();
 }
