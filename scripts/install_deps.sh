@@ -8,7 +8,7 @@
 # the Poisson example and test use (DOLFINx 0.5.2 with petsc4py); scipy
 # and petsc4py also read the transfer operators (the two-grid example).
 set -euo pipefail
-pkgs=(cmake g++ make pkg-config libhdf5-dev liblz4-dev libexodusii-dev libnetcdf-dev libgmsh-dev
+pkgs=(cmake g++ make pkg-config libhdf5-dev liblz4-dev libdeflate-dev libexodusii-dev libnetcdf-dev libgmsh-dev
       libgtest-dev libbenchmark-dev nlohmann-json3-dev libcli11-dev
       libopenmpi-dev openmpi-bin libhdf5-openmpi-dev libnetcdf-mpi-dev
       hdf5-tools hdf5-filter-plugin python3-h5py python3-hdf5plugin

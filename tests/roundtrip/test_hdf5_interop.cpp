@@ -7,6 +7,7 @@
 #include <hdf5.h>
 #include <sys/wait.h>
 #include <unistd.h>
+#include <zlib.h>
 
 #include <algorithm>
 #include <cstring>
@@ -439,4 +440,73 @@ TEST(Hdf5Interop, FlippedByteInAStoredPageIsCaught) {
     EXPECT_NE(std::string(e.what()).find(what), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("checksum"), std::string::npos) << e.what();
   }
+}
+
+// unshuffle_bytes undoes HDF5's own shuffle filter (H5Pset_shuffle, no other
+// filter, the chunk read raw with H5Dread_chunk): 8-byte elements at counts
+// around the 16-element vector steps (the SSE2 path and its scalar tail),
+// 4- and 1-byte elements (the scalar path), and shuffle_bytes gives HDF5's
+// bytes too.
+TEST(Hdf5Interop, OurShuffleIsHdf5sShuffleFilter) {
+  test::TempDir tmp;
+  const std::string path = tmp.path("shuffle.h5");
+  h5::quiet();
+  auto file = check(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose, "file");
+  std::uint64_t seed = 0x1234567;
+  auto byte = [&seed] {
+    seed = seed * 6364136223846793005ull + 1442695040888963407ull;
+    return static_cast<std::uint8_t>(seed >> 56);
+  };
+  int sets = 0;
+  for (const hid_t type : {H5T_NATIVE_INT64, H5T_NATIVE_INT32, H5T_NATIVE_UINT8}) {
+    const size_t elem = H5Tget_size(type);
+    for (const hsize_t count : {1, 15, 16, 17, 31, 32, 47, 100, 1000, 4099}) {
+      const std::string name = "d" + std::to_string(sets++);
+      auto space = check(H5Screate_simple(1, &count, nullptr), H5Sclose, "space");
+      auto dcpl = check(H5Pcreate(H5P_DATASET_CREATE), H5Pclose, "dcpl");
+      ASSERT_GE(H5Pset_chunk(dcpl.get(), 1, &count), 0);
+      ASSERT_GE(H5Pset_shuffle(dcpl.get()), 0);
+      auto ds = check(H5Dcreate2(file.get(), name.c_str(), type, space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT),
+                      H5Dclose, "dataset");
+      Bytes plain(count * elem);
+      for (auto& b : plain) b = byte();
+      ASSERT_GE(H5Dwrite(ds.get(), type, H5S_ALL, H5S_ALL, H5P_DEFAULT, plain.data()), 0);
+      ASSERT_GE(H5Fflush(file.get(), H5F_SCOPE_LOCAL), 0);
+      Bytes hdf5_shuffled(plain.size());
+      const hsize_t offset = 0;
+      std::uint32_t mask = 0;
+      ASSERT_GE(H5Dread_chunk(ds.get(), H5P_DEFAULT, &offset, &mask, hdf5_shuffled.data()), 0);
+      ASSERT_EQ(mask, 0u);
+      if (elem > 1 && count > 1) {
+        ASSERT_NE(hdf5_shuffled, plain) << name;  // the filter ran
+      }
+      Bytes ours;
+      unshuffle_bytes(hdf5_shuffled, elem, ours);
+      EXPECT_EQ(ours, plain) << elem << "-byte elements, " << count;
+      shuffle_bytes(plain, elem, ours);
+      EXPECT_EQ(ours, hdf5_shuffled) << elem << "-byte elements, " << count;
+    }
+  }
+}
+
+// page_crc (libdeflate) is the CRC-32 of zlib and gzip: the standard check
+// value of "123456789", and zlib's crc32 on pages of every length up to a
+// few vector widths past 64 KiB, at every alignment of the first byte.
+TEST(Hdf5Interop, PageCrcIsZlibsCrc32) {
+  const std::string check = "123456789";
+  EXPECT_EQ(page_crc({reinterpret_cast<const std::uint8_t*>(check.data()), check.size()}), 0xCBF43926u);
+  EXPECT_EQ(page_crc({}), 0u);
+  std::vector<std::uint8_t> bytes(65536 + 300);
+  std::uint64_t seed = 99;
+  for (auto& b : bytes) {
+    seed = seed * 6364136223846793005ull + 1442695040888963407ull;
+    b = static_cast<std::uint8_t>(seed >> 56);
+  }
+  auto zlib = [](const std::uint8_t* p, size_t n) {
+    return static_cast<std::uint32_t>(crc32(crc32(0L, Z_NULL, 0), p, static_cast<uInt>(n)));
+  };
+  for (size_t at = 0; at < 16; ++at)
+    for (size_t n : {size_t{1}, size_t{7}, size_t{15}, size_t{16}, size_t{63}, size_t{64}, size_t{65}, size_t{255},
+                     size_t{4096}, size_t{65536}, size_t{65536 + 200}})
+      ASSERT_EQ(page_crc({bytes.data() + at, n}), zlib(bytes.data() + at, n)) << "length " << n << " at " << at;
 }
