@@ -424,8 +424,22 @@ PageCache::~PageCache() {
 }
 
 PageCache::Handle PageCache::pin(PageKey key) {
+  Lock lock(impl_->mu);
+  return pin_locked(lock, key);
+}
+
+void PageCache::pin_into(Handle& h, PageKey key) {
+  Lock lock(impl_->mu);
+  if (h.entry_ != nullptr) {
+    assert(h.cache_ == this && "pin_into: a handle of another cache");
+    impl_->release_pin(std::exchange(h.entry_, nullptr));
+    h.cache_ = nullptr, h.data_ = nullptr, h.size_ = 0;
+  }
+  h = pin_locked(lock, key);
+}
+
+PageCache::Handle PageCache::pin_locked(std::unique_lock<SpinMutex>& lock, PageKey key) {
   Impl& m = *impl_;
-  Lock lock(m.mu);
   Impl::ArrayInfo* ai = m.array_info(key.array);
   if (ai != nullptr && key.page >= ai->pages)
     throw Error(ErrorKind::Usage, "page cache: page " + key_text(key) + " is beyond the end of the array (" +

@@ -66,6 +66,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <span>
 #include <vector>
 
@@ -98,6 +99,8 @@ struct CacheStats {
   std::uint64_t resident_bytes = 0;      // decoded bytes resident now (<= budget)
   std::uint64_t peak_resident_bytes = 0; // maximum of resident_bytes since construction or reset_stats()
 };
+
+class SpinMutex;  // the cache's lock (page_cache.cpp)
 
 class PageCache {
   struct Entry;  // one slot of the cache (page_cache.cpp)
@@ -167,6 +170,10 @@ class PageCache {
   // set_array_pages(), and when the budget cannot admit the page (see
   // invariant 1); rethrows what the loader threw (invariant 3).
   Handle pin(PageKey key);
+  // pin(key) into h, releasing the pin h held first (as h = {} then h =
+  // pin(key)) under one lock acquisition instead of two: a cursor moving to
+  // another page does both (tables.hpp). On a throw h is left empty.
+  void pin_into(Handle& h, PageKey key);
 
   // Declares how many pages `array` has: pin() beyond is Error{Usage} and
   // read-ahead never goes there. Arrays never declared can be pinned
@@ -188,6 +195,7 @@ class PageCache {
 
  private:
   void unpin(Entry* entry) noexcept;
+  Handle pin_locked(std::unique_lock<SpinMutex>& lock, PageKey key);  // pin() with the lock held
   std::uint64_t budget_;
   std::unique_ptr<Impl> impl_;
 };

@@ -113,8 +113,9 @@ inline const T* Table<T>::row(std::int64_t i, TableCursor& cur) const {
     if (page == w[1].page) {
       std::swap(w[0], w[1]);
     } else {
-      w[1] = TableCursor::Way{};  // unpin the least recently used page before pinning the next
-      w[1].handle = cache_->pin(PageKey{array_, static_cast<std::uint64_t>(page)});
+      // The least recently used page is unpinned before the next is pinned.
+      w[1].page = -1, w[1].data = nullptr;
+      cache_->pin_into(w[1].handle, PageKey{array_, static_cast<std::uint64_t>(page)});
       w[1].page = page;
       w[1].data = w[1].handle.data();
       std::swap(w[0], w[1]);

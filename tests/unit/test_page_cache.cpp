@@ -570,3 +570,31 @@ TEST(PageCache, ResidentPagesStayFoundAcrossDeclarations) {
   }
   EXPECT_EQ(cache.stats().evictions, 0u);
 }
+
+// pin_into(h, key) is h = {} then h = pin(key): the old pin goes first (a
+// one-page budget moves from page to page through one handle, where pin()
+// while still holding it fails), the page's bytes arrive, and a failing
+// load leaves h empty with nothing pinned.
+TEST(PageCache, PinIntoReleasesTheOldPinFirst) {
+  SyntheticPages pages(1, 10);
+  PageCache cache(pages.loader(), opts(kMaxPage, 0, false));
+  pages.declare(cache, 1);
+  PageCache::Handle h;
+  for (std::uint64_t p = 0; p < 10; ++p) {
+    cache.pin_into(h, {0, p});
+    ASSERT_TRUE(content_ok(h)) << "page " << p;
+    EXPECT_EQ(h.key().page, p);
+    EXPECT_EQ(cache.pinned_pages(), 1u);
+  }
+  EXPECT_EQ(kind_of([&] { PageCache::Handle other = cache.pin({0, 0}); }), ErrorKind::Usage);  // h holds the budget
+  cache.pin_into(h, {0, 9});  // a hit on its own page
+  EXPECT_TRUE(content_ok(h));
+  EXPECT_EQ(cache.pinned_pages(), 1u);
+  SyntheticPages failing(1, 3);  // page 5 is beyond its end: the loader throws
+  PageCache small(failing.loader(), opts(4 * kMaxPage, 0, false));
+  PageCache::Handle g;
+  small.pin_into(g, {0, 1});
+  EXPECT_EQ(kind_of([&] { small.pin_into(g, {0, 5}); }), ErrorKind::BadInput);
+  EXPECT_TRUE(g.empty());
+  EXPECT_EQ(small.pinned_pages(), 0u);
+}
