@@ -91,6 +91,7 @@ class TableCursor {
   TableCursor& operator=(TableCursor&&) noexcept = default;
   void release() {
     for (auto& w : way_) w = Way{};
+    mru_ = 0;
   }
 
  private:
@@ -101,27 +102,27 @@ class TableCursor {
     std::int64_t page = -1;
     const std::uint8_t* data = nullptr;
   };
-  Way way_[2];  // way_[0] most recently used
+  Way way_[2];
+  int mru_ = 0;  // the most recently used way: an index flips, no handle moves
 };
 
 template <class T>
 inline const T* Table<T>::row(std::int64_t i, TableCursor& cur) const {
   if (!cache_) return mem_.data() + i * width_;
   const std::int64_t page = i / rows_per_page_;
-  auto* w = cur.way_;
-  if (page != w[0].page) {
-    if (page == w[1].page) {
-      std::swap(w[0], w[1]);
-    } else {
+  TableCursor::Way* w = cur.way_ + cur.mru_;
+  if (page != w->page) {
+    cur.mru_ ^= 1;
+    w = cur.way_ + cur.mru_;
+    if (page != w->page) {
       // The least recently used page is unpinned before the next is pinned.
-      w[1].page = -1, w[1].data = nullptr;
-      cache_->pin_into(w[1].handle, PageKey{array_, static_cast<std::uint64_t>(page)});
-      w[1].page = page;
-      w[1].data = w[1].handle.data();
-      std::swap(w[0], w[1]);
+      w->page = -1, w->data = nullptr;
+      cache_->pin_into(w->handle, PageKey{array_, static_cast<std::uint64_t>(page)});
+      w->page = page;
+      w->data = w->handle.data();
     }
   }
-  return reinterpret_cast<const T*>(w[0].data) + (i - page * rows_per_page_) * width_;
+  return reinterpret_cast<const T*>(w->data) + (i - page * rows_per_page_) * width_;
 }
 
 // Coarse elements per group of the spatial index (MeshTables::group_bounds).
