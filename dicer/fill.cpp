@@ -37,7 +37,10 @@ void fill_boundary(const detail::Evaluator& E, std::uint64_t mesh, const Element
   const Mode mode = E.mode();
   const bool vol = mode == Mode::Volume;
   auto& B = b.scratch.boundary;
-  B.mesh = mesh, B.h = hid, B.held = held, B.n = n, B.volume = vol;
+  // Keyed only once filled: a throw below (a corrupt row, a failed page
+  // load) must not leave a half-filled boundary that a retry would take
+  // for this element's.
+  B.h = -1, B.n = n, B.volume = vol;
   const size_t nb = static_cast<size_t>(B.size());
   B.id.resize(nb);
   const bool coords = held == Held::All;
@@ -97,6 +100,7 @@ void fill_boundary(const detail::Evaluator& E, std::uint64_t mesh, const Element
       for (int d = 0; d < 3 && coords; ++d) gather_row(X[d] + g, gs, s.face[lf][d].data() + c, cs, m);
     }
   }
+  B.mesh = mesh, B.h = hid, B.held = held;
 }
 
 // The hex's corners c0..c7 (kHexCorner) of coordinate d.

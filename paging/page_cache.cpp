@@ -429,9 +429,9 @@ PageCache::Handle PageCache::pin(PageKey key) {
 }
 
 void PageCache::pin_into(Handle& h, PageKey key) {
+  if (h.cache_ != this) h.reset();  // another cache's pin goes back to it, under its own lock
   Lock lock(impl_->mu);
   if (h.entry_ != nullptr) {
-    assert(h.cache_ == this && "pin_into: a handle of another cache");
     impl_->release_pin(std::exchange(h.entry_, nullptr));
     h.cache_ = nullptr, h.data_ = nullptr, h.size_ = 0;
   }

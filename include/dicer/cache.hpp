@@ -172,7 +172,8 @@ class PageCache {
   Handle pin(PageKey key);
   // pin(key) into h, releasing the pin h held first (as h = {} then h =
   // pin(key)) under one lock acquisition instead of two: a cursor moving to
-  // another page does both (tables.hpp). On a throw h is left empty.
+  // another page does both (tables.hpp). h may hold another cache's pin
+  // (released there). On a throw h is left empty.
   void pin_into(Handle& h, PageKey key);
 
   // Declares how many pages `array` has: pin() beyond is Error{Usage} and

@@ -26,6 +26,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "dicer/cache.hpp"
@@ -101,6 +102,19 @@ class TableCursor {
     PageCache::Handle handle;
     std::int64_t page = -1;
     const std::uint8_t* data = nullptr;
+    const PageCache* cache = nullptr;  // whose page: one cursor may serve several meshes in turn
+    Way() = default;
+    // A moved-from way holds no page (its handle is empty): it must not hit.
+    Way(Way&& o) noexcept
+        : handle(std::move(o.handle)),
+          page(std::exchange(o.page, -1)),
+          data(std::exchange(o.data, nullptr)),
+          cache(std::exchange(o.cache, nullptr)) {}
+    Way& operator=(Way&& o) noexcept {
+      handle = std::move(o.handle);
+      page = std::exchange(o.page, -1), data = std::exchange(o.data, nullptr), cache = std::exchange(o.cache, nullptr);
+      return *this;
+    }
   };
   Way way_[2];
   int mru_ = 0;  // the most recently used way: an index flips, no handle moves
@@ -110,16 +124,18 @@ template <class T>
 inline const T* Table<T>::row(std::int64_t i, TableCursor& cur) const {
   if (!cache_) return mem_.data() + i * width_;
   const std::int64_t page = i / rows_per_page_;
+  const PageCache* cache = cache_.get();
   TableCursor::Way* w = cur.way_ + cur.mru_;
-  if (page != w->page) {
+  if (page != w->page || cache != w->cache) {
     cur.mru_ ^= 1;
     w = cur.way_ + cur.mru_;
-    if (page != w->page) {
+    if (page != w->page || cache != w->cache) {
       // The least recently used page is unpinned before the next is pinned.
-      w->page = -1, w->data = nullptr;
+      w->page = -1, w->data = nullptr, w->cache = nullptr;
       cache_->pin_into(w->handle, PageKey{array_, static_cast<std::uint64_t>(page)});
       w->page = page;
       w->data = w->handle.data();
+      w->cache = cache;
     }
   }
   return reinterpret_cast<const T*>(w->data) + (i - page * rows_per_page_) * width_;

@@ -299,3 +299,35 @@ TEST(StorePaged, SweepAndExportOfAStoreFourTimesTheBudgetReadEachPageOnce) {
   }
   EXPECT_LE(cache->stats().peak_resident_bytes, budget);
 }
+
+// A cursor belongs to no one mesh: one MeshCursor and one FineBlock serve
+// two stores in turn (the same coarse mesh at intervals 2 and 3, so their
+// tables share page numbers with different contents), and a moved-from
+// cursor is reused, each answer equal to the in-memory mesh's. A cursor
+// that knew only its page numbers handed one store's rows to the other.
+TEST(StorePaged, OneCursorServesTwoStoresInTurn) {
+  test::TempDir tmp2, tmp3;
+  const Diced d2 = dice_to_store(tmp2, "vtkdata_mug.e", 2), d3 = dice_to_store(tmp3, "vtkdata_mug.e", 3);
+  const FineMesh s2 = read_store(d2.path, StoreOptions{4ull << 20, 2}), s3 = read_store(d3.path, StoreOptions{4ull << 20, 2});
+  ASSERT_NE(s2.num_nodes(), s3.num_nodes());
+  std::mt19937_64 rng(11);
+  MeshCursor cur;
+  FineBlock b;
+  for (int q = 0; q < 400; ++q) {
+    const bool three = q % 2 == 1;
+    const FineMesh& s = three ? s3 : s2;
+    const FineMesh& mem = three ? d3.mem : d2.mem;
+    const Id id = std::uniform_int_distribution<Id>(0, s2.num_nodes() - 1)(rng);  // in both
+    ASSERT_EQ(s.node(id, cur), mem.node(id)) << "query " << q;
+    const Id e = std::uniform_int_distribution<Id>(0, s2.num_elements() - 1)(rng);
+    ASSERT_EQ(s.element(e, cur).nodes, mem.element(e).nodes) << "query " << q;
+    const Id h = std::uniform_int_distribution<Id>(0, s.num_coarse_elements() - 1)(rng);
+    s.fill_block(h, b);
+    for (Id g = 0; g < b.num_points(); g += 5)
+      ASSERT_EQ((Vec3{b.x[g], b.y[g], b.z[g]}), mem.node(b.node_id[g])) << "query " << q;
+    if (q % 50 == 49) {
+      MeshCursor moved = std::move(cur);  // cur is left holding no page
+      ASSERT_EQ(s.node(id, moved), mem.node(id));
+    }
+  }
+}
