@@ -367,12 +367,10 @@ void element_boundary(const Evaluator& E, const ElementRow& h, Id hid, FineBlock
     for (Id u = 1; u < nu; ++u) s.s[u] = su.at(u);
     for (Id v = 1; v < nv; ++v) s.t[v] = sv.at(v);
     for (int d = 0; d < 3; ++d) {
-      auto comp = [&](const Vec3& p) { return d == 0 ? p.x : d == 1 ? p.y : p.z; };
-      const double p0 = comp(out.corner[cc[0]]), p1 = comp(out.corner[cc[1]]), p2 = comp(out.corner[cc[2]]),
-                   p3 = comp(out.corner[cc[3]]);
       auto& face = out.face[lf][d];
       face.resize(m);
-      const double p[4] = {p0, p1, p2, p3};
+      const double p[4] = {component(out.corner[cc[0]], d), component(out.corner[cc[1]], d),
+                           component(out.corner[cc[2]], d), component(out.corner[cc[3]], d)};
       if (straight)
         bilinear_fill(s.s.data(), s.t.data(), nu, nv, p, face.data());
       else

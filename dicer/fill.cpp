@@ -105,7 +105,7 @@ void fill_boundary(const detail::Evaluator& E, std::uint64_t mesh, const Element
 
 // The hex's corners c0..c7 (kHexCorner) of coordinate d.
 void block_corners(const Vec3* corner, int d, double* c) {
-  for (int q = 0; q < 8; ++q) c[q] = d == 0 ? corner[q].x : d == 1 ? corner[q].y : corner[q].z;
+  for (int q = 0; q < 8; ++q) c[q] = component(corner[q], d);
 }
 
 // A curved hex's interior, one coordinate, from the block's boundary values:

@@ -12,6 +12,8 @@ struct Vec3 {
   double x = 0, y = 0, z = 0;
   friend bool operator==(const Vec3&, const Vec3&) = default;
 };
+// Coordinate d (0: x, 1: y, 2: z) of p.
+inline double component(const Vec3& p, int d) { return d == 0 ? p.x : d == 1 ? p.y : p.z; }
 
 // Volume mode dices hexahedra; surface mode dices quadrilaterals.
 enum class Mode : std::uint8_t { Volume = 3, Surface = 2 };

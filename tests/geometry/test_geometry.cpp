@@ -214,7 +214,7 @@ TEST_P(CurvedPart, FineNodesOnTheCadNoInversionConformingAndBitIdenticalThroughT
             RowReader(s.tables(), cur).corner_xyz(h, xyz);
             double edge = -sign * 1e300;
             for (int q = 0; q < nc; ++q) {
-              const double v = d == 0 ? xyz[q].x : d == 1 ? xyz[q].y : xyz[q].z;
+              const double v = component(xyz[q], d);
               edge = sign > 0 ? std::max(edge, v) : std::min(edge, v);
             }
             s.fill_block(h, blk);
