@@ -126,15 +126,15 @@ Vec3 FineMesh::node(Id id, MeshCursor& cur) const {
   ElementRow& row = *storage;
   const Id hid = owner_element(tables_, id, cur);
   const detail::Evaluator E(tables_, cur);
+  // The row and its corners at once: their misses overlap, where reading
+  // the grid first and then the corners made them follow each other.
+  E.R.prefetch_element(hid);
   if (mode() == Mode::Volume) {
     // Most nodes lie inside a straight element (two thirds at interval 8,
     // more above): its grid and corners place them, and the row's entity
-    // columns, most of its cache lines, stay unread.
+    // columns stay undecoded.
     E.R.element_grid(hid, row);
     if (!row.curved()) {
-      // A straight element's nodes all come from its corners (cell_point,
-      // straight_owned_point): their row's miss overlaps what follows.
-      E.R.prefetch_corners(hid);
       if (id >= row.cell_node && id - row.cell_node < ids::cell_nodes(row.n)) {
         const auto l = ids::cell_local(id - row.cell_node, row.n);
         return E.cell_point(row, hid, l[0], l[1], l[2], nullptr);

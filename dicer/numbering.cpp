@@ -1,6 +1,7 @@
 #include "dicer/numbering.hpp"
 
 #include <algorithm>
+#include <optional>
 
 #include "dicer/error.hpp"
 
@@ -146,8 +147,8 @@ Id owner_element(const MeshTables& t, Id id, MeshCursor& cur) {
 
 NodeRef locate_node(const MeshTables& t, Id id, MeshCursor& cur, ElementRow* owner_row, NodeOwner* owner) {
   const Id hid = owner_element(t, id, cur);
-  ElementRow local;
-  ElementRow& h = owner_row ? *owner_row : local;
+  std::optional<ElementRow> local;  // zeroing a row costs a random query more than reading it
+  ElementRow& h = owner_row ? *owner_row : local.emplace();
   RowReader(t, cur).element(hid, h);
   return owned_node(t, hid, h, id, cur, owner);
 }
@@ -201,8 +202,8 @@ Id locate_element(const MeshTables& t, Id id, std::array<Id, 3>& ijk, MeshCursor
   const Id h = search_elements(t, id, false, cur);
   const RowReader R(t, cur);
   if (h < 0) R.corrupt(RowTable::Elements, 0, "no coarse element holds fine element " + std::to_string(id));
-  ElementRow local;
-  ElementRow& row = row_out ? *row_out : local;
+  std::optional<ElementRow> local;  // as in locate_node
+  ElementRow& row = row_out ? *row_out : local.emplace();
   grid_only ? R.element_grid(h, row) : R.element(h, row);
   const Id l = id - row.element_first;
   if (l < 0 || l >= row.n[0] * row.n[1] * row.n[2])

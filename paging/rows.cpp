@@ -334,6 +334,19 @@ void RowReader::prefetch_corners(Id h) const {
   __builtin_prefetch(r + bytes - 1);
 }
 
+void RowReader::prefetch_element(Id h, bool corners) const {
+  if (h < 0 || h >= t_.elements.rows()) return;
+  const char* r = reinterpret_cast<const char*>(t_.elements.row(h, c_.elements));
+  const std::size_t bytes = sizeof(std::int64_t) * static_cast<std::size_t>(t_.elements.width());
+  const std::size_t scalars = sizeof(std::int64_t) * static_cast<std::size_t>(ElementCols::of(t_.mode).node_first());
+  // The scalar columns first (every query reads them), then the corners,
+  // then the entity columns (a query on the element's boundary reads them).
+  __builtin_prefetch(r + scalars);
+  __builtin_prefetch(r + bytes - 1);
+  if (corners) prefetch_corners(h);
+  for (std::size_t b = 0; b < scalars; b += 64) __builtin_prefetch(r + b);
+}
+
 ElementBounds RowReader::bounds(Id h) const {
   if (h < 0 || h >= t_.bounds.rows()) corrupt(RowTable::Bounds, h, "element id out of range");
   const double* r = t_.bounds.row(h, c_.bounds);
@@ -379,20 +392,29 @@ std::int64_t RowReader::vertex_geo(Id v) const {
 }
 
 Id RowReader::node_first(Id h) const {
+  if (const std::int64_t* v = t_.elements.derived(h, 0, c_.elements)) return *v;
   return t_.elements.row(h, c_.elements)[ElementCols::of(t_.mode).node_first()];
 }
 Id RowReader::element_first(Id h) const {
+  if (const std::int64_t* v = t_.elements.derived(h, 1, c_.elements)) return *v;
   return t_.elements.row(h, c_.elements)[ElementCols::of(t_.mode).element_first()];
+}
+
+std::vector<int> element_search_columns(Mode mode) {
+  const ElementCols L = ElementCols::of(mode);
+  return {L.node_first(), L.element_first()};
 }
 
 Id RowReader::search_first(Id lo, Id hi, Id x, bool by_node, const SearchHints* hints) const {
   if (lo >= hi) return lo;
   const ElementCols L = ElementCols::of(t_.mode);
   const int col = by_node ? L.node_first() : L.element_first();
-  const std::int64_t w = t_.elements.width();
-  // One row pointer for the run [lo, hi) on one page (or in memory).
+  // One pointer for the run [lo, hi) on one page (or in memory): the dense
+  // column the store's loader derived, else the rows' column.
   DICER_ASSERT(lo >= 0 && hi <= t_.elements.rows() && hi - lo <= t_.elements.run(lo), "search_first: one page");
-  const std::int64_t* base = t_.elements.row(lo, c_.elements) + col;
+  const std::int64_t* base = t_.elements.derived(lo, by_node ? 0 : 1, c_.elements);
+  const std::int64_t w = base ? 1 : t_.elements.width();
+  if (!base) base = t_.elements.row(lo, c_.elements) + col;
   auto at = [&](Id r) { return base[(r - lo) * w]; };
   // The answer lies in [a, b]: rows below a hold values <= x (or lie below
   // lo), row b one > x (or b == hi). va at row pa and vb at row pb: values
@@ -425,11 +447,18 @@ Id RowReader::search_first(Id lo, Id hi, Id x, bool by_node, const SearchHints* 
       const double rows = static_cast<double>(i128{x} - va) * span / static_cast<double>(i128{vb} - va);
       m = std::clamp(pa + 1 + static_cast<Id>(rows < span ? rows : span), a, b - 1);
     }
-    if (probe == 0) {
+    if (probe == 0 && w > 1) {
       // The next probe is most often a neighbour: its cache line now, so
       // that its miss overlaps this one's instead of following it.
       if (m > lo) __builtin_prefetch(base + (m - 1 - lo) * w);
       if (m + 1 < hi) __builtin_prefetch(base + (m + 1 - lo) * w);
+    } else if (probe == 0 && hints && !by_node) {
+      // Rows hold equally many fine elements wherever the intervals are
+      // uniform, so the line through the page index's values names the
+      // row (m - 1), which the caller reads next: its lines now, so that
+      // their miss overlaps the column's. (Nodes per row vary with the
+      // entities each element owns: that guess is often a row off.)
+      prefetch_element(std::max(m - 1, lo), false);
     }
     const std::int64_t v = at(m);
     if (v <= x) a = m + 1, va = v, pa = m;

@@ -139,6 +139,7 @@ struct PagedDataset {
   std::size_t elem = 0;
   bool shuffled = false;           // HDF5 byte shuffle before LZ4 (the bounding arrays)
   std::vector<std::uint32_t> crc;  // CRC-32 of every decoded page (companion dataset)
+  std::vector<int> derived;        // columns copied after the rows of each page (Table::derived)
 };
 
 struct OpenStore {
@@ -166,14 +167,29 @@ struct OpenStore {
         throw Error(ErrorKind::Corrupt, what + ": HDF5 cannot read the page (truncated or damaged file)");
       if (mask != 0) throw Error(ErrorKind::Corrupt, what + ": page was stored with filters skipped");
     }
-    store::decode_page(raw, out, static_cast<size_t>(a.rows_per_page * a.width) * a.elem, what);
+    const size_t rows_bytes = static_cast<size_t>(a.rows_per_page * a.width) * a.elem;
+    // Room for the derived columns from the start, so that neither vector
+    // grows past the exact size the cache's budget counts.
+    const size_t page_bytes = rows_bytes + a.derived.size() * static_cast<size_t>(a.rows_per_page) * a.elem;
+    out.reserve(page_bytes);
+    store::decode_page(raw, out, rows_bytes, what);
     if (a.shuffled) {
       std::vector<std::uint8_t> plain;
+      plain.reserve(page_bytes);
       store::unshuffle_bytes(out, a.elem, plain);
       out.swap(plain);
     }
     if (key.page >= a.crc.size() || store::page_crc(out) != a.crc[key.page])
       throw Error(ErrorKind::Corrupt, what + ": page checksum (CRC-32) mismatch: the page is damaged");
+    if (!a.derived.empty()) {
+      DICER_ASSERT(a.elem == sizeof(std::int64_t), "derived columns: 8-byte tables");
+      out.resize(page_bytes);
+      std::int64_t* rows = reinterpret_cast<std::int64_t*>(out.data());
+      for (size_t k = 0; k < a.derived.size(); ++k) {
+        std::int64_t* col = rows + (a.width + static_cast<std::int64_t>(k)) * a.rows_per_page;
+        for (std::int64_t r = 0; r < a.rows_per_page; ++r) col[r] = rows[r * a.width + a.derived[k]];
+      }
+    }
     return raw.size();
   }
 };
@@ -535,6 +551,11 @@ FineMesh read_store(const std::string& path, const StoreOptions& options) {
   tab.faces = paged(std::int64_t{}, row_dataset(RowTable::Faces), row_width(RowTable::Faces, m), info.coarse_faces);
   tab.elements = paged(std::int64_t{}, row_dataset(RowTable::Elements), row_width(RowTable::Elements, m),
                        info.coarse_elements);
+  {
+    // The id -> element searches' columns, dense (RowReader::search_first).
+    s->arrays[tab.elements.array()].derived = element_search_columns(m);
+    tab.elements.set_derived_columns(element_search_columns(m));
+  }
   tab.corners = paged(double{}, row_dataset(RowTable::Corners), row_width(RowTable::Corners, m), info.coarse_elements);
   tab.bounds = paged(double{}, row_dataset(RowTable::Bounds), row_width(RowTable::Bounds, m), info.coarse_elements);
   tab.bounding = paged(std::int64_t{}, "geometry/bounding", 3, bounding_nodes);

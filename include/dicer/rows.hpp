@@ -181,6 +181,10 @@ class RowReader {
   // page that fails to load throws here), the values are not checked. An
   // id outside the table does nothing.
   void prefetch_corners(Id h) const;
+  // Element h's row (and its corners), into the cache at once: one
+  // query's misses overlap instead of following each other. Pins like
+  // prefetch_corners; checks nothing.
+  void prefetch_element(Id h, bool corners = true) const;
   // Element h's bounds: finite, lo <= hi (Corrupt otherwise).
   ElementBounds bounds(Id h) const;
   // Bounds rows h, h + 1, ... as one pointer (6 values per row, lo then
@@ -207,7 +211,10 @@ class RowReader {
   // O(log(hi - lo)) at worst. `hints`: the values
   // at row lo and at row hi (the next page's first row), when the caller
   // knows them (the page index); they only steer the probes, so any hints
-  // give the same answer. Without them the two end rows are read.
+  // give the same answer. Without them the two end rows are read. On a
+  // store (a dense column), an element_first search with hints prefetches
+  // the row its first probe names (prefetch_element): what the caller
+  // reads next, arriving with the search's own miss.
   struct SearchHints {
     std::int64_t at_lo = 0, at_hi = 0;
   };
@@ -234,6 +241,11 @@ class RowReader {
   const MeshTables& t_;
   MeshCursor& c_;
 };
+
+// The element-row columns a store's loader lays out densely after each
+// page's rows (Table::derived), in this order: node_first, element_first.
+// search_first reads them there when the table has them.
+std::vector<int> element_search_columns(Mode mode);
 
 // Writers, for in-memory tables only (dicing, geometry-conforming moves):
 // row i of the table, which grows by one row when i == rows().

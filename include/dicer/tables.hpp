@@ -72,12 +72,26 @@ class Table {
   // Pointer to row i (width() values), valid until cur moves to another page.
   inline const T* row(std::int64_t i, TableCursor& cur) const;
 
+  // Columns the store's loader copies out of a page's rows into a dense
+  // array after them (rows_per_page() values each, in the order of
+  // derived_columns()): a search over one column of a page touches a few
+  // cache lines of 1 KiB instead of one line in each ~520-byte row probed.
+  // Paged tables only; the page's bytes are exactly what the CRC checked,
+  // so a derived value equals its row's.
+  const std::vector<int>& derived_columns() const { return derived_; }
+  void set_derived_columns(std::vector<int> columns) { derived_ = std::move(columns); }
+  // Pointer to the k-th derived column's value of row i; the values of the
+  // rows after i on its page follow (run(i) in all). nullptr when the table
+  // has no derived columns (in memory: read row(i)[column]). Valid like row().
+  inline const T* derived(std::int64_t i, int k, TableCursor& cur) const;
+
  private:
   std::int64_t width_ = 0, rows_ = 0;
   std::vector<T> mem_;
   std::shared_ptr<PageCache> cache_;
   std::uint32_t array_ = 0;
   std::int64_t rows_per_page_ = 0;
+  std::vector<int> derived_;
 };
 
 // Caches the last two pages touched in one table (STYLE.md #4): rows on
@@ -139,6 +153,14 @@ inline const T* Table<T>::row(std::int64_t i, TableCursor& cur) const {
     }
   }
   return reinterpret_cast<const T*>(w->data) + (i - page * rows_per_page_) * width_;
+}
+
+template <class T>
+inline const T* Table<T>::derived(std::int64_t i, int k, TableCursor& cur) const {
+  if (derived_.empty()) return nullptr;
+  const std::int64_t at = i % rows_per_page_;
+  const T* page = row(i, cur) - at * width_;
+  return page + rows_per_page_ * (width_ + k) + at;
 }
 
 // Coarse elements per group of the spatial index (MeshTables::group_bounds).

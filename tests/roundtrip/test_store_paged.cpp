@@ -17,6 +17,8 @@
 
 #include "dicer/error.hpp"
 #include "dicer/export.hpp"
+#include "dicer/numbering.hpp"
+#include "dicer/rows.hpp"
 #include "dicer/store.hpp"
 #include "dicer/sweep.hpp"
 #include "random_mesh.hpp"
@@ -329,5 +331,65 @@ TEST(StorePaged, OneCursorServesTwoStoresInTurn) {
       MeshCursor moved = std::move(cur);  // cur is left holding no page
       ASSERT_EQ(s.node(id, moved), mem.node(id));
     }
+  }
+}
+
+// A store's element pages carry node_first and element_first again after
+// their rows, densely (Table::derived), for the id -> element searches.
+// Each derived value must equal its row's, on every page, and a search at
+// either side of every element's first id must land on the element the
+// rows say (the last whose first id is <= the id). Twice: uniform
+// intervals, and one sheet at 40 intervals in a mesh at 1, where rows hold
+// very different counts (the interpolation's first probes land rows off,
+// and an element owning no node repeats its successor's first id).
+TEST(StorePaged, ElementPagesCarryTheSearchColumnsAndSearchesLandOnTheRowsElement) {
+  const CoarseMesh coarse = read_coarse_mesh(test::data_path("vtkdata_disk_out_ref.ex2"));
+  IntervalRequest uniform, skewed;
+  uniform.global = 2;
+  skewed.global = 1;
+  skewed.sheets = {{0, 40}};
+  for (const IntervalRequest& r : {uniform, skewed}) {
+    test::TempDir tmp;
+    const FineMesh m = FineMesh::dice(coarse, r);
+    write_store(m, tmp.path("m.dice.h5"));
+    const FineMesh s = read_store(tmp.path("m.dice.h5"), StoreOptions{4ull << 20, 0});
+    const MeshTables& t = s.tables();
+    const MeshTables& mem = m.tables();
+    ASSERT_GT(t.elements.pages(), 10);
+    const std::vector<int> cols = element_search_columns(s.mode());
+    ASSERT_EQ(cols.size(), 2u);
+    ASSERT_EQ(t.elements.derived_columns(), cols);
+    MeshCursor cur, mcur;
+    EXPECT_EQ(mem.elements.derived(0, 0, mcur.elements), nullptr);  // in memory: the rows alone
+    const Id nh = s.num_coarse_elements();
+    std::vector<std::int64_t> first[2];
+    for (Id h = 0; h < nh; ++h)
+      for (int k = 0; k < 2; ++k) {
+        const std::int64_t truth = mem.elements.row(h, mcur.elements)[cols[k]];
+        const std::int64_t* v = t.elements.derived(h, k, cur.elements);
+        ASSERT_NE(v, nullptr);
+        ASSERT_EQ(*v, truth) << "row " << h << " column " << k;
+        ASSERT_EQ(t.elements.row(h, cur.elements)[cols[k]], truth) << "row " << h;
+        first[k].push_back(truth);
+      }
+    // At interval 1 an element may own no node: the last of equal firsts.
+    auto last_at_or_below = [&](int k, std::int64_t id) {
+      return static_cast<Id>(std::upper_bound(first[k].begin(), first[k].end(), id) - first[k].begin()) - 1;
+    };
+    for (Id h = 0; h < nh; ++h)
+      for (const std::int64_t at : {first[0][h], first[0][h] - 1})
+        if (at >= 0) {
+          ASSERT_EQ(owner_element(t, at, cur), last_at_or_below(0, at)) << "node " << at;
+        }
+    for (Id h = 0; h < nh; ++h) {
+      std::array<Id, 3> ijk{};
+      ASSERT_EQ(locate_element(t, first[1][h], ijk, cur), h);  // every element holds fine elements
+      EXPECT_EQ(ijk, (std::array<Id, 3>{0, 0, 0}));
+      if (h > 0) {
+        ASSERT_EQ(locate_element(t, first[1][h] - 1, ijk, cur), h - 1);
+      }
+    }
+    ASSERT_EQ(owner_element(t, s.num_nodes() - 1, cur), last_at_or_below(0, s.num_nodes() - 1));
+    ASSERT_EQ(s.node(s.num_nodes() / 3, cur), m.node(s.num_nodes() / 3));
   }
 }
