@@ -14,6 +14,8 @@
 //   BM_PageDecode/<step>  one 64 KiB page of 8-byte ids growing by small
 //       random steps (like a store's id tables) through each step of a load: 0 memcpy (the baseline), 1 unshuffle, 2 the
 //       CRC-32, 3 the LZ4 decode; counter bytes_per_second
+//   BM_PointerChase/<KiB>  one dependent load at a time over random lines of
+//       a working set that size: the memory latency under BM_Random*
 #include <benchmark/benchmark.h>
 #include <sys/resource.h>
 #include <unistd.h>
@@ -212,9 +214,26 @@ void BM_PageDecode(benchmark::State& st) {
       benchmark::Counter(static_cast<double>(st.iterations()) * static_cast<double>(plain.size()), benchmark::Counter::kIsRate);
 }
 
+// The floor under a random query: one dependent load at a time over
+// random cache lines of a working set of range(0) KiB (a random cyclic
+// order, so no prefetcher guesses the next line). Time = ns per load.
+void BM_PointerChase(benchmark::State& st) {
+  const size_t lines = static_cast<size_t>(st.range(0)) * 1024 / 64;
+  std::vector<size_t> order(lines);
+  for (size_t i = 0; i < lines; ++i) order[i] = i;
+  std::shuffle(order.begin(), order.end(), std::mt19937_64(3));
+  std::vector<std::uint64_t> a(lines * 8);
+  for (size_t i = 0; i < lines; ++i) a[order[i] * 8] = order[(i + 1) % lines] * 8;
+  std::uint64_t p = 0;
+  for (size_t i = 0; i < lines; ++i) p = a[p];  // warm
+  for (auto _ : st) p = a[p];
+  benchmark::DoNotOptimize(p);
+}
+
 }  // namespace
 
 BENCHMARK(BM_PageDecode)->DenseRange(0, 3);
+BENCHMARK(BM_PointerChase)->Arg(32)->Arg(512)->Arg(5 << 10)->Arg(16 << 10)->Arg(64 << 10);
 BENCHMARK(BM_Sweep)->Args({64, 1})->Args({64, 0})->Iterations(1)->Unit(benchmark::kSecond);
 BENCHMARK_TEMPLATE(BM_Random, false)->Arg(1)->Arg(0)->Name("BM_RandomNode");
 BENCHMARK_TEMPLATE(BM_Random, true)->Arg(1)->Arg(0)->Name("BM_RandomElement");

@@ -127,7 +127,9 @@ Vec3 FineMesh::node(Id id, MeshCursor& cur) const {
   const Id hid = owner_element(tables_, id, cur);
   const detail::Evaluator E(tables_, cur);
   // The row and its corners at once: their misses overlap, where reading
-  // the grid first and then the corners made them follow each other.
+  // the grid first and then the corners made them follow each other. (A
+  // curved element's boundary nodes do not need the corners: a pin of a
+  // page they would not have read, cheap once the cache is warm.)
   E.R.prefetch_element(hid);
   if (mode() == Mode::Volume) {
     // Most nodes lie inside a straight element (two thirds at interval 8,

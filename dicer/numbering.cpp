@@ -147,7 +147,7 @@ Id owner_element(const MeshTables& t, Id id, MeshCursor& cur) {
 
 NodeRef locate_node(const MeshTables& t, Id id, MeshCursor& cur, ElementRow* owner_row, NodeOwner* owner) {
   const Id hid = owner_element(t, id, cur);
-  std::optional<ElementRow> local;  // zeroing a row costs a random query more than reading it
+  std::optional<ElementRow> local;  // zeroed only when the caller gives no row of its own
   ElementRow& h = owner_row ? *owner_row : local.emplace();
   RowReader(t, cur).element(hid, h);
   return owned_node(t, hid, h, id, cur, owner);

@@ -339,9 +339,10 @@ void RowReader::prefetch_element(Id h, bool corners) const {
   const char* r = reinterpret_cast<const char*>(t_.elements.row(h, c_.elements));
   const std::size_t bytes = sizeof(std::int64_t) * static_cast<std::size_t>(t_.elements.width());
   const std::size_t scalars = sizeof(std::int64_t) * static_cast<std::size_t>(ElementCols::of(t_.mode).node_first());
-  // The scalar columns first (every query reads them), then the corners,
-  // then the entity columns (a query on the element's boundary reads them).
-  __builtin_prefetch(r + scalars);
+  // The scalar columns first (every query reads them; 2 or 3 lines, by the
+  // row's offset in its line), then the corners, then the entity columns
+  // (a query on the element's boundary reads them).
+  for (std::size_t b = scalars; b < bytes; b += 64) __builtin_prefetch(r + b);
   __builtin_prefetch(r + bytes - 1);
   if (corners) prefetch_corners(h);
   for (std::size_t b = 0; b < scalars; b += 64) __builtin_prefetch(r + b);
@@ -433,9 +434,10 @@ Id RowReader::search_first(Id lo, Id hi, Id x, bool by_node, const SearchHints* 
   }
   // Interpolation: every row owns about as many ids as its neighbours, so
   // the straight line through (pa, va) and (pb, vb) lands on or next to the
-  // answer: about 2 probes, each a cache line of a ~520-byte row, where a
-  // bisection of a page takes 7. Each probe lies inside the bracket and
-  // shrinks it, whatever the values; after four, bisection bounds the rest.
+  // answer: about 2 probes, each a cache line (of the dense column, or of a
+  // ~520-byte row in memory), where a bisection of a page takes 7. Each
+  // probe lies inside the bracket and shrinks it, whatever the values;
+  // after four, bisection bounds the rest.
   for (int probe = 0; probe < 4 && a < b; ++probe) {
     Id m = a + (b - a) / 2;
     if (vb > va && x >= va && pb > pa) {

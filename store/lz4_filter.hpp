@@ -93,8 +93,9 @@ std::uint32_t page_crc(std::span<const std::uint8_t> bytes);
 
 // HDF5's byte shuffle (H5Z_FILTER_SHUFFLE) of a page of elements of `elem`
 // bytes: byte j of element i goes to j * count + i, a tail of fewer than
-// `elem` bytes stays in place. Used before LZ4 on the bounding arrays, whose
-// small zigzag-coded corrections leave their high byte planes all zero.
+// `elem` bytes stays in place. Used before LZ4 on every 8-byte integer
+// table (ids and the bounding arrays' small zigzag-coded corrections leave
+// their high byte planes all zero).
 // Written here (30 lines) because H5Dwrite_chunk / H5Dread_chunk bypass
 // HDF5's filters and the library exposes no shuffle call of its own.
 void shuffle_bytes(std::span<const std::uint8_t> in, std::size_t elem, std::vector<std::uint8_t>& out);

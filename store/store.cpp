@@ -137,7 +137,7 @@ struct PagedDataset {
   h5::Handle ds;
   std::int64_t rows = 0, width = 0, rows_per_page = 0;
   std::size_t elem = 0;
-  bool shuffled = false;           // HDF5 byte shuffle before LZ4 (the bounding arrays)
+  bool shuffled = false;           // HDF5 byte shuffle before LZ4 (every 8-byte integer table)
   std::vector<std::uint32_t> crc;  // CRC-32 of every decoded page (companion dataset)
   std::vector<int> derived;        // columns copied after the rows of each page (Table::derived)
 };
@@ -168,10 +168,11 @@ struct OpenStore {
       if (mask != 0) throw Error(ErrorKind::Corrupt, what + ": page was stored with filters skipped");
     }
     const size_t rows_bytes = static_cast<size_t>(a.rows_per_page * a.width) * a.elem;
-    // Room for the derived columns from the start, so that neither vector
-    // grows past the exact size the cache's budget counts.
+    // Room for the derived columns from the start in the vector the page
+    // ends in, so that it never grows past the exact size the cache's
+    // budget counts.
     const size_t page_bytes = rows_bytes + a.derived.size() * static_cast<size_t>(a.rows_per_page) * a.elem;
-    out.reserve(page_bytes);
+    if (!a.shuffled) out.reserve(page_bytes);
     store::decode_page(raw, out, rows_bytes, what);
     if (a.shuffled) {
       std::vector<std::uint8_t> plain;

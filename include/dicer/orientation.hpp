@@ -29,8 +29,9 @@ inline constexpr int kHexCorner[8][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1,
 // Corner q of a structured grid's cell, read from the grid rows around it:
 // rows[0] holds grid row (j, k), rows[1] (j + 1, k), rows[2] (j, k + 1),
 // rows[3] (j + 1, k + 1), and the cell's corner 0 is point i of rows[0]
-// (quads: rows[0..1], q < 4). Block connectivity and the sweep's checksum
-// read cells this way; a constant q folds to one load.
+// (quads: rows[0..1], q < 4). The sweep's checksum reads cells this way (a
+// constant q folds to one load); block connectivity copies the same
+// corners as row pairs (fill.cpp's static_assert ties the two).
 // grid_cell_row(q): which of the four rows corner q is read from.
 constexpr int grid_cell_row(int q) { return kHexCorner[q][1] + 2 * kHexCorner[q][2]; }
 template <class T>

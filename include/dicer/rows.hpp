@@ -183,7 +183,8 @@ class RowReader {
   void prefetch_corners(Id h) const;
   // Element h's row (and its corners), into the cache at once: one
   // query's misses overlap instead of following each other. Pins like
-  // prefetch_corners; checks nothing.
+  // prefetch_corners; the values are not checked, and an id outside the
+  // table does nothing.
   void prefetch_element(Id h, bool corners = true) const;
   // Element h's bounds: finite, lo <= hi (Corrupt otherwise).
   ElementBounds bounds(Id h) const;
@@ -205,7 +206,8 @@ class RowReader {
   Id element_first(Id h) const;
   // The first row in [lo, hi) whose node_first (by_node) or element_first
   // exceeds x (hi if none), over rows that share one page (Table::run),
-  // through one row pointer. Unvalidated like the two above. An
+  // through one pointer (the page's dense column, else the rows').
+  // Unvalidated like the two above. An
   // interpolation search: about 2 rows touched when rows own about as many
   // ids as their neighbours (plus the two end rows without hints),
   // O(log(hi - lo)) at worst. `hints`: the values

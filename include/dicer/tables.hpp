@@ -30,6 +30,7 @@
 #include <vector>
 
 #include "dicer/cache.hpp"
+#include "dicer/error.hpp"
 #include "dicer/types.hpp"
 
 namespace dicer {
@@ -79,7 +80,11 @@ class Table {
   // Paged tables only; the page's bytes are exactly what the CRC checked,
   // so a derived value equals its row's.
   const std::vector<int>& derived_columns() const { return derived_; }
-  void set_derived_columns(std::vector<int> columns) { derived_ = std::move(columns); }
+  // The store sets them with its loader's (the two must agree); paged only.
+  void set_derived_columns(std::vector<int> columns) {
+    DICER_ASSERT(cache_ && rows_per_page_ > 0, "derived columns: a paged table");
+    derived_ = std::move(columns);
+  }
   // Pointer to the k-th derived column's value of row i; the values of the
   // rows after i on its page follow (run(i) in all). nullptr when the table
   // has no derived columns (in memory: read row(i)[column]). Valid like row().
@@ -158,6 +163,7 @@ inline const T* Table<T>::row(std::int64_t i, TableCursor& cur) const {
 template <class T>
 inline const T* Table<T>::derived(std::int64_t i, int k, TableCursor& cur) const {
   if (derived_.empty()) return nullptr;
+  DICER_ASSERT(k >= 0 && static_cast<size_t>(k) < derived_.size(), "derived column out of range");
   const std::int64_t at = i % rows_per_page_;
   const T* page = row(i, cur) - at * width_;
   return page + rows_per_page_ * (width_ + k) + at;
