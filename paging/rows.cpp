@@ -392,13 +392,26 @@ std::int64_t RowReader::vertex_geo(Id v) const {
   return r[0] < 0 ? -1 : pack_owner(r[0], r[1]);
 }
 
+// Row h's node_first (by_node) or element_first, the values of the rows
+// after it on its page `stride` values apart: in the dense column the
+// store's loader derived (stride 1; element_search_columns' order), else
+// in the rows themselves.
+const std::int64_t* RowReader::first_ids(Id h, bool by_node, std::int64_t& stride) const {
+  if (const std::int64_t* v = t_.elements.derived(h, by_node ? 0 : 1, c_.elements)) {
+    stride = 1;
+    return v;
+  }
+  const ElementCols L = ElementCols::of(t_.mode);
+  stride = t_.elements.width();
+  return t_.elements.row(h, c_.elements) + (by_node ? L.node_first() : L.element_first());
+}
 Id RowReader::node_first(Id h) const {
-  if (const std::int64_t* v = t_.elements.derived(h, 0, c_.elements)) return *v;
-  return t_.elements.row(h, c_.elements)[ElementCols::of(t_.mode).node_first()];
+  std::int64_t stride;
+  return *first_ids(h, true, stride);
 }
 Id RowReader::element_first(Id h) const {
-  if (const std::int64_t* v = t_.elements.derived(h, 1, c_.elements)) return *v;
-  return t_.elements.row(h, c_.elements)[ElementCols::of(t_.mode).element_first()];
+  std::int64_t stride;
+  return *first_ids(h, false, stride);
 }
 
 std::vector<int> element_search_columns(Mode mode) {
@@ -408,14 +421,10 @@ std::vector<int> element_search_columns(Mode mode) {
 
 Id RowReader::search_first(Id lo, Id hi, Id x, bool by_node, const SearchHints* hints) const {
   if (lo >= hi) return lo;
-  const ElementCols L = ElementCols::of(t_.mode);
-  const int col = by_node ? L.node_first() : L.element_first();
-  // One pointer for the run [lo, hi) on one page (or in memory): the dense
-  // column the store's loader derived, else the rows' column.
+  // One pointer for the run [lo, hi) on one page (or in memory).
   DICER_ASSERT(lo >= 0 && hi <= t_.elements.rows() && hi - lo <= t_.elements.run(lo), "search_first: one page");
-  const std::int64_t* base = t_.elements.derived(lo, by_node ? 0 : 1, c_.elements);
-  const std::int64_t w = base ? 1 : t_.elements.width();
-  if (!base) base = t_.elements.row(lo, c_.elements) + col;
+  std::int64_t w;
+  const std::int64_t* base = first_ids(lo, by_node, w);
   auto at = [&](Id r) { return base[(r - lo) * w]; };
   // The answer lies in [a, b]: rows below a hold values <= x (or lie below
   // lo), row b one > x (or b == hi). va at row pa and vb at row pb: values

@@ -552,11 +552,10 @@ FineMesh read_store(const std::string& path, const StoreOptions& options) {
   tab.faces = paged(std::int64_t{}, row_dataset(RowTable::Faces), row_width(RowTable::Faces, m), info.coarse_faces);
   tab.elements = paged(std::int64_t{}, row_dataset(RowTable::Elements), row_width(RowTable::Elements, m),
                        info.coarse_elements);
-  {
-    // The id -> element searches' columns, dense (RowReader::search_first).
-    s->arrays[tab.elements.array()].derived = element_search_columns(m);
-    tab.elements.set_derived_columns(element_search_columns(m));
-  }
+  // The id -> element searches' columns, dense (RowReader::search_first):
+  // the loader lays them out, the table reads them.
+  s->arrays[tab.elements.array()].derived = element_search_columns(m);
+  tab.elements.set_derived_columns(s->arrays[tab.elements.array()].derived);
   tab.corners = paged(double{}, row_dataset(RowTable::Corners), row_width(RowTable::Corners, m), info.coarse_elements);
   tab.bounds = paged(double{}, row_dataset(RowTable::Bounds), row_width(RowTable::Bounds, m), info.coarse_elements);
   tab.bounding = paged(std::int64_t{}, "geometry/bounding", 3, bounding_nodes);

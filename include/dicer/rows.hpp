@@ -238,6 +238,7 @@ class RowReader {
  private:
   void check_grid(Id h, const std::array<Id, 3>& n, Id element_first, std::uint64_t flags) const;
   void element_scalars(Id h, ElementRow& o) const;
+  const std::int64_t* first_ids(Id h, bool by_node, std::int64_t& stride) const;
   [[noreturn]] void element_failure(Id h, const ElementRow& o) const;
 
   const MeshTables& t_;
