@@ -11,6 +11,10 @@
 //                        (connectivity) once, slab by slab (batch.hpp)
 //   BM_BatchesGrid       the same with the slab's grid of node ids instead of
 //                        connectivity (what the sweep reads)
+//   BM_ChecksumGrid      the sweep's element checksum over every batch's grid
+//                        (checksum_hex_grid), held in memory: elements/s;
+//                        baseline BM_ChecksumConn: checksum_elements over the
+//                        same batches' connectivity
 // Mesh: the CUBIT sphere (256 hexes) at interval N (arg), so ~256 N^3 elements.
 #include <benchmark/benchmark.h>
 
@@ -21,6 +25,7 @@
 #include "dicer/batch.hpp"
 #include "dicer/fine_mesh.hpp"
 #include "dicer/sheets.hpp"
+#include "dicer/sweep.hpp"
 
 using namespace dicer;
 
@@ -144,6 +149,46 @@ void BM_BatchesGrid(benchmark::State& st) {
   batches_rate(st, opt);
 }
 
+// Every batch of the sphere at interval n, its grid or its connectivity
+// copied out (the checksums alone are timed, not the batches).
+struct HeldBatch {
+  Id first = 0, layers = 0;
+  std::array<Id, 3> n{};
+  std::vector<Id> ids;
+};
+const std::vector<HeldBatch>& held_batches(Id n, bool grid) {
+  static std::vector<std::pair<Id, std::vector<HeldBatch>>> cache;
+  const Id key = grid ? n : -n;
+  for (auto& [k, v] : cache)
+    if (k == key) return v;
+  BatchOptions opt;
+  opt.coords = false, opt.conn = !grid, opt.grid = grid;
+  BatchCursor c(sphere(n), 0, -1, opt);
+  std::vector<HeldBatch> v;
+  FineBatch b;
+  while (c.next(b)) {
+    const auto ids = grid ? b.grid : b.conn;
+    v.push_back({b.element_begin, b.num_elements() / (b.n[0] * b.n[1]), b.n, {ids.begin(), ids.end()}});
+  }
+  cache.emplace_back(key, std::move(v));
+  return cache.back().second;
+}
+void checksum_rate(benchmark::State& st, bool grid) {
+  const auto& batches = held_batches(st.range(0), grid);
+  Id elements = 0;
+  for (auto _ : st) {
+    std::uint64_t sum = 0;
+    for (const HeldBatch& b : batches) {
+      sum += grid ? checksum_hex_grid(b.first, b.n, b.layers, b.ids) : checksum_elements(b.first, 8, b.ids);
+      elements += b.layers * b.n[0] * b.n[1];
+    }
+    benchmark::DoNotOptimize(sum);
+  }
+  st.counters["elements_per_s"] = benchmark::Counter(static_cast<double>(elements), benchmark::Counter::kIsRate);
+}
+void BM_ChecksumGrid(benchmark::State& st) { checksum_rate(st, true); }
+void BM_ChecksumConn(benchmark::State& st) { checksum_rate(st, false); }
+
 }  // namespace
 
 BENCHMARK(BM_WriteBandwidth)->Arg(8)->Arg(32)->Unit(benchmark::kMillisecond);
@@ -155,4 +200,6 @@ BENCHMARK(BM_ElementQuery)->Arg(8)->Arg(32);
 BENCHMARK(BM_NodeCursor)->Arg(8)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Batches)->Arg(8)->Arg(32)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_BatchesGrid)->Arg(8)->Arg(32)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_ChecksumConn)->Arg(10)->Arg(20)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_ChecksumGrid)->Arg(10)->Arg(20)->Unit(benchmark::kMillisecond);
 BENCHMARK_MAIN();

@@ -98,61 +98,102 @@ DICER_HASH_CLONES std::uint64_t sum_hex_row(std::uint64_t first, const Id* const
   return sum;
 }
 
-// mix(a[i]), i < n: the terms whose arguments are already formed.
-DICER_HASH_CLONES std::uint64_t sum_mix(const std::uint64_t* a, std::int64_t n) {
-  std::uint64_t sum = 0;
-  for (std::int64_t i = 0; i < n; ++i) sum += mix(a[i]);
-  return sum;
-}
-
-// Arguments gathered across rows, hashed kArgs at a time: one vector loop
-// (and one horizontal sum) per kArgs terms instead of per row of ~n0.
-class ArgBuffer {
- public:
-  static constexpr size_t kArgs = 1024;
-  // Room for m <= kArgs arguments, written by the caller.
-  std::uint64_t* take(size_t m) {
-    if (used_ + m > kArgs) flush();
-    std::uint64_t* at = a_ + used_;
-    used_ += m;
-    return at;
-  }
-  void flush() {
-    sum_ += sum_mix(a_, static_cast<std::int64_t>(used_));
-    used_ = 0;
-  }
-  std::uint64_t sum() {
-    flush();
-    return sum_;
-  }
-
- private:
-  std::uint64_t a_[kArgs];
-  size_t used_ = 0;
-  std::uint64_t sum_ = 0;
+// The keys of the corners read from each of a cell's four grid rows
+// (grid_cell_row) at the cell's own i (A) and at i + 1 (B), and both
+// summed: a row's step times its sum is what its corners add to the step
+// of a progression of arguments (products distribute mod 2^64).
+struct RowKeys {
+  std::array<std::uint64_t, 4> a{}, b{}, ab{};
 };
-
-// Whether p[1..m] is an arithmetic progression (mod 2^64, the arithmetic
-// of the terms: no overflow on any input), any step (a cell's interior rows
-// step by 1, a face's rows by 1, -1, or a row of the face's canonical grid,
-// an edge's by 1 or -1); its common difference in d.
-bool progression(const Id* p, std::int64_t m, std::uint64_t& d) {
-  const auto at = [p](std::int64_t t) { return static_cast<std::uint64_t>(p[t]); };
-  d = at(2) - at(1);
-  bool ok = true;
-  for (std::int64_t t = 2; t < m; ++t) ok &= at(t + 1) - at(t) == d;
-  return ok;
-}
-
-// The keys of the corners read from each of a cell's four grid rows,
-// summed (grid_cell_row): a row's step times its sum is what its corners
-// add to the step of a progression of arguments (products distribute mod
-// 2^64).
-constexpr std::array<std::uint64_t, 4> kRowKeys = [] {
-  std::array<std::uint64_t, 4> k{};
-  for (int q = 0; q < 8; ++q) k[grid_cell_row(q)] += kChecksumKeys[5 + q];
+constexpr RowKeys kRowKeys = [] {
+  RowKeys k;
+  for (int q = 0; q < 8; ++q) {
+    const int r = grid_cell_row(q);
+    (kHexCorner[q][0] == 0 ? k.a : k.b)[r] += kChecksumKeys[5 + q];
+    k.ab[r] += kChecksumKeys[5 + q];
+  }
   return k;
 }();
+
+// How each grid point's step to the next differs from the next one's:
+// bent[g] = (p[g + 1] - p[g]) ^ (p[g + 2] - p[g + 1]), g < count - 2, over
+// the whole grid at once (one long vector loop; a row's interior is then a
+// progression when bent is zero all over it).
+DICER_HASH_CLONES void bends(const std::uint64_t* p, Id count, std::uint64_t* __restrict bent) {
+  for (Id g = 0; g + 2 < count; ++g) bent[g] = (p[g + 1] - p[g]) ^ (p[g + 2] - p[g + 1]);
+}
+
+// Each grid row q = grid + r (n0 + 1) as a line through its interior
+// q[1 .. n0 - 1]: first = q[1], step = q[2] - q[1], ok = the interior is
+// that progression (mod 2^64, the arithmetic of the terms: any step, no
+// overflow on any input; a cell's interior rows step by 1, a face's by 1,
+// -1 or a row of the face's canonical grid, an edge's by 1 or -1), and
+// how far the end points lie off the line: off0 = q[0] - (q[1] - step),
+// offn = q[n0] - (q[n0 - 1] + step). n0 >= 3.
+struct GridLines {
+  std::uint64_t *first, *step, *off0, *offn;
+  std::uint8_t* ok;
+};
+void grid_lines(const std::uint64_t* p, Id rows, Id n0, const std::uint64_t* bent, const GridLines& L) {
+  const Id ni = n0 + 1;
+  for (Id r = 0; r < rows; ++r) {
+    const std::uint64_t* q = p + r * ni;
+    const std::uint64_t s = q[2] - q[1];
+    L.first[r] = q[1], L.step[r] = s, L.off0[r] = q[0] - q[1] + s, L.offn[r] = q[n0] - q[n0 - 1] - s;
+    std::uint64_t off = 0;
+    for (Id t = 1; t < n0 - 2; ++t) off |= bent[r * ni + t];
+    L.ok[r] = off == 0;
+  }
+}
+
+// Element rows as lines through their argument progressions, from the
+// grid rows' lines: where the four grid rows that element row reads (r,
+// r + 1 in its layer, r + w, r + w + 1 in the next; w = n1 + 1) are
+// progressions, element i's argument (id K4 + the sum of corner id x key)
+// is a1 + (i - 1) step for 1 <= i <= n0 - 2, and the two end elements
+// differ from the line only by their end points' offsets times the keys of
+// the corners that read them. idk[r]: the id part of the row's element 1.
+// Every r < count, also those that are no element row (j = n1): one
+// unit-stride vector loop over the whole grid.
+DICER_HASH_CLONES void element_lines(const GridLines& L, const std::uint64_t* idk, Id count, Id w, Id n0,
+                                     std::uint64_t* __restrict a0, std::uint64_t* __restrict a1,
+                                     std::uint64_t* __restrict step, std::uint64_t* __restrict an) {
+  const std::uint64_t* first[4] = {L.first, L.first + 1, L.first + w, L.first + w + 1};
+  const std::uint64_t* st[4] = {L.step, L.step + 1, L.step + w, L.step + w + 1};
+  const std::uint64_t* o0[4] = {L.off0, L.off0 + 1, L.off0 + w, L.off0 + w + 1};
+  const std::uint64_t* on[4] = {L.offn, L.offn + 1, L.offn + w, L.offn + w + 1};
+  const auto m2 = static_cast<std::uint64_t>(n0 - 2);
+  for (Id r = 0; r < count; ++r) {
+    std::uint64_t s = K[4], h = idk[r], e0 = 0, en = 0;
+    for (int q = 0; q < 4; ++q) {
+      s += kRowKeys.ab[q] * st[q][r];
+      h += kRowKeys.ab[q] * first[q][r] + kRowKeys.b[q] * st[q][r];
+      e0 += kRowKeys.a[q] * o0[q][r];
+      en += kRowKeys.b[q] * on[q][r];
+    }
+    a1[r] = h, step[r] = s, a0[r] = h - s + e0, an[r] = h + m2 * s + en;
+  }
+}
+
+// The rows' terms: mix(a0), mix(a1 + t step) for t < n0 - 2, mix(an),
+// summed over the rows r < count (a multiple of kLanes) whose keep[r] is
+// all ones. Rows side by side, kLanes at a time: one vector lane per row,
+// so a short row (n0 = 10: eight terms on its line) fills the vector as
+// a long one does.
+constexpr Id kLanes = 8;
+DICER_HASH_CLONES std::uint64_t hash_lines(const std::uint64_t* a0, const std::uint64_t* a1,
+                                           const std::uint64_t* step, const std::uint64_t* an,
+                                           const std::uint64_t* keep, Id count, Id n0) {
+  std::uint64_t sum = 0;
+  for (Id r0 = 0; r0 < count; r0 += kLanes) {
+    std::uint64_t h[kLanes], part[kLanes];
+    for (Id b = 0; b < kLanes; ++b) h[b] = a1[r0 + b], part[b] = mix(a0[r0 + b]) + mix(an[r0 + b]);
+    for (Id t = 0; t < n0 - 2; ++t)
+      for (Id b = 0; b < kLanes; ++b) part[b] += mix(h[b]), h[b] += step[r0 + b];
+    for (Id b = 0; b < kLanes; ++b) sum += part[b] & keep[r0 + b];
+  }
+  return sum;
+}
 
 }  // namespace
 
@@ -163,50 +204,54 @@ std::uint64_t checksum_hex_grid(Id first, const std::array<Id, 3>& n, Id layers,
     throw Error(ErrorKind::Usage, "checksum_hex_grid: a grid of " + std::to_string(grid.size()) +
                                       " ids for " + std::to_string(layers) + " layers of " + std::to_string(n[0]) +
                                       " x " + std::to_string(n[1]));
-  const Id ni = n[0] + 1;
-  // Each grid row's interior [1, n0 - 1] checked once: its step, if it is a
-  // progression (n0 >= 3: at least two interior points; a row of more than
-  // the buffer's room takes the general path).
-  const Id grid_rows = (n[1] + 1) * (layers + 1);
-  const bool rows_may_step = n[0] >= 3 && n[0] <= static_cast<Id>(ArgBuffer::kArgs);
-  // Warm after the first batch: no allocation per batch.
-  thread_local std::vector<std::uint64_t> step_of;
-  thread_local std::vector<std::uint8_t> steps;
-  step_of.resize(static_cast<size_t>(grid_rows)), steps.resize(static_cast<size_t>(grid_rows));
-  std::uint64_t* const st = step_of.data();
-  std::uint8_t* const ok = steps.data();
-  for (Id r = 0; r < grid_rows; ++r) ok[r] = rows_may_step && progression(grid.data() + r * ni, n[0] - 1, st[r]);
-  std::uint64_t sum = 0;
-  ArgBuffer args;  // 8 KiB on the stack
+  const Id ni = n[0] + 1, n0 = n[0], n1 = n[1], w = n1 + 1;
+  const Id grid_rows = w * (layers + 1);
   auto id = static_cast<std::uint64_t>(first);
+  const auto row_rows = [&](Id ra) {  // the four grid rows element row ra reads
+    const Id* g = grid.data();
+    return std::array<const Id*, 4>{g + ra * ni, g + (ra + 1) * ni, g + (ra + w) * ni, g + (ra + w + 1) * ni};
+  };
+  // Rows of two end points only (no interior line): each term in full.
+  if (n0 < 3 || layers == 0) {
+    std::uint64_t sum = 0;
+    for (Id k = 0; k < layers; ++k)
+      for (Id j = 0; j < n1; ++j, id += static_cast<std::uint64_t>(n0))
+        sum += sum_hex_row(id, row_rows(j + w * k).data(), 0, n0);
+    return sum;
+  }
+  // Work space, warm after the first batch: no allocation per batch. Rows
+  // r < er: every element row's r (and the j = n1 between layers), padded
+  // to whole vectors with rows kept out.
+  const size_t gr = static_cast<size_t>(grid_rows), er = static_cast<size_t>(w * layers - 1);
+  // The grid rows' lines padded too: element_lines reads up to row ep + w.
+  const size_t ep = (er + kLanes - 1) / kLanes * kLanes, gp = gr + kLanes;
+  thread_local std::vector<std::uint64_t> space;
+  thread_local std::vector<std::uint8_t> oks;
+  space.resize(4 * gp + 6 * ep + grid.size()), oks.resize(gr);
+  std::uint64_t* const ws = space.data();
+  const GridLines L{ws, ws + gp, ws + 2 * gp, ws + 3 * gp, oks.data()};
+  std::uint64_t *const a0 = ws + 4 * gp, *const a1 = a0 + ep, *const step = a1 + ep, *const an = step + ep;
+  std::uint64_t *const idk = an + ep, *const keep = idk + ep, *const bent = keep + ep;
+  // Signed and unsigned variants of one type may alias.
+  const auto* p = reinterpret_cast<const std::uint64_t*>(grid.data());
+  const auto points = static_cast<Id>(grid.size());
+  bends(p, points, bent);
+  grid_lines(p, grid_rows, n0, bent, L);
+  // Which rows the lines hash; the others' terms in full.
+  std::uint64_t sum = 0;
+  std::fill(idk + er, idk + ep, 0), std::fill(keep + er, keep + ep, 0);
   for (Id k = 0; k < layers; ++k)
-    for (Id j = 0; j < n[1]; ++j, id += static_cast<std::uint64_t>(n[0])) {
-      const Id ra = j + (n[1] + 1) * k, rc = ra + n[1] + 1;
-      const Id* const rows[4] = {grid.data() + ra * ni, grid.data() + (ra + 1) * ni, grid.data() + rc * ni,
-                                 grid.data() + (rc + 1) * ni};
-      if (!(ok[ra] & ok[ra + 1] & ok[rc] & ok[rc + 1])) {
-        sum += sum_hex_row(id, rows, 0, n[0]);
-        continue;
-      }
-      // Elements 1 .. n0 - 2 read only the rows' interiors, each a
-      // progression: each term's argument is the one before plus `step`
-      // (K4 for the id, each row's step times its corners' keys). The two
-      // end elements' arguments in full.
-      const std::uint64_t step =
-          K[4] + st[ra] * kRowKeys[0] + st[ra + 1] * kRowKeys[1] + st[rc] * kRowKeys[2] + st[rc + 1] * kRowKeys[3];
-      auto arg = [&](Id i) {
-        Id nodes[8];
-        for (int q = 0; q < 8; ++q) nodes[q] = grid_cell_corner(rows, i, q);
-        return element_arg<8>(id + static_cast<std::uint64_t>(i), nodes);
-      };
-      const Id m = n[0];
-      std::uint64_t* const a = args.take(static_cast<size_t>(m));
-      a[0] = arg(0);
-      std::uint64_t h = arg(1);
-      for (Id i = 1; i < m - 1; ++i, h += step) a[i] = h;
-      a[m - 1] = arg(m - 1);
+    for (Id j = 0; j <= n1 && j + w * k < static_cast<Id>(er); ++j) {
+      const Id r = j + w * k;
+      idk[r] = (id + 1) * K[4];  // element 1 of the row
+      const bool line = j < n1 && (L.ok[r] & L.ok[r + 1] & L.ok[r + w] & L.ok[r + w + 1]);
+      keep[r] = line ? ~std::uint64_t{0} : 0;
+      if (j == n1) continue;
+      if (!line) sum += sum_hex_row(id, row_rows(r).data(), 0, n0);
+      id += static_cast<std::uint64_t>(n0);
     }
-  return sum + args.sum();
+  element_lines(L, idk, static_cast<Id>(ep), w, n0, a0, a1, step, an);
+  return sum + hash_lines(a0, a1, step, an, keep, static_cast<Id>(ep), n0);
 }
 
 std::uint64_t node_checksum_term(Id id, const Vec3& x) {

@@ -80,10 +80,12 @@ std::uint64_t checksum_elements(Id first, int corners, std::span<const Id> conn)
 // reads are arithmetic progressions (a cell's interior steps by 1, a face's
 // or an edge's by a constant of either sign), each term's argument is the
 // previous one's plus a constant (K4 plus each corner's key times its grid
-// row's step), so only mix is computed per element there. Error{Usage}
-// when n[0] or n[1] < 1, layers < 0 or grid has the wrong size. Each
-// calling thread keeps 16 bytes per grid row of work space (allocated on
-// its first call).
+// row's step), and the two end elements' differ from that line only by
+// their end points' offsets, so per element only an add and mix remain;
+// rows are hashed side by side, one per vector lane. Error{Usage} when
+// n[0] or n[1] < 1, layers < 0 or grid has the wrong size. Each calling
+// thread keeps about 8 bytes per grid id and 90 per grid row of work space
+// (allocated on its first calls).
 std::uint64_t checksum_hex_grid(Id first, const std::array<Id, 3>& n, Id layers, std::span<const Id> grid);
 
 }  // namespace dicer

@@ -131,15 +131,15 @@ TEST(Sweep, AFailingThreadEndsTheSweepWithItsError) {
 // checksum_hex_grid is checksum_elements over the grid's hexes, written
 // here from batch.hpp's layout and kHexCorner order, on grids whose rows
 // are progressions (its shortcut: steps 1, -1, 0, a face row's stride,
-// steps that wrap past 2^63), broken anywhere in a row (first, inside,
-// last point), or random; every n[0] from 1 (no interior) up, and rows
-// of over a thousand.
+// steps that wrap past 2^63), broken anywhere in a row (an end point: the
+// line with an offset; inside: each term in full), or random; every n[0]
+// from 1 (no interior) up, element rows of one grid on and off the
+// shortcut side by side in one vector, and rows of over a thousand.
 TEST(Sweep, GridChecksumEqualsTheTermsOfItsHexes) {
   std::mt19937_64 rng(17);
   const std::uint64_t* K = kChecksumKeys;
   for (int trial = 0; trial < 400; ++trial) {
-    // The last trials: rows of over a thousand hexes (the terms are hashed
-    // in buffers of 1024 across rows: a buffer fills inside a row).
+    // The last trials: rows of over a thousand hexes.
     const bool wide = trial >= 396;
     const std::array<Id, 3> n{wide ? 1000 + 37 * (trial - 396) : 1 + trial % 7, wide ? 2 : 1 + (trial / 7) % 4, 3};
     const Id layers = wide ? 1 + trial % 2 : trial % 3, ni = n[0] + 1, pp = ni * (n[1] + 1);
