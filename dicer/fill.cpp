@@ -19,9 +19,15 @@
 namespace dicer {
 namespace {
 
-// dst[gs t] = first + cs t and dst[gs t] = src[cs t], t < m: one row of a
-// face scattered into the boundary slots (ids, coordinates).
+// dst[gs t] = first + cs t and dst[gs t] = src[cs t], t < m: one row of an
+// edge or a face scattered into the boundary slots (ids, coordinates). A
+// face's rows run along slots in a row (gs = 1: Boundary::index), stored
+// as one vector loop.
 void scatter_row(Id* dst, Id gs, Id first, Id cs, Id m) {
+  if (gs == 1) {
+    for (Id t = 0; t < m; ++t) dst[t] = first + cs * t;
+    return;
+  }
   for (Id t = 0; t < m; ++t) dst[gs * t] = first + cs * t;
 }
 void gather_row(double* dst, Id gs, const double* src, Id cs, Id m) {
@@ -69,18 +75,17 @@ void fill_boundary(const detail::Evaluator& E, std::uint64_t mesh, const Element
     ids[g] = h.corner_node[q];
     if (coords) X[0][g] = s.corner[q].x, X[1][g] = s.corner[q].y, X[2][g] = s.corner[q].z;
   }
-  // Edges: canonical point tc of local edge le sits at local t.
+  // Edges: canonical point tc of local edge le sits at local t (tc = t or,
+  // reversed, en - t); both its slot and tc are affine in t.
   for (int le = 0; le < ne; ++le) {
     const int a = vol ? kHexEdge[le][0] : kQuadEdge[le][0];
     const int axis = vol ? le / 4 : le / 2;
     const Id en = n[axis];
-    for (Id t = 1; t < en; ++t) {
-      const Id tc = h.rev(le) ? en - t : t;
-      const Id g = grid(kHexCorner[a], axis, t);
-      ids[g] = ids::edge_node(h.edge_node[le], tc);
-      if (coords)
-        for (int d = 0; d < 3; ++d) X[d][g] = s.edge[le][d][tc - 1];
-    }
+    if (en < 2) continue;
+    const Id g = grid(kHexCorner[a], axis, 1), gs = en > 2 ? grid(kHexCorner[a], axis, 2) - g : 0;
+    const Id c1 = h.rev(le) ? en - 1 : 1, cs = h.rev(le) ? -1 : 1;  // tc at t = 1, and its step
+    scatter_row(ids + g, gs, ids::edge_node(h.edge_node[le], c1), cs, en - 1);
+    for (int d = 0; d < 3 && coords; ++d) gather_row(X[d] + g, gs, s.edge[le][d].data() + (c1 - 1), cs, en - 1);
   }
   // Faces: the canonical fill scattered through the face map.
   for (int lf = 0; lf < nf; ++lf) {
@@ -90,15 +95,15 @@ void fill_boundary(const detail::Evaluator& E, std::uint64_t mesh, const Element
     const int ax = vol ? kHexFaceAxes[lf][0] : 0, bx = vol ? kHexFaceAxes[lf][1] : 1;
     Id p[3] = {0, 0, 0};
     if (vol) p[lf / 2] = (lf % 2) ? n[lf / 2] : 0;
-    // Along a row (pp = 1 .. n[ax] - 1 at fixed q) both the slot and the
-    // canonical index are affine in pp: a strided copy per row.
-    const Id m = n[ax] - 1, cs = fm.up + fm.vp * (nu - 1);
+    // Both the slot and the canonical index are affine in (pp, q): a
+    // strided copy per row (pp = 1 .. n[ax] - 1 at fixed q), rows apart by
+    // constant steps.
+    const Id m = n[ax] - 1, cs = fm.up + fm.vp * (nu - 1), cq = fm.uq + fm.vq * (nu - 1);
+    auto slot = [&](Id pa, Id q) { return p[ax] = pa, p[bx] = q, B.index(p[0], p[1], p[2]); };
+    const Id g1 = slot(1, 1), gs = m > 1 ? slot(2, 1) - g1 : 0, gq = n[bx] > 2 ? slot(1, 2) - g1 : 0;
+    const Id c1 = ids::face_node(0, nu, fm.u(1, 1), fm.v(1, 1));  // canonical index at (1, 1)
     for (Id q = 1; q < n[bx]; ++q) {
-      p[ax] = 1, p[bx] = q;
-      const Id g = B.index(p[0], p[1], p[2]);
-      p[ax] = 2;
-      const Id gs = m > 1 ? B.index(p[0], p[1], p[2]) - g : 0;
-      const Id c = ids::face_node(0, nu, fm.u(1, q), fm.v(1, q));  // canonical index at pp = 1
+      const Id g = g1 + (q - 1) * gq, c = c1 + (q - 1) * cq;
       scatter_row(ids + g, gs, h.face_node[lf] + c, cs, m);
       for (int d = 0; d < 3 && coords; ++d) gather_row(X[d] + g, gs, s.face[lf][d].data() + c, cs, m);
     }

@@ -115,12 +115,16 @@ constexpr RowKeys kRowKeys = [] {
   return k;
 }();
 
-// How each grid point's step to the next differs from the next one's:
-// bent[g] = (p[g + 1] - p[g]) ^ (p[g + 2] - p[g + 1]), g < count - 2, over
-// the whole grid at once (one long vector loop; a row's interior is then a
-// progression when bent is zero all over it).
-DICER_HASH_CLONES void bends(const std::uint64_t* p, Id count, std::uint64_t* __restrict bent) {
-  for (Id g = 0; g + 2 < count; ++g) bent[g] = (p[g + 1] - p[g]) ^ (p[g + 2] - p[g + 1]);
+// Whether any grid row bends inside its interior: the OR over points g of
+// (p[g + 1] - p[g]) ^ (p[g + 2] - p[g + 1]) where inner[g] (all ones where g
+// is a row's point t, 1 <= t <= n0 - 3: steps inside the interior), over
+// the whole grid at once (one long vector loop, no store). Valid meshes
+// never bend (see grid_lines), so the rows are then checked only when
+// some row does.
+DICER_HASH_CLONES std::uint64_t bends(const std::uint64_t* p, Id count, const std::uint64_t* inner) {
+  std::uint64_t any = 0;
+  for (Id g = 0; g + 2 < count; ++g) any |= ((p[g + 1] - p[g]) ^ (p[g + 2] - p[g + 1])) & inner[g];
+  return any;
 }
 
 // Each grid row q = grid + r (n0 + 1) as a line through its interior
@@ -129,19 +133,20 @@ DICER_HASH_CLONES void bends(const std::uint64_t* p, Id count, std::uint64_t* __
 // overflow on any input; a cell's interior rows step by 1, a face's by 1,
 // -1 or a row of the face's canonical grid, an edge's by 1 or -1), and
 // how far the end points lie off the line: off0 = q[0] - (q[1] - step),
-// offn = q[n0] - (q[n0 - 1] + step). n0 >= 3.
+// offn = q[n0] - (q[n0 - 1] + step). n0 >= 3. bent: whether bends()
+// found any row that is no progression.
 struct GridLines {
   std::uint64_t *first, *step, *off0, *offn;
   std::uint8_t* ok;
 };
-void grid_lines(const std::uint64_t* p, Id rows, Id n0, const std::uint64_t* bent, const GridLines& L) {
+void grid_lines(const std::uint64_t* p, Id rows, Id n0, bool bent, const GridLines& L) {
   const Id ni = n0 + 1;
   for (Id r = 0; r < rows; ++r) {
     const std::uint64_t* q = p + r * ni;
     const std::uint64_t s = q[2] - q[1];
     L.first[r] = q[1], L.step[r] = s, L.off0[r] = q[0] - q[1] + s, L.offn[r] = q[n0] - q[n0 - 1] - s;
     std::uint64_t off = 0;
-    for (Id t = 1; t < n0 - 2; ++t) off |= bent[r * ni + t];
+    for (Id t = 2; bent && t < n0 - 1; ++t) off |= (q[t + 1] - q[t]) ^ s;
     L.ok[r] = off == 0;
   }
 }
@@ -227,16 +232,27 @@ std::uint64_t checksum_hex_grid(Id first, const std::array<Id, 3>& n, Id layers,
   const size_t ep = (er + kLanes - 1) / kLanes * kLanes, gp = gr + kLanes;
   thread_local std::vector<std::uint64_t> space;
   thread_local std::vector<std::uint8_t> oks;
-  space.resize(4 * gp + 6 * ep + grid.size()), oks.resize(gr);
+  space.resize(4 * gp + 6 * ep), oks.resize(gr);
   std::uint64_t* const ws = space.data();
   const GridLines L{ws, ws + gp, ws + 2 * gp, ws + 3 * gp, oks.data()};
   std::uint64_t *const a0 = ws + 4 * gp, *const a1 = a0 + ep, *const step = a1 + ep, *const an = step + ep;
-  std::uint64_t *const idk = an + ep, *const keep = idk + ep, *const bent = keep + ep;
+  std::uint64_t *const idk = an + ep, *const keep = idk + ep;
+  // bends()'s mask: periodic in the row length, so kept for the longest
+  // grid of that row length yet (a sweep's batches mostly share one).
+  const auto points = static_cast<Id>(grid.size());
+  thread_local std::vector<std::uint64_t> inner;
+  thread_local Id inner_ni = 0;
+  if (inner_ni != ni || static_cast<Id>(inner.size()) < points) {
+    inner.resize(std::max(static_cast<size_t>(points), inner_ni == ni ? inner.size() : 0));
+    for (size_t g = 0; g < inner.size(); ++g) {
+      const auto t = static_cast<Id>(g % static_cast<size_t>(ni));
+      inner[g] = t >= 1 && t <= n0 - 3 ? ~std::uint64_t{0} : 0;
+    }
+    inner_ni = ni;
+  }
   // Signed and unsigned variants of one type may alias.
   const auto* p = reinterpret_cast<const std::uint64_t*>(grid.data());
-  const auto points = static_cast<Id>(grid.size());
-  bends(p, points, bent);
-  grid_lines(p, grid_rows, n0, bent, L);
+  grid_lines(p, grid_rows, n0, bends(p, points, inner.data()) != 0, L);
   // Which rows the lines hash; the others' terms in full.
   std::uint64_t sum = 0;
   std::fill(idk + er, idk + ep, 0), std::fill(keep + er, keep + ep, 0);
