@@ -159,15 +159,24 @@ DICER_CLONES void hex_interior_plane(const double* c, const double* a0, const do
 
 // hex_interior_plane for a straight hex: tfi::trilinear_plane, then
 // bilinear_row and _point, as Evaluator::cell_point() calls them, from the
-// corners c alone.
-DICER_CLONES void straight_interior_plane(const double* c, std::array<Id, 3> n, const double* u, const double* v,
-                                          double w, double* dst, Id dj) {
-  double q[4];
-  tfi::trilinear_plane(w, c, q);
+// corners c[d] alone, all three coordinates in one pass over the plane: a
+// row of a small element is a short vector loop, and its overhead (the
+// row's terms, the loop's head and tail) is then paid once for x, y, z.
+DICER_CLONES void straight_interior_plane(const double (*c)[8], std::array<Id, 3> n, const double* u,
+                                          const double* v, double w, double* const* dst, Id dj) {
+  double q[3][4];
+  for (int d = 0; d < 3; ++d) tfi::trilinear_plane(w, c[d], q[d]);
   for (Id j = 1; j < n[1]; ++j) {
-    const tfi::Bilinear row = tfi::bilinear_row(v[j], q);
-    double* out = dst + (j - 1) * dj;
-    for (Id i = 1; i < n[0]; ++i) out[i - 1] = tfi::bilinear_point(row, u[i]);
+    const tfi::Bilinear rx = tfi::bilinear_row(v[j], q[0]), ry = tfi::bilinear_row(v[j], q[1]),
+                        rz = tfi::bilinear_row(v[j], q[2]);
+    double* __restrict ox = dst[0] + (j - 1) * dj;
+    double* __restrict oy = dst[1] + (j - 1) * dj;
+    double* __restrict oz = dst[2] + (j - 1) * dj;
+    for (Id i = 1; i < n[0]; ++i) {
+      ox[i - 1] = tfi::bilinear_point(rx, u[i]);
+      oy[i - 1] = tfi::bilinear_point(ry, u[i]);
+      oz[i - 1] = tfi::bilinear_point(rz, u[i]);
+    }
   }
 }
 
@@ -290,17 +299,18 @@ void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool c
     }
     // Compact: the planes after k0 only (plane k0 ended the previous slab).
     if (interior && (k == k0 || in == 0)) continue;
-    for (int d = 0; d < 3 && coords; ++d) {
+    if (!coords) continue;
+    double* dst[3];
+    double c[3][8];
+    for (int d = 0; d < 3; ++d) {
       if (!interior || h.curved()) ring_copy(B.x[d].data() + ring, X[d]);  // compact: only the TFI reads it
-      double* dst = interior ? interior[d] + (k - k0 - 1) * in : X[d] + ni + 1;
-      double c[8];
-      block_corners(s.corner, d, c);
+      dst[d] = interior ? interior[d] + (k - k0 - 1) * in : X[d] + ni + 1;
+      block_corners(s.corner, d, c[d]);
       if (h.curved())
-        hex_interior_plane(c, B.x[d].data(), B.x[d].data() + pp, X[d], n, s.u.data(), s.v.data(), s.w[k], dst,
-                           interior ? n[0] - 1 : ni, s.P.data(), s.G.data());
-      else
-        straight_interior_plane(c, n, s.u.data(), s.v.data(), s.w[k], dst, interior ? n[0] - 1 : ni);
+        hex_interior_plane(c[d], B.x[d].data(), B.x[d].data() + pp, X[d], n, s.u.data(), s.v.data(), s.w[k],
+                           dst[d], interior ? n[0] - 1 : ni, s.P.data(), s.G.data());
     }
+    if (!h.curved()) straight_interior_plane(c, n, s.u.data(), s.v.data(), s.w[k], dst, interior ? n[0] - 1 : ni);
   }
 
   if (!conn) {
