@@ -46,6 +46,10 @@ struct FineBatch {
   // i + (n[0] + 1) * (j + (n[1] + 1) * (k - first_layer)). An element's
   // corners are its cell's grid points (what conn lists): consumers that
   // use the structure (the sweep's checksum) read it instead of conn.
+  // Along each grid row (fixed j, k) the interior points i = 1 .. n[0] - 1
+  // are one entity's (a cell's interior, a face's or an edge's) and their
+  // ids an arithmetic progression (step 1, -1 or a row of a face's
+  // canonical grid): the sweep's checksum relies on it (debug builds check).
   std::span<const Id> grid;
   Id num_nodes() const { return node_end - node_begin; }
   Id num_elements() const { return element_end - element_begin; }

@@ -52,6 +52,12 @@ void check_batches(const FineMesh& f, Id first, Id end, BatchOptions opt) {
       const Id ni = b.n[0] + 1, nj = b.n[1] + 1;
       const Id planes = f.mode() == Mode::Volume ? b.num_elements() / (b.n[0] * b.n[1]) + 1 : 1;
       ASSERT_EQ(static_cast<Id>(b.grid.size()), ni * nj * planes);
+      // Each row's interior one entity's ids at a constant step (batch.hpp).
+      for (Id r = 0; r < nj * planes && b.n[0] >= 3; ++r) {
+        const Id* row = b.grid.data() + r * ni;
+        for (Id i = 2; i < b.n[0] - 1; ++i)
+          ASSERT_EQ(row[i + 1] - row[i], row[2] - row[1]) << "coarse element " << b.coarse_element << " grid row " << r;
+      }
       for (Id e = b.element_begin; e < b.element_end; ++e) {
         const FineElement el = f.element(e);
         const Id l = e - b.element_begin, i = l % b.n[0], j = (l / b.n[0]) % b.n[1], k = l / (b.n[0] * b.n[1]);
