@@ -162,7 +162,7 @@ DICER_CLONES void hex_interior_plane(const double* c, const double* a0, const do
 // corners c[d] alone, all three coordinates in one pass over the plane: a
 // row of a small element is a short vector loop, and its overhead (the
 // row's terms, the loop's head and tail) is then paid once for x, y, z.
-DICER_CLONES void straight_interior_plane(const double (*c)[8], std::array<Id, 3> n, const double* u,
+DICER_WIDE_CLONES void straight_interior_plane(const double (*c)[8], std::array<Id, 3> n, const double* u,
                                           const double* v, double w, double* const* dst, Id dj) {
   double q[3][4];
   for (int d = 0; d < 3; ++d) tfi::trilinear_plane(w, c[d], q[d]);
@@ -177,6 +177,18 @@ DICER_CLONES void straight_interior_plane(const double (*c)[8], std::array<Id, 3
       oy[i - 1] = tfi::bilinear_point(ry, u[i]);
       oz[i - 1] = tfi::bilinear_point(rz, u[i]);
     }
+  }
+}
+
+// The interior points of grid plane k (0 < k < n[2]) of a block: the
+// cell's own ids, consecutive along each row (numbering.hpp), into the
+// plane's ids (row stride n[0] + 1). Vectorised (clones.hpp: integers).
+DICER_WIDE_CLONES void cell_plane_ids(Id cell_node, std::array<Id, 3> n, Id k, Id* ids) {
+  const Id ni = n[0] + 1;
+  for (Id j = 1; j < n[1]; ++j) {
+    const Id first = ids::cell_node(cell_node, n, 1, j, k);
+    Id* row = ids + ni * j + 1;
+    for (Id i = 0; i < n[0] - 1; ++i) row[i] = first + i;
   }
 }
 
@@ -292,11 +304,7 @@ void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool c
       for (Id j = 1; j < n[1]; ++j) dst[j * ni] = src[2 * ni + j - 1], dst[n[0] + j * ni] = src[2 * ni + n[1] - 1 + j - 1];
     };
     ring_copy(B.id.data() + ring, ids);
-    for (Id j = 1; j < n[1]; ++j) {  // a row of the cell's own ids: consecutive (numbering.hpp)
-      const Id first = ids::cell_node(h.cell_node, n, 1, j, k);
-      Id* row = ids + ni * j;
-      for (Id i = 1; i < n[0]; ++i) row[i] = first + (i - 1);
-    }
+    cell_plane_ids(h.cell_node, n, k, ids);
     // Compact: the planes after k0 only (plane k0 ended the previous slab).
     if (interior && (k == k0 || in == 0)) continue;
     if (!coords) continue;

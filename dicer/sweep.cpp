@@ -58,7 +58,7 @@ inline std::uint64_t element_term(std::uint64_t id, const Id* nodes) {
 // same sum).
 // The ids' products advance by K0 per node: an add where AVX2 has no
 // 64-bit multiply.
-DICER_HASH_CLONES std::uint64_t sum_nodes(std::uint64_t first, const double* x, const double* y, const double* z,
+DICER_WIDE_CLONES std::uint64_t sum_nodes(std::uint64_t first, const double* x, const double* y, const double* z,
                                           std::int64_t n) {
   std::uint64_t sum = 0, idk = first * K[0];
   for (std::int64_t i = 0; i < n; ++i, idk += K[0]) {
@@ -76,17 +76,17 @@ inline std::uint64_t sum_elements(std::uint64_t first, const Id* conn, std::int6
   return sum;
 }
 // Clones cannot be templates (Clang): one function per corner count.
-DICER_HASH_CLONES std::uint64_t sum_hexes(std::uint64_t first, const Id* conn, std::int64_t n) {
+DICER_WIDE_CLONES std::uint64_t sum_hexes(std::uint64_t first, const Id* conn, std::int64_t n) {
   return sum_elements<8>(first, conn, n);
 }
-DICER_HASH_CLONES std::uint64_t sum_quads(std::uint64_t first, const Id* conn, std::int64_t n) {
+DICER_WIDE_CLONES std::uint64_t sum_quads(std::uint64_t first, const Id* conn, std::int64_t n) {
   return sum_elements<4>(first, conn, n);
 }
 
 // Hex terms of elements i0 .. i0 + m - 1 of one row, their corners read
 // from the grid rows around it (grid_cell_corner): contiguous loads, no
 // connectivity formed.
-DICER_HASH_CLONES std::uint64_t sum_hex_row(std::uint64_t first, const Id* const* rows, std::int64_t i0,
+DICER_WIDE_CLONES std::uint64_t sum_hex_row(std::uint64_t first, const Id* const* rows, std::int64_t i0,
                                             std::int64_t m) {
   const Id* const r[4] = {rows[0], rows[1], rows[2], rows[3]};  // held in registers
   std::uint64_t sum = 0;
@@ -121,7 +121,7 @@ constexpr RowKeys kRowKeys = [] {
 // the whole grid at once (one long vector loop, no store). Valid meshes
 // never bend (see grid_lines), so the rows are then checked only when
 // some row does.
-DICER_HASH_CLONES std::uint64_t bends(const std::uint64_t* p, Id count, const std::uint64_t* inner) {
+DICER_WIDE_CLONES std::uint64_t bends(const std::uint64_t* p, Id count, const std::uint64_t* inner) {
   std::uint64_t any = 0;
   for (Id g = 0; g + 2 < count; ++g) any |= ((p[g + 1] - p[g]) ^ (p[g + 2] - p[g + 1])) & inner[g];
   return any;
@@ -160,7 +160,7 @@ void grid_lines(const std::uint64_t* p, Id rows, Id n0, bool bent, const GridLin
 // the corners that read them. idk[r]: the id part of the row's element 1.
 // Every r < count, also those that are no element row (j = n1): one
 // unit-stride vector loop over the whole grid.
-DICER_HASH_CLONES void element_lines(const GridLines& L, const std::uint64_t* idk, Id count, Id w, Id n0,
+DICER_WIDE_CLONES void element_lines(const GridLines& L, const std::uint64_t* idk, Id count, Id w, Id n0,
                                      std::uint64_t* __restrict a0, std::uint64_t* __restrict a1,
                                      std::uint64_t* __restrict step, std::uint64_t* __restrict an) {
   const std::uint64_t* first[4] = {L.first, L.first + 1, L.first + w, L.first + w + 1};
@@ -186,7 +186,7 @@ DICER_HASH_CLONES void element_lines(const GridLines& L, const std::uint64_t* id
 // so a short row (n0 = 10: eight terms on its line) fills the vector as
 // a long one does.
 constexpr Id kLanes = 8;
-DICER_HASH_CLONES std::uint64_t hash_lines(const std::uint64_t* a0, const std::uint64_t* a1,
+DICER_WIDE_CLONES std::uint64_t hash_lines(const std::uint64_t* a0, const std::uint64_t* a1,
                                            const std::uint64_t* step, const std::uint64_t* an,
                                            const std::uint64_t* keep, Id count, Id n0) {
   std::uint64_t sum = 0;
