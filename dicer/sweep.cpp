@@ -238,27 +238,31 @@ std::uint64_t grid_checksum(Id first, const std::array<Id, 3>& n, Id layers, std
   const GridLines L{ws, ws + gp, ws + 2 * gp, ws + 3 * gp, oks.data()};
   std::uint64_t *const a0 = ws + 4 * gp, *const a1 = a0 + ep, *const step = a1 + ep, *const an = step + ep;
   std::uint64_t *const idk = an + ep, *const keep = idk + ep;
-  // bends()'s mask: periodic in the row length, so kept for the longest
-  // grid of that row length yet (a sweep's batches mostly share one).
-  const auto points = static_cast<Id>(grid.size());
-  thread_local std::vector<std::uint64_t> inner;
-  thread_local Id inner_ni = 0;
-  if (inner_ni != ni || static_cast<Id>(inner.size()) < points) {
-    inner.resize(std::max(static_cast<size_t>(points), inner_ni == ni ? inner.size() : 0));
-    for (size_t g = 0; g < inner.size(); ++g) {
-      const auto t = static_cast<Id>(g % static_cast<size_t>(ni));
-      inner[g] = t >= 1 && t <= n0 - 3 ? ~std::uint64_t{0} : 0;
-    }
-    inner_ni = ni;
-  }
   // Signed and unsigned variants of one type may alias.
   const auto* p = reinterpret_cast<const std::uint64_t*>(grid.data());
 #ifdef NDEBUG
-  const bool bent = !lines && bends(p, points, inner.data()) != 0;
+  const bool check = !lines;
 #else
-  const bool bent = bends(p, points, inner.data()) != 0;
-  DICER_ASSERT(!lines || !bent, "checksum of a batch's grid: a grid row's interior is no progression (batch.hpp)");
+  const bool check = true;
 #endif
+  bool bent = false;
+  if (check) {
+    // bends()'s mask: periodic in the row length, so kept for the longest
+    // grid of that row length yet (a sweep's batches mostly share one).
+    const auto points = static_cast<Id>(grid.size());
+    thread_local std::vector<std::uint64_t> inner;
+    thread_local Id inner_ni = 0;
+    if (inner_ni != ni || static_cast<Id>(inner.size()) < points) {
+      inner.resize(std::max(static_cast<size_t>(points), inner_ni == ni ? inner.size() : 0));
+      for (size_t g = 0; g < inner.size(); ++g) {
+        const auto t = static_cast<Id>(g % static_cast<size_t>(ni));
+        inner[g] = t >= 1 && t <= n0 - 3 ? ~std::uint64_t{0} : 0;
+      }
+      inner_ni = ni;
+    }
+    bent = bends(p, points, inner.data()) != 0;
+    DICER_ASSERT(!lines || !bent, "checksum of a batch's grid: a grid row's interior is no progression (batch.hpp)");
+  }
   grid_lines(p, grid_rows, n0, bent, L);
   // Which rows the lines hash; the others' terms in full.
   std::uint64_t sum = 0;
