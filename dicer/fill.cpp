@@ -163,7 +163,7 @@ DICER_CLONES void hex_interior_plane(const double* c, const double* a0, const do
 // row of a small element is a short vector loop, and its overhead (the
 // row's terms, the loop's head and tail) is then paid once for x, y, z.
 DICER_WIDE_CLONES void straight_interior_plane(const double (*c)[8], std::array<Id, 3> n, const double* u,
-                                          const double* v, double w, double* const* dst, Id dj) {
+                                               const double* v, double w, double* const* dst, Id dj) {
   double q[3][4];
   for (int d = 0; d < 3; ++d) tfi::trilinear_plane(w, c[d], q[d]);
   for (Id j = 1; j < n[1]; ++j) {

@@ -83,14 +83,13 @@ DICER_WIDE_CLONES std::uint64_t sum_quads(std::uint64_t first, const Id* conn, s
   return sum_elements<4>(first, conn, n);
 }
 
-// Hex terms of elements i0 .. i0 + m - 1 of one row, their corners read
-// from the grid rows around it (grid_cell_corner): contiguous loads, no
-// connectivity formed.
-DICER_WIDE_CLONES std::uint64_t sum_hex_row(std::uint64_t first, const Id* const* rows, std::int64_t i0,
-                                            std::int64_t m) {
+// Hex terms of the m elements of one row, each in full, their corners
+// read from the grid rows around it (grid_cell_corner): contiguous loads,
+// no connectivity formed.
+DICER_WIDE_CLONES std::uint64_t sum_hex_row(std::uint64_t first, const Id* const* rows, std::int64_t m) {
   const Id* const r[4] = {rows[0], rows[1], rows[2], rows[3]};  // held in registers
   std::uint64_t sum = 0;
-  for (std::int64_t i = i0; i < i0 + m; ++i) {
+  for (std::int64_t i = 0; i < m; ++i) {
     Id nodes[8];
     for (int q = 0; q < 8; ++q) nodes[q] = grid_cell_corner(r, i, q);
     sum += element_term<8>(first + static_cast<std::uint64_t>(i), nodes);
@@ -118,9 +117,9 @@ constexpr RowKeys kRowKeys = [] {
 // Whether any grid row bends inside its interior: the OR over points g of
 // (p[g + 1] - p[g]) ^ (p[g + 2] - p[g + 1]) where inner[g] (all ones where g
 // is a row's point t, 1 <= t <= n0 - 3: steps inside the interior), over
-// the whole grid at once (one long vector loop, no store). Valid meshes
-// never bend (see grid_lines), so the rows are then checked only when
-// some row does.
+// the whole grid at once (one long vector loop, no store). A batch's grid
+// never bends (batch.hpp), so rows are checked one by one only when some
+// row does.
 DICER_WIDE_CLONES std::uint64_t bends(const std::uint64_t* p, Id count, const std::uint64_t* inner) {
   std::uint64_t any = 0;
   for (Id g = 0; g + 2 < count; ++g) any |= ((p[g + 1] - p[g]) ^ (p[g + 2] - p[g + 1])) & inner[g];
@@ -217,12 +216,13 @@ std::uint64_t grid_checksum(Id first, const std::array<Id, 3>& n, Id layers, std
     const Id* g = grid.data();
     return std::array<const Id*, 4>{g + ra * ni, g + (ra + 1) * ni, g + (ra + w) * ni, g + (ra + w + 1) * ni};
   };
-  // Rows of two end points only (no interior line): each term in full.
+  // Rows of fewer than two interior points (no line to follow): each term
+  // in full.
   if (n0 < 3 || layers == 0) {
     std::uint64_t sum = 0;
     for (Id k = 0; k < layers; ++k)
       for (Id j = 0; j < n1; ++j, id += static_cast<std::uint64_t>(n0))
-        sum += sum_hex_row(id, row_rows(j + w * k).data(), 0, n0);
+        sum += sum_hex_row(id, row_rows(j + w * k).data(), n0);
     return sum;
   }
   // Work space, warm after the first batch: no allocation per batch. Rows
@@ -274,7 +274,7 @@ std::uint64_t grid_checksum(Id first, const std::array<Id, 3>& n, Id layers, std
       const bool line = j < n1 && (L.ok[r] & L.ok[r + 1] & L.ok[r + w] & L.ok[r + w + 1]);
       keep[r] = line ? ~std::uint64_t{0} : 0;
       if (j == n1) continue;
-      if (!line) sum += sum_hex_row(id, row_rows(r).data(), 0, n0);
+      if (!line) sum += sum_hex_row(id, row_rows(r).data(), n0);
       id += static_cast<std::uint64_t>(n0);
     }
   element_lines(L, idk, static_cast<Id>(ep), w, n0, a0, a1, step, an);
