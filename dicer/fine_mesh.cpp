@@ -12,7 +12,15 @@
 namespace dicer {
 
 FineMesh::FineMesh(MeshInfo info, MeshTables tables, std::shared_ptr<const CoarseMesh> coarse)
-    : info_(std::move(info)), tables_(std::move(tables)), coarse_(std::move(coarse)) {}
+    : info_(std::move(info)), tables_(std::move(tables)), coarse_(std::move(coarse)) {
+  // The id searches' columns, dense in memory as a store's loader lays them
+  // out per page (rows.hpp search_first).
+  if (tables_.elements.in_memory()) {
+    tables_.elements.derive_in_memory(element_search_columns(tables_.mode));
+    tables_.node_guide = build_id_guide(tables_, true);
+    tables_.element_guide = build_id_guide(tables_, false);
+  }
+}
 
 Vec3 FineMesh::node(Id id) const {
   MeshCursor cur;

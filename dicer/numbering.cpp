@@ -98,6 +98,14 @@ Id search_elements(const MeshTables& t, Id x, bool by_node, MeshCursor& cur) {
   Id lo = 0, hi = t.elements.rows();  // first row with value > x lies in [lo, hi]
   RowReader::SearchHints hints;
   const RowReader::SearchHints* hinted = nullptr;
+  const IdGuide& guide = by_node ? t.node_guide : t.element_guide;
+  if (const auto b = static_cast<std::uint64_t>(x) >> guide.shift; x >= 0 && b + 1 < guide.row.size()) {
+    // Rows up to row[b] start at or below b << shift <= x; row[b + 1] + 1
+    // (if any) starts above (b + 1) << shift > x.
+    lo = guide.row[b] + 1;
+    hi = std::min(t.elements.rows(), guide.row[b + 1] + 1);
+    return R.search_first(lo, hi, x, by_node) - 1;
+  }
   if (!index.empty()) {
     // std::upper_bound without branches: random ids make each comparison a
     // coin toss, and a mispredicted branch per level cost more than the
@@ -131,6 +139,24 @@ Id search_elements(const MeshTables& t, Id x, bool by_node, MeshCursor& cur) {
 
 }  // namespace
 
+IdGuide build_id_guide(const MeshTables& t, bool by_node) {
+  IdGuide g;
+  const Id H = t.elements.rows(), total = by_node ? t.fine_nodes : t.fine_elements;
+  if (H == 0 || total <= 0) return g;
+  while ((total >> g.shift) > 2 * H) ++g.shift;  // about two buckets per row
+  MeshCursor cur;
+  const RowReader R(t, cur);
+  const auto buckets = static_cast<size_t>((total >> g.shift) + 2);  // the last covers ids up to total
+  g.row.resize(buckets);
+  Id r = -1;  // the last row whose first id is <= the bucket's start (-1: none)
+  for (size_t b = 0; b < buckets; ++b) {
+    const Id start = static_cast<Id>(b) << g.shift;
+    while (r + 1 < H && (by_node ? R.node_first(r + 1) : R.element_first(r + 1)) <= start) ++r;
+    g.row[b] = r;
+  }
+  return g;
+}
+
 Id owner_element(const MeshTables& t, Id id, MeshCursor& cur) {
   const Id h = search_elements(t, id, true, cur);
   const RowReader R(t, cur);
@@ -140,8 +166,9 @@ Id owner_element(const MeshTables& t, Id id, MeshCursor& cur) {
   // one of its corners, a right answer by accident, not by the numbering).
   if (h + 1 < t.elements.rows() && R.node_first(h + 1) <= id)
     R.corrupt(RowTable::Elements, h + 1,
-              "node " + std::to_string(id) + " lies past the element the page index (numbering/element_page_node) "
-              "leads to");
+              "node " + std::to_string(id) + " lies past the element the " +
+                  (t.node_index.empty() ? std::string("id search") : std::string("page index (numbering/element_page_node)")) +
+                  " leads to");
   return h;
 }
 

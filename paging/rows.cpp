@@ -452,10 +452,15 @@ Id RowReader::search_first(Id lo, Id hi, Id x, bool by_node, const SearchHints* 
     if (vb > va && x >= va && pb > pa) {
       // The first row above x on that line (rows pa + 1, pa + 2, ... at
       // even steps): pa + 1 + floor((x - va) / step).
-      // Differences exact in 128 bits, then rounded: vb - va >= 1, so the
-      // quotient is finite and >= 0 for any values (no NaN to convert).
+      // Differences exact in 64 unsigned bits (x >= va, vb > va: each is
+      // below 2^64), then rounded: vb - va >= 1, so the quotient is finite
+      // and >= 0 for any values (no NaN to convert). (128-bit differences
+      // cost a libgcc call each to convert.)
+      const auto diff = [](std::int64_t hi, std::int64_t lo) {
+        return static_cast<double>(static_cast<std::uint64_t>(hi) - static_cast<std::uint64_t>(lo));
+      };
       const double span = static_cast<double>(pb - pa);
-      const double rows = static_cast<double>(i128{x} - va) * span / static_cast<double>(i128{vb} - va);
+      const double rows = diff(x, va) * span / diff(vb, va);
       m = std::clamp(pa + 1 + static_cast<Id>(rows < span ? rows : span), a, b - 1);
     }
     if (probe == 0 && w > 1) {

@@ -127,6 +127,9 @@ Id locate_element(const MeshTables& t, Id id, std::array<Id, 3>& ijk, MeshCursor
                   bool grid_only = false);
 // The coarse element owning node `id` (the last with node_first <= id).
 Id owner_element(const MeshTables& t, Id id, MeshCursor& cur);
+// The guide (tables.hpp IdGuide) of the node_first (by_node) or
+// element_first column of in-memory tables whose rows are final. O(H).
+IdGuide build_id_guide(const MeshTables& t, bool by_node);
 
 // Canonical intervals (nu, nv) of local face k of an element row.
 inline std::array<Id, 2> face_intervals(const ElementRow& h, int k, Mode mode) {

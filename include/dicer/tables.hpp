@@ -61,7 +61,12 @@ class Table {
   std::int64_t width() const { return width_; }
   bool in_memory() const { return !cache_; }
   const std::vector<T>& memory() const { return mem_; }
-  std::vector<T>& memory() { return mem_; }  // in-memory tables only (dicing)
+  // In-memory tables only (dicing). Drops the dense columns (they would go
+  // stale): a search then reads the rows, slower but right.
+  std::vector<T>& memory() {
+    if (!cache_) derived_.clear(), dense_.clear();
+    return mem_;
+  }
   void reshape() { rows_ = width_ ? static_cast<std::int64_t>(mem_.size()) / width_ : 0; }  // after memory() grew
   std::int64_t rows_per_page() const { return rows_per_page_; }
   std::int64_t pages() const { return rows_per_page_ > 0 ? (rows_ + rows_per_page_ - 1) / rows_per_page_ : 0; }
@@ -77,17 +82,31 @@ class Table {
   // array after them (rows_per_page() values each, in the order of
   // derived_columns()): a search over one column of a page touches a few
   // cache lines of 1 KiB instead of one line in each ~520-byte row probed.
-  // Paged tables only; the page's bytes are exactly what the CRC checked,
-  // so a derived value equals its row's.
+  // The page's bytes are exactly what the CRC checked, so a derived value
+  // equals its row's.
   const std::vector<int>& derived_columns() const { return derived_; }
   // The store sets them with its loader's (the two must agree); paged only.
   void set_derived_columns(std::vector<int> columns) {
     DICER_ASSERT(cache_ && rows_per_page_ > 0, "derived columns: a paged table");
     derived_ = std::move(columns);
   }
+  // In memory: copies the columns out of the rows into one dense array each
+  // (8 bytes per row and column), once the table is complete (FineMesh's
+  // constructor); memory() drops them again. Where the rows outgrow the
+  // caches, a search over such a column hits L1/L2 where each probe of the
+  // rows was a miss.
+  void derive_in_memory(std::vector<int> columns) {
+    DICER_ASSERT(!cache_, "derive_in_memory: an in-memory table");
+    derived_ = std::move(columns);
+    dense_.resize(derived_.size() * static_cast<size_t>(rows_));
+    for (size_t k = 0; k < derived_.size(); ++k)
+      for (std::int64_t i = 0; i < rows_; ++i)
+        dense_[k * static_cast<size_t>(rows_) + static_cast<size_t>(i)] = mem_[static_cast<size_t>(i * width_ + derived_[k])];
+  }
   // Pointer to the k-th derived column's value of row i; the values of the
-  // rows after i on its page follow (run(i) in all). nullptr when the table
-  // has no derived columns (in memory: read row(i)[column]). Valid like row().
+  // rows after i on its page (in memory: to the table's end) follow (run(i)
+  // in all). nullptr when the table has no derived columns (read
+  // row(i)[column]). Valid like row().
   inline const T* derived(std::int64_t i, int k, TableCursor& cur) const;
 
  private:
@@ -97,6 +116,7 @@ class Table {
   std::uint32_t array_ = 0;
   std::int64_t rows_per_page_ = 0;
   std::vector<int> derived_;
+  std::vector<T> dense_;  // in memory: the derived columns, rows_ values each
 };
 
 // Caches the last two pages touched in one table (STYLE.md #4): rows on
@@ -164,6 +184,7 @@ template <class T>
 inline const T* Table<T>::derived(std::int64_t i, int k, TableCursor& cur) const {
   if (derived_.empty()) return nullptr;
   DICER_ASSERT(k >= 0 && static_cast<size_t>(k) < derived_.size(), "derived column out of range");
+  if (!cache_) return dense_.data() + static_cast<std::int64_t>(k) * rows_ + i;
   const std::int64_t at = i % rows_per_page_;
   const T* page = row(i, cur) - at * width_;
   return page + rows_per_page_ * (width_ + k) + at;
@@ -171,6 +192,18 @@ inline const T* Table<T>::derived(std::int64_t i, int k, TableCursor& cur) const
 
 // Coarse elements per group of the spatial index (MeshTables::group_bounds).
 inline constexpr Id kBoundsGroup = 32;
+
+// In memory, what the page index is to a store: for each bucket b of
+// 2^shift ids, row[b] is the last element row whose first id (node_first or
+// element_first) is <= b << shift, so the owner of id x lies in rows
+// [row[x >> shift], row[(x >> shift) + 1]]: one or two rows where a search
+// of the whole table probed a dozen. About two buckets per row (16 bytes
+// per coarse element and column); built by FineMesh's constructor from the
+// final rows (numbering.hpp build_id_guide).
+struct IdGuide {
+  int shift = 0;
+  std::vector<std::int64_t> row;  // empty: no guide (a store, or tables still being built)
+};
 
 struct MeshTables {
   Mode mode = Mode::Volume;
@@ -182,6 +215,7 @@ struct MeshTables {
   // first owned node id and first fine element id on every page of
   // `elements`, so an id -> element search reads one page. O(pages).
   std::vector<std::int64_t> node_index, element_index;
+  IdGuide node_guide, element_guide;  // in memory (IdGuide)
   Table<std::int64_t> vertex_nodes, edges, faces, elements;
   Table<double> corners;
   Table<double> bounds;               // [H x 6]

@@ -49,3 +49,42 @@ TEST(RowSearch, AnyHintsGiveTheFirstRowAbove) {
     }
   }
 }
+
+// In memory the search starts from the id guide (tables.hpp IdGuide) and
+// reads the dense search columns (Table::derive_in_memory), both built by
+// FineMesh's constructor: every node and element id must still find the
+// owner a linear scan of the rows finds, on meshes whose sheets have 1 to
+// 7 intervals, and with the guide taken away (the plain search).
+TEST(RowSearch, InMemoryGuideFindsTheOwnerOfEveryId) {
+  std::mt19937_64 rng(43);
+  for (int trial = 0; trial < 6; ++trial) {
+    test::BoxSpec spec;
+    spec.a = 2 + static_cast<int>(rng() % 4), spec.b = 1 + static_cast<int>(rng() % 3), spec.c = 1 + static_cast<int>(rng() % 3);
+    IntervalRequest req;
+    req.global = 1 + static_cast<Id>(rng() % 3);
+    req.sheets = {{0, 1 + static_cast<Id>(rng() % 7)}, {1, 1}};
+    const FineMesh f = FineMesh::dice(test::random_box(spec, rng), req);
+    const MeshTables& t = f.tables();
+    ASSERT_FALSE(t.node_guide.row.empty());
+    ASSERT_FALSE(t.element_guide.row.empty());
+    MeshCursor cur;
+    ASSERT_NE(t.elements.derived(0, 0, cur.elements), nullptr) << "the dense columns are in place";
+    MeshTables plain = t;
+    plain.node_guide = IdGuide{}, plain.element_guide = IdGuide{};
+    const RowReader R(t, cur);
+    const Id H = f.num_coarse_elements();
+    for (const bool by_node : {true, false}) {
+      const Id top = by_node ? f.num_nodes() : f.num_elements();
+      Id want = -1;  // the last row whose first id is <= x
+      for (Id x = 0; x < top; ++x) {
+        while (want + 1 < H && (by_node ? R.node_first(want + 1) : R.element_first(want + 1)) <= x) ++want;
+        std::array<Id, 3> ijk{};
+        for (const MeshTables* m : {&t, static_cast<const MeshTables*>(&plain)}) {
+          const Id got = by_node ? owner_element(*m, x, cur) : locate_element(*m, x, ijk, cur);
+          ASSERT_EQ(got, want) << (by_node ? "node " : "element ") << x << (m == &t ? " (guide)" : " (no guide)")
+                               << " trial " << trial;
+        }
+      }
+    }
+  }
+}

@@ -341,7 +341,9 @@ TEST(StorePaged, OneCursorServesTwoStoresInTurn) {
 // rows say (the last whose first id is <= the id). Twice: uniform
 // intervals, and one sheet at 40 intervals in a mesh at 1, where rows hold
 // very different counts (the interpolation's first probes land rows off,
-// and an element owning no node repeats its successor's first id).
+// and an element owning no node repeats its successor's first id). The
+// in-memory twin's dense columns and guided searches (tables.hpp IdGuide)
+// must agree too.
 TEST(StorePaged, ElementPagesCarryTheSearchColumnsAndSearchesLandOnTheRowsElement) {
   const CoarseMesh coarse = read_coarse_mesh(test::data_path("vtkdata_disk_out_ref.ex2"));
   IntervalRequest uniform, skewed;
@@ -360,7 +362,6 @@ TEST(StorePaged, ElementPagesCarryTheSearchColumnsAndSearchesLandOnTheRowsElemen
     ASSERT_EQ(cols.size(), 2u);
     ASSERT_EQ(t.elements.derived_columns(), cols);
     MeshCursor cur, mcur;
-    EXPECT_EQ(mem.elements.derived(0, 0, mcur.elements), nullptr);  // in memory: the rows alone
     const Id nh = s.num_coarse_elements();
     std::vector<std::int64_t> first[2];
     for (Id h = 0; h < nh; ++h)
@@ -370,6 +371,9 @@ TEST(StorePaged, ElementPagesCarryTheSearchColumnsAndSearchesLandOnTheRowsElemen
         ASSERT_NE(v, nullptr);
         ASSERT_EQ(*v, truth) << "row " << h << " column " << k;
         ASSERT_EQ(t.elements.row(h, cur.elements)[cols[k]], truth) << "row " << h;
+        const std::int64_t* d = mem.elements.derived(h, k, mcur.elements);  // in memory: one dense column each
+        ASSERT_NE(d, nullptr);
+        ASSERT_EQ(*d, truth) << "in memory, row " << h << " column " << k;
         first[k].push_back(truth);
       }
     // At interval 1 an element may own no node: the last of equal firsts.
@@ -380,13 +384,16 @@ TEST(StorePaged, ElementPagesCarryTheSearchColumnsAndSearchesLandOnTheRowsElemen
       for (const std::int64_t at : {first[0][h], first[0][h] - 1})
         if (at >= 0) {
           ASSERT_EQ(owner_element(t, at, cur), last_at_or_below(0, at)) << "node " << at;
+          ASSERT_EQ(owner_element(mem, at, mcur), last_at_or_below(0, at)) << "node " << at << " in memory";
         }
     for (Id h = 0; h < nh; ++h) {
       std::array<Id, 3> ijk{};
       ASSERT_EQ(locate_element(t, first[1][h], ijk, cur), h);  // every element holds fine elements
       EXPECT_EQ(ijk, (std::array<Id, 3>{0, 0, 0}));
+      ASSERT_EQ(locate_element(mem, first[1][h], ijk, mcur), h);
       if (h > 0) {
         ASSERT_EQ(locate_element(t, first[1][h] - 1, ijk, cur), h - 1);
+        ASSERT_EQ(locate_element(mem, first[1][h] - 1, ijk, mcur), h - 1);
       }
     }
     ASSERT_EQ(owner_element(t, s.num_nodes() - 1, cur), last_at_or_below(0, s.num_nodes() - 1));
