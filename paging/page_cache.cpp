@@ -29,13 +29,34 @@
 // demand load.
 //
 // Lazy eviction (STYLE.md #5): releasing a handle only decrements the pin
-// count under the lock; a page leaves only when the hand reaches it with no
-// pins. Slots live in a deque (stable addresses) so a Handle can point at
-// its slot; a slot is reused only after it was evicted or its failed load
-// was abandoned by every waiter.
+// count; a page leaves only when the hand reaches it with no pins. Slots
+// live in a deque (stable addresses) so a Handle can point at its slot; a
+// slot is reused only after it was evicted or its failed load was
+// abandoned by every waiter.
+//
+// The hit path without the lock. A random query pins two or three pages
+// (elements, corners, ...), and the lock, the bookkeeping under it and the
+// second lock to release cost about a quarter of node(id) from a store. So
+// a pin of a Ready page that neither starts nor continues a sequential
+// stream, nor meets a prefetched page, takes no lock (fast_pin): it finds
+// the slot in the array's page table (atomic pointers), raises the slot's
+// pin count, and then checks that the slot still holds that page, Ready.
+// Releasing a pin of a Ready page is one atomic decrement. What makes the
+// unlocked increment safe is the kDetached bit of the pin count: a slot
+// leaves the index (eviction, a failed load's end) only by a compare-and-
+// swap of its count from 0 to kDetached, under the lock, so either the
+// eviction wins (the fast pin sees the bit, takes its increment back and
+// goes the locked way) or the pin wins (the swap fails and the hand moves
+// on). A slot's key, data and state change only while it is detached or
+// under the lock with pins that keep it from being detached, and the
+// fast path reads them only after its increment: the pin it then holds
+// keeps them as they were checked. Page tables replaced by
+// set_array_pages() stay allocated until the cache goes, so an unlocked
+// reader never follows a freed table.
 #include "dicer/cache.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cassert>
 #include <condition_variable>
 #include <deque>
@@ -87,14 +108,25 @@ std::string key_text(PageKey k) {
 
 }  // namespace
 
-struct PageCache::Entry {
-  PageKey key{};
-  std::vector<std::uint8_t> data;  // decoded bytes; fixed while pins > 0
+// Set in a slot's pin count while the slot is out of the index (free, or
+// being evicted or freed): an unlocked pin that meets it backs off.
+constexpr std::uint32_t kDetached = 1u << 31;
+
+// One cache line: an unlocked pin's increment, its hit count and the
+// checks between them touch no other line.
+struct alignas(64) PageCache::Entry {
+  PageKey key{};                   // changes only while detached
+  std::vector<std::uint8_t> data;  // decoded bytes; fixed while pinned and Ready
   std::exception_ptr error;        // State::Failed: what waiters rethrow
-  std::uint32_t pins = 0;          // handles + threads waiting for the load + the loading pin() itself
-  State state = State::Free;
-  bool referenced = false;  // CLOCK second-chance bit
-  bool prefetched = false;  // loaded by read-ahead and not pinned since
+  // Handles + threads waiting for the load + the loading pin() itself, and
+  // kDetached while out of the index. Unlocked pins (fast_pin) raise it
+  // for a moment before they check the slot.
+  std::atomic<std::uint32_t> pins{kDetached};
+  std::atomic<State> state{State::Free};
+  std::atomic<bool> referenced{false};  // CLOCK second-chance bit
+  std::atomic<bool> prefetched{false};  // loaded by read-ahead and not pinned since
+  std::atomic<std::uint64_t> fast_hits{0};  // unlocked hits since the slot was last freed or the stats reset
+  std::uint32_t count() const { return pins.load(std::memory_order_relaxed) & ~kDetached; }
 };
 
 // A mutex that spins a little before it sleeps. The cache's critical
@@ -132,16 +164,29 @@ struct PageCache::Impl {
   std::condition_variable_any load_done;  // some Loading entry left that state
   std::condition_variable_any work;       // worker: queue not empty or stop
 
+  // An array's Loading and Ready entries by page: a pin finds its page
+  // with one load, not a hash probe, and fast_pin without the lock.
+  struct PageTable {
+    explicit PageTable(std::uint64_t n) : size(n), slot(new std::atomic<Entry*>[n]) {
+      for (std::uint64_t p = 0; p < n; ++p) slot[p].store(nullptr, std::memory_order_relaxed);
+    }
+    std::uint64_t size;
+    std::unique_ptr<std::atomic<Entry*>[]> slot;
+  };
+  static constexpr std::uint64_t kNoPin = ~std::uint64_t{0};
   struct ArrayInfo {
-    std::uint64_t pages = 0;           // pages of the array (set_array_pages)
-    std::uint64_t last_pin = 0;        // page of the last pin() on this array
-    bool has_last = false;             // last_pin is meaningful
+    std::uint64_t pages = 0;  // pages of the array (set_array_pages)
+    // Page of the last pin() on this array (kNoPin: none yet). Written by
+    // unlocked pins too: the sequential detector is a heuristic, and a
+    // stale value only costs a read-ahead or a reference bit.
+    std::atomic<std::uint64_t> last_pin{kNoPin};
     std::uint64_t ra_next = 0;         // first page the current read-ahead window has not scheduled yet
     std::uint64_t max_page_bytes = 0;  // largest decoded page admitted so far (read-ahead's size estimate)
     std::vector<bool> read;            // pages loaded since the last reset_stats (1 bit each)
-    // Its Loading and Ready entries by page (declared pages only; the map
-    // holds the rest): a pin finds its page with one load, not a hash probe.
-    std::vector<Entry*> entry;
+    // The declared pages' table (the map holds the rest); every table this
+    // array had, the current one last, stays until the cache goes.
+    std::atomic<PageTable*> table{nullptr};
+    std::vector<std::unique_ptr<PageTable>> tables;
   };
 
   std::unordered_map<PageKey, Entry*, PageKeyHash> map;  // Loading and Ready entries of undeclared pages
@@ -149,9 +194,10 @@ struct PageCache::Impl {
   std::vector<Entry*> free_slots;
   std::size_t hand = 0;
   std::unordered_map<std::uint32_t, ArrayInfo> arrays;  // node-based: the pointers in `direct` stay valid
-  // arrays[a] for the small ids stores use (a < kDirect), by index.
+  // arrays[a] for the small ids stores use (a < kDirect), by index
+  // (nullptr: never declared); read without the lock by fast_pin.
   static constexpr std::uint32_t kDirect = 4096;
-  std::vector<ArrayInfo*> direct;
+  std::unique_ptr<std::atomic<ArrayInfo*>[]> direct{new std::atomic<ArrayInfo*>[kDirect]()};
   std::unordered_set<std::uint64_t> read_undeclared;  // the same for arrays without a page count (rare)
   // Counts a load: pages_read, and distinct_pages_read the first time this
   // page is loaded since the last reset (a bitmap per declared array).
@@ -175,28 +221,70 @@ struct PageCache::Impl {
   std::thread worker;
 
   ArrayInfo* array_info(std::uint32_t a) {
-    if (a < direct.size()) return direct[a];
-    if (a < kDirect) return nullptr;  // never declared
+    if (a < kDirect) return direct[a].load(std::memory_order_relaxed);  // nullptr: never declared
     auto it = arrays.find(a);
     return it == arrays.end() ? nullptr : &it->second;
   }
 
+  // The slot of page p in ai's table, nullptr if the table does not hold p.
+  static std::atomic<Entry*>* table_slot(const ArrayInfo* ai, std::uint64_t p) {
+    PageTable* t = ai ? ai->table.load(std::memory_order_relaxed) : nullptr;
+    return t && p < t->size ? &t->slot[p] : nullptr;
+  }
   // The Loading or Ready entry of key (nullptr: none); ai: its array's info.
   Entry* find(const ArrayInfo* ai, PageKey key) const {
-    if (ai && key.page < ai->entry.size()) return ai->entry[key.page];
+    if (auto* slot = table_slot(ai, key.page)) return slot->load(std::memory_order_relaxed);
     auto it = map.find(key);
     return it == map.end() ? nullptr : it->second;
   }
   Entry* find(PageKey key) { return find(array_info(key.array), key); }
   void index(Entry* e) {
-    ArrayInfo* ai = array_info(e->key.array);
-    if (ai && e->key.page < ai->entry.size()) ai->entry[e->key.page] = e;
+    if (auto* slot = table_slot(array_info(e->key.array), e->key.page)) slot->store(e, std::memory_order_release);
     else map.emplace(e->key, e);
   }
   void unindex(PageKey key) {
-    ArrayInfo* ai = array_info(key.array);
-    if (ai && key.page < ai->entry.size()) ai->entry[key.page] = nullptr;
+    if (auto* slot = table_slot(array_info(key.array), key.page)) slot->store(nullptr, std::memory_order_relaxed);
     else map.erase(key);
+  }
+
+  // A slot with no pins leaves the index's reach: false if a pin (an
+  // unlocked one, a moment ago) holds it.
+  static bool detach(Entry* e) {
+    std::uint32_t none = 0;
+    return e->pins.compare_exchange_strong(none, kDetached, std::memory_order_acq_rel);
+  }
+
+  // The hit path without the lock (see the top of this file): e pinned, or
+  // nullptr when the locked path must run (a miss, a load in flight, a
+  // stream's pin, a prefetched page, a race lost).
+  Entry* fast_pin(PageKey key) {
+    if (key.array >= kDirect) return nullptr;
+    ArrayInfo* ai = direct[key.array].load(std::memory_order_acquire);
+    if (ai == nullptr) return nullptr;
+    const PageTable* t = ai->table.load(std::memory_order_acquire);
+    if (t == nullptr || key.page >= t->size) return nullptr;
+    Entry* e = t->slot[key.page].load(std::memory_order_acquire);
+    if (e == nullptr || e->state.load(std::memory_order_acquire) != State::Ready) return nullptr;
+    const std::uint64_t last = ai->last_pin.load(std::memory_order_relaxed);
+    if (last == kNoPin || last + 1 == key.page) return nullptr;  // the stream bookkeeping is the locked path's
+    if (e->pins.fetch_add(1, std::memory_order_acq_rel) & kDetached) {
+      e->pins.fetch_sub(1, std::memory_order_relaxed);
+      return nullptr;
+    }
+    // Pinned: e stays where it is. Is it still key's page, Ready, not prefetched?
+    if (e->state.load(std::memory_order_acquire) != State::Ready) {
+      Lock lock(mu);
+      release_pin(e);  // a load in flight or failed: the locked release
+      return nullptr;
+    }
+    if (!(e->key == key) || e->prefetched.load(std::memory_order_relaxed)) {
+      e->pins.fetch_sub(1, std::memory_order_release);
+      return nullptr;
+    }
+    if (last != key.page) ai->last_pin.store(key.page, std::memory_order_relaxed);
+    if (!e->referenced.load(std::memory_order_relaxed)) e->referenced.store(true, std::memory_order_relaxed);
+    e->fast_hits.fetch_add(1, std::memory_order_relaxed);
+    return e;
   }
 
   Entry* new_entry(PageKey key) {
@@ -207,49 +295,58 @@ struct PageCache::Impl {
     } else {
       e = &slots.emplace_back();
     }
+    // Detached (free): nothing pins it but unlocked pins backing off.
     e->key = key;
-    e->state = State::Loading;
-    e->pins = 0;
-    e->referenced = false;
-    e->prefetched = false;
+    e->state.store(State::Loading, std::memory_order_relaxed);
+    e->referenced.store(false, std::memory_order_relaxed);
+    e->prefetched.store(false, std::memory_order_relaxed);
     e->error = nullptr;
+    e->pins.fetch_and(~kDetached, std::memory_order_release);  // the key above before any pin can see the slot
     index(e);
     return e;
   }
 
+  // e is detached (detach() succeeded) and out of the index.
   void free_entry(Entry* e) {
-    assert(e->pins == 0);
+    assert(e->pins.load() & kDetached);
     std::vector<std::uint8_t>().swap(e->data);
     e->error = nullptr;
-    e->state = State::Free;
+    e->state.store(State::Free, std::memory_order_relaxed);
+    st.hits += e->fast_hits.exchange(0, std::memory_order_relaxed);
     free_slots.push_back(e);
   }
 
-  void evict(Entry* e) {
-    assert(e->state == State::Ready && e->pins == 0);
+  // False: a pin came first (the hand moves on).
+  bool evict(Entry* e) {
+    assert(e->state == State::Ready);
+    if (!detach(e)) return false;
     st.resident_bytes -= e->data.size();
     ++st.evictions;
     unindex(e->key);
     free_entry(e);
+    return true;
   }
 
   // The load of e failed (or could not be admitted): waiters get err.
   void fail(Entry* e, std::exception_ptr err) {
-    e->state = State::Failed;
     e->error = std::move(err);
+    e->state.store(State::Failed, std::memory_order_release);
     unindex(e->key);
     load_done.notify_all();
-    if (e->pins == 0) free_entry(e);
+    if (detach(e)) free_entry(e);
   }
 
+  // With the lock: a pin that may hold a Failed or Loading slot.
   void release_pin(Entry* e) {
-    assert(e->pins > 0);
-    if (--e->pins == 0 && e->state == State::Failed) free_entry(e);
+    assert(e->count() > 0);
+    if ((e->pins.fetch_sub(1, std::memory_order_acq_rel) & ~kDetached) == 1 &&
+        e->state.load(std::memory_order_relaxed) == State::Failed && detach(e))
+      free_entry(e);
   }
 
-  bool demand_evictable(const Entry& e) const { return e.state == State::Ready && e.pins == 0; }
+  bool demand_evictable(const Entry& e) const { return e.state == State::Ready && e.count() == 0; }
   bool readahead_evictable(const Entry& e) const {
-    return e.state == State::Ready && e.pins == 0 && !e.prefetched && !e.referenced;
+    return e.state == State::Ready && e.count() == 0 && !e.prefetched && !e.referenced;
   }
 
   Entry* advance() {
@@ -263,8 +360,8 @@ struct PageCache::Impl {
     for (std::size_t step = 0; step < 2 * n; ++step) {
       Entry* e = advance();
       if (!demand_evictable(*e) || e->prefetched) continue;
-      if (e->referenced) {
-        e->referenced = false;
+      if (e->referenced.load(std::memory_order_relaxed)) {
+        e->referenced.store(false, std::memory_order_relaxed);
         continue;
       }
       return e;
@@ -299,13 +396,16 @@ struct PageCache::Impl {
     const std::uint64_t size = buf.size();
     if (size > opt.budget_bytes) return false;
     if (policy == Policy::ReadAhead && !readahead_room(size)) return false;
-    while (st.resident_bytes + size > opt.budget_bytes) {
+    // A victim an unlocked pin takes first is passed over; the bound keeps
+    // a cache whose pages are pinned as fast as the hand finds them from
+    // spinning (it fails like a full one).
+    for (std::size_t lost = 0; st.resident_bytes + size > opt.budget_bytes;) {
       Entry* victim = policy == Policy::Demand ? demand_victim() : readahead_victim();
       if (victim == nullptr) return false;
-      evict(victim);
+      if (!evict(victim) && ++lost > 4 * slots.size()) return false;
     }
     e->data = std::move(buf);
-    e->state = State::Ready;
+    e->state.store(State::Ready, std::memory_order_release);
     st.resident_bytes += size;
     if (st.resident_bytes > st.peak_resident_bytes) st.peak_resident_bytes = st.resident_bytes;
     if (ArrayInfo* ai = array_info(e->key.array); ai && size > ai->max_page_bytes) ai->max_page_bytes = size;
@@ -321,7 +421,7 @@ struct PageCache::Impl {
     } else {
       std::uint64_t pinned = 0, pinned_bytes = 0;
       for (const Entry& s : slots)
-        if (s.state == State::Ready && s.pins > 0) ++pinned, pinned_bytes += s.data.size();
+        if (s.state == State::Ready && s.count() > 0) ++pinned, pinned_bytes += s.data.size();
       msg += std::to_string(pinned) + " pages pinned (" + std::to_string(pinned_bytes) + " of " +
              std::to_string(st.resident_bytes) + " resident bytes) and page " + key_text(key) + " needs " +
              std::to_string(size) + " more; release handles or raise the budget";
@@ -357,11 +457,12 @@ struct PageCache::Impl {
     try {
       ArrayInfo* ai = array_info(key.array);
       if (ai == nullptr || key.page >= ai->pages) return;
-      if (ai->has_last && key.page <= ai->last_pin) return;  // the stream is already past it
+      if (const std::uint64_t last = ai->last_pin.load(std::memory_order_relaxed); last != kNoPin && key.page <= last)
+        return;  // the stream is already past it
       if (find(ai, key) != nullptr) return;
       if (!readahead_room(ai->max_page_bytes)) return;  // cache full of pages not to evict: skip
       Entry* e = new_entry(key);
-      e->prefetched = true;
+      e->prefetched.store(true, std::memory_order_relaxed);
       lock.unlock();
       std::vector<std::uint8_t> buf;
       std::uint64_t nread = 0;
@@ -378,8 +479,9 @@ struct PageCache::Impl {
       st.bytes_decompressed += buf.size();
       const std::uint64_t size = buf.size();
       // A pin() waiting on this load turns it into a demand load.
-      if (!admit(e, std::move(buf), e->pins > 0 ? Policy::Demand : Policy::ReadAhead))
-        fail(e, e->pins > 0 ? budget_error(key, size) : nullptr);
+      const bool waited = e->count() > 0;
+      if (!admit(e, std::move(buf), waited ? Policy::Demand : Policy::ReadAhead))
+        fail(e, waited ? budget_error(key, size) : nullptr);
     } catch (...) {
       // Only bad_alloc can get here (bookkeeping); read-ahead is optional.
       if (!lock.owns_lock()) lock.lock();
@@ -402,6 +504,7 @@ struct PageCache::Impl {
 };
 
 PageCache::PageCache(Loader loader, Options options) : budget_(options.budget_bytes) {
+  static_assert(sizeof(Entry) == 64, "a slot is one cache line");
   if (!loader) throw Error(ErrorKind::Usage, "page cache: no loader given");
   if (options.budget_bytes == 0) throw Error(ErrorKind::Usage, "page cache: cache budget 0 bytes too small");
   impl_ = std::make_unique<Impl>(std::move(loader), options);
@@ -419,22 +522,23 @@ PageCache::~PageCache() {
   impl_->work.notify_all();
   if (impl_->worker.joinable()) impl_->worker.join();
 #ifndef NDEBUG
-  for (const Entry& e : impl_->slots) assert(e.pins == 0 && "a PageCache::Handle outlived its cache");
+  for (const Entry& e : impl_->slots) assert(e.count() == 0 && "a PageCache::Handle outlived its cache");
 #endif
 }
 
 PageCache::Handle PageCache::pin(PageKey key) {
+  if (Entry* e = impl_->fast_pin(key)) return Handle(this, e, e->data.data(), e->data.size(), key);
   Lock lock(impl_->mu);
   return pin_locked(lock, key);
 }
 
 void PageCache::pin_into(Handle& h, PageKey key) {
-  if (h.cache_ != this) h.reset();  // another cache's pin goes back to it, under its own lock
-  Lock lock(impl_->mu);
-  if (h.entry_ != nullptr) {
-    impl_->release_pin(std::exchange(h.entry_, nullptr));
-    h.cache_ = nullptr, h.data_ = nullptr, h.size_ = 0;
+  h.reset();  // the old pin first (unlocked: a handle's page is Ready)
+  if (Entry* e = impl_->fast_pin(key)) {
+    h = Handle(this, e, e->data.data(), e->data.size(), key);
+    return;
   }
+  Lock lock(impl_->mu);
   h = pin_locked(lock, key);
 }
 
@@ -446,19 +550,19 @@ PageCache::Handle PageCache::pin_locked(std::unique_lock<SpinMutex>& lock, PageK
                                       std::to_string(ai->pages) + " pages)");
   bool sequential = false;
   if (ai != nullptr) {
-    sequential = ai->has_last && ai->last_pin + 1 == key.page;
-    if (!ai->has_last) ++m.streams;
-    ai->has_last = true;
-    ai->last_pin = key.page;
+    const std::uint64_t last = ai->last_pin.load(std::memory_order_relaxed);
+    sequential = last != Impl::kNoPin && last + 1 == key.page;
+    if (last == Impl::kNoPin) ++m.streams;
+    ai->last_pin.store(key.page, std::memory_order_relaxed);
   }
   const bool sync_read_ahead = !m.worker.joinable();
 
   if (Entry* e = m.find(ai, key)) {  // hit, or the load is in flight
     ++m.st.hits;
-    ++e->pins;
-    if (!sequential) e->referenced = true;
-    const bool extends_window = sequential && e->prefetched;
-    e->prefetched = false;
+    e->pins.fetch_add(1, std::memory_order_relaxed);  // indexed, so not detached
+    if (!sequential) e->referenced.store(true, std::memory_order_relaxed);
+    const bool extends_window = sequential && e->prefetched.load(std::memory_order_relaxed);
+    e->prefetched.store(false, std::memory_order_relaxed);
     if (extends_window) m.schedule(*ai, key);
     if (e->state == State::Loading) {
       m.load_done.wait(lock, [e] { return e->state != State::Loading; });
@@ -475,8 +579,8 @@ PageCache::Handle PageCache::pin_locked(std::unique_lock<SpinMutex>& lock, PageK
   // Miss: this thread loads the page; others pinning it meanwhile wait.
   ++m.st.misses;
   Entry* e = m.new_entry(key);
-  e->pins = 1;
-  e->referenced = !sequential;
+  e->pins.fetch_add(1, std::memory_order_relaxed);
+  e->referenced.store(!sequential, std::memory_order_relaxed);
   if (sequential) m.schedule(*ai, key);
   lock.unlock();
   std::vector<std::uint8_t> buf;
@@ -509,40 +613,46 @@ void PageCache::set_array_pages(std::uint32_t array, std::uint64_t pages) {
   Impl& m = *impl_;
   // Everything that allocates first: a bad_alloc leaves the cache as it was.
   std::vector<bool> read(static_cast<std::size_t>(pages), false);
-  std::vector<Entry*> table(static_cast<std::size_t>(pages), nullptr);
-  if (array < Impl::kDirect && m.direct.size() <= array) m.direct.resize(array + 1, nullptr);
+  auto table = std::make_unique<Impl::PageTable>(pages);
   const auto [it, fresh] = m.arrays.try_emplace(array);
   Impl::ArrayInfo& ai = it->second;
   std::vector<Entry*> mine;
   try {
     std::size_t held = 0;
-    for (Entry* e : ai.entry) held += e != nullptr;
+    const Impl::PageTable* old = ai.table.load(std::memory_order_relaxed);
+    for (std::uint64_t p = 0; old && p < old->size; ++p) held += old->slot[p].load(std::memory_order_relaxed) != nullptr;
     for (const auto& [key, e] : m.map) held += key.array == array;
     mine.reserve(held);
     m.map.reserve(m.map.size() + held);  // room for pages past a smaller count: no rehash below
+    ai.tables.reserve(ai.tables.size() + 1);
   } catch (...) {
     if (fresh) m.arrays.erase(it);
     throw;
   }
-  if (array < Impl::kDirect) m.direct[array] = &ai;
-  for (Entry* e : ai.entry)
-    if (e) mine.push_back(e);
+  if (array < Impl::kDirect) m.direct[array].store(&ai, std::memory_order_release);
+  if (const Impl::PageTable* old = ai.table.load(std::memory_order_relaxed))
+    for (std::uint64_t p = 0; p < old->size; ++p)
+      if (Entry* e = old->slot[p].load(std::memory_order_relaxed)) mine.push_back(e);
   for (const auto& [key, e] : m.map)
     if (key.array == array) mine.push_back(e);
   // Then the re-indexing. Only resident pages past a smaller new count
   // allocate (a map node each), which no store does: a store declares
-  // each array once, before its first pin.
+  // each array once, before its first pin. The old table stays (an
+  // unlocked pin may be reading it) but empty, so its readers lock.
   for (Entry* e : mine) m.unindex(e->key);
   ai.pages = pages;
   ai.ra_next = 0;
   ai.read.swap(read);
-  ai.entry.swap(table);
+  ai.tables.push_back(std::move(table));
+  ai.table.store(ai.tables.back().get(), std::memory_order_release);
   for (Entry* e : mine) m.index(e);
 }
 
 CacheStats PageCache::stats() const {
   std::lock_guard<SpinMutex> lock(impl_->mu);
-  return impl_->st;
+  CacheStats s = impl_->st;
+  for (const Entry& e : impl_->slots) s.hits += e.fast_hits.load(std::memory_order_relaxed);
+  return s;
 }
 
 std::uint64_t PageCache::distinct_pages_read(std::uint32_t array) const {
@@ -556,6 +666,7 @@ void PageCache::reset_stats() {
   const std::uint64_t resident = impl_->st.resident_bytes;
   impl_->st = CacheStats{};
   impl_->st.resident_bytes = resident;
+  for (Entry& e : impl_->slots) e.fast_hits.store(0, std::memory_order_relaxed);
   for (auto& [a, ai] : impl_->arrays) std::fill(ai.read.begin(), ai.read.end(), false);
   impl_->read_undeclared.clear();
   impl_->st.peak_resident_bytes = resident;
@@ -564,13 +675,16 @@ void PageCache::reset_stats() {
 std::uint64_t PageCache::pinned_pages() const {
   std::lock_guard<SpinMutex> lock(impl_->mu);
   std::uint64_t n = 0;
-  for (const Entry& e : impl_->slots) n += (e.state == State::Ready && e.pins > 0) ? 1 : 0;
+  for (const Entry& e : impl_->slots) n += (e.state == State::Ready && e.count() > 0) ? 1 : 0;
   return n;
 }
 
 void PageCache::unpin(Entry* e) noexcept {
-  std::lock_guard<SpinMutex> lock(impl_->mu);
-  impl_->release_pin(e);  // lazy: the page stays until the clock hand needs its room
+  // A handle's page is Ready and stays so while pinned (only a detached
+  // slot changes state), so its release needs no lock; lazy: the page
+  // stays until the clock hand needs its room.
+  assert(e->state.load(std::memory_order_relaxed) == State::Ready);
+  e->pins.fetch_sub(1, std::memory_order_release);
 }
 
 PageCache::Handle::Handle(Handle&& other) noexcept

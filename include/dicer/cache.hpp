@@ -48,13 +48,17 @@
 // single sweep whose budget holds at least read_ahead_pages + 3 pages, every
 // page is read exactly once (tests/unit/test_page_cache.cpp).
 //
-// Cost. Hit: one mutex lock and one page-table load (a hash lookup for an
-// array never declared or with an id of 4096 or more), O(1), no allocation (when a
-// hit extends a read-ahead window it also does read_ahead_pages lookups and,
-// without a background worker, the loads). Miss: one loader call made
-// without the lock, plus amortised O(1) clock steps (O(resident pages) in
-// the worst case, e.g. when almost everything is pinned). Handle release:
-// one mutex lock.
+// Cost. Hit: O(1), no allocation. A hit on a Ready page of a declared
+// array (id below 4096) that neither starts nor continues a sequential
+// stream and was not brought in by read-ahead takes no lock: a page-table
+// load and two atomic increments on the page's slot (page_cache.cpp says
+// why that is safe against eviction). Other hits take the mutex and one
+// page-table load (a hash lookup for an array never declared or with an id
+// of 4096 or more); when a hit extends a read-ahead window it also does
+// read_ahead_pages lookups and, without a background worker, the loads.
+// Miss: one loader call made without the lock, plus amortised O(1) clock
+// steps (O(resident pages) in the worst case, e.g. when almost everything
+// is pinned). Handle release: one atomic decrement, no lock.
 //
 // Thread safety. All member functions may be called concurrently. The
 // loader is called without the cache's lock, from the pinning thread and
@@ -171,9 +175,9 @@ class PageCache {
   // invariant 1); rethrows what the loader threw (invariant 3).
   Handle pin(PageKey key);
   // pin(key) into h, releasing the pin h held first (as h = {} then h =
-  // pin(key)) under one lock acquisition instead of two: a cursor moving to
-  // another page does both (tables.hpp). h may hold another cache's pin
-  // (released there). On a throw h is left empty.
+  // pin(key)), without the handle moves: a cursor moving to another page
+  // does both (tables.hpp). h may hold another cache's pin (released
+  // there). On a throw h is left empty.
   void pin_into(Handle& h, PageKey key);
 
   // Declares how many pages `array` has: pin() beyond is Error{Usage} and

@@ -505,6 +505,60 @@ TEST(PageCache, ConcurrentReadersRandomPins) {
   }
 }
 
+// The unlocked hit path (page_cache.cpp, fast_pin) against evictions and
+// failed loads: threads move two handles each from page to page through
+// pin_into, as table cursors do, over a hot set that mostly stays resident
+// (unlocked hits) and a cold set that keeps the hand evicting, while every
+// fifth page fails every other load (slots going Failed and back to the
+// free list under the racing increments). Every pin that returns must hold
+// its own page's bytes, every failure be the loader's, and at the end
+// nothing is pinned and every call was counted once, as a hit or a miss.
+TEST(PageCache, ConcurrentUnlockedHitsRaceEvictionsAndFailedLoads) {
+  constexpr int kThreads = 6, kPins = 4000;
+  constexpr std::uint64_t kPages = 120, kHot = 12;
+  std::vector<std::atomic<int>> attempts(kPages);
+  auto loader = [&](PageKey k, std::vector<std::uint8_t>& out) -> std::uint64_t {
+    if (k.page % 5 == 2 && attempts[k.page].fetch_add(1) % 2 == 0)
+      throw Error(ErrorKind::BadInput, "synthetic: a failing read");
+    out.resize(page_bytes(k));
+    for (std::size_t i = 0; i < out.size(); ++i) out[i] = byte_at(k, i);
+    return out.size();
+  };
+  for (bool background : {false, true}) {
+    // The hot set and every thread's two handles fit, with room to evict.
+    PageCache cache(loader, opts((kHot + 2 * kThreads + 8) * kMaxPage, 2, background));
+    cache.set_array_pages(0, kPages);
+    std::atomic<int> bad{0}, failed{0};
+    std::vector<std::thread> threads;
+    for (int t = 0; t < kThreads; ++t)
+      threads.emplace_back([&, t] {
+        std::mt19937_64 rng(77 + t);
+        PageCache::Handle h[2];
+        for (int i = 0; i < kPins; ++i) {
+          const std::uint64_t page = rng() % 4 != 0 ? rng() % kHot : kHot + rng() % (kPages - kHot);
+          PageCache::Handle& into = h[rng() % 2];
+          try {
+            cache.pin_into(into, {0, page});
+            if (!content_ok(into) || into.key().page != page) bad.fetch_add(1);
+          } catch (const Error& e) {
+            if (e.kind() != ErrorKind::BadInput || !into.empty()) bad.fetch_add(1);
+            failed.fetch_add(1);
+          }
+          if (!h[0].empty() && !content_ok(h[0])) bad.fetch_add(1);
+        }
+      });
+    for (auto& th : threads) th.join();
+    EXPECT_EQ(bad.load(), 0);
+    EXPECT_GT(failed.load(), 0);
+    const CacheStats s = cache.stats();
+    EXPECT_EQ(s.hits + s.misses, std::uint64_t{kThreads} * kPins);
+    EXPECT_GT(s.hits, s.misses);  // the hot set hits, most of it unlocked
+    EXPECT_GT(s.evictions, 0u);
+    EXPECT_LE(s.peak_resident_bytes, cache.budget());
+    EXPECT_EQ(cache.pinned_pages(), 0u);
+  }
+}
+
 TEST(PageCache, ConcurrentSweepsReadEachPageOnce) {
   constexpr int kThreads = 4;
   constexpr std::uint64_t kPages = 200;
