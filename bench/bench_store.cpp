@@ -6,6 +6,9 @@
 //       pages read, peak cache residency
 //   BM_RandomNode/<store|memory>, BM_RandomElement/<store|memory>
 //       node(id) / element(id) at random ids, warm 64 MiB cache: Time = ns/query
+//   BM_RandomNodeShared/threads:T, BM_RandomElementShared/threads:T
+//       the same from one store shared by T threads (one cache, a cursor
+//       each): counter queries_per_s, all threads together
 //   BM_RandomNodeBatch/<store|memory>/<ids>/<sorted>, BM_RandomElementBatch/...
 //       nodes(ids) / elements(ids), `ids` random ids per call (sorted 1:
 //       in increasing order): counter ns_per_id
@@ -135,6 +138,26 @@ void BM_Random(benchmark::State& st) {
   }
 }
 
+// BM_Random from one store (one page cache) shared by every thread, each
+// with its own cursor: what concurrent callers (threads of a solver) see
+// of the cache's pins. Counter queries_per_s over all threads.
+template <bool Element>
+void BM_RandomShared(benchmark::State& st) {
+  static const RandomQueries<Element> q(true);  // opened by the first thread; thread-safe static init
+  const FineMesh& m = *q.m;
+  MeshCursor cur;
+  size_t k = static_cast<size_t>(st.thread_index()) * 9973;
+  for (size_t i = 0; i < q.ids.size(); ++i) {  // warm the cache and this thread's cursor
+    if constexpr (Element) benchmark::DoNotOptimize(m.element(q.ids[i], cur));
+    else benchmark::DoNotOptimize(m.node(q.ids[i], cur));
+  }
+  for (auto _ : st) {
+    if constexpr (Element) benchmark::DoNotOptimize(m.element(q.ids[k++ & 0xffff], cur));
+    else benchmark::DoNotOptimize(m.node(q.ids[k++ & 0xffff], cur));
+  }
+  st.counters["queries_per_s"] = benchmark::Counter(static_cast<double>(st.iterations()), benchmark::Counter::kIsRate);
+}
+
 // nodes(ids) / elements(ids): `batch` of BM_Random's ids per call; Time =
 // ns per call, ns_per_id the figure to set beside BM_RandomNode /
 // BM_RandomElement.
@@ -237,6 +260,8 @@ BENCHMARK(BM_PointerChase)->Arg(32)->Arg(512)->Arg(5 << 10)->Arg(16 << 10)->Arg(
 BENCHMARK(BM_Sweep)->Args({64, 1})->Args({64, 0})->Iterations(1)->Unit(benchmark::kSecond);
 BENCHMARK_TEMPLATE(BM_Random, false)->Arg(1)->Arg(0)->Name("BM_RandomNode");
 BENCHMARK_TEMPLATE(BM_Random, true)->Arg(1)->Arg(0)->Name("BM_RandomElement");
+BENCHMARK_TEMPLATE(BM_RandomShared, false)->ThreadRange(1, 16)->UseRealTime()->Name("BM_RandomNodeShared");
+BENCHMARK_TEMPLATE(BM_RandomShared, true)->ThreadRange(1, 16)->UseRealTime()->Name("BM_RandomElementShared");
 BENCHMARK_TEMPLATE(BM_RandomBatch, false)->ArgsProduct({{1, 0}, {4096, 65536}, {0, 1}})->Name("BM_RandomNodeBatch");
 BENCHMARK_TEMPLATE(BM_RandomBatch, true)->ArgsProduct({{1, 0}, {4096, 65536}, {0, 1}})->Name("BM_RandomElementBatch");
 BENCHMARK(BM_SweepPages)->Arg(1)->Arg(0)->Iterations(1);

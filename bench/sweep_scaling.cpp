@@ -13,6 +13,8 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <exception>
+#include <stdexcept>
 #include <string>
 #include <thread>
 #include <vector>
@@ -22,19 +24,49 @@
 
 using namespace dicer;
 
-int main(int argc, char** argv) {
+namespace {
+// A whole number >= 1, or a message naming the option.
+long long number(const std::string& option, const std::string& v) {
+  size_t used = 0;
+  long long x = 0;
+  try {
+    x = std::stoll(v, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used != v.size() || v.empty() || x < 1)
+    throw std::invalid_argument("option " + option + ": '" + v + "' is not a whole number >= 1");
+  return x;
+}
+
+int run(int argc, char** argv) {
   Id box = 25, interval = 40;
   int repeat = 3;
   std::vector<unsigned> threads;
-  for (int a = 1; a + 1 < argc; a += 2) {
-    const std::string k = argv[a], v = argv[a + 1];
-    if (k == "--box") box = std::stoll(v);
-    else if (k == "--interval") interval = std::stoll(v);
-    else if (k == "--repeat") repeat = std::max(1, std::stoi(v));
+  for (int a = 1; a < argc; a += 2) {
+    const std::string k = argv[a];
+    if (k == "--help" || k == "-h") {
+      std::printf(
+          "sweep_scaling: thread scaling of the in-memory sweep\n"
+          "  sweep_scaling [--box N] [--interval I] [--repeat R] [--threads 1,2,4]\n"
+          "A box of N^3 coarse hexes (default 25) diced at interval I (default 40: 1e9 fine\n"
+          "elements) in memory, swept with each thread count (default 1, 2, 4, ... up to the\n"
+          "cores present), each row the median of R sweeps (default 3). Exit 1 if two\n"
+          "sweeps disagree on the checksum, 2 on a bad option.\n");
+      return 0;
+    }
+    if (a + 1 >= argc) {
+      std::fprintf(stderr, "sweep_scaling: option %s needs a value (--help)\n", k.c_str());
+      return 2;
+    }
+    const std::string v = argv[a + 1];
+    if (k == "--box") box = number(k, v);
+    else if (k == "--interval") interval = number(k, v);
+    else if (k == "--repeat") repeat = static_cast<int>(std::min(number(k, v), 1000LL));
     else if (k == "--threads")
       for (size_t p = 0; p <= v.size();) {
         const size_t q = std::min(v.find(',', p), v.size());
-        threads.push_back(static_cast<unsigned>(std::stoul(v.substr(p, q - p))));
+        threads.push_back(static_cast<unsigned>(std::min(number(k, v.substr(p, q - p)), 4096LL)));
         p = q + 1;
       }
     else {
@@ -76,4 +108,14 @@ int main(int argc, char** argv) {
   }
   if (!same) std::fprintf(stderr, "sweep_scaling: the checksum changed with the thread count\n");
   return same ? 0 : 1;
+}
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const std::exception& e) {  // a bad option value, a box dicing refuses
+    std::fprintf(stderr, "sweep_scaling: %s\n", e.what());
+    return 2;
+  }
 }
