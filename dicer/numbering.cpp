@@ -99,7 +99,10 @@ Id search_elements(const MeshTables& t, Id x, bool by_node, MeshCursor& cur) {
   RowReader::SearchHints hints;
   const RowReader::SearchHints* hinted = nullptr;
   const IdGuide& guide = by_node ? t.node_guide : t.element_guide;
-  if (const auto b = static_cast<std::uint64_t>(x) >> guide.shift; x >= 0 && b + 1 < guide.row.size()) {
+  // The guide was built with the dense columns; a table written to since
+  // (Table::memory() drops those) may have outgrown it: search the rows.
+  const bool guided = !guide.row.empty() && t.elements.in_memory() && !t.elements.derived_columns().empty();
+  if (const auto b = static_cast<std::uint64_t>(x) >> guide.shift; guided && x >= 0 && b + 1 < guide.row.size()) {
     // Rows up to row[b] start at or below b << shift <= x; row[b + 1] + 1
     // (if any) starts above (b + 1) << shift > x.
     lo = guide.row[b] + 1;

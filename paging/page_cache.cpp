@@ -108,9 +108,16 @@ std::string key_text(PageKey k) {
 
 }  // namespace
 
-// Set in a slot's pin count while the slot is out of the index (free, or
-// being evicted or freed): an unlocked pin that meets it backs off.
-constexpr std::uint32_t kDetached = 1u << 31;
+// A slot's pin word. Low 32 bits: the pin count, with kDetached set while
+// the slot is out of the index (free, or being evicted or freed): an
+// unlocked pin that meets it backs off. High 32 bits: the unlocked hits
+// on the slot not yet folded into CacheStats::hits, a signed count (a pin
+// that loses a race takes its hit back, maybe after a fold), so that an
+// unlocked pin counts its hit in the same increment.
+constexpr std::uint64_t kDetached = std::uint64_t{1} << 31;
+constexpr std::uint64_t kPinMask = 0xffffffffu;
+constexpr std::uint64_t kHit = std::uint64_t{1} << 32;
+inline std::int64_t hits_of(std::uint64_t word) { return static_cast<std::int32_t>(word >> 32); }
 
 // One cache line: an unlocked pin's increment, its hit count and the
 // checks between them touch no other line.
@@ -119,14 +126,20 @@ struct alignas(64) PageCache::Entry {
   std::vector<std::uint8_t> data;  // decoded bytes; fixed while pinned and Ready
   std::exception_ptr error;        // State::Failed: what waiters rethrow
   // Handles + threads waiting for the load + the loading pin() itself, and
-  // kDetached while out of the index. Unlocked pins (fast_pin) raise it
-  // for a moment before they check the slot.
-  std::atomic<std::uint32_t> pins{kDetached};
+  // kDetached while out of the index (low half); unlocked hits (high
+  // half). Unlocked pins (fast_pin) raise it for a moment before they
+  // check the slot.
+  std::atomic<std::uint64_t> pins{kDetached};
   std::atomic<State> state{State::Free};
   std::atomic<bool> referenced{false};  // CLOCK second-chance bit
   std::atomic<bool> prefetched{false};  // loaded by read-ahead and not pinned since
-  std::atomic<std::uint64_t> fast_hits{0};  // unlocked hits since the slot was last freed or the stats reset
-  std::uint32_t count() const { return pins.load(std::memory_order_relaxed) & ~kDetached; }
+  std::uint64_t count() const { return pins.load(std::memory_order_relaxed) & kPinMask & ~kDetached; }
+  // The unlocked hits counted so far, taken out of the word (with the lock).
+  std::int64_t take_hits() {
+    const std::uint64_t w = pins.load(std::memory_order_relaxed);
+    pins.fetch_sub(w & ~kPinMask, std::memory_order_relaxed);
+    return hits_of(w);
+  }
 };
 
 // A mutex that spins a little before it sleeps. The cache's critical
@@ -250,8 +263,10 @@ struct PageCache::Impl {
   // A slot with no pins leaves the index's reach: false if a pin (an
   // unlocked one, a moment ago) holds it.
   static bool detach(Entry* e) {
-    std::uint32_t none = 0;
-    return e->pins.compare_exchange_strong(none, kDetached, std::memory_order_acq_rel);
+    std::uint64_t w = e->pins.load(std::memory_order_relaxed);
+    while ((w & kPinMask) == 0)  // no pins, not detached; the hit count may move under us
+      if (e->pins.compare_exchange_weak(w, w | kDetached, std::memory_order_acq_rel)) return true;
+    return false;
   }
 
   // The hit path without the lock (see the top of this file): e pinned, or
@@ -267,23 +282,24 @@ struct PageCache::Impl {
     if (e == nullptr || e->state.load(std::memory_order_acquire) != State::Ready) return nullptr;
     const std::uint64_t last = ai->last_pin.load(std::memory_order_relaxed);
     if (last == kNoPin || last + 1 == key.page) return nullptr;  // the stream bookkeeping is the locked path's
-    if (e->pins.fetch_add(1, std::memory_order_acq_rel) & kDetached) {
-      e->pins.fetch_sub(1, std::memory_order_relaxed);
+    // One increment pins and counts the hit; a lost race takes both back.
+    if (e->pins.fetch_add(1 + kHit, std::memory_order_acq_rel) & kDetached) {
+      e->pins.fetch_sub(1 + kHit, std::memory_order_relaxed);
       return nullptr;
     }
     // Pinned: e stays where it is. Is it still key's page, Ready, not prefetched?
     if (e->state.load(std::memory_order_acquire) != State::Ready) {
       Lock lock(mu);
+      e->pins.fetch_sub(kHit, std::memory_order_relaxed);
       release_pin(e);  // a load in flight or failed: the locked release
       return nullptr;
     }
     if (!(e->key == key) || e->prefetched.load(std::memory_order_relaxed)) {
-      e->pins.fetch_sub(1, std::memory_order_release);
+      e->pins.fetch_sub(1 + kHit, std::memory_order_release);
       return nullptr;
     }
     if (last != key.page) ai->last_pin.store(key.page, std::memory_order_relaxed);
     if (!e->referenced.load(std::memory_order_relaxed)) e->referenced.store(true, std::memory_order_relaxed);
-    e->fast_hits.fetch_add(1, std::memory_order_relaxed);
     return e;
   }
 
@@ -312,7 +328,7 @@ struct PageCache::Impl {
     std::vector<std::uint8_t>().swap(e->data);
     e->error = nullptr;
     e->state.store(State::Free, std::memory_order_relaxed);
-    st.hits += e->fast_hits.exchange(0, std::memory_order_relaxed);
+    st.hits += static_cast<std::uint64_t>(e->take_hits());
     free_slots.push_back(e);
   }
 
@@ -339,7 +355,7 @@ struct PageCache::Impl {
   // With the lock: a pin that may hold a Failed or Loading slot.
   void release_pin(Entry* e) {
     assert(e->count() > 0);
-    if ((e->pins.fetch_sub(1, std::memory_order_acq_rel) & ~kDetached) == 1 &&
+    if ((e->pins.fetch_sub(1, std::memory_order_acq_rel) & kPinMask & ~kDetached) == 1 &&
         e->state.load(std::memory_order_relaxed) == State::Failed && detach(e))
       free_entry(e);
   }
@@ -651,7 +667,7 @@ void PageCache::set_array_pages(std::uint32_t array, std::uint64_t pages) {
 CacheStats PageCache::stats() const {
   std::lock_guard<SpinMutex> lock(impl_->mu);
   CacheStats s = impl_->st;
-  for (const Entry& e : impl_->slots) s.hits += e.fast_hits.load(std::memory_order_relaxed);
+  for (const Entry& e : impl_->slots) s.hits += static_cast<std::uint64_t>(hits_of(e.pins.load(std::memory_order_relaxed)));
   return s;
 }
 
@@ -666,7 +682,7 @@ void PageCache::reset_stats() {
   const std::uint64_t resident = impl_->st.resident_bytes;
   impl_->st = CacheStats{};
   impl_->st.resident_bytes = resident;
-  for (Entry& e : impl_->slots) e.fast_hits.store(0, std::memory_order_relaxed);
+  for (Entry& e : impl_->slots) e.take_hits();
   for (auto& [a, ai] : impl_->arrays) std::fill(ai.read.begin(), ai.read.end(), false);
   impl_->read_undeclared.clear();
   impl_->st.peak_resident_bytes = resident;

@@ -51,7 +51,7 @@
 // Cost. Hit: O(1), no allocation. A hit on a Ready page of a declared
 // array (id below 4096) that neither starts nor continues a sequential
 // stream and was not brought in by read-ahead takes no lock: a page-table
-// load and two atomic increments on the page's slot (page_cache.cpp says
+// load and one atomic increment on the page's slot (page_cache.cpp says
 // why that is safe against eviction). Other hits take the mutex and one
 // page-table load (a hash lookup for an array never declared or with an id
 // of 4096 or more); when a hit extends a read-ahead window it also does

@@ -54,7 +54,9 @@ TEST(RowSearch, AnyHintsGiveTheFirstRowAbove) {
 // reads the dense search columns (Table::derive_in_memory), both built by
 // FineMesh's constructor: every node and element id must still find the
 // owner a linear scan of the rows finds, on meshes whose sheets have 1 to
-// 7 intervals, and with the guide taken away (the plain search).
+// 7 intervals, with the guide taken away (the plain search), and after the
+// element table was written to (its dense columns dropped: the guide must
+// go unused).
 TEST(RowSearch, InMemoryGuideFindsTheOwnerOfEveryId) {
   std::mt19937_64 rng(43);
   for (int trial = 0; trial < 6; ++trial) {
@@ -71,6 +73,9 @@ TEST(RowSearch, InMemoryGuideFindsTheOwnerOfEveryId) {
     ASSERT_NE(t.elements.derived(0, 0, cur.elements), nullptr) << "the dense columns are in place";
     MeshTables plain = t;
     plain.node_guide = IdGuide{}, plain.element_guide = IdGuide{};
+    MeshTables written = t;  // a table written to drops its dense columns, and the guide goes unused
+    written.elements.memory();
+    ASSERT_EQ(written.elements.derived(0, 0, cur.elements), nullptr);
     const RowReader R(t, cur);
     const Id H = f.num_coarse_elements();
     for (const bool by_node : {true, false}) {
@@ -79,10 +84,10 @@ TEST(RowSearch, InMemoryGuideFindsTheOwnerOfEveryId) {
       for (Id x = 0; x < top; ++x) {
         while (want + 1 < H && (by_node ? R.node_first(want + 1) : R.element_first(want + 1)) <= x) ++want;
         std::array<Id, 3> ijk{};
-        for (const MeshTables* m : {&t, static_cast<const MeshTables*>(&plain)}) {
+        for (const MeshTables* m : {&t, static_cast<const MeshTables*>(&plain), static_cast<const MeshTables*>(&written)}) {
           const Id got = by_node ? owner_element(*m, x, cur) : locate_element(*m, x, ijk, cur);
-          ASSERT_EQ(got, want) << (by_node ? "node " : "element ") << x << (m == &t ? " (guide)" : " (no guide)")
-                               << " trial " << trial;
+          ASSERT_EQ(got, want) << (by_node ? "node " : "element ") << x
+                               << (m == &t ? " (guide)" : m == &plain ? " (no guide)" : " (rows written to)") << " trial " << trial;
         }
       }
     }
