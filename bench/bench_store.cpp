@@ -121,21 +121,22 @@ struct RandomQueries {
   }
 };
 
+// One query of BM_Random*: element(id) or node(id).
+template <bool Element>
+void query(const FineMesh& m, Id id, MeshCursor& cur) {
+  if constexpr (Element) benchmark::DoNotOptimize(m.element(id, cur));
+  else benchmark::DoNotOptimize(m.node(id, cur));
+}
+
 template <bool Element>
 void BM_Random(benchmark::State& st) {
   const RandomQueries<Element> q(st.range(0) != 0);
   const FineMesh& m = *q.m;
   const std::vector<Id>& ids = q.ids;
   MeshCursor cur;
-  for (Id i : ids) {  // warm the cache
-    if constexpr (Element) benchmark::DoNotOptimize(m.element(i, cur));
-    else benchmark::DoNotOptimize(m.node(i, cur));
-  }
+  for (Id i : ids) query<Element>(m, i, cur);  // warm the cache
   size_t k = 0;
-  for (auto _ : st) {
-    if constexpr (Element) benchmark::DoNotOptimize(m.element(ids[k++ & 0xffff], cur));
-    else benchmark::DoNotOptimize(m.node(ids[k++ & 0xffff], cur));
-  }
+  for (auto _ : st) query<Element>(m, ids[k++ & 0xffff], cur);
 }
 
 // BM_Random from one store (one page cache) shared by every thread, each
@@ -147,14 +148,8 @@ void BM_RandomShared(benchmark::State& st) {
   const FineMesh& m = *q.m;
   MeshCursor cur;
   size_t k = static_cast<size_t>(st.thread_index()) * 9973;
-  for (size_t i = 0; i < q.ids.size(); ++i) {  // warm the cache and this thread's cursor
-    if constexpr (Element) benchmark::DoNotOptimize(m.element(q.ids[i], cur));
-    else benchmark::DoNotOptimize(m.node(q.ids[i], cur));
-  }
-  for (auto _ : st) {
-    if constexpr (Element) benchmark::DoNotOptimize(m.element(q.ids[k++ & 0xffff], cur));
-    else benchmark::DoNotOptimize(m.node(q.ids[k++ & 0xffff], cur));
-  }
+  for (Id i : q.ids) query<Element>(m, i, cur);  // warm the cache and this thread's cursor
+  for (auto _ : st) query<Element>(m, q.ids[k++ & 0xffff], cur);
   st.counters["queries_per_s"] = benchmark::Counter(static_cast<double>(st.iterations()), benchmark::Counter::kIsRate);
 }
 

@@ -187,6 +187,8 @@ struct PageCache::Impl {
     std::unique_ptr<std::atomic<Entry*>[]> slot;
   };
   static constexpr std::uint64_t kNoPin = ~std::uint64_t{0};
+  // A pin of `page` after one of `last` continues a sequential stream.
+  static bool continues_stream(std::uint64_t last, std::uint64_t page) { return last != kNoPin && last + 1 == page; }
   struct ArrayInfo {
     std::uint64_t pages = 0;  // pages of the array (set_array_pages)
     // Page of the last pin() on this array (kNoPin: none yet). Written by
@@ -281,7 +283,7 @@ struct PageCache::Impl {
     Entry* e = t->slot[key.page].load(std::memory_order_acquire);
     if (e == nullptr || e->state.load(std::memory_order_acquire) != State::Ready) return nullptr;
     const std::uint64_t last = ai->last_pin.load(std::memory_order_relaxed);
-    if (last == kNoPin || last + 1 == key.page) return nullptr;  // the stream bookkeeping is the locked path's
+    if (last == kNoPin || continues_stream(last, key.page)) return nullptr;  // the stream bookkeeping is the locked path's
     // One increment pins and counts the hit; a lost race takes both back.
     if (e->pins.fetch_add(1 + kHit, std::memory_order_acq_rel) & kDetached) {
       e->pins.fetch_sub(1 + kHit, std::memory_order_relaxed);
@@ -567,7 +569,7 @@ PageCache::Handle PageCache::pin_locked(std::unique_lock<SpinMutex>& lock, PageK
   bool sequential = false;
   if (ai != nullptr) {
     const std::uint64_t last = ai->last_pin.load(std::memory_order_relaxed);
-    sequential = last != Impl::kNoPin && last + 1 == key.page;
+    sequential = Impl::continues_stream(last, key.page);
     if (last == Impl::kNoPin) ++m.streams;
     ai->last_pin.store(key.page, std::memory_order_relaxed);
   }
