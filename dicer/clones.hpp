@@ -8,9 +8,17 @@
 // contraction off.
 // Not under ThreadSanitizer: GCC 12's ifunc resolver for target_clones runs
 // before the TSan runtime is up and crashes the binary at start-up.
-#if defined(__SANITIZE_THREAD__)
+// DICER_CLONES_AVX2_AT_MOST / DICER_CLONES_NONE (CMake DICER_KERNEL_CLONES):
+// no AVX-512 clone / no clone at all, so that an AVX-512 machine runs
+// (and tests) the code other machines run. The AVX2 clones differ from
+// the AVX-512 ones in more than width: GCC 12.2 once miscompiled one of
+// them (sweep.cpp, hash_lines) while the AVX-512 clone was right.
+#if defined(__SANITIZE_THREAD__) || defined(DICER_CLONES_NONE)
 #define DICER_CLONES
 #define DICER_WIDE_CLONES
+#elif defined(DICER_CLONES_AVX2_AT_MOST)
+#define DICER_CLONES __attribute__((target_clones("avx2", "default")))
+#define DICER_WIDE_CLONES DICER_CLONES
 #elif defined(__clang__)  // the fuzz build: Clang 14 clones no arch= levels
 #define DICER_CLONES __attribute__((target_clones("avx2", "default")))
 #define DICER_WIDE_CLONES DICER_CLONES

@@ -24,9 +24,10 @@ namespace {
 
 // sweep.hpp's mix: xorshift, odd multiply, xorshift, each a bijection; one
 // multiply instead of murmur3's two (0.4).
+constexpr std::uint64_t kMixMultiplier = 0xd6e8feb86659fd93ull;
 inline std::uint64_t mix(std::uint64_t h) {
   h ^= h >> 32;
-  h *= 0xd6e8feb86659fd93ull;
+  h *= kMixMultiplier;
   h ^= h >> 32;
   return h;
 }
@@ -184,18 +185,42 @@ DICER_WIDE_CLONES void element_lines(const GridLines& L, const std::uint64_t* id
 // all ones. Rows side by side, kLanes at a time: one vector lane per row,
 // so a short row (n0 = 10: eight terms on its line) fills the vector as
 // a long one does.
+// Written with GCC's vector types (Clang has them too), not as a loop
+// over lanes for the vectoriser: GCC 12.2 at -O3 vectorised that loop
+// wrongly for AVX2 (wrong sums on every machine without AVX-512, the
+// clone they run; test_sweep's GridChecksum test caught it under
+// valgrind, whose CPU has no AVX-512). A vector type is lowered to the
+// widest the clone has (one zmm, two ymm, four xmm), with no vectoriser
+// decision left to get wrong.
 constexpr Id kLanes = 8;
+typedef std::uint64_t U64xLanes __attribute__((vector_size(8 * kLanes)));
+// By reference: a vector passed or returned by value between a clone and
+// a function built for baseline x86-64 would change the calling
+// convention (an unoptimised build does not inline, and crashed).
+inline void mix_lanes(U64xLanes& h) {
+  h ^= h >> 32;
+  h *= kMixMultiplier;
+  h ^= h >> 32;
+}
 DICER_WIDE_CLONES std::uint64_t hash_lines(const std::uint64_t* a0, const std::uint64_t* a1,
                                            const std::uint64_t* step, const std::uint64_t* an,
                                            const std::uint64_t* keep, Id count, Id n0) {
-  std::uint64_t sum = 0;
+  U64xLanes total = {}, s, h, m, part, k;
   for (Id r0 = 0; r0 < count; r0 += kLanes) {
-    std::uint64_t h[kLanes], part[kLanes];
-    for (Id b = 0; b < kLanes; ++b) h[b] = a1[r0 + b], part[b] = mix(a0[r0 + b]) + mix(an[r0 + b]);
-    for (Id t = 0; t < n0 - 2; ++t)
-      for (Id b = 0; b < kLanes; ++b) part[b] += mix(h[b]), h[b] += step[r0 + b];
-    for (Id b = 0; b < kLanes; ++b) sum += part[b] & keep[r0 + b];
+    std::memcpy(&s, step + r0, sizeof s), std::memcpy(&h, a1 + r0, sizeof h);
+    std::memcpy(&part, a0 + r0, sizeof part), std::memcpy(&m, an + r0, sizeof m);
+    mix_lanes(part), mix_lanes(m);
+    part += m;
+    for (Id t = 0; t < n0 - 2; ++t) {
+      m = h;
+      mix_lanes(m);
+      part += m, h += s;
+    }
+    std::memcpy(&k, keep + r0, sizeof k);
+    total += part & k;
   }
+  std::uint64_t sum = 0;
+  for (Id b = 0; b < kLanes; ++b) sum += total[b];
   return sum;
 }
 
