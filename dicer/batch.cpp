@@ -73,7 +73,7 @@ bool BatchCursor::next(FineBatch& out) {
                                                                 "the element's own node range disagrees with its intervals");
     for (auto& a : xyz_) a.resize(static_cast<size_t>(total));
     double* const interior[3] = {xyz_[0].data() + own, xyz_[1].data() + own, xyz_[2].data() + own};
-    mesh_.fill_slab(h_, k0, k1, block_, true, opt_.conn, vol ? interior : nullptr);
+    mesh_.fill_slab(h_, k0, k1, block_, true, opt_.conn, vol ? interior : nullptr, &row_);
     if (k0 == 0) {
       // fill_slab has just evaluated the element's owned entities (at
       // least) into the block's scratch, in their canonical frames.
@@ -84,7 +84,7 @@ bool BatchCursor::next(FineBatch& out) {
     }
     out.x = xyz_[0], out.y = xyz_[1], out.z = xyz_[2];
   } else {
-    if (opt_.conn || opt_.grid) mesh_.fill_slab(h_, k0, k1, block_, false, opt_.conn);
+    if (opt_.conn || opt_.grid) mesh_.fill_slab(h_, k0, k1, block_, false, opt_.conn, nullptr, &row_);
     out.x = out.y = out.z = {};
   }
   // Elements: layers [k0, k1) (surface: the element's one layer).

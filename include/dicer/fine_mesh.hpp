@@ -228,9 +228,11 @@ class FineMesh {
   std::uint64_t serial_ = next_serial();
   // For BatchCursor: fill_slab with the interior points of planes k0 < k <=
   // min(k1, n[2] - 1) written compact, in id order, to interior[d] (volume
-  // mode), and out.x, y, z left as work space.
+  // mode), and out.x, y, z left as work space. row: h's row, already
+  // decoded by the caller (null: decoded here).
   friend class BatchCursor;
-  void fill_slab(Id h, Id k0, Id k1, FineBlock& out, bool coords, bool conn, double* const* interior) const;
+  void fill_slab(Id h, Id k0, Id k1, FineBlock& out, bool coords, bool conn, double* const* interior,
+                 const ElementRow* row) const;
   static std::uint64_t next_serial();
   void require_memory(const char* what) const;
 };
