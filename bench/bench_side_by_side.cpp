@@ -6,6 +6,10 @@
 //                          iteration would cost if TFI were free)
 //   BM_BlockIteration/<nodes only 1|with connectivity 0>
 //                          fill_block over every coarse element of the store
+//   BM_Batches             the batch API (batch.hpp) over the whole store:
+//                          every node once with coordinates, every element
+//                          with connectivity, no checksum (issue 13's
+//                          "batch API alone")
 //   BM_Gmsh/<write 0|1>    Gmsh 4.8 transfinite (bench/gmsh_transfinite.cpp) on
 //                          the store's coarse hexes and intervals: build +
 //                          generate(3), /1 also gmsh::write binary MSH 4.1
@@ -44,6 +48,7 @@
 #include "bench_util.hpp"
 #include "hdf5_lock.hpp"
 #include "dicer/rows.hpp"
+#include "dicer/batch.hpp"
 #include "dicer/store.hpp"
 #include "gmsh_transfinite.hpp"
 
@@ -102,6 +107,24 @@ void BM_BlockIteration(benchmark::State& st) {
       nodes += b.num_points();
       elements += b.num_elements();
     }
+  }
+  st.counters["nodes_per_s"] = benchmark::Counter(static_cast<double>(nodes), benchmark::Counter::kIsRate);
+  st.counters["elements_per_s"] = benchmark::Counter(static_cast<double>(elements), benchmark::Counter::kIsRate);
+}
+
+void BM_Batches(benchmark::State& st) {
+  const FineMesh m = open_store();
+  BatchCursor c(m);  // default slabs (kCursorSlabPoints): smaller ones measured no faster
+  FineBatch b;
+  Id nodes = 0, elements = 0;
+  for (auto _ : st) {
+    c.reset(0);
+    while (c.next(b)) {
+      benchmark::DoNotOptimize(b.x.data());
+      benchmark::DoNotOptimize(b.conn.data());
+    }
+    nodes += m.num_nodes();
+    elements += m.num_elements();
   }
   st.counters["nodes_per_s"] = benchmark::Counter(static_cast<double>(nodes), benchmark::Counter::kIsRate);
   st.counters["elements_per_s"] = benchmark::Counter(static_cast<double>(elements), benchmark::Counter::kIsRate);
@@ -325,6 +348,7 @@ void guarded(benchmark::State& st) {
 
 BENCHMARK(guarded<BM_WriteBandwidth>)->Name("BM_WriteBandwidth")->Unit(benchmark::kMillisecond);
 BENCHMARK(guarded<BM_BlockIteration>)->Name("BM_BlockIteration")->Arg(1)->Arg(0)->Unit(benchmark::kMillisecond);
+BENCHMARK(guarded<BM_Batches>)->Name("BM_Batches")->Unit(benchmark::kMillisecond);
 BENCHMARK(guarded<BM_Gmsh>)->Name("BM_Gmsh")->Arg(0)->Arg(1)->Iterations(1)->UseManualTime()->Unit(benchmark::kSecond);
 BENCHMARK(guarded<BM_RandomQueries>)->Name("BM_RandomQueries")->Arg(0)->Arg(1)->Iterations(1)->UseManualTime()->Unit(benchmark::kSecond);
 BENCHMARK(guarded<BM_Explicit>)->Name("BM_Explicit")->Arg(0)->Arg(1)->Arg(2)->Iterations(1)->UseManualTime()->Unit(benchmark::kSecond);

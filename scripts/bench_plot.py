@@ -84,6 +84,7 @@ def table_side_by_side(res):
     row("(a) write-bandwidth baseline", lambda r: fmt(g(r, "write_bandwidth", "nodes_per_s"), " nodes/s"))
     row("(b) block iteration, nodes only", lambda r: fmt(g(r, "block_iteration_nodes", "nodes_per_s"), " nodes/s"))
     row("(b) block iteration, + connectivity", lambda r: fmt(g(r, "block_iteration_conn", "nodes_per_s"), " nodes/s"))
+    row("(b) batch API (`BatchCursor`: nodes + connectivity)", lambda r: fmt(g(r, "batches", "nodes_per_s"), " nodes/s"))
     row("(b) `dicer sweep --threads 2`", lambda r: "%s (%s nodes/s)" % (secs(g(r, "sweep", "seconds")),
                                                                           fmt(g(r, "sweep", "nodes_per_s"))))
     row("(b) sweep peak RSS", lambda r: mib(g(r, "sweep", "peak_rss_mib")))
@@ -112,6 +113,9 @@ def table_side_by_side(res):
     row("explicit shuffle + LZ4 / store", lambda r: ratio(g(r, "ratios", "explicit_shuffle_lz4_over_store")))
     row("block iteration (nodes) / write bandwidth", lambda r: "%.3f" % g(r, "ratios", "block_iteration_nodes_over_write_bandwidth")
         if g(r, "ratios", "block_iteration_nodes_over_write_bandwidth") is not None else "n/a")
+    for key, label in (("batches_over_write_bandwidth", "batch API / write bandwidth"),
+                       ("sweep_over_write_bandwidth", "sweep / write bandwidth")):
+        row(label, lambda r, key=key: "%.3f" % g(r, "ratios", key) if g(r, "ratios", key) is not None else "n/a")
     f = res["floor"]
     rows.append("")
     rows.append("Floors (1 hex, interval 1, medians): dice %s / %s, sweep %s / %s, export %s / %s, "

@@ -10,7 +10,9 @@ Mesh: a box of coarse hexes (scripts/bench_box_msh.py, interior vertices
 jittered so the hexes are not all congruent), diced at several global
 intervals. At each interval, all on the same fine mesh:
   (a) write-bandwidth baseline          bench_side_by_side BM_WriteBandwidth
-  (b) dicer block iteration + sweep     BM_BlockIteration, `dicer sweep --threads 2`
+  (b) dicer block iteration + sweep     BM_BlockIteration, `dicer sweep --threads 2`,
+                                        BM_Batches (the batch API alone: nodes +
+                                        connectivity, no checksum)
   (c) Gmsh transfinite                  BM_Gmsh/0 (generate), BM_Gmsh/1 (+ binary MSH 4.1)
   (d) explicit HDF5 mesh                BM_Explicit/0 raw, /1 LZ4, /2 shuffle + LZ4
   (e) dicer dice, store size, `dicer export --format msh` (whole mesh)
@@ -147,6 +149,7 @@ class Harness:
             rec["write_bandwidth"] = repeat(lambda: self.bench_case(store, "BM_WriteBandwidth"), reps)
             rec["block_iteration_nodes"] = repeat(lambda: self.bench_case(store, "BM_BlockIteration/1"), reps)
             rec["block_iteration_conn"] = repeat(lambda: self.bench_case(store, "BM_BlockIteration/0"), reps)
+            rec["batches"] = repeat(lambda: self.bench_case(store, "BM_Batches"), reps)
             log("interval %d: export msh" % interval)
             rec["export_msh"] = repeat(lambda: self.export_msh(store), reps)
             log("interval %d: gmsh" % interval)
@@ -231,6 +234,8 @@ def ratios(rec):
         r["block_iteration_nodes_over_write_bandwidth"] = rec["block_iteration_nodes"]["nodes_per_s"] / wb
         r["block_iteration_conn_over_write_bandwidth"] = rec["block_iteration_conn"]["nodes_per_s"] / wb
         r["sweep_over_write_bandwidth"] = rec["sweep"]["nodes_per_s"] / wb
+        if rec.get("batches"):
+            r["batches_over_write_bandwidth"] = rec["batches"]["nodes_per_s"] / wb
     if ex:
         r["export_elements_per_s_net"] = div(e, ex["net_wall_s"])
     if gw:
