@@ -25,16 +25,13 @@ void scatter_row(Id* dst, Id gs, Id first, Id cs, Id m) {
   for (Id t = 0; t < m; ++t) dst[gs * t] = first + cs * t;
 }
 // A face's ids: `rows` rows of m, row q at dst + q gq holding
-// first + q cq + cs t. Its rows run along slots in a row (gs = 1:
-// Boundary::index), so each row is one vector loop; cloned because
-// baseline x86-64's two 64-bit lanes do not pay for the vectoriser (it
-// left this loop scalar, a tenth of a sweep at interval 10).
-DICER_WIDE_CLONES void scatter_face(Id* dst, Id gs, Id gq, Id first, Id cs, Id cq, Id m, Id rows) {
+// first + q cq + cs t. A face's rows run along consecutive slots
+// (kHexFaceAxes' first axis in Boundary::index), so each row is one
+// vector loop; cloned because baseline x86-64's two 64-bit lanes do not
+// pay for the vectoriser (it left this loop scalar, a tenth of a sweep at
+// interval 10).
+DICER_WIDE_CLONES void scatter_face(Id* dst, Id gq, Id first, Id cs, Id cq, Id m, Id rows) {
   for (Id q = 0; q < rows; ++q, dst += gq, first += cq) {
-    if (gs != 1) {
-      scatter_row(dst, gs, first, cs, m);
-      continue;
-    }
     Id* __restrict row = dst;
     for (Id t = 0; t < m; ++t) row[t] = first + cs * t;
   }
@@ -111,7 +108,8 @@ void fill_boundary(const detail::Evaluator& E, std::uint64_t mesh, const Element
     auto slot = [&](Id pa, Id q) { return p[ax] = pa, p[bx] = q, B.index(p[0], p[1], p[2]); };
     const Id g1 = slot(1, 1), gs = m > 1 ? slot(2, 1) - g1 : 0, gq = n[bx] > 2 ? slot(1, 2) - g1 : 0;
     const Id c1 = ids::face_node(0, nu, fm.u(1, 1), fm.v(1, 1));  // canonical index at (1, 1)
-    scatter_face(ids + g1, gs, gq, h.face_node[lf] + c1, cs, cq, m, n[bx] - 1);
+    DICER_ASSERT(gs == 1 || m < 2, "fill_boundary: a face's rows run along consecutive boundary slots");
+    scatter_face(ids + g1, gq, h.face_node[lf] + c1, cs, cq, m, n[bx] - 1);
     for (Id q = 1; q < n[bx] && coords; ++q) {
       const Id g = g1 + (q - 1) * gq, c = c1 + (q - 1) * cq;
       for (int d = 0; d < 3; ++d) gather_row(X[d] + g, gs, s.face[lf][d].data() + c, cs, m);
