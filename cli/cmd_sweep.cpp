@@ -17,11 +17,12 @@ namespace dicer::cli {
 
 static const CommandDoc kDoc = {
     "sweep", "sweep STORE [--threads N] [--json] [--quiet] [store options]",
-    R"(Regenerates every fine node and element through the public iterators, in
-N threads, each on a contiguous range of ids, and prints the counts, the
-time, the rate and an order-independent checksum of all coordinates (bit
-patterns) and connectivity. The checksum does not depend on the thread
-count or the cache budget: compare it across machines or stores.
+    R"(Regenerates every fine node and element through the batch API (a slab of
+one coarse element's grid at a time), on N threads that take chunks of
+about equal work in turn, and prints the counts, the time, the rate and an
+order-independent checksum of all coordinates (bit patterns) and
+connectivity. The checksum does not depend on the thread count or the
+cache budget: compare it across machines or stores.
 )",
     R"(dicer sweep sphere.dice.h5
 dicer sweep big.dice.h5 --threads 2 --cache-mb 32 --json --stats

@@ -51,7 +51,9 @@ struct SweepResult {
 // nodes + elements.
 inline constexpr unsigned kSweepPagesPerThread = 20;
 // With several threads the coarse elements are cut into this many chunks of
-// about equal work per thread, each taken by the next free thread.
+// about equal work per thread, each taken by the next free thread. A
+// store's chunks come from its page index (equal to within a page's work),
+// so no page is read before the threads start.
 inline constexpr unsigned kSweepChunksPerThread = 8;
 // [first_coarse, end_coarse) restricts the sweep to those coarse elements
 // (end -1: the last): their fine elements and the nodes they own (an MPI

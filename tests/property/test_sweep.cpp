@@ -5,6 +5,7 @@
 #include <bit>
 #include <random>
 
+#include "dicer/batch.hpp"
 #include "dicer/error.hpp"
 #include "dicer/orientation.hpp"
 #include "dicer/store.hpp"
@@ -12,6 +13,7 @@
 #include "random_mesh.hpp"
 #include "store_forge.hpp"
 #include "test_support.hpp"
+#include "work_split.hpp"  // dicer/: the threads' split
 
 using namespace dicer;
 
@@ -96,6 +98,66 @@ TEST(Sweep, ChecksumIsTheSameForEveryThreadCountAndCacheBudget) {
     ASSERT_EQ(c.exit_code, 0) << c.err;
     EXPECT_NE(c.out.find(std::string("\"checksum\":\"") + hex + "\""), std::string::npos) << c.out;
     EXPECT_NE(c.out.find("\"nodes_per_s\":"), std::string::npos);
+  }
+}
+
+// The threads' split of a store comes from its page index: no page read
+// before a thread starts (a row read per probe used to load pages one at a
+// time, a tenth of a short sweep), and each part within a few pages' work
+// of an equal share. The work of a range is counted here by the batch API
+// (nodes and elements it hands out), not by the split's own arithmetic.
+TEST(Sweep, WorkSplitOfAStoreReadsNoPageAndIsBalanced) {
+  std::mt19937_64 rng(20261127);
+  test::BoxSpec spec;
+  spec.a = 12, spec.b = 10, spec.c = 9;  // 1080 coarse hexes: several pages of element rows
+  IntervalRequest r;
+  r.global = 2;
+  r.sheets = {{0, 7}, {4, 5}, {13, 6}};  // uneven work per element
+  const FineMesh mem = FineMesh::dice(test::random_box(spec, rng), r);
+  test::TempDir tmp;
+  write_store(mem, tmp.path("m.dice.h5"));
+  const FineMesh s = read_store(tmp.path("m.dice.h5"), StoreOptions{64 << 20, 4});
+  const Id H = s.num_coarse_elements(), rpp = s.tables().elements.rows_per_page();
+  ASSERT_GE(s.tables().elements.pages(), 5);
+  auto work = [&](Id a, Id b) {
+    BatchOptions o;
+    o.coords = false, o.conn = false;
+    BatchCursor c(s, a, b, o);
+    FineBatch fb;
+    Id w = 0;
+    while (c.next(fb)) w += fb.num_nodes() + fb.num_elements();
+    return w;
+  };
+  Id page_work = 0;  // the most work on one page of element rows
+  for (Id p = 0; p * rpp < H; ++p) page_work = std::max(page_work, work(p * rpp, std::min(H, (p + 1) * rpp)));
+  const Id total = work(0, H);
+  ASSERT_EQ(total, s.num_nodes() + s.num_elements());
+  ASSERT_LT(3 * page_work, total / 2) << "pages too large for the bound to say anything";
+  for (unsigned parts : {2u, 7u, 16u}) {
+    // A store just opened: the pages `work` read above are not resident.
+    const FineMesh fresh = read_store(tmp.path("m.dice.h5"), StoreOptions{64 << 20, 4});
+    store_cache(fresh)->reset_stats();
+    const std::vector<Id> at = detail::split_work(fresh, parts, 0, H);
+    EXPECT_EQ(store_cache(fresh)->stats().pages_read, 0u) << parts << " parts";
+    ASSERT_EQ(at.size(), parts + 1);
+    EXPECT_EQ(at.front(), 0);
+    EXPECT_EQ(at.back(), H);
+    for (unsigned p = 0; p < parts; ++p) {
+      ASSERT_LE(at[p], at[p + 1]) << p;
+      const double share = static_cast<double>(total) / parts;
+      // A bound lies up to one page's work below its target or two above
+      // (the page index's linear share, one row of the next page).
+      EXPECT_LE(std::abs(static_cast<double>(work(at[p], at[p + 1])) - share), 3.0 * static_cast<double>(page_work))
+          << "part " << p << " of " << parts << " (" << at[p] << ".." << at[p + 1] << ")";
+    }
+    // In memory, from the rows themselves: each bound within one element's
+    // work of its target (an element owns at most 8^3 nodes and 7^3 hexes).
+    const std::vector<Id> exact = detail::split_work(mem, parts, 0, H);
+    for (unsigned p = 0; p < parts; ++p) {
+      const double share = static_cast<double>(total) / parts;
+      EXPECT_LE(std::abs(static_cast<double>(work(exact[p], exact[p + 1])) - share), 2.0 * (8 * 8 * 8 + 7 * 7 * 7))
+          << "in memory, part " << p << " of " << parts;
+    }
   }
 }
 
