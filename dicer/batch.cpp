@@ -71,7 +71,7 @@ bool BatchCursor::next(FineBatch& out) {
     if (own < 0 || total < own || own > boundary)
       detail::Evaluator(mesh_.tables(), block_.cursor).R.corrupt(RowTable::Elements, h_,
                                                                 "the element's own node range disagrees with its intervals");
-    for (auto& a : xyz_) a.resize(static_cast<size_t>(total));
+    for (auto& a : xyz_) a.resize(static_cast<size_t>(total + detail::kPatchSlack));  // fill_slab's room
     double* const interior[3] = {xyz_[0].data() + own, xyz_[1].data() + own, xyz_[2].data() + own};
     mesh_.fill_slab(h_, k0, k1, block_, true, opt_.conn, vol ? interior : nullptr, &row_);
     if (k0 == 0) {
@@ -82,7 +82,10 @@ bool BatchCursor::next(FineBatch& out) {
       const Id end = detail::own_boundary_nodes(E, row_, h_, block_.scratch, front, own);
       DICER_ASSERT(end == own_end_, "batches: the own range of the row");
     }
-    out.x = xyz_[0], out.y = xyz_[1], out.z = xyz_[2];
+    const auto nodes = static_cast<size_t>(total);
+    out.x = std::span<const double>(xyz_[0]).first(nodes);
+    out.y = std::span<const double>(xyz_[1]).first(nodes);
+    out.z = std::span<const double>(xyz_[2]).first(nodes);
   } else {
     if (opt_.conn || opt_.grid) mesh_.fill_slab(h_, k0, k1, block_, false, opt_.conn, nullptr, &row_);
     out.x = out.y = out.z = {};

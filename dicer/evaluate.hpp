@@ -101,6 +101,19 @@ void owned_entities(const ElementRow& h, Mode mode, bool want_edge[12], bool wan
 Id own_boundary_nodes(const Evaluator& E, const ElementRow& h, Id hid, const FineBlock::Scratch& s,
                       double* const out[3], Id size);
 
+// The bilinear patch p[0..3] (tfi::bilinear_row, then bilinear_point, as
+// face_tfi and cell_point compute each point) at s[1 .. nu - 1] x
+// t[1 .. nv - 1], row v (1 <= v < nv) at out + (v - 1)(nu - 1): a straight
+// face's interior, and each interior plane of a straight hex (p its
+// trilinear_plane). Rows are written in whole blocks of kPatchSlack points,
+// up to kPatchSlack - 1 values past a row's end, which the next row then
+// overwrites, and past the last row into the caller's room: out holds
+// (nu - 1)(nv - 1) + kPatchSlack doubles and s is readable up to
+// s[nu - 1 + kPatchSlack]. Why: a row's scalar tail and the vectoriser's
+// alias checks cost more than its points (bench/README.md, stop 37).
+inline constexpr Id kPatchSlack = 8;
+void bilinear_patch(const double* s, const double* t, Id nu, Id nv, const double* p, double* out);
+
 // Every grid point of one facet of element h: local face `slot` (volume)
 // or local edge `slot` (surface), with its node id and coordinates, each
 // computed by its owner as everywhere else. O(facet points); uses `s`.

@@ -2,7 +2,7 @@
 // planes), ids and coordinates, as contiguous arrays. The boundary comes
 // from element_boundary (each entity's own function, evaluate.hpp), the
 // interior a plane at a time: a curved hex's by the hex TFI, a straight
-// one's by the trilinear blend of its corners (tfi.hpp).
+// one's by the trilinear blend of its corners (tfi.hpp, bilinear_patch).
 #include <algorithm>
 #if defined(__SSE2__)
 #include <emmintrin.h>
@@ -164,29 +164,6 @@ DICER_CLONES void hex_interior_plane(const double* c, const double* a0, const do
   }
 }
 
-// hex_interior_plane for a straight hex: tfi::trilinear_plane, then
-// bilinear_row and _point, as Evaluator::cell_point() calls them, from the
-// corners c[d] alone, all three coordinates in one pass over the plane: a
-// row of a small element is a short vector loop, and its overhead (the
-// row's terms, the loop's head and tail) is then paid once for x, y, z.
-DICER_WIDE_CLONES void straight_interior_plane(const double (*c)[8], std::array<Id, 3> n, const double* u,
-                                               const double* v, double w, double* const* dst, Id dj) {
-  double q[3][4];
-  for (int d = 0; d < 3; ++d) tfi::trilinear_plane(w, c[d], q[d]);
-  for (Id j = 1; j < n[1]; ++j) {
-    const tfi::Bilinear rx = tfi::bilinear_row(v[j], q[0]), ry = tfi::bilinear_row(v[j], q[1]),
-                        rz = tfi::bilinear_row(v[j], q[2]);
-    double* __restrict ox = dst[0] + (j - 1) * dj;
-    double* __restrict oy = dst[1] + (j - 1) * dj;
-    double* __restrict oz = dst[2] + (j - 1) * dj;
-    for (Id i = 1; i < n[0]; ++i) {
-      ox[i - 1] = tfi::bilinear_point(rx, u[i]);
-      oy[i - 1] = tfi::bilinear_point(ry, u[i]);
-      oz[i - 1] = tfi::bilinear_point(rz, u[i]);
-    }
-  }
-}
-
 // The interior points of grid plane k (0 < k < n[2]) of a block: the
 // cell's own ids, consecutive along each row (numbering.hpp), into the
 // plane's ids (row stride n[0] + 1). Vectorised (clones.hpp: integers).
@@ -288,7 +265,10 @@ void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool c
   auto& s = b.scratch;
   if (coords && vol) {
     // The three axes' parameters, once per slab (O(n)): the kernel reads tables.
-    s.u.resize(static_cast<size_t>(n[0])), s.P.resize(static_cast<size_t>(n[0])), s.G.resize(static_cast<size_t>(n[0]));
+    // u padded for bilinear_patch (zeros: finite, not subnormal).
+    s.u.resize(static_cast<size_t>(n[0] + detail::kPatchSlack));
+    std::fill(s.u.begin() + n[0], s.u.end(), 0.0);
+    s.P.resize(static_cast<size_t>(n[0])), s.G.resize(static_cast<size_t>(n[0]));
     s.v.resize(static_cast<size_t>(n[1])), s.w.resize(static_cast<size_t>(n[2]));
     const tfi::Series su(n[0], h.grading[0]), sv(n[1], h.grading[1]), sw(n[2], h.grading[2]);
     for (Id i = 1; i < n[0]; ++i) s.u[i] = su.at(i);
@@ -318,17 +298,30 @@ void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool c
     // Compact: the planes after k0 only (plane k0 ended the previous slab).
     if (interior && (k == k0 || in == 0)) continue;
     if (!coords) continue;
-    double* dst[3];
-    double c[3][8];
     for (int d = 0; d < 3; ++d) {
       if (!interior || h.curved()) ring_copy(B.x[d].data() + ring, X[d]);  // compact: only the TFI reads it
-      dst[d] = interior ? interior[d] + (k - k0 - 1) * in : X[d] + ni + 1;
-      block_corners(s.corner, d, c[d]);
-      if (h.curved())
-        hex_interior_plane(c[d], B.x[d].data(), B.x[d].data() + pp, X[d], n, s.u.data(), s.v.data(), s.w[k],
-                           dst[d], interior ? n[0] - 1 : ni, s.P.data(), s.G.data());
+      double* const dst = interior ? interior[d] + (k - k0 - 1) * in : X[d] + ni + 1;
+      double c[8];
+      block_corners(s.corner, d, c);
+      if (h.curved()) {
+        hex_interior_plane(c, B.x[d].data(), B.x[d].data() + pp, X[d], n, s.u.data(), s.v.data(), s.w[k], dst,
+                           interior ? n[0] - 1 : ni, s.P.data(), s.G.data());
+        continue;
+      }
+      // A straight hex's plane k: the bilinear patch of its corners'
+      // trilinear_plane, as cell_point computes each point. Compact: into
+      // the batch's arrays, which have bilinear_patch's room past the last
+      // plane (BatchCursor); a whole block's plane by way of the scratch.
+      double q[4];
+      tfi::trilinear_plane(s.w[k], c, q);
+      if (interior) {
+        detail::bilinear_patch(s.u.data(), s.v.data(), n[0], n[1], q, dst);
+        continue;
+      }
+      s.patch.resize(static_cast<size_t>(in + detail::kPatchSlack));
+      detail::bilinear_patch(s.u.data(), s.v.data(), n[0], n[1], q, s.patch.data());
+      for (Id j = 1; j < n[1]; ++j) std::copy_n(s.patch.data() + (j - 1) * (n[0] - 1), n[0] - 1, dst + (j - 1) * ni);
     }
-    if (!h.curved()) straight_interior_plane(c, n, s.u.data(), s.v.data(), s.w[k], dst, interior ? n[0] - 1 : ni);
   }
 
   if (!conn) {

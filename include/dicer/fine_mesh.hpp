@@ -67,7 +67,7 @@ struct FineBlock {
   struct Scratch {
     Vec3 corner[8];
     std::vector<double> edge[12][3], face[6][3];  // the element's edges' and faces' points, canonical order
-    std::vector<double> bottom[3], top[3], left[3], right[3], s, t, u, v, w, P, G;
+    std::vector<double> bottom[3], top[3], left[3], right[3], s, t, u, v, w, P, G, patch;
     // The boundary (corners, edges, faces) of the element filled last, so a
     // block produced slab by slab evaluates it once: planes k = 0 and k = n[2]
     // whole, then for each 0 < k < n[2] the ring of plane k (j = 0, j = n[1],
@@ -228,7 +228,9 @@ class FineMesh {
   std::uint64_t serial_ = next_serial();
   // For BatchCursor: fill_slab with the interior points of planes k0 < k <=
   // min(k1, n[2] - 1) written compact, in id order, to interior[d] (volume
-  // mode), and out.x, y, z left as work space. row: h's row, already
+  // mode), and out.x, y, z left as work space. interior[d] has room for 8
+  // doubles past those points (the straight kernel writes whole blocks:
+  // dicer/evaluate.hpp, bilinear_patch). row: h's row, already
   // decoded by the caller (null: decoded here).
   friend class BatchCursor;
   void fill_slab(Id h, Id k0, Id k1, FineBlock& out, bool coords, bool conn, double* const* interior,
