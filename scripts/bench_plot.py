@@ -113,9 +113,17 @@ def table_side_by_side(res):
     row("explicit shuffle + LZ4 / store", lambda r: ratio(g(r, "ratios", "explicit_shuffle_lz4_over_store")))
     row("block iteration (nodes) / write bandwidth", lambda r: "%.3f" % g(r, "ratios", "block_iteration_nodes_over_write_bandwidth")
         if g(r, "ratios", "block_iteration_nodes_over_write_bandwidth") is not None else "n/a")
-    for key, label in (("batches_over_write_bandwidth", "batch API / write bandwidth"),
-                       ("sweep_over_write_bandwidth", "sweep / write bandwidth")):
-        row(label, lambda r, key=key: "%.3f" % g(r, "ratios", key) if g(r, "ratios", key) is not None else "n/a")
+    def paired(r, key):
+        """The median of the rounds' ratios, and their range (interleaved runs)."""
+        v = g(r, "ratios", key + "_over_write_bandwidth")
+        if v is None:
+            return "n/a"
+        runs = (r.get("paired_over_write_bandwidth") or {}).get(key)
+        return "%.3f" % v + (" (rounds %.3f-%.3f)" % (min(runs), max(runs)) if runs else "")
+
+    for key, label in (("batches", "batch API / write bandwidth, median of rounds"),
+                       ("sweep", "sweep / write bandwidth, median of rounds")):
+        row(label, lambda r, key=key: paired(r, key))
     f = res["floor"]
     rows.append("")
     rows.append("Floors (1 hex, interval 1, medians): dice %s / %s, sweep %s / %s, export %s / %s, "

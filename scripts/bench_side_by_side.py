@@ -13,6 +13,8 @@ intervals. At each interval, all on the same fine mesh:
   (b) dicer block iteration + sweep     BM_BlockIteration, `dicer sweep --threads 2`,
                                         BM_Batches (the batch API alone: nodes +
                                         connectivity, no checksum)
+(a) and (b) run interleaved, a round of each at a time, and each ratio
+over (a) is the median of the rounds' ratios (interleaved()).
   (c) Gmsh transfinite                  BM_Gmsh/0 (generate), BM_Gmsh/1 (+ binary MSH 4.1)
   (d) explicit HDF5 mesh                BM_Explicit/0 raw, /1 LZ4, /2 shuffle + LZ4
   (e) dicer dice, store size, `dicer export --format msh` (whole mesh)
@@ -68,13 +70,35 @@ def med(xs):
     return statistics.median(xs) if xs else None
 
 
-def repeat(fn, reps):
-    """fn() -> dict of numbers; returns the medians and every run."""
-    runs = [fn() for _ in range(reps)]
+def summarize(runs):
+    """Runs (dicts of numbers) -> the medians and every run."""
     keys = [k for k, v in runs[0].items() if isinstance(v, (int, float)) and not isinstance(v, bool)]
     m = {k: med([r[k] for r in runs]) for k in keys}
     m["runs"] = [{k: r[k] for k in keys} for r in runs]
     return m
+
+
+def repeat(fn, reps):
+    """fn() -> dict of numbers; returns the medians and every run."""
+    return summarize([fn() for _ in range(reps)])
+
+
+def interleaved(cases, reps):
+    """cases: {name: fn}, the first the baseline. Each round runs every case
+    once, in order, so a case and the baseline it is divided by run seconds
+    apart: this machine's speed drifts over minutes (a 1-thread write
+    bandwidth of one store 1.0-1.6 G nodes/s within an hour), and medians
+    of separate blocks of runs divided each other's drift. Returns
+    {name: summarize(runs)} and, per case, the ratio of each round's case
+    to that round's baseline (in nodes/s)."""
+    rounds = [{k: fn() for k, fn in cases.items()} for _ in range(reps)]
+    base = next(iter(cases))
+    out = {k: summarize([r[k] for r in rounds]) for k in cases}
+    paired = {}
+    for k in cases:
+        if k != base:
+            paired[k] = [r[k]["nodes_per_s"] / r[base]["nodes_per_s"] for r in rounds]
+    return out, paired
 
 
 class Harness:
@@ -144,12 +168,15 @@ class Harness:
             rec["explicit_" + name] = repeat(lambda: self.bench_case(store, "BM_Explicit/%s/iterations:1/manual_time" % f),
                                              reps if full else 1)
         if full:
-            log("interval %d: sweep, block iteration, write bandwidth" % interval)
-            rec["sweep"] = repeat(lambda: self.sweep(store), reps)
-            rec["write_bandwidth"] = repeat(lambda: self.bench_case(store, "BM_WriteBandwidth"), reps)
-            rec["block_iteration_nodes"] = repeat(lambda: self.bench_case(store, "BM_BlockIteration/1"), reps)
-            rec["block_iteration_conn"] = repeat(lambda: self.bench_case(store, "BM_BlockIteration/0"), reps)
-            rec["batches"] = repeat(lambda: self.bench_case(store, "BM_Batches"), reps)
+            log("interval %d: write bandwidth, sweep, batches, block iteration (interleaved)" % interval)
+            cases = {"write_bandwidth": lambda: self.bench_case(store, "BM_WriteBandwidth"),
+                     "sweep": lambda: self.sweep(store),
+                     "batches": lambda: self.bench_case(store, "BM_Batches"),
+                     "block_iteration_nodes": lambda: self.bench_case(store, "BM_BlockIteration/1"),
+                     "block_iteration_conn": lambda: self.bench_case(store, "BM_BlockIteration/0")}
+            got, paired = interleaved(cases, reps)
+            rec.update(got)
+            rec["paired_over_write_bandwidth"] = paired
             log("interval %d: export msh" % interval)
             rec["export_msh"] = repeat(lambda: self.export_msh(store), reps)
             log("interval %d: gmsh" % interval)
@@ -230,12 +257,14 @@ def ratios(rec):
         if x:
             r["explicit_%s_over_store" % k] = x["file_bytes"] / rec["store_bytes"]
     if rec.get("write_bandwidth") and rec.get("block_iteration_nodes"):
+        # The median of each round's ratio (interleaved()); where a record
+        # has no rounds (older JSON), the ratio of the medians.
         wb = rec["write_bandwidth"]["nodes_per_s"]
-        r["block_iteration_nodes_over_write_bandwidth"] = rec["block_iteration_nodes"]["nodes_per_s"] / wb
-        r["block_iteration_conn_over_write_bandwidth"] = rec["block_iteration_conn"]["nodes_per_s"] / wb
-        r["sweep_over_write_bandwidth"] = rec["sweep"]["nodes_per_s"] / wb
-        if rec.get("batches"):
-            r["batches_over_write_bandwidth"] = rec["batches"]["nodes_per_s"] / wb
+        paired = rec.get("paired_over_write_bandwidth", {})
+        for key in ("block_iteration_nodes", "block_iteration_conn", "sweep", "batches"):
+            if rec.get(key):
+                r[key + "_over_write_bandwidth"] = med(paired[key]) if key in paired else rec[key]["nodes_per_s"] / wb
+                r[key + "_over_write_bandwidth_of_medians"] = rec[key]["nodes_per_s"] / wb
     if ex:
         r["export_elements_per_s_net"] = div(e, ex["net_wall_s"])
     if gw:
