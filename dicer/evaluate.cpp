@@ -4,6 +4,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#if defined(__x86_64__)
+#include <immintrin.h>
+#endif
 
 #include "dicer/error.hpp"
 #include "dicer/orientation.hpp"
@@ -67,6 +71,72 @@ DICER_WIDE_CLONES void bilinear_patch(const double* __restrict s, const double* 
     for (Id i = 0; i < m; i += kPatchSlack)
       for (Id l = 0; l < kPatchSlack; ++l) out[i + l] = tfi::bilinear_point(row, s[1 + i + l]);
   }
+}
+
+// The permute path: GCC on x86-64 with AVX-512 clones built (the avx2 and
+// none builds test the path other machines take), chosen at run time.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_THREAD__) && \
+    !defined(DICER_CLONES_NONE) && !defined(DICER_CLONES_AVX2_AT_MOST)
+#define DICER_PATCH_PERMUTE 1
+namespace {
+bool has_avx512() {
+  static const bool yes = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq") &&
+                          __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512vl") &&
+                          __builtin_cpu_supports("avx512cd");
+  return yes;
+}
+// Explicit mul, add and sub (no contraction): bilinear_row's A = T p0 + t p3,
+// D = (T p1 + t p2) - A, then A + s D, in every lane.
+__attribute__((target("arch=x86-64-v4"))) void patch_permute(const PatchGrid& g, const double* p, double* out) {
+  const __m512d p0 = _mm512_set1_pd(p[0]), p1 = _mm512_set1_pd(p[1]), p2 = _mm512_set1_pd(p[2]),
+                p3 = _mm512_set1_pd(p[3]);
+  __m512d A[2], D[2];
+  for (int h = 0; h < 2; ++h) {
+    const __m512d T = _mm512_load_pd(g.T + 8 * h), t = _mm512_load_pd(g.t + 8 * h);
+    A[h] = _mm512_add_pd(_mm512_mul_pd(T, p0), _mm512_mul_pd(t, p3));
+    D[h] = _mm512_sub_pd(_mm512_add_pd(_mm512_mul_pd(T, p1), _mm512_mul_pd(t, p2)), A[h]);
+  }
+  const auto n = static_cast<Id>(g.row.size());  // whole blocks of 8
+  for (Id f = 0; f < n; f += 8) {
+    const __m512i lane = _mm512_loadu_si512(g.row.data() + f);
+    const __m512d a = _mm512_permutex2var_pd(A[0], lane, A[1]), d = _mm512_permutex2var_pd(D[0], lane, D[1]);
+    _mm512_storeu_pd(out + f, _mm512_add_pd(a, _mm512_mul_pd(_mm512_loadu_pd(g.s.data() + f), d)));
+  }
+}
+}  // namespace
+#endif
+
+void prepare_patch_grid(const double* s, const double* t, Id nu, Id nv, PatchGrid& g) {
+#ifdef DICER_PATCH_PERMUTE
+  const bool same = g.permute && g.nu == nu && g.nv == nv &&
+                    std::memcmp(g.key.data(), s + 1, static_cast<size_t>(nu - 1) * sizeof(double)) == 0 &&
+                    std::memcmp(g.key.data() + nu - 1, t + 1, static_cast<size_t>(nv - 1) * sizeof(double)) == 0;
+  g.su = s, g.tv = t, g.nu = nu, g.nv = nv;
+  if (same) return;
+  g.permute = false;
+  if (nv - 1 > 16 || nu < 2 || nv < 2 || !has_avx512()) return;
+  g.key.assign(s + 1, s + nu);
+  g.key.insert(g.key.end(), t + 1, t + nv);
+  g.permute = true;
+  for (Id l = 0; l < 16; ++l) {
+    g.t[l] = l + 1 < nv ? t[l + 1] : 0.0;
+    g.T[l] = 1.0 - g.t[l];  // bilinear_row's T, the same bits
+  }
+  const Id m = nu - 1, count = m * (nv - 1), blocks = (count + 7) / 8 * 8;
+  g.s.resize(static_cast<size_t>(blocks)), g.row.resize(static_cast<size_t>(blocks));
+  for (Id v = 1, f = 0; v < nv; ++v)
+    for (Id u = 1; u < nu; ++u, ++f) g.s[static_cast<size_t>(f)] = s[u], g.row[static_cast<size_t>(f)] = v - 1;
+  std::fill(g.s.begin() + count, g.s.end(), 0.0), std::fill(g.row.begin() + count, g.row.end(), 0);
+#else
+  g.su = s, g.tv = t, g.nu = nu, g.nv = nv, g.permute = false;
+#endif
+}
+
+void bilinear_patch(const PatchGrid& g, const double* p, double* out) {
+#ifdef DICER_PATCH_PERMUTE
+  if (g.permute) return patch_permute(g, p, out);
+#endif
+  bilinear_patch(g.su, g.tv, g.nu, g.nv, p, out);
 }
 
 std::array<tfi::Grading, 2> face_grading(Mode mode, const ElementRow& h, int lf) {
@@ -373,13 +443,15 @@ void element_boundary(const Evaluator& E, const ElementRow& h, Id hid, FineBlock
     const tfi::Series su(nu, g[0]), sv(nv, g[1]);
     for (Id u = 1; u < nu; ++u) s.s[u] = su.at(u);
     for (Id v = 1; v < nv; ++v) s.t[v] = sv.at(v);
+    thread_local PatchGrid grid;
+    if (straight) prepare_patch_grid(s.s.data(), s.t.data(), nu, nv, grid);
     for (int d = 0; d < 3; ++d) {
       auto& face = out.face[lf][d];
       face.resize(m + (straight ? static_cast<size_t>(kPatchSlack) : 0));
       const double p[4] = {component(out.corner[cc[0]], d), component(out.corner[cc[1]], d),
                            component(out.corner[cc[2]], d), component(out.corner[cc[3]], d)};
       if (straight)
-        bilinear_patch(s.s.data(), s.t.data(), nu, nv, p, face.data());
+        bilinear_patch(grid, p, face.data());
       else
         coons_fill(s.s.data(), s.t.data(), nu, nv, s.bottom[d].data(), s.top[d].data(), s.left[d].data(),
                    s.right[d].data(), p, face.data());

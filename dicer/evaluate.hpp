@@ -4,6 +4,7 @@
 // (rows.hpp). Shared by node(id), the block fill and the cursors, so every
 // path computes the same function with the same inputs (invariant 2).
 #include <array>
+#include <cstdint>
 #include <new>
 #include <vector>
 
@@ -113,6 +114,31 @@ Id own_boundary_nodes(const Evaluator& E, const ElementRow& h, Id hid, const Fin
 // alias checks cost more than its points (bench/README.md, stop 37).
 inline constexpr Id kPatchSlack = 8;
 void bilinear_patch(const double* s, const double* t, Id nu, Id nv, const double* p, double* out);
+
+// The same patches, many over one (s, t) grid (a hex's interior planes,
+// three coordinates each): prepare_patch_grid lays out each row's weights
+// and each point's s and row once, after which a patch is one pass over
+// its points 8 at a time, the row's terms picked by a two-register
+// permute: on AVX-512 machines and for up to 16 rows (interval <= 17),
+// else bilinear_patch above. Rows of 9 points (interval 10) cost about as
+// much in row set-up as in points there, and 16 lanes were written for 9
+// (bench/README.md, stop 38). Same bits: each lane computes
+// bilinear_row's terms and bilinear_point in their order. s and t must
+// outlive the grid; out as bilinear_patch's (up to kPatchSlack - 1
+// values past the last point). No allocation once warm; a grid prepared
+// again with the same parameters' bits (uniform grading: every hex and
+// face of one interval) only takes the new pointers.
+struct PatchGrid {
+  alignas(64) double T[16], t[16];  // rows' weights 1 - t[v] and t[v], lane v - 1
+  std::vector<double> s;            // point f's s, f = (v - 1)(nu - 1) + u - 1
+  std::vector<std::int64_t> row;    // point f's lane, v - 1
+  std::vector<double> key;          // s[1 .. nu - 1], t[1 .. nv - 1] it was laid out for
+  const double *su = nullptr, *tv = nullptr;
+  Id nu = 0, nv = 0;
+  bool permute = false;  // the permute path; else bilinear_patch(su, tv, ...)
+};
+void prepare_patch_grid(const double* s, const double* t, Id nu, Id nv, PatchGrid& g);
+void bilinear_patch(const PatchGrid& g, const double* p, double* out);
 
 // Every grid point of one facet of element h: local face `slot` (volume)
 // or local edge `slot` (surface), with its node id and coordinates, each

@@ -277,6 +277,9 @@ void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool c
     for (Id j = 1; j < n[1]; ++j) s.v[j] = sv.at(j);
     for (Id k = std::max<Id>(k0, 1); k < std::min(k1 + 1, n[2]); ++k) s.w[k] = sw.at(k);
   }
+  // A straight hex's planes: one patch grid for all of them (evaluate.hpp).
+  thread_local detail::PatchGrid patch_grid;
+  if (coords && vol && !h.curved()) detail::prepare_patch_grid(s.u.data(), s.v.data(), n[0], n[1], patch_grid);
   for (Id k = k0; k <= k1; ++k) {
     const size_t at = static_cast<size_t>((k - k0) * pp);
     Id* ids = b.node_id.data() + at;
@@ -317,11 +320,11 @@ void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool c
       double q[4];
       tfi::trilinear_plane(s.w[k], c, q);
       if (interior) {
-        detail::bilinear_patch(s.u.data(), s.v.data(), n[0], n[1], q, dst);
+        detail::bilinear_patch(patch_grid, q, dst);
         continue;
       }
       s.patch.resize(static_cast<size_t>(in + detail::kPatchSlack));
-      detail::bilinear_patch(s.u.data(), s.v.data(), n[0], n[1], q, s.patch.data());
+      detail::bilinear_patch(patch_grid, q, s.patch.data());
       for (Id j = 1; j < n[1]; ++j) std::copy_n(s.patch.data() + (j - 1) * (n[0] - 1), n[0] - 1, dst + (j - 1) * ni);
     }
   }

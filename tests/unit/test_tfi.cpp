@@ -4,12 +4,17 @@
 // and its straight forms (bilinear_row, _point; trilinear_plane) likewise.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <bit>
 #include <cfloat>
+#include <cstdint>
 #include <cstdio>
 #include <random>
+#include <vector>
 
 #include "dicer/orientation.hpp"
 #include "dicer/tfi.hpp"
+#include "evaluate.hpp"
 #include "gordon_hall.hpp"
 
 namespace dicer {
@@ -142,6 +147,58 @@ TEST(FaceTfi, BilinearFormIsTheCoonsPatchOfStraightSides) {
     ASSERT_LE(err, 4 * DBL_EPSILON) << "trial " << trial << ": " << x << " vs " << static_cast<double>(coons);
   }
   record_worst(worst);
+}
+
+// The patch kernels (evaluate.hpp) against bilinear_row + bilinear_point
+// per point, as cell_point and face_tfi compute each: bit for bit, for
+// every size up to 20 x 20 (the permute path's 16 rows and past them), a
+// grid laid out afresh when its parameters change and reused when only the
+// corners do, and nothing written more than kPatchSlack - 1 values past a
+// patch. On AVX-512 machines the prepared grid takes the permute path up
+// to 16 rows; the avx2 build (scripts/run_tests.sh) tests the other one.
+TEST(Patches, EveryKernelGivesEachPointsBits) {
+  std::mt19937_64 rng(29);
+  std::uniform_real_distribution<double> val(-1e3, 1e3), par(0.0, 1.0);
+  detail::PatchGrid grid;
+  std::vector<double> s, t;
+  int permuted = 0;
+  for (int trial = 0; trial < 3000; ++trial) {
+    // In fours: new sizes and parameters, the same again (the grid's
+    // reuse), new parameters of the same sizes (a reuse would be wrong),
+    // the same again.
+    const bool again = trial % 2 == 1, resize = trial % 4 == 0;
+    const Id nu = resize ? 1 + static_cast<Id>(rng() % 20) : grid.nu;
+    const Id nv = resize ? 1 + static_cast<Id>(rng() % 20) : grid.nv;
+    if (!again) {
+      s.assign(static_cast<size_t>(nu + detail::kPatchSlack), 0.0), t.assign(static_cast<size_t>(nv), 0.0);
+      for (Id u = 1; u < nu; ++u) s[u] = par(rng);
+      for (Id v = 1; v < nv; ++v) t[v] = par(rng);
+      std::sort(s.begin() + 1, s.begin() + nu), std::sort(t.begin() + 1, t.end());
+    }
+    double p[4];
+    for (double& x : p) x = val(rng);
+    const Id count = std::max<Id>(nu - 1, 0) * std::max<Id>(nv - 1, 0);
+    constexpr double kSentinel = -12345.0;
+    std::vector<double> direct(static_cast<size_t>(count + 2 * detail::kPatchSlack), kSentinel);
+    std::vector<double> prepared = direct;
+    detail::bilinear_patch(s.data(), t.data(), nu, nv, p, direct.data());
+    detail::prepare_patch_grid(s.data(), t.data(), nu, nv, grid);
+    permuted += grid.permute;
+    detail::bilinear_patch(grid, p, prepared.data());
+    for (Id v = 1; v < nv; ++v)
+      for (Id u = 1; u < nu; ++u) {
+        const double want = tfi::bilinear_point(tfi::bilinear_row(t[v], p), s[u]);
+        const auto f = static_cast<size_t>((v - 1) * (nu - 1) + u - 1);
+        ASSERT_EQ(std::bit_cast<std::uint64_t>(direct[f]), std::bit_cast<std::uint64_t>(want))
+            << "trial " << trial << ", " << nu << " x " << nv << ", point (" << u << ", " << v << ")";
+        ASSERT_EQ(std::bit_cast<std::uint64_t>(prepared[f]), std::bit_cast<std::uint64_t>(want))
+            << "trial " << trial << ", " << nu << " x " << nv << ", point (" << u << ", " << v << ")";
+      }
+    for (auto* out : {&direct, &prepared})
+      for (size_t f = static_cast<size_t>(count + detail::kPatchSlack - 1); f < out->size(); ++f)
+        ASSERT_EQ((*out)[f], kSentinel) << "trial " << trial << ": written past the room at " << f;
+  }
+  testing::Test::RecordProperty("permute_path_trials", permuted);
 }
 
 }  // namespace
