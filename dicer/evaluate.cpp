@@ -92,7 +92,9 @@ __attribute__((target("arch=x86-64-v4"))) void patch_permute(const PatchGrid& g,
                 p3 = _mm512_set1_pd(p[3]);
   __m512d A[2], D[2];
   for (int h = 0; h < 2; ++h) {
-    const __m512d T = _mm512_load_pd(g.T + 8 * h), t = _mm512_load_pd(g.t + 8 * h);
+    // Unaligned loads: a thread_local grid in a module loaded by dlopen
+    // (the Python package) need not get its alignas(64).
+    const __m512d T = _mm512_loadu_pd(g.T + 8 * h), t = _mm512_loadu_pd(g.t + 8 * h);
     A[h] = _mm512_add_pd(_mm512_mul_pd(T, p0), _mm512_mul_pd(t, p3));
     D[h] = _mm512_sub_pd(_mm512_add_pd(_mm512_mul_pd(T, p1), _mm512_mul_pd(t, p2)), A[h]);
   }
@@ -117,7 +119,6 @@ void prepare_patch_grid(const double* s, const double* t, Id nu, Id nv, PatchGri
   if (nv - 1 > 16 || nu < 2 || nv < 2 || !has_avx512()) return;
   g.key.assign(s + 1, s + nu);
   g.key.insert(g.key.end(), t + 1, t + nv);
-  g.permute = true;
   for (Id l = 0; l < 16; ++l) {
     g.t[l] = l + 1 < nv ? t[l + 1] : 0.0;
     g.T[l] = 1.0 - g.t[l];  // bilinear_row's T, the same bits
@@ -127,6 +128,7 @@ void prepare_patch_grid(const double* s, const double* t, Id nu, Id nv, PatchGri
   for (Id v = 1, f = 0; v < nv; ++v)
     for (Id u = 1; u < nu; ++u, ++f) g.s[static_cast<size_t>(f)] = s[u], g.row[static_cast<size_t>(f)] = v - 1;
   std::fill(g.s.begin() + count, g.s.end(), 0.0), std::fill(g.row.begin() + count, g.row.end(), 0);
+  g.permute = true;  // last: a throw above leaves no grid to reuse
 #else
   g.su = s, g.tv = t, g.nu = nu, g.nv = nv, g.permute = false;
 #endif

@@ -4,6 +4,7 @@
 // interior a plane at a time: a curved hex's by the hex TFI, a straight
 // one's by the trilinear blend of its corners (tfi.hpp, bilinear_patch).
 #include <algorithm>
+#include <cstdint>
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
@@ -34,8 +35,8 @@ void scatter_row(Id* dst, Id gs, Id first, Id cs, Id m) {
 DICER_WIDE_CLONES void scatter_face(Id* dst, Id gq, Id first, Id cs, Id cq, Id m, Id rows) {
   for (Id q = 0; q < rows; ++q, dst += gq, first += cq) {
     Id* __restrict row = dst;
-    Id x = first;
-    for (Id t = 0; t < m; ++t, x += cs) row[t] = x;
+    auto x = static_cast<std::uint64_t>(first);  // unsigned: the step past the last id may wrap
+    for (Id t = 0; t < m; ++t, x += static_cast<std::uint64_t>(cs)) row[t] = static_cast<Id>(x);
   }
 }
 void gather_row(double* dst, Id gs, const double* src, Id cs, Id m) {

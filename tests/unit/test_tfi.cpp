@@ -163,17 +163,21 @@ TEST(Patches, EveryKernelGivesEachPointsBits) {
   std::vector<double> s, t;
   int permuted = 0;
   for (int trial = 0; trial < 3000; ++trial) {
-    // In fours: new sizes and parameters, the same again (the grid's
-    // reuse), new parameters of the same sizes (a reuse would be wrong),
-    // the same again.
-    const bool again = trial % 2 == 1, resize = trial % 4 == 0;
+    // In sixes: new sizes and parameters, the same again (the grid's
+    // reuse), new s only, the same again, new t only, the same again (a
+    // reuse after a new s or t would be wrong).
+    const int step = trial % 6;
+    const bool resize = step == 0;
     const Id nu = resize ? 1 + static_cast<Id>(rng() % 20) : grid.nu;
     const Id nv = resize ? 1 + static_cast<Id>(rng() % 20) : grid.nv;
-    if (!again) {
-      s.assign(static_cast<size_t>(nu + detail::kPatchSlack), 0.0), t.assign(static_cast<size_t>(nv), 0.0);
+    if (resize) s.assign(static_cast<size_t>(nu + detail::kPatchSlack), 0.0), t.assign(static_cast<size_t>(nv), 0.0);
+    if (step == 0 || step == 2) {
       for (Id u = 1; u < nu; ++u) s[u] = par(rng);
+      std::sort(s.begin() + 1, s.begin() + nu);
+    }
+    if (step == 0 || step == 4) {
       for (Id v = 1; v < nv; ++v) t[v] = par(rng);
-      std::sort(s.begin() + 1, s.begin() + nu), std::sort(t.begin() + 1, t.end());
+      std::sort(t.begin() + 1, t.end());
     }
     double p[4];
     for (double& x : p) x = val(rng);
@@ -199,6 +203,17 @@ TEST(Patches, EveryKernelGivesEachPointsBits) {
         ASSERT_EQ((*out)[f], kSentinel) << "trial " << trial << ": written past the room at " << f;
   }
   testing::Test::RecordProperty("permute_path_trials", permuted);
+  // The permute path ran where evaluate.cpp's guard and this CPU say it
+  // should (else the half above checked the row kernel twice).
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_THREAD__) && \
+    !defined(DICER_CLONES_NONE) && !defined(DICER_CLONES_AVX2_AT_MOST)
+  const bool avx512 = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq") &&
+                      __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512vl") &&
+                      __builtin_cpu_supports("avx512cd");
+  EXPECT_EQ(permuted > 0, avx512);
+#else
+  EXPECT_EQ(permuted, 0);
+#endif
 }
 
 }  // namespace
