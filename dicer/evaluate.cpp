@@ -110,15 +110,15 @@ __attribute__((target("arch=x86-64-v4"))) void patch_permute(const PatchGrid& g,
 
 void prepare_patch_grid(const double* s, const double* t, Id nu, Id nv, PatchGrid& g) {
 #ifdef DICER_PATCH_PERMUTE
+  // Laid out for these parameters already: row 1's points hold s[1 ..
+  // nu - 1], the lanes t[1 .. nv - 1].
   const bool same = g.permute && g.nu == nu && g.nv == nv &&
-                    std::memcmp(g.key.data(), s + 1, static_cast<size_t>(nu - 1) * sizeof(double)) == 0 &&
-                    std::memcmp(g.key.data() + nu - 1, t + 1, static_cast<size_t>(nv - 1) * sizeof(double)) == 0;
+                    std::memcmp(g.s.data(), s + 1, static_cast<size_t>(nu - 1) * sizeof(double)) == 0 &&
+                    std::memcmp(g.t, t + 1, static_cast<size_t>(nv - 1) * sizeof(double)) == 0;
   g.su = s, g.tv = t, g.nu = nu, g.nv = nv;
   if (same) return;
   g.permute = false;
   if (nv - 1 > 16 || nu < 2 || nv < 2 || !has_avx512()) return;
-  g.key.assign(s + 1, s + nu);
-  g.key.insert(g.key.end(), t + 1, t + nv);
   for (Id l = 0; l < 16; ++l) {
     g.t[l] = l + 1 < nv ? t[l + 1] : 0.0;
     g.T[l] = 1.0 - g.t[l];  // bilinear_row's T, the same bits

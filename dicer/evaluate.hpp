@@ -132,7 +132,6 @@ struct PatchGrid {
   alignas(64) double T[16], t[16];  // rows' weights 1 - t[v] and t[v], lane v - 1
   std::vector<double> s;            // point f's s, f = (v - 1)(nu - 1) + u - 1
   std::vector<std::int64_t> row;    // point f's lane, v - 1
-  std::vector<double> key;          // s[1 .. nu - 1], t[1 .. nv - 1] it was laid out for
   const double *su = nullptr, *tv = nullptr;
   Id nu = 0, nv = 0;
   bool permute = false;  // the permute path; else bilinear_patch(su, tv, ...)

@@ -139,10 +139,10 @@ struct GridLines {
   std::uint64_t *first, *step, *off0, *offn;
   std::uint8_t* ok;
 };
-// No row bends (a batch's grid, or bends() found none): every row a line,
-// one unit-stride loop over the rows with strided loads, which the
-// AVX-512 clone gathers (the scalar loop below was 6% of a sweep at
-// interval 10: 121 rows per coarse hex).
+// Every row's line (no ok): one plain loop over the rows, strided loads.
+// Alone where no row bends (a batch's grid, or bends() found none): the
+// loop with the bend check was 6% of a sweep at interval 10 (121 rows per
+// coarse hex).
 DICER_WIDE_CLONES void straight_lines(const std::uint64_t* p, Id rows, Id n0, std::uint64_t* __restrict first,
                                       std::uint64_t* __restrict step, std::uint64_t* __restrict off0,
                                       std::uint64_t* __restrict offn) {
@@ -154,13 +154,12 @@ DICER_WIDE_CLONES void straight_lines(const std::uint64_t* p, Id rows, Id n0, st
   }
 }
 void grid_lines(const std::uint64_t* p, Id rows, Id n0, const GridLines& L) {
+  straight_lines(p, rows, n0, L.first, L.step, L.off0, L.offn);
   const Id ni = n0 + 1;
   for (Id r = 0; r < rows; ++r) {
     const std::uint64_t* q = p + r * ni;
-    const std::uint64_t s = q[2] - q[1];
-    L.first[r] = q[1], L.step[r] = s, L.off0[r] = q[0] - q[1] + s, L.offn[r] = q[n0] - q[n0 - 1] - s;
     std::uint64_t off = 0;
-    for (Id t = 2; t < n0 - 1; ++t) off |= (q[t + 1] - q[t]) ^ s;
+    for (Id t = 2; t < n0 - 1; ++t) off |= (q[t + 1] - q[t]) ^ L.step[r];
     L.ok[r] = off == 0;
   }
 }
