@@ -1,5 +1,6 @@
 // Batch iteration (batch.hpp): a coarse element's own boundary nodes once
-// (own_boundary_nodes), then its slabs through fill_slab, which writes the
+// (a straight hex's written there by fill_slab, others copied by
+// own_boundary_nodes), then its slabs through fill_slab, which writes the
 // interior planes of each slab straight into the batch's arrays.
 #include "dicer/batch.hpp"
 
@@ -73,12 +74,16 @@ bool BatchCursor::next(FineBatch& out) {
                                                                 "the element's own node range disagrees with its intervals");
     for (auto& a : xyz_) a.resize(static_cast<size_t>(total + detail::kPatchSlack));  // fill_slab's room
     double* const interior[3] = {xyz_[0].data() + own, xyz_[1].data() + own, xyz_[2].data() + own};
-    mesh_.fill_slab(h_, k0, k1, block_, true, opt_.conn, vol ? interior : nullptr, &row_);
-    if (k0 == 0) {
+    double* const front[3] = {xyz_[0].data(), xyz_[1].data(), xyz_[2].data()};
+    // A straight hex's own boundary straight into the batch; otherwise
+    // (a curved hex, whose interior needs its whole boundary; a surface
+    // element) by way of the block's scratch.
+    const bool direct = k0 == 0 && vol && !row_.curved();
+    mesh_.fill_slab(h_, k0, k1, block_, true, opt_.conn, vol ? interior : nullptr, &row_, direct ? front : nullptr, own);
+    if (k0 == 0 && !direct) {
       // fill_slab has just evaluated the element's owned entities (at
       // least) into the block's scratch, in their canonical frames.
       const detail::Evaluator E(mesh_.tables(), block_.cursor);
-      double* const front[3] = {xyz_[0].data(), xyz_[1].data(), xyz_[2].data()};
       const Id end = detail::own_boundary_nodes(E, row_, h_, block_.scratch, front, own);
       DICER_ASSERT(end == own_end_, "batches: the own range of the row");
     }

@@ -365,9 +365,10 @@ Vec3 Evaluator::node(const NodeRef& r) const {
 }
 
 void element_boundary(const Evaluator& E, const ElementRow& h, Id hid, FineBlock::Scratch& out, const bool* want_edge,
-                      const bool* want_face) {
+                      const bool* want_face, const OwnedPlaces* to) {
   const Mode mode = E.mode();
   const bool vol = mode == Mode::Volume, curved = h.curved();
+  DICER_ASSERT(!to || !curved, "element_boundary: owned places only for a straight element");
   const int ne = vol ? 12 : 4, nf = vol ? 6 : 1;
   E.R.corner_xyz(hid, out.corner);
   // A curved element's faces need the edges along their sides (a straight
@@ -385,13 +386,21 @@ void element_boundary(const Evaluator& E, const ElementRow& h, Id hid, FineBlock
     if (!need_edge[k]) continue;
     const Id n = h.n[vol ? k / 4 : k / 2];
     auto& pts = out.edge[k];
-    for (auto& a : pts) a.resize(static_cast<size_t>(std::max<Id>(n - 1, 0)));
+    double* dst[3] = {nullptr, nullptr, nullptr};
+    if (to && to->edge[k][0]) {
+      std::copy_n(to->edge[k], 3, dst);
+    } else {
+      for (int d = 0; d < 3; ++d) {
+        pts[d].resize(static_cast<size_t>(std::max<Id>(n - 1, 0)));
+        dst[d] = pts[d].data();
+      }
+    }
     if (curved) {
       const EdgeRow er = E.edge_of(h, k);
       bound_edge[k] = er.bound >= 0;
       for (Id t = 1; t < n; ++t) {
         const Vec3 x = E.edge_point(er, t);
-        pts[0][t - 1] = x.x, pts[1][t - 1] = x.y, pts[2][t - 1] = x.z;
+        dst[0][t - 1] = x.x, dst[1][t - 1] = x.y, dst[2][t - 1] = x.z;
       }
     } else {
       const int a = vol ? kHexEdge[k][0] : kQuadEdge[k][0], b = vol ? kHexEdge[k][1] : kQuadEdge[k][1];
@@ -404,19 +413,29 @@ void element_boundary(const Evaluator& E, const ElementRow& h, Id hid, FineBlock
         for (Id t = 1; t < n; ++t) out.s[t] = series.at(t);
         series_n = n, series_g = g;
       }
-      edge_fill(lo.x, hi.x, out.s.data(), n, pts[0].data());
-      edge_fill(lo.y, hi.y, out.s.data(), n, pts[1].data());
-      edge_fill(lo.z, hi.z, out.s.data(), n, pts[2].data());
+      edge_fill(lo.x, hi.x, out.s.data(), n, dst[0]);
+      edge_fill(lo.y, hi.y, out.s.data(), n, dst[1]);
+      edge_fill(lo.z, hi.z, out.s.data(), n, dst[2]);
     }
   }
 
   auto& s = out;
-  for (int lf = 0; lf < nf; ++lf) {
+  // Faces placed by `to` in increasing address order: each one's slack
+  // lands on the next (or on the interior), not on one already written.
+  int order[6] = {0, 1, 2, 3, 4, 5};
+  if (to)
+    std::sort(order, order + nf, [&](int a, int b) { return std::less<>()(to->face[a][0], to->face[b][0]); });
+  for (int of = 0; of < nf; ++of) {
+    const int lf = order[of];
     if (want_face && !want_face[lf]) continue;
     const FaceCode code = h.code(lf);
     const auto [nu, nv] = face_intervals(h, lf, mode);
     const auto cc = face_canonical_corners(mode, lf, code);
     const size_t m = static_cast<size_t>(ids::face_nodes(nu, nv));
+    // A placed face with no points has nothing to write, and the room a
+    // patch may write past its points (bilinear_patch) is the start of the
+    // entity after it, already written if placed lower in the order.
+    if (to && to->face[lf][0] && m == 0) continue;
     Id bound = -1;  // the face's first bounding row, as face_point reads it
     if (curved && m > 0) {
       const FaceRow fr = E.R.face(h.face[lf]);
@@ -447,16 +466,19 @@ void element_boundary(const Evaluator& E, const ElementRow& h, Id hid, FineBlock
     for (Id v = 1; v < nv; ++v) s.t[v] = sv.at(v);
     thread_local PatchGrid grid;
     if (straight) prepare_patch_grid(s.s.data(), s.t.data(), nu, nv, grid);
+    const bool placed = to && to->face[lf][0];
+    DICER_ASSERT(!placed || straight, "element_boundary: a placed face is straight");
     for (int d = 0; d < 3; ++d) {
       auto& face = out.face[lf][d];
-      face.resize(m + (straight ? static_cast<size_t>(kPatchSlack) : 0));
+      if (!placed) face.resize(m + (straight ? static_cast<size_t>(kPatchSlack) : 0));
+      double* const dst = placed ? to->face[lf][d] : face.data();
       const double p[4] = {component(out.corner[cc[0]], d), component(out.corner[cc[1]], d),
                            component(out.corner[cc[2]], d), component(out.corner[cc[3]], d)};
       if (straight)
-        bilinear_patch(grid, p, face.data());
+        bilinear_patch(grid, p, dst);
       else
         coons_fill(s.s.data(), s.t.data(), nu, nv, s.bottom[d].data(), s.top[d].data(), s.left[d].data(),
-                   s.right[d].data(), p, face.data());
+                   s.right[d].data(), p, dst);
     }
     if (bound >= 0)  // the stored corrections, as face_point applies them
       for (size_t q = 0; q < m; ++q) {
@@ -529,8 +551,7 @@ void owned_entities(const ElementRow& h, Mode mode, bool want_edge[12], bool wan
   for (int k = 0; k < nf; ++k) want_face[k] = h.owns(h.face_node[k]);
 }
 
-Id own_boundary_nodes(const Evaluator& E, const ElementRow& h, Id hid, const FineBlock::Scratch& s,
-                      double* const out[3], Id size) {
+Id owned_places(const Evaluator& E, const ElementRow& h, Id hid, double* const out[3], Id size, OwnedPlaces& at) {
   const Mode mode = E.mode();
   const bool vol = mode == Mode::Volume;
   const int nc = E.R.corners(), ne = E.R.edges(), nf = E.R.faces();
@@ -540,28 +561,43 @@ Id own_boundary_nodes(const Evaluator& E, const ElementRow& h, Id hid, const Fin
   owned_entities(h, mode, want_edge, want_face);
   if (end < first) E.R.corrupt(RowTable::Elements, hid, "the element's own node ids run backwards");
   if (end - first != size) E.R.corrupt(RowTable::Elements, hid, "the element's own node range disagrees with its row");
+  at = OwnedPlaces{};
   Id filled = 0;
-  auto put = [&](Id node, Id count, const double* x, const double* y, const double* z) {
+  auto place = [&](double* (&to)[3], Id node, Id count) {
     if (node < first || node - first + count > size)
       E.R.corrupt(RowTable::Elements, hid, "an owned entity's node ids lie outside the element's own range");
-    const double* src[3] = {x, y, z};
-    for (int d = 0; d < 3; ++d) std::copy_n(src[d], count, out[d] + (node - first));
+    for (int d = 0; d < 3; ++d) to[d] = out[d] + (node - first);
     filled += count;
   };
   for (int k = 0; k < nc; ++k)
-    if (h.owns(h.corner_node[k])) put(h.corner_node[k], 1, &s.corner[k].x, &s.corner[k].y, &s.corner[k].z);
+    if (h.owns(h.corner_node[k])) place(at.corner[k], h.corner_node[k], 1);
   for (int k = 0; k < ne; ++k)
-    if (want_edge[k]) {
-      const auto& e = s.edge[k];
-      put(h.edge_node[k], ids::edge_nodes(h.n[vol ? k / 4 : k / 2]), e[0].data(), e[1].data(), e[2].data());
-    }
+    if (want_edge[k]) place(at.edge[k], h.edge_node[k], ids::edge_nodes(h.n[vol ? k / 4 : k / 2]));
   for (int k = 0; k < nf; ++k)
     if (want_face[k]) {
       const auto [nu, nv] = face_intervals(h, k, mode);
-      const auto& f = s.face[k];
-      put(h.face_node[k], ids::face_nodes(nu, nv), f[0].data(), f[1].data(), f[2].data());
+      place(at.face[k], h.face_node[k], ids::face_nodes(nu, nv));
     }
   if (filled != size) E.R.corrupt(RowTable::Elements, hid, "the element's own node ids are not all its entities'");
+  return end;
+}
+
+Id own_boundary_nodes(const Evaluator& E, const ElementRow& h, Id hid, const FineBlock::Scratch& s,
+                      double* const out[3], Id size) {
+  OwnedPlaces at;
+  const Id end = owned_places(E, h, hid, out, size, at);
+  const bool vol = E.mode() == Mode::Volume;
+  for (int k = 0; k < E.R.corners(); ++k)
+    if (at.corner[k][0]) at.corner[k][0][0] = s.corner[k].x, at.corner[k][1][0] = s.corner[k].y, at.corner[k][2][0] = s.corner[k].z;
+  for (int k = 0; k < E.R.edges(); ++k)
+    if (at.edge[k][0])
+      for (int d = 0; d < 3; ++d)
+        std::copy_n(s.edge[k][d].data(), ids::edge_nodes(h.n[vol ? k / 4 : k / 2]), at.edge[k][d]);
+  for (int k = 0; k < E.R.faces(); ++k)
+    if (at.face[k][0]) {
+      const auto [nu, nv] = face_intervals(h, k, E.mode());
+      for (int d = 0; d < 3; ++d) std::copy_n(s.face[k][d].data(), ids::face_nodes(nu, nv), at.face[k][d]);
+    }
   return end;
 }
 

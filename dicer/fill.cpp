@@ -5,6 +5,7 @@
 // one's by the trilinear blend of its corners (tfi.hpp, bilinear_patch).
 #include <algorithm>
 #include <cstdint>
+#include <cstring>
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
@@ -25,20 +26,33 @@ namespace {
 void scatter_row(Id* dst, Id gs, Id first, Id cs, Id m) {
   for (Id t = 0; t < m; ++t) dst[gs * t] = first + cs * t;
 }
-// A face's ids: `rows` rows of m, row q at dst + q gq holding
-// first + q cq + cs t. A face's rows run along consecutive slots
-// (kHexFaceAxes' first axis in Boundary::index), so each row is one
-// vector loop; cloned because baseline x86-64's two 64-bit lanes do not
-// pay for the vectoriser (it left this loop scalar, a tenth of a sweep at
-// interval 10). An induction, not first + cs t: AVX2 has no 64-bit
-// multiply (the emulation made it 6 instructions an id).
-DICER_WIDE_CLONES void scatter_face(Id* dst, Id gq, Id first, Id cs, Id cq, Id m, Id rows) {
-  for (Id q = 0; q < rows; ++q, dst += gq, first += cq) {
-    Id* __restrict row = dst;
-    auto x = static_cast<std::uint64_t>(first);  // unsigned: the step past the last id may wrap
-    for (Id t = 0; t < m; ++t, x += static_cast<std::uint64_t>(cs)) row[t] = static_cast<Id>(x);
+// Rows of ids in arithmetic progression: row q < rows at dst + q gq holds
+// first + q cq + t cs, t < m (unsigned arithmetic: the step past the last
+// id may wrap). A face's ids in its element's boundary slots (a face's rows
+// run along consecutive slots, kHexFaceAxes' first axis in
+// Boundary::index), a cell plane's interior. The lanes' offsets t cs are
+// formed once per call: GCC's own vectorised induction built them from
+// scalars on every row (some 20 instructions a row, on rows of 9 ids at
+// interval 10; 10% of a sweep there in this function and cell_plane_ids).
+// Four lanes (GCC's vector type, as sweep.cpp's hash_lines: one ymm, two
+// xmm on baseline x86-64): eight lanes, two ymm on AVX2, went through the
+// stack on every store.
+DICER_WIDE_CLONES void progression_rows(Id* dst, Id gq, Id first, Id cs, Id cq, Id m, Id rows) {
+  typedef std::uint64_t U64x4 __attribute__((vector_size(32)));
+  const auto step = static_cast<std::uint64_t>(cs);
+  // Whole-vector arithmetic: lane by lane, GCC kept the offsets on the
+  // stack and each row's full-width reload missed store forwarding.
+  const U64x4 lane = U64x4{0, 1, 2, 3} * step;
+  const std::uint64_t step4 = 4 * step;
+  auto x = static_cast<std::uint64_t>(first);
+  for (Id q = 0; q < rows; ++q, dst += gq, x += static_cast<std::uint64_t>(cq)) {
+    U64x4 v = x + lane;
+    Id t = 0;
+    for (; t + 4 <= m; t += 4, v += step4) std::memcpy(dst + t, &v, sizeof v);
+    for (std::uint64_t y = x + static_cast<std::uint64_t>(t) * step; t < m; ++t, y += step) dst[t] = static_cast<Id>(y);
   }
 }
+
 void gather_row(double* dst, Id gs, const double* src, Id cs, Id m) {
   for (Id t = 0; t < m; ++t) dst[gs * t] = src[cs * t];
 }
@@ -49,8 +63,10 @@ using Held = FineBlock::Scratch::Boundary::Held;
 // scratch (Boundary::index): ids from the element row alone; coordinates
 // from element_boundary, of what `held` asks (Boundary::Held): Owned
 // evaluates only the corners and owned entities and leaves B.x alone.
+// `to` (Owned, a straight element): its owned corners, edges and faces
+// written there (detail::owned_places) instead of into the scratch.
 void fill_boundary(const detail::Evaluator& E, std::uint64_t mesh, const ElementRow& h, Id hid, FineBlock& b,
-                   Held held) {
+                   Held held, const detail::OwnedPlaces* to = nullptr) {
   const auto n = h.n;
   const Mode mode = E.mode();
   const bool vol = mode == Mode::Volume;
@@ -67,7 +83,9 @@ void fill_boundary(const detail::Evaluator& E, std::uint64_t mesh, const Element
   if (held == Held::Owned) {
     bool want_edge[12], want_face[6];
     detail::owned_entities(h, mode, want_edge, want_face);
-    detail::element_boundary(E, h, hid, s, want_edge, want_face);
+    detail::element_boundary(E, h, hid, s, want_edge, want_face, to);
+    for (int q = 0; to && q < 8; ++q)
+      if (double* const* c = to->corner[q]; c[0]) c[0][0] = s.corner[q].x, c[1][0] = s.corner[q].y, c[2][0] = s.corner[q].z;
   } else if (coords) {
     detail::element_boundary(E, h, hid, s);
   }
@@ -112,7 +130,7 @@ void fill_boundary(const detail::Evaluator& E, std::uint64_t mesh, const Element
     const Id g1 = slot(1, 1), gs = m > 1 ? slot(2, 1) - g1 : 0, gq = n[bx] > 2 ? slot(1, 2) - g1 : 0;
     const Id c1 = ids::face_node(0, nu, fm.u(1, 1), fm.v(1, 1));  // canonical index at (1, 1)
     DICER_ASSERT(gs == 1 || m < 2, "fill_boundary: a face's rows run along consecutive boundary slots");
-    scatter_face(ids + g1, gq, h.face_node[lf] + c1, cs, cq, m, n[bx] - 1);
+    progression_rows(ids + g1, gq, h.face_node[lf] + c1, cs, cq, m, n[bx] - 1);
     for (Id q = 1; q < n[bx] && coords; ++q) {
       const Id g = g1 + (q - 1) * gq, c = c1 + (q - 1) * cq;
       for (int d = 0; d < 3; ++d) gather_row(X[d] + g, gs, s.face[lf][d].data() + c, cs, m);
@@ -169,14 +187,10 @@ DICER_CLONES void hex_interior_plane(const double* c, const double* a0, const do
 
 // The interior points of grid plane k (0 < k < n[2]) of a block: the
 // cell's own ids, consecutive along each row (numbering.hpp), into the
-// plane's ids (row stride n[0] + 1). Vectorised (clones.hpp: integers).
-DICER_WIDE_CLONES void cell_plane_ids(Id cell_node, std::array<Id, 3> n, Id k, Id* ids) {
+// plane's ids (row stride n[0] + 1).
+void cell_plane_ids(Id cell_node, std::array<Id, 3> n, Id k, Id* ids) {
   const Id ni = n[0] + 1;
-  for (Id j = 1; j < n[1]; ++j) {
-    const Id first = ids::cell_node(cell_node, n, 1, j, k);
-    Id* row = ids + ni * j + 1;
-    for (Id i = 0; i < n[0] - 1; ++i) row[i] = first + i;
-  }
+  progression_rows(ids + ni + 1, ni, ids::cell_node(cell_node, n, 1, 1, k), 1, n[0] - 1, n[0] - 1, n[1] - 1);
 }
 
 // kHexCorner takes a cell's corners in pairs, one pair per grid row
@@ -228,11 +242,11 @@ void quad_conn_row(const Id* p, Id sj, Id m, Id* out) {
 }  // namespace
 
 void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool conn) const {
-  fill_slab(hid, k0, k1, b, coords, conn, nullptr, nullptr);
+  fill_slab(hid, k0, k1, b, coords, conn, nullptr, nullptr, nullptr, 0);
 }
 
 void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool conn, double* const* interior,
-                         const ElementRow* row) const {
+                         const ElementRow* row, double* const* own, Id own_size) const {
   const detail::Evaluator E(tables_, b.cursor);
   ElementRow decoded;
   if (!row) E.R.element(hid, decoded);
@@ -249,7 +263,14 @@ void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool c
   // The compact interior of a straight hex reads only its corners, and the
   // batch only the owned entities besides (own_boundary_nodes).
   const Held need = !coords ? Held::Ids : interior && !h.curved() ? Held::Owned : Held::All;
-  if (B.mesh != serial_ || B.h != hid || B.held < need) fill_boundary(E, serial_, h, hid, b, need);
+  if (own) {
+    if (!interior || h.curved() || k0 != 0) throw Error(ErrorKind::Usage, "fill_slab: own nodes of a straight hex's first slab only");
+    detail::OwnedPlaces to;
+    detail::owned_places(E, h, hid, own, own_size, to);  // validated before anything is written
+    fill_boundary(E, serial_, h, hid, b, need, &to);     // always: a kept boundary would not write them
+  } else if (B.mesh != serial_ || B.h != hid || B.held < need) {
+    fill_boundary(E, serial_, h, hid, b, need);
+  }
   b.coarse_element = hid;
   b.n = n;
   b.block = h.block;

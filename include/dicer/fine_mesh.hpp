@@ -231,10 +231,13 @@ class FineMesh {
   // mode), and out.x, y, z left as work space. interior[d] has room for 8
   // doubles past those points (the straight kernel writes whole blocks:
   // dicer/evaluate.hpp, bilinear_patch). row: h's row, already
-  // decoded by the caller (null: decoded here).
+  // decoded by the caller (null: decoded here). own (a straight hex, k0 =
+  // 0): the coordinates of the nodes h owns outside its interior written
+  // to own[d][id - node_first] (own_size values, then room for 8 doubles
+  // the interior overwrites), with no copy through the block's scratch.
   friend class BatchCursor;
   void fill_slab(Id h, Id k0, Id k1, FineBlock& out, bool coords, bool conn, double* const* interior,
-                 const ElementRow* row) const;
+                 const ElementRow* row, double* const* own = nullptr, Id own_size = 0) const;
   static std::uint64_t next_serial();
   void require_memory(const char* what) const;
 };

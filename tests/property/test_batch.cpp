@@ -13,6 +13,7 @@
 #include "dicer/error.hpp"
 #include "dicer/numbering.hpp"
 #include "dicer/orientation.hpp"
+#include "evaluate.hpp"
 #include "random_mesh.hpp"
 
 using namespace dicer;
@@ -122,6 +123,63 @@ TEST(Batches, TileTheChunkInIdOrderWithTheBitsOfNodeAndElement) {
       }
     }
   }
+}
+
+// Rows past the kernels' vector widths (progression_rows: 4 ids a store;
+// the patch kernels: blocks of 8): intervals 9, 11 and 17, whose rows of
+// 8, 10 and 16 points take more than one store each.
+TEST(Batches, LongRowsToo) {
+  std::mt19937_64 rng(13);
+  test::BoxSpec spec;
+  spec.a = 2, spec.b = 1, spec.c = 1;
+  const CoarseMesh m = test::random_box(spec, rng);
+  IntervalRequest req;
+  req.global = 11;
+  req.sheets = {{0, 9}, {1, 17}};
+  const FineMesh f = FineMesh::dice(m, req);
+  for (const auto& [coords, conn, grid] : {std::tuple{true, true, true}, std::tuple{true, false, false}}) {
+    BatchOptions opt;
+    opt.coords = coords, opt.conn = conn, opt.grid = grid;
+    check_batches(f, 0, f.num_coarse_elements(), opt);
+  }
+}
+
+// A straight hex's owned faces written where the batch wants them
+// (detail::OwnedPlaces), here in the reverse of their local order: each
+// face's patch writes up to kPatchSlack values past its end, so the faces
+// must be filled in address order or one overwrites the start of the next.
+// (Our own topology numbers an owner's faces in local order, so the batch
+// tests above never see another order.) Bits equal to the scratch path's.
+TEST(Batches, PlacedFacesInAnyOrderKeepTheirPoints) {
+  std::mt19937_64 rng(5);
+  test::BoxSpec spec;
+  spec.a = spec.b = spec.c = 1;
+  const CoarseMesh m = test::random_box(spec, rng);
+  IntervalRequest req;
+  req.global = 3;  // 4 points a face: the slack (8) covers the next face whole
+  const FineMesh f = FineMesh::dice(m, req);
+  MeshCursor cur;
+  const detail::Evaluator E(f.tables(), cur);
+  const ElementRow h = E.R.element(0);
+  ASSERT_FALSE(h.curved());
+  FineBlock ref, placed;
+  detail::element_boundary(E, h, 0, ref.scratch);
+  const size_t pts = 4;
+  std::vector<double> buf[3];
+  detail::OwnedPlaces to;
+  for (int d = 0; d < 3; ++d) {
+    buf[d].assign(6 * pts + detail::kPatchSlack, -1.0);
+    for (int lf = 0; lf < 6; ++lf) to.face[lf][d] = buf[d].data() + (5 - lf) * pts;
+  }
+  const bool want_edge[12] = {}, want_face[6] = {true, true, true, true, true, true};
+  detail::element_boundary(E, h, 0, placed.scratch, want_edge, want_face, &to);
+  for (int lf = 0; lf < 6; ++lf)
+    for (int d = 0; d < 3; ++d) {
+      ASSERT_EQ(ref.scratch.face[lf][d].size(), pts + detail::kPatchSlack);
+      for (size_t q = 0; q < pts; ++q)
+        ASSERT_TRUE(same_bits(to.face[lf][d][q], ref.scratch.face[lf][d][q])) << "face " << lf << " coordinate " << d
+                                                                               << " point " << q;
+    }
 }
 
 TEST(Batches, SurfaceMeshesToo) {
