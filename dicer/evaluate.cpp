@@ -382,109 +382,128 @@ void element_boundary(const Evaluator& E, const ElementRow& h, Id hid, FineBlock
   Id series_n = -1;  // the edge parameters held in out.s
   tfi::Grading series_g;
   bool bound_edge[12] = {};  // local edge k's nodes are moved
-  for (int k = 0; k < ne; ++k) {
-    if (!need_edge[k]) continue;
-    const Id n = h.n[vol ? k / 4 : k / 2];
-    auto& pts = out.edge[k];
-    double* dst[3] = {nullptr, nullptr, nullptr};
-    if (to && to->edge[k][0]) {
-      std::copy_n(to->edge[k], 3, dst);
-    } else {
-      for (int d = 0; d < 3; ++d) {
-        pts[d].resize(static_cast<size_t>(std::max<Id>(n - 1, 0)));
-        dst[d] = pts[d].data();
+  // Edges: each point exact, nothing written past them.
+  auto edges = [&] {
+    for (int k = 0; k < ne; ++k) {
+      if (!need_edge[k]) continue;
+      const Id n = h.n[vol ? k / 4 : k / 2];
+      auto& pts = out.edge[k];
+      double* dst[3] = {nullptr, nullptr, nullptr};
+      if (to && to->edge[k][0]) {
+        std::copy_n(to->edge[k], 3, dst);
+      } else {
+        for (int d = 0; d < 3; ++d) {
+          pts[d].resize(static_cast<size_t>(std::max<Id>(n - 1, 0)));
+          dst[d] = pts[d].data();
+        }
+      }
+      if (curved) {
+        const EdgeRow er = E.edge_of(h, k);
+        bound_edge[k] = er.bound >= 0;
+        for (Id t = 1; t < n; ++t) {
+          const Vec3 x = E.edge_point(er, t);
+          dst[0][t - 1] = x.x, dst[1][t - 1] = x.y, dst[2][t - 1] = x.z;
+        }
+      } else {
+        const int a = vol ? kHexEdge[k][0] : kQuadEdge[k][0], b = vol ? kHexEdge[k][1] : kQuadEdge[k][1];
+        const Vec3& lo = out.corner[h.rev(k) ? b : a];
+        const Vec3& hi = out.corner[h.rev(k) ? a : b];
+        const tfi::Grading g = h.edge_grading(k, mode);
+        if (n != series_n || !(g == series_g)) {  // edges along one axis mostly share their series
+          const tfi::Series series(n, g);
+          out.s.resize(static_cast<size_t>(std::max<Id>(n, 1)));
+          for (Id t = 1; t < n; ++t) out.s[t] = series.at(t);
+          series_n = n, series_g = g;
+        }
+        edge_fill(lo.x, hi.x, out.s.data(), n, dst[0]);
+        edge_fill(lo.y, hi.y, out.s.data(), n, dst[1]);
+        edge_fill(lo.z, hi.z, out.s.data(), n, dst[2]);
       }
     }
-    if (curved) {
-      const EdgeRow er = E.edge_of(h, k);
-      bound_edge[k] = er.bound >= 0;
-      for (Id t = 1; t < n; ++t) {
-        const Vec3 x = E.edge_point(er, t);
-        dst[0][t - 1] = x.x, dst[1][t - 1] = x.y, dst[2][t - 1] = x.z;
-      }
-    } else {
-      const int a = vol ? kHexEdge[k][0] : kQuadEdge[k][0], b = vol ? kHexEdge[k][1] : kQuadEdge[k][1];
-      const Vec3& lo = out.corner[h.rev(k) ? b : a];
-      const Vec3& hi = out.corner[h.rev(k) ? a : b];
-      const tfi::Grading g = h.edge_grading(k, mode);
-      if (n != series_n || !(g == series_g)) {  // edges along one axis mostly share their series
-        const tfi::Series series(n, g);
-        out.s.resize(static_cast<size_t>(std::max<Id>(n, 1)));
-        for (Id t = 1; t < n; ++t) out.s[t] = series.at(t);
-        series_n = n, series_g = g;
-      }
-      edge_fill(lo.x, hi.x, out.s.data(), n, dst[0]);
-      edge_fill(lo.y, hi.y, out.s.data(), n, dst[1]);
-      edge_fill(lo.z, hi.z, out.s.data(), n, dst[2]);
-    }
-  }
+  };
 
   auto& s = out;
-  // Faces placed by `to` in increasing address order: each one's slack
-  // lands on the next (or on the interior), not on one already written.
+  // Faces placed by `to` in increasing address order: a face's slack
+  // lands on a face after it, on an edge or corner (written after every
+  // face), or on the interior (written after the boundary), never on a
+  // face already written.
   int order[6] = {0, 1, 2, 3, 4, 5};
-  if (to)
-    std::sort(order, order + nf, [&](int a, int b) { return std::less<>()(to->face[a][0], to->face[b][0]); });
-  for (int of = 0; of < nf; ++of) {
-    const int lf = order[of];
-    if (want_face && !want_face[lf]) continue;
-    const FaceCode code = h.code(lf);
-    const auto [nu, nv] = face_intervals(h, lf, mode);
-    const auto cc = face_canonical_corners(mode, lf, code);
-    const size_t m = static_cast<size_t>(ids::face_nodes(nu, nv));
-    // A placed face with no points has nothing to write, and the room a
-    // patch may write past its points (bilinear_patch) is the start of the
-    // entity after it, already written if placed lower in the order.
-    if (to && to->face[lf][0] && m == 0) continue;
-    Id bound = -1;  // the face's first bounding row, as face_point reads it
-    if (curved && m > 0) {
-      const FaceRow fr = E.R.face(h.face[lf]);
-      if (fr.nu != nu || fr.nv != nv) E.R.corrupt(RowTable::Faces, h.face[lf], "intervals disagree with an element using the face");
-      bound = fr.bound;
-    }
-    // Straight (face_tfi): unmoved, and so are its four sides.
-    bool straight = bound < 0;
-    for (int side = 0; side < 4; ++side) straight &= !bound_edge[face_side_edge(mode, lf, code, side)];
-    // Sides in the face's canonical frame, at parameters 1..len-1.
-    std::vector<double>* side_out[4] = {s.bottom, s.top, s.left, s.right};
-    for (int side = 0; side < 4 && !straight; ++side) {
-      const int le = face_side_edge(mode, lf, code, side);
-      const Id len = side < 2 ? nu : nv;
-      const bool forward = h.corner[cc[kQuadEdge[side][0]]] < h.corner[cc[kQuadEdge[side][1]]];
+  for (int i = 1; to && i < nf; ++i)  // insertion sort of at most 6
+    for (int j = i; j > 0 && std::less<>()(to->face[order[j]][0], to->face[order[j - 1]][0]); --j)
+      std::swap(order[j], order[j - 1]);
+  auto faces = [&] {
+    for (int of = 0; of < nf; ++of) {
+      const int lf = order[of];
+      if (want_face && !want_face[lf]) continue;
+      const FaceCode code = h.code(lf);
+      const auto [nu, nv] = face_intervals(h, lf, mode);
+      const auto cc = face_canonical_corners(mode, lf, code);
+      const size_t m = static_cast<size_t>(ids::face_nodes(nu, nv));
+      // A placed face with no points has nothing to write, and the room a
+      // patch may write past its points (bilinear_patch) is the start of the
+      // entity after it, already written if placed lower in the order.
+      if (to && to->face[lf][0] && m == 0) continue;
+      Id bound = -1;  // the face's first bounding row, as face_point reads it
+      if (curved && m > 0) {
+        const FaceRow fr = E.R.face(h.face[lf]);
+        if (fr.nu != nu || fr.nv != nv) E.R.corrupt(RowTable::Faces, h.face[lf], "intervals disagree with an element using the face");
+        bound = fr.bound;
+      }
+      // Straight (face_tfi): unmoved, and so are its four sides.
+      bool straight = bound < 0;
+      for (int side = 0; side < 4; ++side) straight &= !bound_edge[face_side_edge(mode, lf, code, side)];
+      // Sides in the face's canonical frame, at parameters 1..len-1.
+      std::vector<double>* side_out[4] = {s.bottom, s.top, s.left, s.right};
+      for (int side = 0; side < 4 && !straight; ++side) {
+        const int le = face_side_edge(mode, lf, code, side);
+        const Id len = side < 2 ? nu : nv;
+        const bool forward = h.corner[cc[kQuadEdge[side][0]]] < h.corner[cc[kQuadEdge[side][1]]];
+        for (int d = 0; d < 3; ++d) {
+          side_out[side][d].resize(static_cast<size_t>(len + 1));
+          const double* src = out.edge[le][d].data();
+          for (Id q = 1; q < len; ++q) side_out[side][d][q] = src[(forward ? q : len - q) - 1];
+        }
+      }
+      // bilinear_patch reads s past nu - 1 (zeros: finite, not subnormal).
+      s.s.resize(static_cast<size_t>(nu + kPatchSlack)), s.t.resize(static_cast<size_t>(nv));
+      std::fill(s.s.begin() + nu, s.s.end(), 0.0);
+      const auto g = face_grading(mode, h, lf);
+      const tfi::Series su(nu, g[0]), sv(nv, g[1]);
+      for (Id u = 1; u < nu; ++u) s.s[u] = su.at(u);
+      for (Id v = 1; v < nv; ++v) s.t[v] = sv.at(v);
+      thread_local PatchGrid grid;
+      if (straight) prepare_patch_grid(s.s.data(), s.t.data(), nu, nv, grid);
+      const bool placed = to && to->face[lf][0];
+      DICER_ASSERT(!placed || straight, "element_boundary: a placed face is straight");
       for (int d = 0; d < 3; ++d) {
-        side_out[side][d].resize(static_cast<size_t>(len + 1));
-        const double* src = out.edge[le][d].data();
-        for (Id q = 1; q < len; ++q) side_out[side][d][q] = src[(forward ? q : len - q) - 1];
+        auto& face = out.face[lf][d];
+        if (!placed) face.resize(m + (straight ? static_cast<size_t>(kPatchSlack) : 0));
+        double* const dst = placed ? to->face[lf][d] : face.data();
+        const double p[4] = {component(out.corner[cc[0]], d), component(out.corner[cc[1]], d),
+                             component(out.corner[cc[2]], d), component(out.corner[cc[3]], d)};
+        if (straight)
+          bilinear_patch(grid, p, dst);
+        else
+          coons_fill(s.s.data(), s.t.data(), nu, nv, s.bottom[d].data(), s.top[d].data(), s.left[d].data(),
+                     s.right[d].data(), p, dst);
       }
+      if (bound >= 0)  // the stored corrections, as face_point applies them
+        for (size_t q = 0; q < m; ++q) {
+          const Vec3 x = E.moved({out.face[lf][0][q], out.face[lf][1][q], out.face[lf][2][q]}, bound + static_cast<Id>(q));
+          out.face[lf][0][q] = x.x, out.face[lf][1][q] = x.y, out.face[lf][2][q] = x.z;
+        }
     }
-    // bilinear_patch reads s past nu - 1 (zeros: finite, not subnormal).
-    s.s.resize(static_cast<size_t>(nu + kPatchSlack)), s.t.resize(static_cast<size_t>(nv));
-    std::fill(s.s.begin() + nu, s.s.end(), 0.0);
-    const auto g = face_grading(mode, h, lf);
-    const tfi::Series su(nu, g[0]), sv(nv, g[1]);
-    for (Id u = 1; u < nu; ++u) s.s[u] = su.at(u);
-    for (Id v = 1; v < nv; ++v) s.t[v] = sv.at(v);
-    thread_local PatchGrid grid;
-    if (straight) prepare_patch_grid(s.s.data(), s.t.data(), nu, nv, grid);
-    const bool placed = to && to->face[lf][0];
-    DICER_ASSERT(!placed || straight, "element_boundary: a placed face is straight");
-    for (int d = 0; d < 3; ++d) {
-      auto& face = out.face[lf][d];
-      if (!placed) face.resize(m + (straight ? static_cast<size_t>(kPatchSlack) : 0));
-      double* const dst = placed ? to->face[lf][d] : face.data();
-      const double p[4] = {component(out.corner[cc[0]], d), component(out.corner[cc[1]], d),
-                           component(out.corner[cc[2]], d), component(out.corner[cc[3]], d)};
-      if (straight)
-        bilinear_patch(grid, p, dst);
-      else
-        coons_fill(s.s.data(), s.t.data(), nu, nv, s.bottom[d].data(), s.top[d].data(), s.left[d].data(),
-                   s.right[d].data(), p, dst);
-    }
-    if (bound >= 0)  // the stored corrections, as face_point applies them
-      for (size_t q = 0; q < m; ++q) {
-        const Vec3 x = E.moved({out.face[lf][0][q], out.face[lf][1][q], out.face[lf][2][q]}, bound + static_cast<Id>(q));
-        out.face[lf][0][q] = x.x, out.face[lf][1][q] = x.y, out.face[lf][2][q] = x.z;
-      }
+  };
+  // A curved element's faces read its edges: edges first. Placed
+  // entities (a straight element's, which its faces do not read): faces
+  // first, so that an edge placed after a face is written over that
+  // face's slack (corners, fill_boundary's, come last).
+  if (to) {
+    faces();
+    edges();
+  } else {
+    edges();
+    faces();
   }
 }
 
@@ -562,12 +581,19 @@ Id owned_places(const Evaluator& E, const ElementRow& h, Id hid, double* const o
   if (end < first) E.R.corrupt(RowTable::Elements, hid, "the element's own node ids run backwards");
   if (end - first != size) E.R.corrupt(RowTable::Elements, hid, "the element's own node range disagrees with its row");
   at = OwnedPlaces{};
-  Id filled = 0;
+  // The ranges must tile [first, end) exactly: a range in bounds and a
+  // count that adds up still let two entities overlap and leave a gap,
+  // whose coordinates would be whatever the batch held before.
+  struct Range {
+    Id at, count;
+  };
+  Range ranges[26];
+  int nr = 0;
   auto place = [&](double* (&to)[3], Id node, Id count) {
     if (node < first || node - first + count > size)
       E.R.corrupt(RowTable::Elements, hid, "an owned entity's node ids lie outside the element's own range");
     for (int d = 0; d < 3; ++d) to[d] = out[d] + (node - first);
-    filled += count;
+    if (count > 0) ranges[nr++] = {node - first, count};
   };
   for (int k = 0; k < nc; ++k)
     if (h.owns(h.corner_node[k])) place(at.corner[k], h.corner_node[k], 1);
@@ -578,12 +604,24 @@ Id owned_places(const Evaluator& E, const ElementRow& h, Id hid, double* const o
       const auto [nu, nv] = face_intervals(h, k, mode);
       place(at.face[k], h.face_node[k], ids::face_nodes(nu, nv));
     }
-  if (filled != size) E.R.corrupt(RowTable::Elements, hid, "the element's own node ids are not all its entities'");
+  // Insertion sort: a handful of ranges (26 at most).
+  for (int i = 1; i < nr; ++i)
+    for (int j = i; j > 0 && ranges[j].at < ranges[j - 1].at; --j) std::swap(ranges[j], ranges[j - 1]);
+  Id next = 0;
+  for (int i = 0; i < nr; ++i) {
+    if (ranges[i].at != next)
+      E.R.corrupt(RowTable::Elements, hid, ranges[i].at < next ? "two owned entities share node ids"
+                                                                : "the element's own node ids are not all its entities'");
+    next += ranges[i].count;
+  }
+  if (next != size) E.R.corrupt(RowTable::Elements, hid, "the element's own node ids are not all its entities'");
   return end;
 }
 
 Id own_boundary_nodes(const Evaluator& E, const ElementRow& h, Id hid, const FineBlock::Scratch& s,
                       double* const out[3], Id size) {
+  DICER_ASSERT(s.boundary.h == hid && s.boundary.held == FineBlock::Scratch::Boundary::Held::All,
+               "own_boundary_nodes: the scratch holds every entity of this element (a direct fill keeps only corners)");
   OwnedPlaces at;
   const Id end = owned_places(E, h, hid, out, size, at);
   const bool vol = E.mode() == Mode::Volume;

@@ -85,24 +85,27 @@ struct Evaluator {
 // (face k's, canonical order). Fills what `want_edge`/`want_face` ask for
 // (all when null): edges first (faces need them), then faces.
 // `to` (a straight element's owned entities, owned_places): the edges and
-// faces it places go there instead of into out.edge / out.face, the
-// faces in increasing address order (each writes up to kPatchSlack values
-// past its end, onto what follows it in id order, written after it).
+// faces it places go there instead of into out.edge / out.face: the faces
+// first, in increasing address order, then the edges (a face writes up to
+// kPatchSlack - 1 values past its end, onto a face, edge or corner
+// written after it or the interior, which its caller writes later).
 struct OwnedPlaces;
 void element_boundary(const Evaluator& E, const ElementRow& h, Id hid, FineBlock::Scratch& out,
                       const bool* want_edge = nullptr, const bool* want_face = nullptr,
                       const OwnedPlaces* to = nullptr);
 
 // The local edges and faces whose nodes element h owns (edges with
-// interior nodes only): what own_boundary_nodes copies.
+// interior nodes only): what own_boundary_nodes copies and owned_places
+// places.
 void owned_entities(const ElementRow& h, Mode mode, bool want_edge[12], bool want_face[6]);
 
 // Where the coordinates of the nodes element h owns outside its interior
 // go in out[d][id - node_first] (own_boundary_nodes' layout): coordinate d
 // of owned corner k at corner[k][d], of owned local edge k's points at
 // edge[k][d] (canonical order), of owned face k's at face[k][d]; null
-// where h does not own it. owned_places validates as own_boundary_nodes
-// does (the same errors) and returns the end of the id range. A batch
+// where h does not own it. owned_places validates the layout (the errors
+// own_boundary_nodes gives: the ranges must tile the element's own range
+// exactly) and returns the end of the id range. A batch
 // writes a straight element's owned edges and faces there directly
 // (element_boundary's `to`): copying them from the scratch cost 5% of a
 // sweep at interval 10.
@@ -117,8 +120,10 @@ Id owned_places(const Evaluator& E, const ElementRow& h, Id hid, double* const o
 // (volume: ids [node_first, cell_node); surface: [node_first, cell_node +
 // its face's nodes)), in id order, into out[d][id - node_first] (`size`
 // values each): its owned corners, edges and faces, copied from `s`, which
-// must hold them (owned_entities) in canonical frames (fill_slab with
-// coordinates has just put them there: element_boundary). Returns the end of
+// must hold every entity of h in canonical frames (s.boundary holds h at
+// Held::All: fill_slab with coordinates of a curved hex or a surface
+// element has just put them there; a straight hex's batch has them
+// written in place instead, owned_places). Returns the end of
 // that id range. Error{Corrupt} when the range is not `size` long or the
 // row's owned entities do not tile it.
 Id own_boundary_nodes(const Evaluator& E, const ElementRow& h, Id hid, const FineBlock::Scratch& s,

@@ -64,7 +64,7 @@ using Held = FineBlock::Scratch::Boundary::Held;
 // from element_boundary, of what `held` asks (Boundary::Held): Owned
 // evaluates only the corners and owned entities and leaves B.x alone.
 // `to` (Owned, a straight element): its owned corners, edges and faces
-// written there (detail::owned_places) instead of into the scratch.
+// written there (detail::owned_places); the scratch keeps none of them.
 void fill_boundary(const detail::Evaluator& E, std::uint64_t mesh, const ElementRow& h, Id hid, FineBlock& b,
                    Held held, const detail::OwnedPlaces* to = nullptr) {
   const auto n = h.n;
@@ -81,8 +81,9 @@ void fill_boundary(const detail::Evaluator& E, std::uint64_t mesh, const Element
   for (int d = 0; d < 3; ++d) coords ? B.x[d].resize(nb) : B.x[d].clear();
   auto& s = b.scratch;
   if (held == Held::Owned) {
-    bool want_edge[12], want_face[6];
-    detail::owned_entities(h, mode, want_edge, want_face);
+    // The corners, and the owned entities only where `to` places them.
+    bool want_edge[12] = {}, want_face[6] = {};
+    if (to) detail::owned_entities(h, mode, want_edge, want_face);
     detail::element_boundary(E, h, hid, s, want_edge, want_face, to);
     for (int q = 0; to && q < 8; ++q)
       if (double* const* c = to->corner[q]; c[0]) c[0][0] = s.corner[q].x, c[1][0] = s.corner[q].y, c[2][0] = s.corner[q].z;
@@ -260,8 +261,9 @@ void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool c
                                       std::to_string(vol ? n[2] : 0) + ")");
   if (interior) coords = true;
   auto& B = b.scratch.boundary;
-  // The compact interior of a straight hex reads only its corners, and the
-  // batch only the owned entities besides (own_boundary_nodes).
+  // The compact interior of a straight hex reads only its corners; its
+  // owned entities go straight into the batch (`own`), any other
+  // element's by way of the scratch (own_boundary_nodes: Held::All).
   const Held need = !coords ? Held::Ids : interior && !h.curved() ? Held::Owned : Held::All;
   if (own) {
     if (!interior || h.curved() || k0 != 0) throw Error(ErrorKind::Usage, "fill_slab: own nodes of a straight hex's first slab only");

@@ -73,10 +73,10 @@ struct FineBlock {
     // whole, then for each 0 < k < n[2] the ring of plane k (j = 0, j = n[1],
     // i = 0, i = n[0]). O(n^2). Keyed on the mesh's identity and element.
     struct Boundary {
-      // What is held besides the ids: Owned = the corners and the entities
-      // the element owns, in `Scratch`'s canonical arrays (all a straight
-      // hex's batches read: its interior needs only corners); All = every
-      // entity, and x holds every boundary point.
+      // What is held besides the ids: Owned = the corners (all a straight
+      // hex's interior reads; a batch has its owned entities written
+      // straight into its arrays, not kept here); All = every entity, in
+      // `Scratch`'s canonical arrays, and x holds every boundary point.
       enum class Held : std::uint8_t { Ids, Owned, All };
       std::uint64_t mesh = 0;
       Id h = -1;

@@ -13,6 +13,7 @@
 #include "dicer/error.hpp"
 #include "dicer/numbering.hpp"
 #include "dicer/orientation.hpp"
+#include "dicer/rows.hpp"
 #include "evaluate.hpp"
 #include "random_mesh.hpp"
 
@@ -144,42 +145,79 @@ TEST(Batches, LongRowsToo) {
   }
 }
 
-// A straight hex's owned faces written where the batch wants them
-// (detail::OwnedPlaces), here in the reverse of their local order: each
-// face's patch writes up to kPatchSlack values past its end, so the faces
-// must be filled in address order or one overwrites the start of the next.
-// (Our own topology numbers an owner's faces in local order, so the batch
-// tests above never see another order.) Bits equal to the scratch path's.
-TEST(Batches, PlacedFacesInAnyOrderKeepTheirPoints) {
+// One straight coarse hex, which owns every entity, at interval 3: 4
+// points a face, so a patch's slack (up to 7 values) covers the next
+// face whole.
+namespace {
+FineMesh one_hex_at_interval_3() {
   std::mt19937_64 rng(5);
   test::BoxSpec spec;
   spec.a = spec.b = spec.c = 1;
-  const CoarseMesh m = test::random_box(spec, rng);
   IntervalRequest req;
-  req.global = 3;  // 4 points a face: the slack (8) covers the next face whole
-  const FineMesh f = FineMesh::dice(m, req);
+  req.global = 3;
+  return FineMesh::dice(test::random_box(spec, rng), req);
+}
+}  // namespace
+
+// A straight hex's owned faces and edges written where the batch wants
+// them (detail::OwnedPlaces), here faces in the reverse of their local
+// order and an edge right after the last: the faces must be filled in
+// address order and before the edges, or a face's slack overwrites what
+// was written after it. (Our own topology numbers an owner's entities in
+// that order, so the batch tests above never see another.) Bits equal to
+// the scratch path's.
+TEST(Batches, PlacedFacesInAnyOrderKeepTheirPoints) {
+  const FineMesh f = one_hex_at_interval_3();
   MeshCursor cur;
   const detail::Evaluator E(f.tables(), cur);
   const ElementRow h = E.R.element(0);
   ASSERT_FALSE(h.curved());
   FineBlock ref, placed;
   detail::element_boundary(E, h, 0, ref.scratch);
-  const size_t pts = 4;
+  const size_t pts = 4, edge_pts = 2;
   std::vector<double> buf[3];
   detail::OwnedPlaces to;
   for (int d = 0; d < 3; ++d) {
-    buf[d].assign(6 * pts + detail::kPatchSlack, -1.0);
+    buf[d].assign(6 * pts + edge_pts + detail::kPatchSlack, -1.0);
     for (int lf = 0; lf < 6; ++lf) to.face[lf][d] = buf[d].data() + (5 - lf) * pts;
+    to.edge[0][d] = buf[d].data() + 6 * pts;  // an edge right after the last face: within its slack
   }
-  const bool want_edge[12] = {}, want_face[6] = {true, true, true, true, true, true};
+  const bool want_edge[12] = {true}, want_face[6] = {true, true, true, true, true, true};
   detail::element_boundary(E, h, 0, placed.scratch, want_edge, want_face, &to);
-  for (int lf = 0; lf < 6; ++lf)
-    for (int d = 0; d < 3; ++d) {
+  for (int d = 0; d < 3; ++d) {
+    for (int lf = 0; lf < 6; ++lf) {
       ASSERT_EQ(ref.scratch.face[lf][d].size(), pts + detail::kPatchSlack);
       for (size_t q = 0; q < pts; ++q)
         ASSERT_TRUE(same_bits(to.face[lf][d][q], ref.scratch.face[lf][d][q])) << "face " << lf << " coordinate " << d
                                                                                << " point " << q;
     }
+    for (size_t q = 0; q < edge_pts; ++q)
+      ASSERT_TRUE(same_bits(to.edge[0][d][q], ref.scratch.edge[0][d][q])) << "edge 0 coordinate " << d << " point " << q;
+  }
+}
+
+// A row whose owned entities overlap (two faces at one id, a gap where
+// the second was: every range in bounds, the counts adding up) is
+// corrupt: the batch would otherwise hand out whatever the gap held.
+TEST(Batches, OverlappingOwnedEntitiesAreCorrupt) {
+  const FineMesh f = one_hex_at_interval_3();
+  MeshTables t = f.tables();
+  MeshCursor cur;
+  ElementRow h = RowReader(t, cur).element(0);
+  ASSERT_TRUE(h.owns(h.face_node[0]) && h.owns(h.face_node[1]));
+  h.face_node[1] = h.face_node[0];
+  write_row(t, 0, h);
+  const FineMesh g(f.info(), std::move(t));
+  BatchCursor c(g);
+  FineBatch b;
+  try {
+    while (c.next(b)) {
+    }
+    ADD_FAILURE() << "a row with overlapping owned entities was accepted";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.kind(), ErrorKind::Corrupt) << e.what();
+    EXPECT_NE(std::string(e.what()).find("share node ids"), std::string::npos) << e.what();
+  }
 }
 
 TEST(Batches, SurfaceMeshesToo) {
