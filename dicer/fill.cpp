@@ -61,10 +61,10 @@ using Held = FineBlock::Scratch::Boundary::Held;
 
 // The boundary of coarse element hid (corners, edges, faces) into b's
 // scratch (Boundary::index): ids from the element row alone; coordinates
-// from element_boundary, of what `held` asks (Boundary::Held): Owned
-// evaluates only the corners and owned entities and leaves B.x alone.
-// `to` (Owned, a straight element): its owned corners, edges and faces
-// written there (detail::owned_places); the scratch keeps none of them.
+// from element_boundary, of what `held` asks (Boundary::Held): Corners
+// evaluates only the corners and leaves B.x alone; with `to` (a straight
+// element) also its owned corners, edges and faces, written there
+// (detail::owned_places), not kept in the scratch.
 void fill_boundary(const detail::Evaluator& E, std::uint64_t mesh, const ElementRow& h, Id hid, FineBlock& b,
                    Held held, const detail::OwnedPlaces* to = nullptr) {
   const auto n = h.n;
@@ -80,8 +80,8 @@ void fill_boundary(const detail::Evaluator& E, std::uint64_t mesh, const Element
   const bool coords = held == Held::All;
   for (int d = 0; d < 3; ++d) coords ? B.x[d].resize(nb) : B.x[d].clear();
   auto& s = b.scratch;
-  if (held == Held::Owned) {
-    // The corners, and the owned entities only where `to` places them.
+  if (held == Held::Corners) {
+    // The owned entities only where `to` places them.
     bool want_edge[12] = {}, want_face[6] = {};
     if (to) detail::owned_entities(h, mode, want_edge, want_face);
     detail::element_boundary(E, h, hid, s, want_edge, want_face, to);
@@ -264,7 +264,7 @@ void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool c
   // The compact interior of a straight hex reads only its corners; its
   // owned entities go straight into the batch (`own`), any other
   // element's by way of the scratch (own_boundary_nodes: Held::All).
-  const Held need = !coords ? Held::Ids : interior && !h.curved() ? Held::Owned : Held::All;
+  const Held need = !coords ? Held::Ids : interior && !h.curved() ? Held::Corners : Held::All;
   if (own) {
     if (!interior || h.curved() || k0 != 0) throw Error(ErrorKind::Usage, "fill_slab: own nodes of a straight hex's first slab only");
     detail::OwnedPlaces to;

@@ -73,11 +73,12 @@ struct FineBlock {
     // whole, then for each 0 < k < n[2] the ring of plane k (j = 0, j = n[1],
     // i = 0, i = n[0]). O(n^2). Keyed on the mesh's identity and element.
     struct Boundary {
-      // What is held besides the ids: Owned = the corners (all a straight
-      // hex's interior reads; a batch has its owned entities written
-      // straight into its arrays, not kept here); All = every entity, in
-      // `Scratch`'s canonical arrays, and x holds every boundary point.
-      enum class Held : std::uint8_t { Ids, Owned, All };
+      // What is held besides the ids: Corners = the corners (all a
+      // straight hex's interior reads; a batch has its owned entities
+      // written straight into its arrays, not kept here); All = every
+      // entity, in `Scratch`'s canonical arrays, and x holds every
+      // boundary point.
+      enum class Held : std::uint8_t { Ids, Corners, All };
       std::uint64_t mesh = 0;
       Id h = -1;
       Held held = Held::Ids;
