@@ -580,28 +580,39 @@ struct IdBatch {
 struct BatchIterator {
   Mesh mesh;
   std::unique_ptr<BatchCursor> cursor;
+  std::shared_ptr<Recycler<double>> xyz = std::make_shared<Recycler<double>>();
+  std::shared_ptr<Recycler<Id>> conn = std::make_shared<Recycler<Id>>();
 
+  // The batch's arrays are the caller's (the cursor reuses its buffers):
+  // copied once, outside the GIL, into Recycler arrays (bench/README.md
+  // "Python": by way of fresh std::vectors, each value was zeroed, written
+  // and copied, and each step's pages faulted in anew).
   IdBatch step() {
     FineBatch b;
-    std::vector<double> xyz;
-    std::vector<Id> conn;
     bool more = false;
     {
       py::gil_scoped_release release;
       more = cursor->next(b);
-      if (more) {
-        xyz.resize(3 * b.x.size());
-        for (size_t i = 0; i < b.x.size(); ++i) xyz[3 * i] = b.x[i], xyz[3 * i + 1] = b.y[i], xyz[3 * i + 2] = b.z[i];
-        conn.assign(b.conn.begin(), b.conn.end());
-      }
     }
     if (!more) throw py::stop_iteration();
+    DICER_ASSERT(b.x.size() == static_cast<size_t>(b.num_nodes()) &&
+                     b.conn.size() == static_cast<size_t>(b.num_elements() * b.corners),
+                 "batches(): a batch's arrays match its id ranges");
     IdBatch r;
     r.coarse_element = b.coarse_element;
     r.node_begin = b.node_begin, r.node_end = b.node_end;
     r.element_begin = b.element_begin, r.element_end = b.element_end;
-    r.points = owned(std::move(xyz), {static_cast<py::ssize_t>(b.num_nodes()), 3});
-    r.connectivity = owned(std::move(conn), {static_cast<py::ssize_t>(b.num_elements()), b.corners});
+    auto points = xyz->array({static_cast<py::ssize_t>(b.num_nodes()), 3});
+    auto ids = conn->array({static_cast<py::ssize_t>(b.num_elements()), b.corners});
+    double* p = points.mutable_data();
+    Id* c = ids.mutable_data();
+    {
+      py::gil_scoped_release release;
+      interleave_into(b.x, b.y, b.z, p);
+      std::copy(b.conn.begin(), b.conn.end(), c);
+    }
+    r.points = std::move(points);
+    r.connectivity = std::move(ids);
     return r;
   }
 };

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import dicer
-from conftest import DATA, EXAMPLES, bits
+from conftest import DATA, EXAMPLES, SOURCE, bits
 
 
 def query_nodes(cli, store, a, b):
@@ -388,6 +388,49 @@ def test_batches_are_consecutive_ids_with_the_bits_of_nodes_and_elements(request
         assert (next_node, next_element) == (s.num_nodes, s.num_elements)
     # The checksum, computed independently from the documented formula, is the sweep's.
     assert "%016x" % (total % (1 << 64)) == s.sweep(threads=2)["checksum"]
+
+
+def test_arrays_kept_from_earlier_batches_and_blocks_stay_theirs(sphere_store):
+    """Each batch's and block's arrays are the caller's, not views of buffers the
+    iteration refills: collected first and compared after the whole pass (small
+    slabs, so that there are many), they still hold their own ids' bits."""
+    s = dicer.open(sphere_store)
+    nodes = s.nodes(0, s.num_nodes)
+    elements = s.elements(0, s.num_elements)
+    kept = list(s.batches(slab_points=64))
+    assert len(kept) > 10
+    for b in kept:
+        assert np.array_equal(bits(b.points), bits(nodes[b.node_begin:b.node_end]))
+        assert np.array_equal(b.connectivity, elements[b.element_begin:b.element_end])
+    kept[0].points[:] = np.nan  # the caller's to change, and no other batch's
+    assert np.array_equal(bits(kept[1].points), bits(nodes[kept[1].node_begin:kept[1].node_end]))
+    # Only a slice kept, the batch dropped: the slice keeps the buffer from
+    # being handed to a later batch (the iterator recycles dead arrays' buffers).
+    slices = [(b.node_begin, b.points[1:3], b.element_begin, b.connectivity[:2]) for b in s.batches(slab_points=64)]
+    for n0, p, e0, c in slices:
+        assert np.array_equal(bits(p), bits(nodes[n0 + 1:n0 + 1 + len(p)]))
+        assert np.array_equal(c, elements[e0:e0 + len(c)])
+    blocks = list(s.blocks())
+    for b in blocks:
+        assert np.array_equal(bits(b.points), bits(nodes[b.node_ids]))
+        assert np.array_equal(b.connectivity, elements[b.element_ids])
+    block_slices = [(b.node_ids[:3].copy(), b.points[:3]) for b in s.blocks()]
+    for ids, p in block_slices:
+        assert np.array_equal(bits(p), bits(nodes[ids]))
+
+
+def test_the_python_benchmark_runs(sphere_store):
+    """bench/bench_python.py (not timed here: only that it keeps working and
+    reports every figure it documents)."""
+    import subprocess
+    import sys
+    out = subprocess.run([sys.executable, str(SOURCE / "bench" / "bench_python.py"), str(sphere_store), "--rounds", "1"],
+                         capture_output=True, text=True, check=True).stdout
+    median = [line for line in out.splitlines() if line.startswith("median:")]
+    assert len(median) == 1
+    for k in ("batches", "copy", "blocks", "library"):
+        assert (" %s " % k) in median[0]
+    assert "batches / copy: median" in out and "blocks / copy: median" in out
 
 
 def test_batches_of_a_chunk_are_the_chunks_elements(sphere_store):
