@@ -2,12 +2,14 @@
 // numpy arrays over dicer's buffers. Three ways, and which one a function
 // uses is part of its documented contract:
 //  - owned():  the array takes a std::vector over by a capsule, no copy:
-//              for data computed for the caller (nodes(), blocks()).
+//              for data computed for the caller (nodes(); blocks()' ids and
+//              connectivity, the block's own vectors handed over).
 //  - Recycler::array(): the caller's array too, its buffer taken from the
 //              recycler and given back to it when the array dies: for an
 //              iterator that copies each step out of buffers it reuses
-//              (batches()), so that a loop which drops each step's arrays
-//              reuses two buffers instead of asking the allocator anew.
+//              (batches(); blocks()' interleaved points), so that a loop
+//              which drops each step's arrays reuses two buffers instead of
+//              asking the allocator anew.
 //  - view():   a read-only array over memory another Python object owns
 //              (a Chunk, a Partition), which the array keeps alive as its
 //              base; read-only because the owner's other arrays index it.
