@@ -75,11 +75,12 @@ class Recycler : public std::enable_shared_from_this<Recycler<T>> {
         break;
       }
     if (!b.data) b = Buffer{std::unique_ptr<T[]>(new T[n > 0 ? n : 1]), n};  // default-initialised: not zeroed
-    auto* held = new Held{this->shared_from_this(), std::move(b)};
-    py::capsule base(held, [](void* p) {
+    auto owner = std::make_unique<Held>(Held{this->shared_from_this(), std::move(b)});
+    py::capsule base(owner.get(), [](void* p) {
       std::unique_ptr<Held> h(static_cast<Held*>(p));
       h->owner->give_back(std::move(h->buffer));
     });
+    Held* held = owner.release();  // the capsule's now (it deletes it even if the array is not made)
     const auto strides = c_strides<T>(shape);
     return py::array_t<T>(std::move(shape), strides, held->buffer.data.get(), base);
   }
