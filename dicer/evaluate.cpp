@@ -303,6 +303,16 @@ GridEntity grid_entity(const ElementRow& h, Mode mode, Id i, Id j, Id k) {
   return {EntityKind::Cell, -1, {i, j, k}};
 }
 
+// Sorts a[0..n) by `less`, n a handful (the 6 faces, the 26 owned
+// ranges): an insertion sort, as std::sort does below 16 elements; GCC 12
+// warned -Warray-bounds inside std::sort's unrolled path on these small
+// fixed arrays.
+template <class T, class Less>
+void sort_few(T* a, int n, Less less) {
+  for (int i = 1; i < n; ++i)
+    for (int j = i; j > 0 && less(a[j], a[j - 1]); --j) std::swap(a[j], a[j - 1]);
+}
+
 }  // namespace
 
 NodeRef Evaluator::grid_node(const ElementRow& h, Id hid, Id i, Id j, Id k) const {
@@ -428,9 +438,7 @@ void element_boundary(const Evaluator& E, const ElementRow& h, Id hid, FineBlock
   // face), or on the interior (written after the boundary), never on a
   // face already written.
   int order[6] = {0, 1, 2, 3, 4, 5};
-  for (int i = 1; to && i < nf; ++i)  // insertion sort of at most 6
-    for (int j = i; j > 0 && std::less<>()(to->face[order[j]][0], to->face[order[j - 1]][0]); --j)
-      std::swap(order[j], order[j - 1]);
+  if (to) sort_few(order, nf, [&](int a, int b) { return std::less<>()(to->face[a][0], to->face[b][0]); });
   auto faces = [&] {
     for (int of = 0; of < nf; ++of) {
       const int lf = order[of];
@@ -604,9 +612,7 @@ Id owned_places(const Evaluator& E, const ElementRow& h, Id hid, double* const o
       const auto [nu, nv] = face_intervals(h, k, mode);
       place(at.face[k], h.face_node[k], ids::face_nodes(nu, nv));
     }
-  // Insertion sort: a handful of ranges (26 at most).
-  for (int i = 1; i < nr; ++i)
-    for (int j = i; j > 0 && ranges[j].at < ranges[j - 1].at; --j) std::swap(ranges[j], ranges[j - 1]);
+  sort_few(ranges, nr, [](const Range& a, const Range& b) { return a.at < b.at; });
   Id next = 0;
   for (int i = 0; i < nr; ++i) {
     if (ranges[i].at != next)
