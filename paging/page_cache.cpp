@@ -123,7 +123,7 @@ inline std::int64_t hits_of(std::uint64_t word) { return static_cast<std::int32_
 // checks between them touch no other line.
 struct alignas(64) PageCache::Entry {
   PageKey key{};                   // changes only while detached
-  std::vector<std::uint8_t> data;  // decoded bytes; fixed while pinned and Ready
+  PageBytes data;  // decoded bytes; fixed while pinned and Ready
   std::exception_ptr error;        // State::Failed: what waiters rethrow
   // Handles + threads waiting for the load + the loading pin() itself, and
   // kDetached while out of the index (low half); unlocked hits (high
@@ -327,7 +327,7 @@ struct PageCache::Impl {
   // e is detached (detach() succeeded) and out of the index.
   void free_entry(Entry* e) {
     assert(e->pins.load() & kDetached);
-    std::vector<std::uint8_t>().swap(e->data);
+    PageBytes().swap(e->data);
     e->error = nullptr;
     e->state.store(State::Free, std::memory_order_relaxed);
     st.hits += static_cast<std::uint64_t>(e->take_hits());
@@ -410,7 +410,7 @@ struct PageCache::Impl {
 
   // Makes room for buf under `policy` and publishes it in e. False: nothing
   // was admitted (for read-ahead, nothing was evicted either).
-  bool admit(Entry* e, std::vector<std::uint8_t>&& buf, Policy policy) {
+  bool admit(Entry* e, PageBytes&& buf, Policy policy) {
     const std::uint64_t size = buf.size();
     if (size > opt.budget_bytes) return false;
     if (policy == Policy::ReadAhead && !readahead_room(size)) return false;
@@ -482,7 +482,7 @@ struct PageCache::Impl {
       Entry* e = new_entry(key);
       e->prefetched.store(true, std::memory_order_relaxed);
       lock.unlock();
-      std::vector<std::uint8_t> buf;
+      PageBytes buf;
       std::uint64_t nread = 0;
       std::exception_ptr err;
       try {
@@ -601,7 +601,7 @@ PageCache::Handle PageCache::pin_locked(std::unique_lock<SpinMutex>& lock, PageK
   e->referenced.store(!sequential, std::memory_order_relaxed);
   if (sequential) m.schedule(*ai, key);
   lock.unlock();
-  std::vector<std::uint8_t> buf;
+  PageBytes buf;
   std::uint64_t nread = 0;
   try {
     nread = m.loader(key, buf);

@@ -268,9 +268,7 @@ std::vector<std::uint8_t> encode_page(std::span<const std::uint8_t> raw) {
   return out;
 }
 
-void decode_page(std::span<const std::uint8_t> stored, std::vector<std::uint8_t>& out, std::size_t expected_size,
-                 const std::string& what) {
-  out.clear();
+void decode_page(std::span<const std::uint8_t> stored, std::span<std::uint8_t> out, const std::string& what) {
   const auto fail = [&](const std::string& msg) { throw Error(ErrorKind::Corrupt, what + ": " + msg); };
   if (stored.size() < kChecksumBytes + kHeaderBytes)
     fail("page truncated: " + std::to_string(stored.size()) + " stored bytes, at least " +
@@ -278,15 +276,24 @@ void decode_page(std::span<const std::uint8_t> stored, std::vector<std::uint8_t>
   const std::size_t n = stored.size() - kChecksumBytes;
   const std::uint32_t want = get_checksum(stored.data() + n), got = fletcher32(stored.data(), n);
   if (want != got) fail("page checksum mismatch (stored " + hex32(want) + ", computed " + hex32(got) + ")");
-  if (get_be64(stored.data()) != expected_size)
+  if (get_be64(stored.data()) != out.size())
     fail("LZ4 header claims " + std::to_string(get_be64(stored.data())) + " bytes, the page holds " +
-         std::to_string(expected_size));
+         std::to_string(out.size()));
   Layout l;
   if (std::string err = check_layout(stored.data(), n, l); !err.empty()) fail(err);
-  out.resize(expected_size);
-  if (std::string err = lz4_decode(stored.data(), l, out.data()); !err.empty()) {
+  if (std::string err = lz4_decode(stored.data(), l, out.data()); !err.empty()) fail(err);
+}
+
+void decode_page(std::span<const std::uint8_t> stored, std::vector<std::uint8_t>& out, std::size_t expected_size,
+                 const std::string& what) {
+  // A buffer of the page's size already is not zero-filled again (every
+  // byte is written); a failure leaves it empty.
+  try {
+    out.resize(expected_size);  // the caller's size, never the header's
+    decode_page(stored, std::span<std::uint8_t>(out), what);
+  } catch (...) {
     out.clear();
-    fail(err);
+    throw;
   }
 }
 
@@ -332,16 +339,20 @@ std::size_t unshuffle8_sse2(const std::uint8_t* in, std::size_t count, std::uint
 #endif
 }  // namespace
 
-void unshuffle_bytes(std::span<const std::uint8_t> in, std::size_t elem, std::vector<std::uint8_t>& out) {
-  out.resize(in.size());
+void unshuffle_bytes(std::span<const std::uint8_t> in, std::size_t elem, std::uint8_t* out) {
   const std::size_t count = elem ? in.size() / elem : 0;
   std::size_t done = 0;
 #if defined(__SSE2__)
-  if (elem == 8) done = unshuffle8_sse2(in.data(), count, out.data());
+  if (elem == 8) done = unshuffle8_sse2(in.data(), count, out);
 #endif
   for (std::size_t i = done; i < count; ++i)
     for (std::size_t j = 0; j < elem; ++j) out[i * elem + j] = in[j * count + i];
-  std::copy(in.begin() + static_cast<std::ptrdiff_t>(count * elem), in.end(), out.begin() + static_cast<std::ptrdiff_t>(count * elem));
+  std::copy(in.begin() + static_cast<std::ptrdiff_t>(count * elem), in.end(), out + count * elem);
+}
+
+void unshuffle_bytes(std::span<const std::uint8_t> in, std::size_t elem, std::vector<std::uint8_t>& out) {
+  out.resize(in.size());
+  unshuffle_bytes(in, elem, out.data());
 }
 
 std::uint32_t page_crc(std::span<const std::uint8_t> bytes) {

@@ -73,7 +73,8 @@ std::vector<std::uint8_t> encode_page(std::span<const std::uint8_t> raw);
 
 // Decodes the raw bytes H5Dread_chunk returned for a page: checks the
 // Fletcher32 checksum, then the LZ4 layout, and writes the original bytes into
-// out (resized to expected_size; its old contents are lost, also on failure).
+// out (resized to expected_size, every byte written: a reused buffer of that
+// size is not zero-filled first; emptied on failure).
 // expected_size: the page's uncompressed size as the caller knows it from the
 // dataset shape. `what` names the page in errors, e.g.
 // "store.dice.h5: dataset /coarse/x page 17".
@@ -84,6 +85,10 @@ std::vector<std::uint8_t> encode_page(std::span<const std::uint8_t> raw);
 // than expected_size, whatever the header says. Cost: O(stored + expected).
 void decode_page(std::span<const std::uint8_t> stored, std::vector<std::uint8_t>& out, std::size_t expected_size,
                  const std::string& what);
+// The same into out's out.size() bytes, which are the expected size; after
+// a failure they hold anything (the store's loader: a cache page's bytes,
+// dropped on failure).
+void decode_page(std::span<const std::uint8_t> stored, std::span<std::uint8_t> out, const std::string& what);
 
 // CRC-32 (zlib's) of a page's decoded bytes. Fletcher32 cannot see a 16-bit
 // word turning from 0x0000 into 0xFFFF (ones'-complement sums); every paged
@@ -100,6 +105,8 @@ std::uint32_t page_crc(std::span<const std::uint8_t> bytes);
 // HDF5's filters and the library exposes no shuffle call of its own.
 void shuffle_bytes(std::span<const std::uint8_t> in, std::size_t elem, std::vector<std::uint8_t>& out);
 void unshuffle_bytes(std::span<const std::uint8_t> in, std::size_t elem, std::vector<std::uint8_t>& out);
+// The same into out[0 .. in.size()).
+void unshuffle_bytes(std::span<const std::uint8_t> in, std::size_t elem, std::uint8_t* out);
 inline constexpr const char* kPageCrcSuffix = "_crc";
 
 }  // namespace dicer::store

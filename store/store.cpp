@@ -148,11 +148,16 @@ struct OpenStore {
 
   // Reads and decodes one page: H5Dread_chunk (no HDF5 filters, no HDF5
   // chunk cache) then our LZ4 + checksum decode.
-  std::uint64_t load(PageKey key, std::vector<std::uint8_t>& out) {
+  std::uint64_t load(PageKey key, PageBytes& out) {
     if (key.array >= arrays.size()) throw Error(ErrorKind::Usage, file.path() + ": no paged array " + std::to_string(key.array));
     const PagedDataset& a = arrays[key.array];
     const std::string what = file.path() + ": dataset " + a.name + " page " + std::to_string(key.page);
-    std::vector<std::uint8_t> raw;
+    // The stored bytes, and a shuffled page's bytes before the unshuffle,
+    // in buffers each loading thread keeps (a page or two, on the sweeping
+    // threads and the read-ahead worker): only `out`, which the cache keeps,
+    // is allocated per page. Two fresh, zero-filled buffers per load were
+    // 3-4% of a one-thread sweep (bench/README.md, stop 41).
+    thread_local std::vector<std::uint8_t> raw, packed;
     {
       std::lock_guard lock(hdf5_mutex());
       h5::quiet();  // this may be the cache's read-ahead thread
@@ -172,19 +177,18 @@ struct OpenStore {
     // ends in, so that it never grows past the exact size the cache's
     // budget counts.
     const size_t page_bytes = rows_bytes + a.derived.size() * static_cast<size_t>(a.rows_per_page) * a.elem;
-    if (!a.shuffled) out.reserve(page_bytes);
-    store::decode_page(raw, out, rows_bytes, what);
+    out.resize(page_bytes);  // PageBytes: not zero-filled; every byte is written below
+    const std::span<std::uint8_t> rows_out(out.data(), rows_bytes);
     if (a.shuffled) {
-      std::vector<std::uint8_t> plain;
-      plain.reserve(page_bytes);
-      store::unshuffle_bytes(out, a.elem, plain);
-      out.swap(plain);
+      store::decode_page(raw, packed, rows_bytes, what);
+      store::unshuffle_bytes(packed, a.elem, rows_out.data());
+    } else {
+      store::decode_page(raw, rows_out, what);
     }
-    if (key.page >= a.crc.size() || store::page_crc(out) != a.crc[key.page])
+    if (key.page >= a.crc.size() || store::page_crc(rows_out) != a.crc[key.page])
       throw Error(ErrorKind::Corrupt, what + ": page checksum (CRC-32) mismatch: the page is damaged");
     if (!a.derived.empty()) {
       DICER_ASSERT(a.elem == sizeof(std::int64_t), "derived columns: 8-byte tables");
-      out.resize(page_bytes);
       std::int64_t* rows = reinterpret_cast<std::int64_t*>(out.data());
       for (size_t k = 0; k < a.derived.size(); ++k) {
         std::int64_t* col = rows + (a.width + static_cast<std::int64_t>(k)) * a.rows_per_page;
@@ -532,7 +536,7 @@ FineMesh read_store(const std::string& path, const StoreOptions& options) {
   co.read_ahead_pages = options.read_ahead_pages;
   // The loader keeps the file open for as long as the cache lives.
   auto cache = std::make_shared<PageCache>(
-      [s](PageKey key, std::vector<std::uint8_t>& out) { return s->load(key, out); }, co);
+      [s](PageKey key, PageBytes& out) { return s->load(key, out); }, co);
   MeshTables tab;
   tab.mode = info.mode;
   tab.cache = cache;
@@ -651,7 +655,7 @@ StoreSets read_store_sets(const FineMesh& mesh, const std::string& path) {
                                    ", the mesh's " + (mesh.info().uuid.empty() ? "none" : mesh.info().uuid) +
                                    "); run the command again");
   auto cache = std::make_shared<PageCache>(
-      [s](PageKey key, std::vector<std::uint8_t>& out) { return s->load(key, out); }, PageCache::Options{4ull << 20, 0, false});
+      [s](PageKey key, PageBytes& out) { return s->load(key, out); }, PageCache::Options{4ull << 20, 0, false});
   auto rows_of = [&](const std::string& name) { return dataset_rows(s->file, name); };
   auto strings = [&](const std::string& base, std::int64_t n) {
     const auto off = read_small<std::int64_t>(*s, cache, base + "_offset", n + 1);

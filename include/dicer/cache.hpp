@@ -72,6 +72,8 @@
 #include <memory>
 #include <mutex>
 #include <span>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
 namespace dicer {
@@ -106,17 +108,45 @@ struct CacheStats {
 
 class SpinMutex;  // the cache's lock (page_cache.cpp)
 
+// An allocator whose resize() leaves new bytes as they are: a loader writes
+// every byte of its page, and zero-filling 64 KiB first cost a memset per
+// page load (bench/README.md, stop 41). The standard containers have no
+// resize without initialisation (C++23's resize_and_overwrite is string's
+// alone); Boost.Container's default_init is the same idea.
+template <class T>
+struct DefaultInitAllocator : std::allocator<T> {
+  DefaultInitAllocator() = default;
+  template <class U>
+  DefaultInitAllocator(const DefaultInitAllocator<U>&) noexcept {}
+  template <class U>
+  struct rebind {
+    using other = DefaultInitAllocator<U>;
+  };
+  template <class U>
+  void construct(U* p) noexcept(std::is_nothrow_default_constructible_v<U>) {
+    ::new (static_cast<void*>(p)) U;
+  }
+  template <class U, class... A>
+  void construct(U* p, A&&... a) {
+    ::new (static_cast<void*>(p)) U(std::forward<A>(a)...);
+  }
+  friend bool operator==(const DefaultInitAllocator&, const DefaultInitAllocator&) { return true; }
+};
+// A decoded page's bytes (PageCache::Loader).
+using PageBytes = std::vector<std::uint8_t, DefaultInitAllocator<std::uint8_t>>;
+
 class PageCache {
   struct Entry;  // one slot of the cache (page_cache.cpp)
   struct Impl;
 
  public:
-  // Reads and decodes one page into out (resized to the decoded size);
-  // returns the number of bytes read from the file. May throw dicer::Error
-  // (e.g. Corrupt); the cache then stores nothing for that key and rethrows
-  // to every waiter. Give out exactly its size (out arrives empty): the
-  // budget counts size(), so capacity slack would be uncounted memory.
-  using Loader = std::function<std::uint64_t(PageKey key, std::vector<std::uint8_t>& out)>;
+  // Reads and decodes one page into out (resized to the decoded size; a
+  // resize leaves the new bytes unset, so write every one); returns the
+  // number of bytes read from the file. May throw dicer::Error (e.g.
+  // Corrupt); the cache then stores nothing for that key and rethrows to
+  // every waiter. Give out exactly its size (out arrives empty): the budget
+  // counts size(), so capacity slack would be uncounted memory.
+  using Loader = std::function<std::uint64_t(PageKey key, PageBytes& out)>;
 
   struct Options {
     std::uint64_t budget_bytes = 64ull << 20;  // decoded bytes resident, at most

@@ -161,6 +161,27 @@ TEST(Lz4Filter, DecodesHandBuiltMultiBlockPage) {
   EXPECT_EQ(out, small);
 }
 
+// The store's loader decodes into one buffer per thread, page after page,
+// without zero-filling it: each page must overwrite every byte it holds, and
+// a failure must leave the buffer empty, not holding the page before.
+TEST(Lz4Filter, AReusedBufferHoldsOnlyTheNewPage) {
+  const Bytes a(65536, 0xab), b = random_bytes(65536, 11), c = smooth_doubles(8192);
+  Bytes out;
+  for (const Bytes* raw : {&a, &b, &c, &a}) {
+    decode_page(encode_page(*raw), out, raw->size(), kWhat);
+    EXPECT_EQ(out, *raw);
+  }
+  Bytes shorter = random_bytes(1000, 12);  // a smaller page into the big buffer: only its bytes
+  decode_page(encode_page(shorter), out, shorter.size(), kWhat);
+  EXPECT_EQ(out, shorter);
+  Bytes bad = encode_page(b);
+  bad[bad.size() / 2] ^= 0x5a;
+  EXPECT_THROW(decode_page(bad, out, b.size(), kWhat), Error);
+  EXPECT_TRUE(out.empty());
+  EXPECT_THROW(decode_page(encode_page(b), out, b.size() + 1, kWhat), Error);  // the size field disagrees
+  EXPECT_TRUE(out.empty());
+}
+
 TEST(Lz4Filter, EverySingleByteFlipIsCaught) {
   for (const Bytes& raw : {smooth_doubles(512), random_bytes(300, 6), Bytes{7}}) {
     const Bytes stored = encode_page(raw);

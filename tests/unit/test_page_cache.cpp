@@ -45,7 +45,7 @@ class SyntheticPages {
   SyntheticPages(std::uint32_t arrays, std::uint64_t pages) : pages_(pages), loads_(arrays * pages) {}
 
   PageCache::Loader loader() {
-    return [this](PageKey k, std::vector<std::uint8_t>& out) -> std::uint64_t {
+    return [this](PageKey k, PageBytes& out) -> std::uint64_t {
       if (k.page >= pages_) throw Error(ErrorKind::BadInput, "synthetic: page beyond the end");
       loads_[k.array * pages_ + k.page].fetch_add(1);
       out.resize(page_bytes(k));
@@ -346,7 +346,7 @@ namespace {
 class GatedLoader {
  public:
   PageCache::Loader loader() {
-    return [this](PageKey k, std::vector<std::uint8_t>& out) -> std::uint64_t {
+    return [this](PageKey k, PageBytes& out) -> std::uint64_t {
       calls.fetch_add(1);
       {
         std::unique_lock lock(mu_);
@@ -517,7 +517,7 @@ TEST(PageCache, ConcurrentUnlockedHitsRaceEvictionsAndFailedLoads) {
   constexpr int kThreads = 6, kPins = 4000;
   constexpr std::uint64_t kPages = 120, kHot = 12;
   std::vector<std::atomic<int>> attempts(kPages);
-  auto loader = [&](PageKey k, std::vector<std::uint8_t>& out) -> std::uint64_t {
+  auto loader = [&](PageKey k, PageBytes& out) -> std::uint64_t {
     if (k.page % 5 == 2 && attempts[k.page].fetch_add(1) % 2 == 0)
       throw Error(ErrorKind::BadInput, "synthetic: a failing read");
     out.resize(page_bytes(k));
@@ -591,7 +591,7 @@ TEST(PageCache, ConcurrentSweepsReadEachPageOnce) {
 TEST(PageCache, ResidentPagesStayFoundAcrossDeclarations) {
   std::map<std::pair<std::uint32_t, std::uint64_t>, int> loads;
   PageCache cache(
-      [&](PageKey k, std::vector<std::uint8_t>& out) -> std::uint64_t {
+      [&](PageKey k, PageBytes& out) -> std::uint64_t {
         ++loads[{k.array, k.page}];
         out.resize(page_bytes(k));
         for (std::size_t i = 0; i < out.size(); ++i) out[i] = byte_at(k, i);
