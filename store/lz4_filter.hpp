@@ -60,7 +60,8 @@ void add_page_filters(hid_t dcpl);
 
 // HDF5's Fletcher32 checksum exactly as H5Z's fletcher32 filter computes it
 // (big-endian 16-bit words, an odd last byte taken as the high byte of a
-// word, sums reduced with end-around carry). O(n), never throws.
+// word, sums reduced with end-around carry), 16 words at a time in vector
+// lanes. O(n), never throws.
 std::uint32_t fletcher32(const std::uint8_t* data, std::size_t n);
 
 // Encodes one page the way the pipeline stores it on disk (LZ4 layout above

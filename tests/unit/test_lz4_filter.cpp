@@ -130,6 +130,53 @@ TEST(Lz4Filter, Fletcher32MatchesModularDefinition) {
   }
 }
 
+// HDF5's own loop (H5_checksum_fletcher32: word by word, both sums folded
+// every 360 words and twice at the end), the bits fletcher32 must give:
+// its block sums reach them another way (lz4_filter.cpp).
+std::uint32_t hdf5_fletcher32(const std::uint8_t* data, std::size_t n) {
+  std::uint32_t sum1 = 0, sum2 = 0;
+  for (std::size_t words = n / 2; words > 0;) {
+    std::size_t run = std::min<std::size_t>(words, 360);
+    words -= run;
+    for (; run > 0; --run, data += 2) sum1 += (std::uint32_t{data[0]} << 8) | data[1], sum2 += sum1;
+    sum1 = (sum1 & 0xffff) + (sum1 >> 16), sum2 = (sum2 & 0xffff) + (sum2 >> 16);
+  }
+  if (n % 2) {
+    sum1 += std::uint32_t{data[0]} << 8, sum2 += sum1;
+    sum1 = (sum1 & 0xffff) + (sum1 >> 16), sum2 = (sum2 & 0xffff) + (sum2 >> 16);
+  }
+  sum1 = (sum1 & 0xffff) + (sum1 >> 16), sum2 = (sum2 & 0xffff) + (sum2 >> 16);
+  return (sum2 << 16) | sum1;
+}
+
+TEST(Lz4Filter, Fletcher32GivesHdf5sBits) {
+  // Lengths around the 16-word steps and 4096-word blocks, odd and even;
+  // bytes that make the sums exact multiples of 65535 (all 0xff: where 0
+  // and 0xffff differ), zeros, sparse and random.
+  std::mt19937_64 rng(21);
+  std::vector<std::size_t> sizes;
+  for (std::size_t n = 0; n < 80; ++n) sizes.push_back(n);
+  for (std::size_t n : {8191u, 8192u, 8193u, 8223u, 8224u, 8225u, 16384u, 65535u, 65536u, 65537u, 131072u, 1310720u})
+    sizes.push_back(n);
+  for (int k = 0; k < 200; ++k) sizes.push_back(rng() % 200000);
+  int checked = 0;
+  for (std::size_t n : sizes)
+    for (int mode = 0; mode < 5; ++mode) {
+      Bytes b(n);
+      for (auto& x : b)
+        x = mode == 0 ? 0xff : mode == 1 ? 0 : mode == 2 ? (rng() % 97 == 0 ? 0xff : 0) : static_cast<std::uint8_t>(rng());
+      if (mode == 4 && n > 2) b[n / 2] = 1;  // one word off a multiple
+      ASSERT_EQ(fletcher32(b.data(), n), hdf5_fletcher32(b.data(), n)) << n << " bytes, mode " << mode;
+      ++checked;
+    }
+  EXPECT_EQ(checked, 5 * static_cast<int>(sizes.size()));
+  // Known values: all-zero input gives 0; nonzero multiples of 65535 give 0xffff.
+  EXPECT_EQ(fletcher32(Bytes(64, 0).data(), 64), 0u);
+  EXPECT_EQ(fletcher32(Bytes(2, 0xff).data(), 2), 0xffffffffu);  // sum1 = sum2 = 0xffff
+  const Bytes ab{0x01, 0x02, 0x03, 0x04};  // words 0x0102, 0x0304: sum1 0x0406, sum2 0x0102 + 0x0406
+  EXPECT_EQ(fletcher32(ab.data(), 4), (0x0508u << 16) | 0x0406u);
+}
+
 TEST(Lz4Filter, DecodesHandBuiltMultiBlockPage) {
   // 10000 bytes in blocks of 3000: 3000 (LZ4) + 3000 (raw) + 3000 (LZ4) + 1000 (raw).
   Bytes raw = smooth_doubles(1250);
