@@ -155,8 +155,9 @@ struct OpenStore {
     // The stored bytes, and a shuffled page's bytes before the unshuffle,
     // in buffers each loading thread keeps (a page or two, on the sweeping
     // threads and the read-ahead worker): only `out`, which the cache keeps,
-    // is allocated per page. Two fresh, zero-filled buffers per load were
-    // 3-4% of a one-thread sweep (bench/README.md, stop 41).
+    // is allocated per page, and nothing is zero-filled (three allocations
+    // and memsets per page before: about a tenth of a cold random query,
+    // bench/README.md stop 41).
     thread_local std::vector<std::uint8_t> raw, packed;
     {
       std::lock_guard lock(hdf5_mutex());
