@@ -5,6 +5,7 @@
 #include <lz4.h>
 
 #include <algorithm>
+#include <bit>
 #include <climits>
 #include <cstring>
 #include <mutex>
@@ -260,7 +261,7 @@ std::uint32_t fletcher32(const std::uint8_t* data, std::size_t n) {
     for (std::size_t t = 0; t < steps; ++t, data += 2 * kWords) {
       U16x16 v;
       std::memcpy(&v, data, sizeof v);
-      v = (v << 8) | (v >> 8);  // big-endian words
+      if constexpr (std::endian::native == std::endian::little) v = (v << 8) | (v >> 8);  // big-endian words
       pacc += acc;
       acc += __builtin_convertvector(v, U32x16);
     }
@@ -293,7 +294,7 @@ std::vector<std::uint8_t> encode_page(std::span<const std::uint8_t> raw) {
   return out;
 }
 
-void decode_page(std::span<const std::uint8_t> stored, std::span<std::uint8_t> out, const std::string& what) {
+void decode_page_into(std::span<const std::uint8_t> stored, std::span<std::uint8_t> out, const std::string& what) {
   const auto fail = [&](const std::string& msg) { throw Error(ErrorKind::Corrupt, what + ": " + msg); };
   if (stored.size() < kChecksumBytes + kHeaderBytes)
     fail("page truncated: " + std::to_string(stored.size()) + " stored bytes, at least " +
@@ -315,7 +316,7 @@ void decode_page(std::span<const std::uint8_t> stored, std::vector<std::uint8_t>
   // byte is written); a failure leaves it empty.
   try {
     out.resize(expected_size);  // the caller's size, never the header's
-    decode_page(stored, std::span<std::uint8_t>(out), what);
+    decode_page_into(stored, out, what);
   } catch (...) {
     out.clear();
     throw;

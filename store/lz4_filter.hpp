@@ -89,7 +89,7 @@ void decode_page(std::span<const std::uint8_t> stored, std::vector<std::uint8_t>
 // The same into out's out.size() bytes, which are the expected size; after
 // a failure they hold anything (the store's loader: a cache page's bytes,
 // dropped on failure).
-void decode_page(std::span<const std::uint8_t> stored, std::span<std::uint8_t> out, const std::string& what);
+void decode_page_into(std::span<const std::uint8_t> stored, std::span<std::uint8_t> out, const std::string& what);
 
 // CRC-32 (zlib's) of a page's decoded bytes. Fletcher32 cannot see a 16-bit
 // word turning from 0x0000 into 0xFFFF (ones'-complement sums); every paged

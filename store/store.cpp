@@ -153,12 +153,13 @@ struct OpenStore {
     const PagedDataset& a = arrays[key.array];
     const std::string what = file.path() + ": dataset " + a.name + " page " + std::to_string(key.page);
     // The stored bytes, and a shuffled page's bytes before the unshuffle,
-    // in buffers each loading thread keeps (a page or two, on the sweeping
-    // threads and the read-ahead worker): only `out`, which the cache keeps,
-    // is allocated per page, and nothing is zero-filled (three allocations
-    // and memsets per page before: about a tenth of a cold random query,
-    // bench/README.md stop 41).
-    thread_local std::vector<std::uint8_t> raw, packed;
+    // in buffers each loading thread keeps (a stored page and a page, held
+    // until the thread ends: the sweeping threads, the read-ahead worker, a
+    // caller's): only `out`, which the cache keeps, is allocated per page,
+    // and no buffer is zero-filled (PageBytes). Three allocations and
+    // memsets per page before: about a tenth of a cold random query
+    // (bench/README.md, stop 41).
+    thread_local PageBytes raw, packed;
     {
       std::lock_guard lock(hdf5_mutex());
       h5::quiet();  // this may be the cache's read-ahead thread
@@ -179,12 +180,19 @@ struct OpenStore {
     // budget counts.
     const size_t page_bytes = rows_bytes + a.derived.size() * static_cast<size_t>(a.rows_per_page) * a.elem;
     out.resize(page_bytes);  // PageBytes: not zero-filled; every byte is written below
+#ifndef NDEBUG
+    // Debug builds (the sanitizer stage too) poison the page first, so that
+    // a byte this loader fails to write shows as garbage, not as the bytes
+    // a freed page left in the same heap chunk.
+    std::fill(out.begin(), out.end(), std::uint8_t{0xa5});
+#endif
     const std::span<std::uint8_t> rows_out(out.data(), rows_bytes);
     if (a.shuffled) {
-      store::decode_page(raw, packed, rows_bytes, what);
+      packed.resize(rows_bytes);
+      store::decode_page_into(raw, packed, what);
       store::unshuffle_bytes(packed, a.elem, rows_out.data());
     } else {
-      store::decode_page(raw, rows_out, what);
+      store::decode_page_into(raw, rows_out, what);
     }
     if (key.page >= a.crc.size() || store::page_crc(rows_out) != a.crc[key.page])
       throw Error(ErrorKind::Corrupt, what + ": page checksum (CRC-32) mismatch: the page is damaged");

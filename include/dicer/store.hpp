@@ -9,7 +9,8 @@
 // HDF5 filter 32004 (LZ4) and checksummed with Fletcher32. read_store opens
 // lazily: only O(blocks) metadata is read; every row comes through a
 // PageCache with a fixed byte budget, so memory stays under the budget plus
-// a small constant whatever the mesh size.
+// a small constant whatever the mesh size (and, per thread that has loaded
+// a page, a stored page and a decoded one that the loader keeps for reuse).
 //
 // write_store writes every page once (H5Dwrite_chunk), to a temporary name
 // in the same directory, renamed into place only when complete: an
