@@ -123,7 +123,7 @@ inline std::int64_t hits_of(std::uint64_t word) { return static_cast<std::int32_
 // checks between them touch no other line.
 struct alignas(64) PageCache::Entry {
   PageKey key{};                   // changes only while detached
-  PageBytes data;  // decoded bytes; fixed while pinned and Ready
+  PageBytes data;                  // decoded bytes; fixed while pinned and Ready
   std::exception_ptr error;        // State::Failed: what waiters rethrow
   // Handles + threads waiting for the load + the loading pin() itself, and
   // kDetached while out of the index (low half); unlocked hits (high
