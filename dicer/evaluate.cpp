@@ -338,6 +338,73 @@ Id Evaluator::grid_node_id(const ElementRow& h, Id i, Id j, Id k) const {
   return ids::cell_node(h.cell_node, h.n, i, j, k);
 }
 
+namespace {
+
+// Node ids over one region of a hex's grid: base + c . (i, j, k).
+struct AffineIds {
+  Id base;
+  std::array<Id, 3> c;
+};
+
+// The map of region s (per axis: 0 the low side, 1 the high side, 2
+// inside). Each case takes its affine id from numbering's own formula,
+// evaluated at the origin and one step along each free axis.
+AffineIds region_ids(const ElementRow& h, const int* s) {
+  const auto& n = h.n;
+  const int inside = (s[0] == 2) + (s[1] == 2) + (s[2] == 2);
+  AffineIds A{0, {0, 0, 0}};
+  if (inside == 0) {
+    A.base = h.corner_node[hex_corner_at(s[0], s[1], s[2])];
+  } else if (inside == 1) {
+    const int axis = s[0] == 2 ? 0 : s[1] == 2 ? 1 : 2;
+    const int le = hex_edge_at(axis, s[axis == 0 ? 1 : 0], s[axis == 2 ? 1 : 2]);
+    const bool rev = h.rev(le);
+    auto id = [&](Id p) { return ids::edge_node(h.edge_node[le], rev ? n[axis] - p : p); };
+    A.base = id(0), A.c[axis] = id(1) - id(0);
+  } else if (inside == 2) {
+    const int axis = s[0] != 2 ? 0 : s[1] != 2 ? 1 : 2;
+    const int lf = 2 * axis + s[axis];
+    const auto [nu, nv] = face_intervals(h, lf, Mode::Volume);
+    const FaceMap fm = face_map(h.code(lf), nu, nv);
+    auto id = [&](Id a, Id b) { return ids::face_node(h.face_node[lf], nu, fm.u(a, b), fm.v(a, b)); };
+    A.base = id(0, 0);
+    A.c[kHexFaceAxes[lf][0]] = id(1, 0) - A.base, A.c[kHexFaceAxes[lf][1]] = id(0, 1) - A.base;
+  } else {
+    auto id = [&](Id i, Id j, Id k) { return ids::cell_node(h.cell_node, n, i, j, k); };
+    A.base = id(0, 0, 0);
+    A.c = {id(1, 0, 0) - A.base, id(0, 1, 0) - A.base, id(0, 0, 1) - A.base};
+  }
+  return A;
+}
+
+}  // namespace
+
+void Evaluator::hex_cell_node_ids(const ElementRow& h, Id i, Id j, Id k, Id* out) const {
+  DICER_ASSERT(mode() == Mode::Volume, "hex_cell_node_ids: a hex's cell");
+  const Id p[3] = {i, j, k};
+  // Per axis the cell's two grid planes: p (the low side or inside) and
+  // p + 1 (the high side or inside); `two` where they differ.
+  int lo[3], hi[3], two[3];
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = p[a] == 0 ? 0 : 2;
+    hi[a] = p[a] + 1 == h.n[a] ? 1 : 2;
+    two[a] = lo[a] != hi[a];
+  }
+  // One map per combination of the axes' regions, then each corner from
+  // its combination's map (only those are read).
+  AffineIds maps[8];
+  for (int m = 0; m < 8; ++m) {
+    if (((m & 1) && !two[0]) || ((m & 2) && !two[1]) || ((m & 4) && !two[2])) continue;
+    const int s[3] = {m & 1 ? hi[0] : lo[0], m & 2 ? hi[1] : lo[1], m & 4 ? hi[2] : lo[2]};
+    maps[m] = region_ids(h, s);
+  }
+  for (int q = 0; q < 8; ++q) {
+    const int* c = kHexCorner[q];
+    const AffineIds& A = maps[(c[0] & two[0]) | (c[1] & two[1]) << 1 | (c[2] & two[2]) << 2];
+    out[q] = A.base + A.c[0] * (i + c[0]) + A.c[1] * (j + c[1]) + A.c[2] * (k + c[2]);
+  }
+}
+
 Vec3 Evaluator::straight_owned_point(const ElementRow& h, Id hid, int slot, const NodeRef& r,
                                      const Vec3* corners) const {
   DICER_ASSERT(!h.curved() && r.kind != EntityKind::Cell, "straight_owned_point: a straight element's own boundary");

@@ -70,6 +70,14 @@ struct Evaluator {
   NodeRef grid_node(const ElementRow& h, Id hid, Id i, Id j, Id k) const;
   // Its node id, from the element row alone.
   Id grid_node_id(const ElementRow& h, Id i, Id j, Id k) const;
+  // The node ids of the 8 corners of hex cell (i, j, k) of element h
+  // (volume mode), in kHexCorner order: grid_node_id of each corner. The
+  // corners fall into at most 8 of the element's 27 regions (per axis: the
+  // low side, the high side, inside) and in each region the id is affine in
+  // the grid point, so this forms one map per region the cell touches (two
+  // for most boundary cells) instead of finding each corner's entity, whose
+  // branches a random query mispredicts.
+  void hex_cell_node_ids(const ElementRow& h, Id i, Id j, Id k, Id* out) const;
   Vec3 node(const NodeRef& r) const;
 };
 

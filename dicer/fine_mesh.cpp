@@ -71,8 +71,8 @@ void element_corners(const detail::Evaluator& E, const ElementRow& h, Mode mode,
       el.nodes[q] = ids::cell_node(h.cell_node, h.n, i + kHexCorner[q][0], j + kHexCorner[q][1], k + kHexCorner[q][2]);
     return;
   }
-  for (int q = 0; q < el.num_nodes; ++q)
-    el.nodes[q] = E.grid_node_id(h, i + kHexCorner[q][0], j + kHexCorner[q][1], vol ? k + kHexCorner[q][2] : 0);
+  if (vol) return E.hex_cell_node_ids(h, i, j, k, el.nodes.data());
+  for (int q = 0; q < el.num_nodes; ++q) el.nodes[q] = E.grid_node_id(h, i + kHexCorner[q][0], j + kHexCorner[q][1], 0);
 }
 
 // The order to visit ids in (Usage error unless `room` == ids.size()):

@@ -1,7 +1,6 @@
 #include "dicer/numbering.hpp"
 
 #include <algorithm>
-#include <optional>
 
 #include "dicer/error.hpp"
 
@@ -176,9 +175,15 @@ Id owner_element(const MeshTables& t, Id id, MeshCursor& cur) {
 }
 
 NodeRef locate_node(const MeshTables& t, Id id, MeshCursor& cur, ElementRow* owner_row, NodeOwner* owner) {
+  // A row of our own only when the caller gives none, in a call of its
+  // own: GCC 12 hoisted an optional's zero-fill (544 bytes, rep stos) above
+  // the test, into every caller's query.
+  if (!owner_row) {
+    ElementRow local;
+    return locate_node(t, id, cur, &local, owner);
+  }
   const Id hid = owner_element(t, id, cur);
-  std::optional<ElementRow> local;  // zeroed only when the caller gives no row of its own
-  ElementRow& h = owner_row ? *owner_row : local.emplace();
+  ElementRow& h = *owner_row;
   RowReader(t, cur).element(hid, h);
   return owned_node(t, hid, h, id, cur, owner);
 }
@@ -229,11 +234,14 @@ Id node_id(const MeshTables& t, const NodeRef& r, MeshCursor& cur) {
 
 Id locate_element(const MeshTables& t, Id id, std::array<Id, 3>& ijk, MeshCursor& cur, ElementRow* row_out,
                   bool grid_only) {
+  if (!row_out) {  // as in locate_node
+    ElementRow local;
+    return locate_element(t, id, ijk, cur, &local, grid_only);
+  }
   const Id h = search_elements(t, id, false, cur);
   const RowReader R(t, cur);
   if (h < 0) R.corrupt(RowTable::Elements, 0, "no coarse element holds fine element " + std::to_string(id));
-  std::optional<ElementRow> local;  // as in locate_node
-  ElementRow& row = row_out ? *row_out : local.emplace();
+  ElementRow& row = *row_out;
   grid_only ? R.element_grid(h, row) : R.element(h, row);
   const Id l = id - row.element_first;
   if (l < 0 || l >= row.n[0] * row.n[1] * row.n[2])

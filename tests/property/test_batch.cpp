@@ -396,3 +396,40 @@ TEST(BatchedQueries, ShuffledIdsOverSeveralSortPasses) {
     ASSERT_TRUE(same_bits(p.x, pts[q].x) && same_bits(p.y, pts[q].y) && same_bits(p.z, pts[q].z)) << ids[q];
   }
 }
+
+// A hex cell's corner ids by region maps (Evaluator::hex_cell_node_ids,
+// what element(id) uses for cells that touch the boundary) against each
+// corner's own entity lookup (grid_node_id), for every cell of every
+// element of random boxes whose hexes are numbered at random (every face
+// code, reversed edges) and whose intervals differ per axis (1 included:
+// a cell touching both sides of an axis).
+TEST(Batches, HexCellCornerIdsEqualEachCornersOwnLookup) {
+  std::mt19937_64 rng(11);
+  for (int trial = 0; trial < 4; ++trial) {
+    test::BoxSpec spec;
+    spec.a = 2 + trial % 2, spec.b = 2, spec.c = 2;
+    const CoarseMesh m = test::random_box(spec, rng);
+    IntervalRequest req;
+    req.global = 3 + trial;
+    req.sheets = {{0, 1}, {1, 2 + trial}};
+    const FineMesh f = FineMesh::dice(m, req);
+    MeshCursor cur;
+    const detail::Evaluator E(f.tables(), cur);
+    Id cells = 0;
+    for (Id hid = 0; hid < f.num_coarse_elements(); ++hid) {
+      const ElementRow h = E.R.element(hid);
+      for (Id k = 0; k < h.n[2]; ++k)
+        for (Id j = 0; j < h.n[1]; ++j)
+          for (Id i = 0; i < h.n[0]; ++i, ++cells) {
+            Id got[8];
+            E.hex_cell_node_ids(h, i, j, k, got);
+            for (int q = 0; q < 8; ++q) {
+              const auto* c = kHexCorner[q];
+              ASSERT_EQ(got[q], E.grid_node_id(h, i + c[0], j + c[1], k + c[2]))
+                  << "coarse element " << hid << " cell (" << i << ", " << j << ", " << k << ") corner " << q;
+            }
+          }
+    }
+    EXPECT_EQ(cells, f.num_elements());
+  }
+}
