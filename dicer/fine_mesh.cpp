@@ -19,6 +19,9 @@ FineMesh::FineMesh(MeshInfo info, MeshTables tables, std::shared_ptr<const Coars
     tables_.elements.derive_in_memory(element_search_columns(tables_.mode));
     tables_.node_guide = build_id_guide(tables_, true);
     tables_.element_guide = build_id_guide(tables_, false);
+  } else {
+    tables_.node_page_guide = build_page_guide(tables_.node_index, tables_.fine_nodes);
+    tables_.element_page_guide = build_page_guide(tables_.element_index, tables_.fine_elements);
   }
 }
 

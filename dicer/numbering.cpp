@@ -109,16 +109,31 @@ Id search_elements(const MeshTables& t, Id x, bool by_node, MeshCursor& cur) {
     return R.search_first(lo, hi, x, by_node) - 1;
   }
   if (!index.empty()) {
-    // std::upper_bound without branches: random ids make each comparison a
-    // coin toss, and a mispredicted branch per level cost more than the
-    // (cached) loads; cmov instead. The answer lies in [b, b + len].
-    const std::int64_t* b = index.data();
-    for (size_t len = index.size(); len > 1;) {
-      const size_t half = len / 2;
-      b = b[half] <= x ? b + half : b;
-      len -= half;
+    // The page: from the page guide, the last page starting at or below x
+    // lies in [row[k], row[k + 1]] (bucket k = x >> shift), mostly one
+    // page; without a guide (or an id past it), std::upper_bound without branches: random ids make
+    // each comparison a coin toss, and a mispredicted branch per level cost
+    // more than the (cached) loads; cmov instead.
+    const IdGuide& pages = by_node ? t.node_page_guide : t.element_page_guide;
+    Id p = -1;
+    if (const auto k = static_cast<std::uint64_t>(x) >> pages.shift; x >= 0 && k + 1 < pages.row.size()) {
+      // The first step without a branch (whether the id lies in the
+      // bucket's first page or the next is a coin toss; no page past
+      // row[k + 1] starts at or below x, so no bound but the index's); a
+      // second step is rare.
+      p = pages.row[k];
+      const Id end = static_cast<Id>(index.size()), q = std::min(p + 1, end - 1);
+      p += static_cast<Id>(q > p) & static_cast<Id>(index[static_cast<size_t>(q)] <= x);
+      while (p + 1 < end && index[static_cast<size_t>(p + 1)] <= x) ++p;
+    } else {
+      const std::int64_t* b = index.data();  // the answer lies in [b, b + len]
+      for (size_t len = index.size(); len > 1;) {
+        const size_t half = len / 2;
+        b = b[half] <= x ? b + half : b;
+        len -= half;
+      }
+      p = static_cast<Id>(b - index.data()) + (*b <= x) - 1;
     }
-    const Id p = static_cast<Id>(b - index.data()) + (*b <= x) - 1;
     if (p < 0) return -1;
     lo = p * rpp;
     hi = std::min(t.elements.rows(), lo + rpp);
@@ -141,22 +156,32 @@ Id search_elements(const MeshTables& t, Id x, bool by_node, MeshCursor& cur) {
 
 }  // namespace
 
-IdGuide build_id_guide(const MeshTables& t, bool by_node) {
+// An IdGuide over H increasing first ids first(0..H), `total` ids in all.
+template <class First>
+IdGuide guide_over(Id H, Id total, First first) {
   IdGuide g;
-  const Id H = t.elements.rows(), total = by_node ? t.fine_nodes : t.fine_elements;
   if (H == 0 || total <= 0) return g;
   while ((total >> g.shift) > 2 * H) ++g.shift;  // about two buckets per row
-  MeshCursor cur;
-  const RowReader R(t, cur);
   const auto buckets = static_cast<size_t>((total >> g.shift) + 2);  // the last covers ids up to total
   g.row.resize(buckets);
   Id r = -1;  // the last row whose first id is <= the bucket's start (-1: none)
   for (size_t b = 0; b < buckets; ++b) {
     const Id start = static_cast<Id>(b) << g.shift;
-    while (r + 1 < H && (by_node ? R.node_first(r + 1) : R.element_first(r + 1)) <= start) ++r;
+    while (r + 1 < H && first(r + 1) <= start) ++r;
     g.row[b] = r;
   }
   return g;
+}
+
+IdGuide build_id_guide(const MeshTables& t, bool by_node) {
+  MeshCursor cur;
+  const RowReader R(t, cur);
+  return guide_over(t.elements.rows(), by_node ? t.fine_nodes : t.fine_elements,
+                    [&](Id r) { return by_node ? R.node_first(r) : R.element_first(r); });
+}
+
+IdGuide build_page_guide(const std::vector<std::int64_t>& index, Id total) {
+  return guide_over(static_cast<Id>(index.size()), total, [&](Id p) { return index[static_cast<size_t>(p)]; });
 }
 
 Id owner_element(const MeshTables& t, Id id, MeshCursor& cur) {

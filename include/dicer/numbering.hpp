@@ -130,6 +130,10 @@ Id owner_element(const MeshTables& t, Id id, MeshCursor& cur);
 // The guide (tables.hpp IdGuide) of the node_first (by_node) or
 // element_first column of in-memory tables whose rows are final. O(H).
 IdGuide build_id_guide(const MeshTables& t, bool by_node);
+// The same over a store's page index (MeshTables::node_index or
+// element_index, increasing, `total` ids in all): row[b] is the last page
+// whose first id is <= b << shift. O(pages).
+IdGuide build_page_guide(const std::vector<std::int64_t>& index, Id total);
 
 // Canonical intervals (nu, nv) of local face k of an element row.
 inline std::array<Id, 2> face_intervals(const ElementRow& h, int k, Mode mode) {

@@ -216,6 +216,9 @@ struct MeshTables {
   // `elements`, so an id -> element search reads one page. O(pages).
   std::vector<std::int64_t> node_index, element_index;
   IdGuide node_guide, element_guide;  // in memory (IdGuide)
+  // A store's: the page index's guide, so that an id finds its page in one
+  // or two probes instead of a binary search (numbering.hpp build_page_guide).
+  IdGuide node_page_guide, element_page_guide;
   Table<std::int64_t> vertex_nodes, edges, faces, elements;
   Table<double> corners;
   Table<double> bounds;               // [H x 6]

@@ -358,6 +358,17 @@ TEST(StorePaged, ElementPagesCarryTheSearchColumnsAndSearchesLandOnTheRowsElemen
     const MeshTables& t = s.tables();
     const MeshTables& mem = m.tables();
     ASSERT_GT(t.elements.pages(), 10);
+    // The searches below go by the page guides (numbering.hpp
+    // build_page_guide); the skewed store has buckets in which two or
+    // more pages start (the guide's step past the first).
+    ASSERT_FALSE(t.node_page_guide.row.empty());
+    ASSERT_FALSE(t.element_page_guide.row.empty());
+    if (&r == &skewed) {
+      int wide = 0;
+      for (const IdGuide* g : {&t.node_page_guide, &t.element_page_guide})
+        for (size_t b = 0; b + 1 < g->row.size(); ++b) wide += g->row[b + 1] - g->row[b] >= 2;
+      EXPECT_GT(wide, 0);
+    }
     const std::vector<int> cols = element_search_columns(s.mode());
     ASSERT_EQ(cols.size(), 2u);
     ASSERT_EQ(t.elements.derived_columns(), cols);
