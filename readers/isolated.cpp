@@ -99,6 +99,7 @@ std::string read_all(int fd) {
   return s;
 }
 
+#if !defined(DICER_ASAN)
 // Address space the child already has (inherited mappings), in bytes.
 std::uint64_t current_vm_bytes() {
   std::ifstream statm("/proc/self/statm");
@@ -106,6 +107,7 @@ std::uint64_t current_vm_bytes() {
   statm >> pages;
   return pages * static_cast<std::uint64_t>(sysconf(_SC_PAGESIZE));
 }
+#endif
 
 std::uint64_t child_budget(std::int64_t file_size) {
   if (const char* e = std::getenv("DICER_READER_MEMORY_MB"); e && *e) {
