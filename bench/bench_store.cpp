@@ -4,9 +4,10 @@
 //       disk_out_ref (7472 CUBIT hexes) at interval 52 = 1.05e9 elements,
 //       block by block; counters: nodes/s, elements/s, peak RSS of the sweep,
 //       pages read, peak cache residency
-//   BM_RandomNode/<store|memory>, BM_RandomElement/<store|memory>
-//       node(id) / element(id) at random ids, warm 64 MiB cache: Time = ns/query
-//   BM_RandomNodeShared/threads:T, BM_RandomElementShared/threads:T
+//   BM_RandomNode/<store 1|memory 0|store, every page pinned 2>, BM_RandomElement/...
+//       node(id) / element(id) at random ids, warm 64 MiB cache: Time = ns/query;
+//       1 keeps the coarse tables resident (the default), 2 does not
+//   BM_RandomNodeShared/<1|2>/threads:T, BM_RandomElementShared/<1|2>/threads:T
 //       the same from one store shared by T threads (one cache, a cursor
 //       each): counter queries_per_s, all threads together
 //   BM_RandomNodeBatch/<store|memory>/<ids>/<sorted>, BM_RandomElementBatch/...
@@ -105,16 +106,24 @@ void BM_Sweep(benchmark::State& st) {
   st.counters["cache_peak_MiB"] = static_cast<double>(cs.peak_resident_bytes) / (1 << 20);
 }
 
-// What BM_Random* query: the disk at interval 8, from its store under a
-// 64 MiB cache or in memory, and 65,536 random node (element) ids of it.
+// What BM_Random* query: the disk at interval 8, and 65,536 random node
+// (element) ids of it. source 0: in memory; 1: its store under a 64 MiB
+// cache (the default options: coarse tables kept resident); 2: the same
+// store with every page pinned per read (keep_coarse_tables off).
+StoreOptions random_options(int source) {
+  StoreOptions o{64ull << 20, 4};
+  o.keep_coarse_tables = source != 2;
+  return o;
+}
+
 template <bool Element>
 struct RandomQueries {
   FineMesh opened;
   const FineMesh* m;
   std::vector<Id> ids = std::vector<Id>(1 << 16);
-  explicit RandomQueries(bool from_store)
-      : opened(from_store ? read_store(store_path(8, true), StoreOptions{64ull << 20, 4}) : FineMesh()),
-        m(from_store ? &opened : &memory_mesh(8)) {
+  explicit RandomQueries(int source)
+      : opened(source != 0 ? read_store(store_path(8, true), random_options(source)) : FineMesh()),
+        m(source != 0 ? &opened : &memory_mesh(8)) {
     std::mt19937_64 rng(7);
     const Id n = Element ? m->num_elements() : m->num_nodes();
     for (auto& i : ids) i = std::uniform_int_distribution<Id>(0, n - 1)(rng);
@@ -130,7 +139,7 @@ void query(const FineMesh& m, Id id, MeshCursor& cur) {
 
 template <bool Element>
 void BM_Random(benchmark::State& st) {
-  const RandomQueries<Element> q(st.range(0) != 0);
+  const RandomQueries<Element> q(static_cast<int>(st.range(0)));
   const FineMesh& m = *q.m;
   const std::vector<Id>& ids = q.ids;
   MeshCursor cur;
@@ -144,7 +153,9 @@ void BM_Random(benchmark::State& st) {
 // of the cache's pins. Counter queries_per_s over all threads.
 template <bool Element>
 void BM_RandomShared(benchmark::State& st) {
-  static const RandomQueries<Element> q(true);  // opened by the first thread; thread-safe static init
+  // Opened by the first thread; thread-safe static init.
+  static const RandomQueries<Element> kept(1), pinned(2);
+  const RandomQueries<Element>& q = st.range(0) == 2 ? pinned : kept;
   const FineMesh& m = *q.m;
   MeshCursor cur;
   size_t k = static_cast<size_t>(st.thread_index()) * 9973;
@@ -158,7 +169,7 @@ void BM_RandomShared(benchmark::State& st) {
 // BM_RandomElement.
 template <bool Element>
 void BM_RandomBatch(benchmark::State& st) {
-  RandomQueries<Element> q(st.range(0) != 0);
+  RandomQueries<Element> q(static_cast<int>(st.range(0)));
   const FineMesh& m = *q.m;
   std::vector<Id>& ids = q.ids;
   const auto batch = static_cast<size_t>(st.range(1));
@@ -253,10 +264,10 @@ void BM_PointerChase(benchmark::State& st) {
 BENCHMARK(BM_PageDecode)->DenseRange(0, 3);
 BENCHMARK(BM_PointerChase)->Arg(32)->Arg(512)->Arg(5 << 10)->Arg(16 << 10)->Arg(64 << 10);
 BENCHMARK(BM_Sweep)->Args({64, 1})->Args({64, 0})->Iterations(1)->Unit(benchmark::kSecond);
-BENCHMARK_TEMPLATE(BM_Random, false)->Arg(1)->Arg(0)->Name("BM_RandomNode");
-BENCHMARK_TEMPLATE(BM_Random, true)->Arg(1)->Arg(0)->Name("BM_RandomElement");
-BENCHMARK_TEMPLATE(BM_RandomShared, false)->ThreadRange(1, 16)->UseRealTime()->Name("BM_RandomNodeShared");
-BENCHMARK_TEMPLATE(BM_RandomShared, true)->ThreadRange(1, 16)->UseRealTime()->Name("BM_RandomElementShared");
+BENCHMARK_TEMPLATE(BM_Random, false)->Arg(1)->Arg(0)->Arg(2)->Name("BM_RandomNode");
+BENCHMARK_TEMPLATE(BM_Random, true)->Arg(1)->Arg(0)->Arg(2)->Name("BM_RandomElement");
+BENCHMARK_TEMPLATE(BM_RandomShared, false)->Arg(1)->Arg(2)->ThreadRange(1, 16)->UseRealTime()->Name("BM_RandomNodeShared");
+BENCHMARK_TEMPLATE(BM_RandomShared, true)->Arg(1)->Arg(2)->ThreadRange(1, 16)->UseRealTime()->Name("BM_RandomElementShared");
 BENCHMARK_TEMPLATE(BM_RandomBatch, false)->ArgsProduct({{1, 0}, {4096, 65536}, {0, 1}})->Name("BM_RandomNodeBatch");
 BENCHMARK_TEMPLATE(BM_RandomBatch, true)->ArgsProduct({{1, 0}, {4096, 65536}, {0, 1}})->Name("BM_RandomElementBatch");
 BENCHMARK(BM_SweepPages)->Arg(1)->Arg(0)->Iterations(1);

@@ -22,6 +22,9 @@ FineMesh::FineMesh(MeshInfo info, MeshTables tables, std::shared_ptr<const Coars
   } else {
     tables_.node_page_guide = build_page_guide(tables_.node_index, tables_.fine_nodes);
     tables_.element_page_guide = build_page_guide(tables_.element_index, tables_.fine_elements);
+    if (tables_.elements.kept_resident())
+      tables_.node_row_guide =
+          make_lazy_guide(tables_.elements.rows(), tables_.fine_nodes, static_cast<Id>(tables_.node_index.size()));
   }
 }
 

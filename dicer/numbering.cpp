@@ -1,6 +1,10 @@
 #include "dicer/numbering.hpp"
 
 #include <algorithm>
+#include <atomic>
+#include <memory>
+#include <tuple>
+#include <utility>
 
 #include "dicer/error.hpp"
 
@@ -88,6 +92,41 @@ Numbering::Numbering(const Topology& t, std::vector<Id> edge_n) : edge_n_(std::m
 
 namespace {
 
+// The shift that gives an IdGuide over H rows and `total` ids about two
+// buckets per row, and the bucket count (the last covers ids up to total).
+std::pair<int, size_t> guide_shape(Id H, Id total) {
+  int shift = 0;
+  while ((total >> shift) > 2 * H) ++shift;
+  return {shift, static_cast<size_t>((total >> shift) + 2)};
+}
+
+// Fills g's buckets whose start lies on page p of a store's elements (ids
+// index[p] .. index[p + 1], or past the last id for the last page): each
+// gets the last row of the page whose first id is <= its start, the value
+// guide_over would give (the page's first row starts at index[p], the
+// next page's above the bucket). A page whose first row disagrees with
+// the index fills nothing: its searches keep the page index's way, whose
+// checks report the damage.
+void fill_page_buckets(const LazyIdGuide& g, const RowReader& R, const MeshTables& t, Id p, bool by_node) {
+  const std::vector<std::int64_t>& index = by_node ? t.node_index : t.element_index;
+  auto first = [&](Id r) { return by_node ? R.node_first(r) : R.element_first(r); };
+  const Id rpp = t.elements.rows_per_page(), lo = p * rpp, hi = std::min(t.elements.rows(), lo + rpp);
+  const bool last = static_cast<size_t>(p) + 1 >= index.size();
+  const Id from = index[static_cast<size_t>(p)];
+  const Id to = last ? (by_node ? t.fine_nodes : t.fine_elements) : index[static_cast<size_t>(p) + 1];
+  if (lo < hi && from >= 0 && to >= from && first(lo) == from) {
+    const Id step = Id{1} << g.shift;
+    const size_t end = last ? g.buckets : to > from ? std::min(g.buckets, static_cast<size_t>((to - 1) / step + 1)) : 0;
+    Id r = lo;
+    for (size_t b = static_cast<size_t>((from + step - 1) / step); b < end; ++b) {
+      const Id start = static_cast<Id>(b) << g.shift;
+      while (r + 1 < hi && first(r + 1) <= start) ++r;
+      g.row[b].store(r, std::memory_order_relaxed);
+    }
+  }
+  g.page_done[static_cast<size_t>(p)].store(true, std::memory_order_relaxed);
+}
+
 // Last element whose column value (node_first or element_first) is <= x:
 // the page index picks the page, an interpolation search the row.
 Id search_elements(const MeshTables& t, Id x, bool by_node, MeshCursor& cur) {
@@ -107,6 +146,17 @@ Id search_elements(const MeshTables& t, Id x, bool by_node, MeshCursor& cur) {
     lo = guide.row[b] + 1;
     hi = std::min(t.elements.rows(), guide.row[b + 1] + 1);
     return R.search_first(lo, hi, x, by_node) - 1;
+  }
+  const LazyIdGuide* lazy = by_node ? t.node_row_guide.get() : nullptr;
+  if (const auto b = static_cast<std::uint64_t>(x) >> (lazy ? lazy->shift : 0); lazy && x >= 0 && b + 1 < lazy->buckets) {
+    // As the in-memory guide, once both buckets are filled and their rows
+    // share a page (search_first reads one page).
+    const Id r0 = lazy->row[b].load(std::memory_order_relaxed), r1 = lazy->row[b + 1].load(std::memory_order_relaxed);
+    if (r0 >= 0 && r1 >= 0) {
+      const Id glo = r0 + 1, ghi = std::min(t.elements.rows(), r1 + 1);
+      if (glo >= ghi) return r0;
+      if (ghi - glo <= t.elements.run(glo)) return R.search_first(glo, ghi, x, by_node) - 1;
+    }
   }
   if (!index.empty()) {
     // The page: from the page guide, the last page starting at or below x
@@ -135,6 +185,8 @@ Id search_elements(const MeshTables& t, Id x, bool by_node, MeshCursor& cur) {
       p = static_cast<Id>(b - index.data()) + (*b <= x) - 1;
     }
     if (p < 0) return -1;
+    if (lazy && !lazy->page_done[static_cast<size_t>(p)].load(std::memory_order_relaxed))
+      fill_page_buckets(*lazy, R, t, p, by_node);
     lo = p * rpp;
     hi = std::min(t.elements.rows(), lo + rpp);
     // The page's first value and the next page's (past the last page: the
@@ -161,8 +213,8 @@ template <class First>
 IdGuide guide_over(Id H, Id total, First first) {
   IdGuide g;
   if (H == 0 || total <= 0) return g;
-  while ((total >> g.shift) > 2 * H) ++g.shift;  // about two buckets per row
-  const auto buckets = static_cast<size_t>((total >> g.shift) + 2);  // the last covers ids up to total
+  size_t buckets;
+  std::tie(g.shift, buckets) = guide_shape(H, total);
   g.row.resize(buckets);
   Id r = -1;  // the last row whose first id is <= the bucket's start (-1: none)
   for (size_t b = 0; b < buckets; ++b) {
@@ -182,6 +234,17 @@ IdGuide build_id_guide(const MeshTables& t, bool by_node) {
 
 IdGuide build_page_guide(const std::vector<std::int64_t>& index, Id total) {
   return guide_over(static_cast<Id>(index.size()), total, [&](Id p) { return index[static_cast<size_t>(p)]; });
+}
+
+std::shared_ptr<const LazyIdGuide> make_lazy_guide(Id rows, Id total, Id pages) {
+  if (rows == 0 || total <= 0 || pages <= 0) return nullptr;
+  auto g = std::make_shared<LazyIdGuide>();
+  std::tie(g->shift, g->buckets) = guide_shape(rows, total);
+  g->row.reset(new std::atomic<std::int64_t>[g->buckets]);
+  for (size_t b = 0; b < g->buckets; ++b) g->row[b].store(-1, std::memory_order_relaxed);
+  g->page_done.reset(new std::atomic<bool>[static_cast<size_t>(pages)]);
+  for (Id p = 0; p < pages; ++p) g->page_done[static_cast<size_t>(p)].store(false, std::memory_order_relaxed);
+  return g;
 }
 
 Id owner_element(const MeshTables& t, Id id, MeshCursor& cur) {

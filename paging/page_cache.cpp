@@ -133,6 +133,9 @@ struct alignas(64) PageCache::Entry {
   std::atomic<State> state{State::Free};
   std::atomic<bool> referenced{false};  // CLOCK second-chance bit
   std::atomic<bool> prefetched{false};  // loaded by read-ahead and not pinned since
+  bool kept = false;                    // holds the cache's own pin for good (keep_resident); under the lock
+  // Pins other than the cache's own on a kept page.
+  std::uint64_t handles() const { return count() - (kept ? 1 : 0); }
   std::uint64_t count() const { return pins.load(std::memory_order_relaxed) & kPinMask & ~kDetached; }
   // The unlocked hits counted so far, taken out of the word (with the lock).
   std::int64_t take_hits() {
@@ -202,6 +205,9 @@ struct PageCache::Impl {
     // array had, the current one last, stays until the cache goes.
     std::atomic<PageTable*> table{nullptr};
     std::vector<std::unique_ptr<PageTable>> tables;
+    // keep_resident(): each admitted page's bytes by page (nullptr: not
+    // yet), `pages` entries; null while the array is not kept.
+    std::unique_ptr<std::atomic<const std::uint8_t*>[]> kept;
   };
 
   std::unordered_map<PageKey, Entry*, PageKeyHash> map;  // Loading and Ready entries of undeclared pages
@@ -318,6 +324,7 @@ struct PageCache::Impl {
     e->state.store(State::Loading, std::memory_order_relaxed);
     e->referenced.store(false, std::memory_order_relaxed);
     e->prefetched.store(false, std::memory_order_relaxed);
+    e->kept = false;
     e->error = nullptr;
     e->pins.fetch_and(~kDetached, std::memory_order_release);  // the key above before any pin can see the slot
     index(e);
@@ -327,6 +334,7 @@ struct PageCache::Impl {
   // e is detached (detach() succeeded) and out of the index.
   void free_entry(Entry* e) {
     assert(e->pins.load() & kDetached);
+    assert(!e->kept);
     PageBytes().swap(e->data);
     e->error = nullptr;
     e->state.store(State::Free, std::memory_order_relaxed);
@@ -428,8 +436,20 @@ struct PageCache::Impl {
     if (st.resident_bytes > st.peak_resident_bytes) st.peak_resident_bytes = st.resident_bytes;
     if (ArrayInfo* ai = array_info(e->key.array); ai && size > ai->max_page_bytes) ai->max_page_bytes = size;
     max_page_bytes = std::max(max_page_bytes, size);
+    if (ArrayInfo* ai = array_info(e->key.array); ai && ai->kept) keep(*ai, e);
     load_done.notify_all();
     return true;
+  }
+
+  // e (Ready, of ai's array) takes the cache's own pin and is published in
+  // ai's directory. The pin comes first: no evict() can detach e after it,
+  // so the bytes a reader finds there stay.
+  void keep(ArrayInfo& ai, Entry* e) {
+    if (e->kept) return;
+    e->pins.fetch_add(1, std::memory_order_relaxed);
+    e->kept = true;
+    st.kept_bytes += e->data.size();
+    ai.kept[e->key.page].store(e->data.data(), std::memory_order_release);
   }
 
   std::exception_ptr budget_error(PageKey key, std::uint64_t size) const {
@@ -441,8 +461,10 @@ struct PageCache::Impl {
       for (const Entry& s : slots)
         if (s.state == State::Ready && s.count() > 0) ++pinned, pinned_bytes += s.data.size();
       msg += std::to_string(pinned) + " pages pinned (" + std::to_string(pinned_bytes) + " of " +
-             std::to_string(st.resident_bytes) + " resident bytes) and page " + key_text(key) + " needs " +
-             std::to_string(size) + " more; release handles or raise the budget";
+             std::to_string(st.resident_bytes) + " resident bytes";
+      if (st.kept_bytes > 0) msg += ", " + std::to_string(st.kept_bytes) + " of them kept resident";
+      msg += ") and page " + key_text(key) + " needs " + std::to_string(size) +
+             " more; release handles or raise the budget";
     }
     return std::make_exception_ptr(Error(ErrorKind::Usage, msg));
   }
@@ -540,7 +562,7 @@ PageCache::~PageCache() {
   impl_->work.notify_all();
   if (impl_->worker.joinable()) impl_->worker.join();
 #ifndef NDEBUG
-  for (const Entry& e : impl_->slots) assert(e.count() == 0 && "a PageCache::Handle outlived its cache");
+  for (const Entry& e : impl_->slots) assert(e.handles() == 0 && "a PageCache::Handle outlived its cache");
 #endif
 }
 
@@ -632,6 +654,9 @@ void PageCache::set_array_pages(std::uint32_t array, std::uint64_t pages) {
   // Everything that allocates first: a bad_alloc leaves the cache as it was.
   std::vector<bool> read(static_cast<std::size_t>(pages), false);
   auto table = std::make_unique<Impl::PageTable>(pages);
+  if (const Impl::ArrayInfo* kept = m.array_info(array); kept && kept->kept)
+    throw Error(ErrorKind::Usage, "page cache: array " + std::to_string(array) +
+                                      " is kept resident; its page count cannot change");
   const auto [it, fresh] = m.arrays.try_emplace(array);
   Impl::ArrayInfo& ai = it->second;
   std::vector<Entry*> mine;
@@ -666,6 +691,24 @@ void PageCache::set_array_pages(std::uint32_t array, std::uint64_t pages) {
   for (Entry* e : mine) m.index(e);
 }
 
+const std::atomic<const std::uint8_t*>* PageCache::keep_resident(std::uint32_t array) {
+  std::lock_guard<SpinMutex> lock(impl_->mu);
+  Impl& m = *impl_;
+  Impl::ArrayInfo* ai = m.array_info(array);
+  if (ai == nullptr)
+    throw Error(ErrorKind::Usage, "page cache: keep_resident of array " + std::to_string(array) +
+                                      ", whose page count was never declared");
+  if (!ai->kept) {
+    ai->kept.reset(new std::atomic<const std::uint8_t*>[ai->pages]);
+    for (std::uint64_t p = 0; p < ai->pages; ++p) ai->kept[p].store(nullptr, std::memory_order_relaxed);
+    // Pages resident now; those still loading are kept when admitted.
+    if (const Impl::PageTable* t = ai->table.load(std::memory_order_relaxed))
+      for (std::uint64_t p = 0; p < t->size; ++p)
+        if (Entry* e = t->slot[p].load(std::memory_order_relaxed); e && e->state == State::Ready) m.keep(*ai, e);
+  }
+  return ai->kept.get();
+}
+
 CacheStats PageCache::stats() const {
   std::lock_guard<SpinMutex> lock(impl_->mu);
   CacheStats s = impl_->st;
@@ -681,9 +724,10 @@ std::uint64_t PageCache::distinct_pages_read(std::uint32_t array) const {
 
 void PageCache::reset_stats() {
   std::lock_guard<SpinMutex> lock(impl_->mu);
-  const std::uint64_t resident = impl_->st.resident_bytes;
+  const std::uint64_t resident = impl_->st.resident_bytes, kept = impl_->st.kept_bytes;
   impl_->st = CacheStats{};
   impl_->st.resident_bytes = resident;
+  impl_->st.kept_bytes = kept;
   for (Entry& e : impl_->slots) e.take_hits();
   for (auto& [a, ai] : impl_->arrays) std::fill(ai.read.begin(), ai.read.end(), false);
   impl_->read_undeclared.clear();
@@ -693,7 +737,7 @@ void PageCache::reset_stats() {
 std::uint64_t PageCache::pinned_pages() const {
   std::lock_guard<SpinMutex> lock(impl_->mu);
   std::uint64_t n = 0;
-  for (const Entry& e : impl_->slots) n += (e.state == State::Ready && e.count() > 0) ? 1 : 0;
+  for (const Entry& e : impl_->slots) n += (e.state == State::Ready && e.handles() > 0) ? 1 : 0;
   return n;
 }
 

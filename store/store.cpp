@@ -531,6 +531,32 @@ void write_store(const FineMesh& mesh, const std::string& path,
   }
 }
 
+namespace {
+// read_store's kept tables (store.hpp). Why: a random query reads a row of
+// two or three of them, and a pin of each page is two atomic read-modify-
+// writes (pin, release) on a line that every thread's pins of that page
+// share; a kept page is one plain load. Stop 43 in bench/README.md measures
+// it. Why a quarter of a budget of at least 32 MiB: the rest must hold a
+// sweep's or an export's pinned and read-ahead pages, which smaller budgets
+// need all of (the cache's read-ahead headroom rule, cache.hpp).
+void keep_small_tables(MeshTables& tab, const OpenStore& s, std::uint64_t budget) {
+  if (budget < (32ull << 20)) return;
+  std::uint64_t room = budget / 4;
+  auto keep = [&](auto& table) {
+    if (table.rows() == 0) return;
+    const PagedDataset& a = s.arrays[table.array()];
+    const auto page = static_cast<std::uint64_t>(a.rows_per_page) *
+                      (static_cast<std::uint64_t>(a.width) + a.derived.size()) * a.elem;
+    const std::uint64_t bytes = static_cast<std::uint64_t>(table.pages()) * page;
+    if (bytes > room) return;
+    room -= bytes;
+    table.keep_resident();
+  };
+  keep(tab.elements), keep(tab.corners), keep(tab.bounds), keep(tab.edges), keep(tab.faces);
+  keep(tab.vertex_nodes), keep(tab.vertex_owner), keep(tab.bounding);
+}
+}  // namespace
+
 FineMesh read_store(const std::string& path, const StoreOptions& options) {
   if (options.cache_bytes < (1u << 20))
     throw Error(ErrorKind::Usage, "cache budget " + std::to_string(options.cache_bytes) + " bytes is too small (at least 1 MiB)");
@@ -573,6 +599,7 @@ FineMesh read_store(const std::string& path, const StoreOptions& options) {
   tab.bounds = paged(double{}, row_dataset(RowTable::Bounds), row_width(RowTable::Bounds, m), info.coarse_elements);
   tab.bounding = paged(std::int64_t{}, "geometry/bounding", 3, bounding_nodes);
   tab.vertex_owner = paged(std::int32_t{}, "geometry/vertex_owner", 2, info.coarse_vertices);
+  if (options.keep_coarse_tables) keep_small_tables(tab, *s, options.cache_bytes);
   // Small metadata, read whole now (O(blocks + pages)); pages come through
   // the cache so they are checked like every other page.
   lock.unlock();  // the loader takes the HDF5 lock itself

@@ -48,6 +48,10 @@
 // single sweep whose budget holds at least read_ahead_pages + 3 pages, every
 // page is read exactly once (tests/unit/test_page_cache.cpp).
 //
+// Kept arrays: keep_resident(array) holds an array's pages for good once
+// admitted and publishes their addresses, so a reader of a small, hot
+// array (a store's coarse tables) finds a page with one load and no pin.
+//
 // Cost. Hit: O(1), no allocation. A hit on a Ready page of a declared
 // array (id below 4096) that neither starts nor continues a sequential
 // stream and was not brought in by read-ahead takes no lock: a page-table
@@ -66,6 +70,7 @@
 // must be thread-safe (serialise inside it if the file library is not). The
 // loader must not call back into the same cache. Every Handle must be
 // released before the PageCache is destroyed.
+#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <functional>
@@ -104,6 +109,7 @@ struct CacheStats {
   std::uint64_t evictions = 0;           // pages dropped to make room
   std::uint64_t resident_bytes = 0;      // decoded bytes resident now (<= budget)
   std::uint64_t peak_resident_bytes = 0; // maximum of resident_bytes since construction or reset_stats()
+  std::uint64_t kept_bytes = 0;          // of resident_bytes: pages kept for good (keep_resident)
 };
 
 class SpinMutex;  // the cache's lock (page_cache.cpp)
@@ -212,20 +218,40 @@ class PageCache {
 
   // Declares how many pages `array` has: pin() beyond is Error{Usage} and
   // read-ahead never goes there. Arrays never declared can be pinned
-  // without a bound check but are never read ahead.
+  // without a bound check but are never read ahead. Error{Usage} for an
+  // array kept resident (its count is fixed from then on).
   void set_array_pages(std::uint32_t array, std::uint64_t pages);
+
+  // Keeps the pages of declared array `array` resident from the moment
+  // each is admitted (those resident now at once): the cache holds a pin
+  // of its own on them that it never releases, so they are never evicted
+  // and their bytes never move. Returns the array's page directory:
+  // entry p (p < its page count) is nullptr until page p is admitted and
+  // then its bytes, for as long as the cache lives; read it with an
+  // acquire load. A reader that finds a page there needs no pin, and so
+  // no atomic read-modify-write on a line that other threads' pins write
+  // too (stores keep their small coarse tables this way: store.hpp).
+  // Such reads are not counted in CacheStats::hits.
+  // Kept pages are pinned pages: they count toward the budget for good,
+  // so keep only arrays well inside it; pin() fails as invariant 1 says
+  // when they and the other pins leave no room. CacheStats::kept_bytes
+  // says how much is held. Idempotent; Error{Usage} for an array never
+  // declared. O(declared pages).
+  const std::atomic<const std::uint8_t*>* keep_resident(std::uint32_t array);
 
   CacheStats stats() const;
   // Distinct pages of one declared array loaded since the last reset
   // (0 for an array never declared). O(its pages / 64).
   std::uint64_t distinct_pages_read(std::uint32_t array) const;
-  // All counters to 0, except resident_bytes (kept) and peak_resident_bytes
-  // (set to the current resident_bytes); distinct pages count afresh.
+  // All counters to 0, except resident_bytes and kept_bytes (states, not
+  // counters) and peak_resident_bytes (set to the current resident_bytes);
+  // distinct pages count afresh.
   // Memory: 8 bytes and one bit per page of each declared array (its page
   // table and read bitmap).
   void reset_stats();
   std::uint64_t budget() const noexcept { return budget_; }
-  // Resident pages with at least one handle on them now (O(resident pages); diagnostics and tests).
+  // Resident pages with at least one handle on them now, not counting the
+  // cache's own pin on kept pages (O(resident pages); diagnostics and tests).
   std::uint64_t pinned_pages() const;
 
  private:

@@ -134,6 +134,9 @@ IdGuide build_id_guide(const MeshTables& t, bool by_node);
 // element_index, increasing, `total` ids in all): row[b] is the last page
 // whose first id is <= b << shift. O(pages).
 IdGuide build_page_guide(const std::vector<std::int64_t>& index, Id total);
+// An empty LazyIdGuide (tables.hpp) for a store's `rows` element rows and
+// `total` ids, of `pages` pages; searches fill it. O(rows + pages).
+std::shared_ptr<const LazyIdGuide> make_lazy_guide(Id rows, Id total, Id pages);
 
 // Canonical intervals (nu, nv) of local face k of an element row.
 inline std::array<Id, 2> face_intervals(const ElementRow& h, int k, Mode mode) {

@@ -40,8 +40,18 @@ void write_store(const FineMesh& mesh, const std::string& path,
 struct StoreOptions {
   std::uint64_t cache_bytes = 64ull << 20;  // decoded pages resident, at most (>= 1 MiB)
   unsigned read_ahead_pages = 4;
+  bool keep_coarse_tables = true;  // small coarse tables stay resident once read (read_store)
 };
 
+// Opens a store. With keep_coarse_tables, the coarse tables that fit
+// together in a quarter of a budget of at least 32 MiB (in the order
+// queries need them: elements, corners, bounds, edges, faces, vertices,
+// vertex owners, bounding arrays) are kept resident once read
+// (PageCache::keep_resident): random queries read their rows with one load
+// and no pin. Those pages count toward the budget (CacheStats::kept_bytes);
+// nothing is read for them in advance. The element table takes about 540
+// bytes per coarse hex: the default 64 MiB budget keeps it up to ~31,000
+// coarse hexes, 256 MiB up to ~125,000.
 FineMesh read_store(const std::string& path, const StoreOptions& options = {});
 
 // The cache behind a FineMesh opened from a store (nullptr for in-memory meshes).

@@ -46,6 +46,33 @@ inline int owner_tag(std::int64_t o) { return o < 0 ? -1 : static_cast<std::int3
 
 class TableCursor;
 
+// Division by a divisor fixed at construction, as a multiply and two shifts
+// (Granlund and Montgomery, "Division by invariant integers using
+// multiplication", 1994, figure 4.1; exact for every 64-bit dividend). A
+// paged table's row(i) divides i by its rows per page on every call, and
+// a 64-bit idiv (40 cycles and more on the VM's Xeon) was a quarter of a
+// row lookup, several of which make a random node(id) (bench/README.md,
+// stop 43). libdivide does the same; one struct does not justify the
+// dependency.
+struct FixedDivisor {
+  std::uint64_t magic = 1;  // the default divides by 1
+  int shift1 = 0, shift2 = 0;
+  FixedDivisor() = default;
+  explicit FixedDivisor(std::uint64_t d) {
+    DICER_ASSERT(d >= 1 && d < (std::uint64_t{1} << 62), "FixedDivisor: 1 <= d < 2^62");
+    int l = 0;  // ceil(log2 d)
+    while ((std::uint64_t{1} << l) < d) ++l;
+    const unsigned __int128 excess = static_cast<unsigned __int128>((std::uint64_t{1} << l) - d) << 64;
+    magic = static_cast<std::uint64_t>(excess / d) + 1;
+    shift1 = l < 1 ? l : 1;
+    shift2 = l > 1 ? l - 1 : 0;
+  }
+  std::uint64_t operator()(std::uint64_t n) const {
+    const auto t = static_cast<std::uint64_t>((static_cast<unsigned __int128>(magic) * n) >> 64);
+    return (t + ((n - t) >> shift1)) >> shift2;
+  }
+};
+
 // One table: rows x width values of T, in memory or in pages of a cache.
 template <class T>
 class Table {
@@ -55,7 +82,12 @@ class Table {
       : width_(width), rows_(width ? static_cast<std::int64_t>(data.size()) / width : 0), mem_(std::move(data)) {}
   Table(std::int64_t width, std::int64_t rows, std::shared_ptr<PageCache> cache, std::uint32_t array,
         std::int64_t rows_per_page)  // paged
-      : width_(width), rows_(rows), cache_(std::move(cache)), array_(array), rows_per_page_(rows_per_page) {}
+      : width_(width),
+        rows_(rows),
+        cache_(std::move(cache)),
+        array_(array),
+        rows_per_page_(rows_per_page),
+        page_of_(rows_per_page > 0 ? FixedDivisor(static_cast<std::uint64_t>(rows_per_page)) : FixedDivisor()) {}
 
   std::int64_t rows() const { return rows_; }
   std::int64_t width() const { return width_; }
@@ -73,10 +105,19 @@ class Table {
   std::uint32_t array() const { return array_; }
   // Rows from row i to the end of its page (in memory: to the end of the
   // table): what one row() pointer covers.
-  std::int64_t run(std::int64_t i) const { return cache_ ? rows_per_page_ - i % rows_per_page_ : rows_ - i; }
+  std::int64_t run(std::int64_t i) const { return cache_ ? rows_per_page_ - (i - page_of(i) * rows_per_page_) : rows_ - i; }
 
   // Pointer to row i (width() values), valid until cur moves to another page.
   inline const T* row(std::int64_t i, TableCursor& cur) const;
+
+  // Paged tables: the cache keeps every page of this table once read
+  // (PageCache::keep_resident), and row() finds such a page with one load,
+  // without the cursor or a pin. The store decides which tables (store.hpp).
+  void keep_resident() {
+    DICER_ASSERT(cache_ && rows_per_page_ > 0, "keep_resident: a paged table");
+    kept_ = cache_->keep_resident(array_);
+  }
+  bool kept_resident() const { return kept_ != nullptr; }
 
   // Columns the store's loader copies out of a page's rows into a dense
   // array after them (rows_per_page() values each, in the order of
@@ -115,6 +156,14 @@ class Table {
   std::shared_ptr<PageCache> cache_;
   std::uint32_t array_ = 0;
   std::int64_t rows_per_page_ = 0;
+  FixedDivisor page_of_;  // by rows_per_page_ (paged)
+  // The page of row i (paged tables; i >= 0).
+  std::int64_t page_of(std::int64_t i) const {
+    return static_cast<std::int64_t>(page_of_(static_cast<std::uint64_t>(i)));
+  }
+  // The cache's page directory of a kept table (nullptr: not kept); owned
+  // by the cache, which cache_ keeps alive.
+  const std::atomic<const std::uint8_t*>* kept_ = nullptr;
   std::vector<int> derived_;
   std::vector<T> dense_;  // in memory: the derived columns, rows_ values each
 };
@@ -162,7 +211,12 @@ class TableCursor {
 template <class T>
 inline const T* Table<T>::row(std::int64_t i, TableCursor& cur) const {
   if (!cache_) return mem_.data() + i * width_;
-  const std::int64_t page = i / rows_per_page_;
+  const std::int64_t page = page_of(i);
+  // A kept page: no pin (a row past the table goes the cursor's way, which
+  // throws).
+  if (kept_ != nullptr && i >= 0 && i < rows_)
+    if (const std::uint8_t* p = kept_[page].load(std::memory_order_acquire))
+      return reinterpret_cast<const T*>(p) + (i - page * rows_per_page_) * width_;
   const PageCache* cache = cache_.get();
   TableCursor::Way* w = cur.way_ + cur.mru_;
   if (page != w->page || cache != w->cache) {
@@ -185,7 +239,7 @@ inline const T* Table<T>::derived(std::int64_t i, int k, TableCursor& cur) const
   if (derived_.empty()) return nullptr;
   DICER_ASSERT(k >= 0 && static_cast<size_t>(k) < derived_.size(), "derived column out of range");
   if (!cache_) return dense_.data() + static_cast<std::int64_t>(k) * rows_ + i;
-  const std::int64_t at = i % rows_per_page_;
+  const std::int64_t at = i - page_of(i) * rows_per_page_;
   const T* page = row(i, cur) - at * width_;
   return page + rows_per_page_ * (width_ + k) + at;
 }
@@ -205,6 +259,22 @@ struct IdGuide {
   std::vector<std::int64_t> row;  // empty: no guide (a store, or tables still being built)
 };
 
+// A store's IdGuide, filled as it goes: when a search first lands on a page
+// of a kept element table (Table::keep_resident), it fills the buckets
+// whose start lies on that page from the page's rows, and later searches in
+// those buckets go to their one or two rows as in memory, where the page
+// index left an interpolation search over the page (a division and a
+// dependent miss). row[b] < 0: not filled yet. Values depend only on the
+// store's rows, so threads that fill a bucket at once write the same value
+// (relaxed atomics). 16 bytes per coarse element and column, only for a
+// kept table (at most a quarter of the cache budget, so about 3% of it).
+struct LazyIdGuide {
+  int shift = 0;
+  std::size_t buckets = 0;
+  std::unique_ptr<std::atomic<std::int64_t>[]> row;  // buckets entries
+  std::unique_ptr<std::atomic<bool>[]> page_done;    // pages whose buckets are filled
+};
+
 struct MeshTables {
   Mode mode = Mode::Volume;
   std::shared_ptr<PageCache> cache;  // the pages behind paged tables (nullptr in memory)
@@ -219,6 +289,11 @@ struct MeshTables {
   // A store's: the page index's guide, so that an id finds its page in one
   // or two probes instead of a binary search (numbering.hpp build_page_guide).
   IdGuide node_page_guide, element_page_guide;
+  // A store whose element table is kept: the row guide of node ids (null
+  // otherwise). Element ids have none: their search through the page index
+  // prefetches the row it will land on (the index's interpolation names
+  // it), which a guided search cannot, and measured 1.1x slower with one.
+  std::shared_ptr<const LazyIdGuide> node_row_guide;
   Table<std::int64_t> vertex_nodes, edges, faces, elements;
   Table<double> corners;
   Table<double> bounds;               // [H x 6]

@@ -7,8 +7,11 @@
 #include <vector>
 
 #include "dicer/fine_mesh.hpp"
+#include "dicer/numbering.hpp"
 #include "dicer/rows.hpp"
+#include "dicer/store.hpp"
 #include "random_mesh.hpp"
+#include "test_support.hpp"
 
 using namespace dicer;
 
@@ -91,5 +94,77 @@ TEST(RowSearch, InMemoryGuideFindsTheOwnerOfEveryId) {
         }
       }
     }
+  }
+}
+
+// Table's page arithmetic (tables.hpp FixedDivisor) against the hardware
+// division: every divisor up to 300 and random ones up to 2^40, dividends
+// at and around multiples of the divisor, random ones, and the extremes.
+TEST(RowSearch, FixedDivisorEqualsDivision) {
+  std::mt19937_64 rng(47);
+  std::vector<std::uint64_t> divisors;
+  for (std::uint64_t d = 1; d <= 300; ++d) divisors.push_back(d);
+  for (int i = 0; i < 200; ++i) divisors.push_back(1 + rng() % (std::uint64_t{1} << (1 + rng() % 40)));
+  divisors.push_back((std::uint64_t{1} << 62) - 1);
+  for (const std::uint64_t d : divisors) {
+    const FixedDivisor div(d);
+    std::vector<std::uint64_t> ns = {0, 1, d - 1, d, d + 1, 2 * d - 1, 2 * d, ~std::uint64_t{0}, ~std::uint64_t{0} - d,
+                                     std::uint64_t{1} << 63, (std::uint64_t{1} << 63) - 1};
+    for (int i = 0; i < 200; ++i) ns.push_back(rng() >> (rng() % 64));
+    for (int i = 0; i < 50; ++i) {
+      const std::uint64_t k = rng() % (~std::uint64_t{0} / d);
+      ns.insert(ns.end(), {k * d, k * d + d - 1, k * d - 1});
+    }
+    for (const std::uint64_t n : ns) ASSERT_EQ(div(n), n / d) << n << " / " << d;
+  }
+}
+
+// A store whose element table is kept fills its node-id guide (tables.hpp
+// LazyIdGuide) page by page as searches land: every node's owner is the
+// bisection's answer on the first pass (guide filling) and the second
+// (guide filled), and the filled guide equals the in-memory guide built
+// from all rows at once. Intervals vary by sheet and include 1 (elements
+// that own no node: equal first ids, also across page ends), and the box
+// spans several pages of rows.
+TEST(RowSearch, StoreNodeGuideFilledAsItGoesFindsEveryOwner) {
+  std::mt19937_64 rng(53);
+  test::TempDir tmp;
+  for (int trial = 0; trial < 3; ++trial) {
+    test::BoxSpec spec;
+    spec.a = 9, spec.b = 7, spec.c = 4 + trial;
+    IntervalRequest req;
+    req.global = 1;
+    req.sheets = {{0, 1 + static_cast<Id>(rng() % 4)}, {2, 3}, {5, 2}};
+    const FineMesh f = FineMesh::dice(test::random_box(spec, rng), req);
+    const std::string path = tmp.path("g" + std::to_string(trial) + ".dice.h5");
+    write_store(f, path);
+    const FineMesh s = read_store(path);
+    const MeshTables& t = s.tables();
+    ASSERT_TRUE(t.elements.kept_resident());
+    ASSERT_GT(t.elements.pages(), 1) << "the test needs rows on several pages";
+    ASSERT_TRUE(t.node_row_guide);
+    const LazyIdGuide& g = *t.node_row_guide;
+    const IdGuide mem = build_id_guide(t, true);  // over the store's rows, all at once
+    ASSERT_EQ(g.shift, mem.shift);
+    ASSERT_EQ(g.buckets, mem.row.size());
+    MeshCursor cur, scan;
+    const RowReader R(t, scan);
+    const Id H = s.num_coarse_elements();
+    for (int pass = 0; pass < 2; ++pass) {
+      // Ids in a random order, so buckets fill in no particular order.
+      std::vector<Id> ids(static_cast<size_t>(s.num_nodes()));
+      for (size_t i = 0; i < ids.size(); ++i) ids[i] = static_cast<Id>(i);
+      std::shuffle(ids.begin(), ids.end(), rng);
+      for (const Id x : ids) {
+        Id lo = 0, hi = H;  // the last row whose first id is <= x: lo - 1
+        while (lo < hi) {
+          const Id mid = lo + (hi - lo) / 2;
+          if (R.node_first(mid) <= x) lo = mid + 1;
+          else hi = mid;
+        }
+        ASSERT_EQ(owner_element(t, x, cur), lo - 1) << "node " << x << " pass " << pass << " trial " << trial;
+      }
+    }
+    for (size_t b = 0; b < g.buckets; ++b) ASSERT_EQ(g.row[b].load(), mem.row[b]) << "bucket " << b;
   }
 }

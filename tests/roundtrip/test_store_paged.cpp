@@ -17,6 +17,7 @@
 
 #include "dicer/error.hpp"
 #include "dicer/export.hpp"
+#include "dicer/locate.hpp"
 #include "dicer/numbering.hpp"
 #include "dicer/rows.hpp"
 #include "dicer/store.hpp"
@@ -66,26 +67,49 @@ void sweep(const FineMesh& m, std::uint64_t& checksum) {
 TEST(StorePaged, FullSweepReadsEveryPageOnceAndASecondSweepReadsNothing) {
   test::TempDir tmp;
   const Diced d = dice_to_store(tmp, "vtkdata_disk_out_ref.ex2", 2);
-  const FineMesh s = read_store(d.path, StoreOptions{64ull << 20, 4});
-  auto cache = store_cache(s);
-  ASSERT_TRUE(cache);
-  cache->reset_stats();
-  std::uint64_t a = 0, b = 0, c = 0;
-  sweep(s, a);
-  const CacheStats first = cache->stats();
-  // Opening read the last page of the elements (it checks the fine counts
-  // against the last row); the sweep reads every other page once.
-  EXPECT_EQ(first.pages_read + 1, total_pages(s)) << "every page of the element and corner tables exactly once";
-  EXPECT_EQ(first.evictions, 0u);
-  sweep(s, b);
-  const CacheStats second = cache->stats();
-  EXPECT_EQ(second.pages_read, first.pages_read) << "a second sweep with a large budget reads nothing";
-  EXPECT_EQ(second.misses, first.misses);
-  EXPECT_GT(second.hits, first.hits);
+  std::uint64_t c = 0;
   sweep(d.mem, c);
-  EXPECT_EQ(a, c) << "the store sweep equals the in-memory sweep bit for bit";
-  EXPECT_EQ(b, c);
-  EXPECT_LE(second.peak_resident_bytes, cache->budget());
+  for (const bool keep : {false, true}) {
+    SCOPED_TRACE(keep ? "coarse tables kept resident" : "every page pinned");
+    StoreOptions o{64ull << 20, 4};
+    o.keep_coarse_tables = keep;
+    const FineMesh s = read_store(d.path, o);
+    auto cache = store_cache(s);
+    ASSERT_TRUE(cache);
+    cache->reset_stats();
+    std::uint64_t a = 0, b = 0;
+    sweep(s, a);
+    const CacheStats first = cache->stats();
+    // Opening read the last page of the elements (it checks the fine counts
+    // against the last row); the sweep reads every other page once.
+    EXPECT_EQ(first.pages_read + 1, total_pages(s)) << "every page of the element and corner tables exactly once";
+    EXPECT_EQ(first.evictions, 0u);
+    // The disk's tables are far below a quarter of 64 MiB: all kept, so
+    // every row of the two tables the sweep read is held for good.
+    const MeshTables& t = s.tables();
+    const auto rows_bytes = static_cast<std::uint64_t>(t.elements.rows() * t.elements.width() * 8 +
+                                                       t.corners.rows() * t.corners.width() * 8);
+    if (keep) {
+      EXPECT_GE(first.kept_bytes, rows_bytes);
+      EXPECT_LE(first.kept_bytes, first.resident_bytes);
+    } else {
+      EXPECT_EQ(first.kept_bytes, 0u);
+    }
+    sweep(s, b);
+    const CacheStats second = cache->stats();
+    EXPECT_EQ(second.pages_read, first.pages_read) << "a second sweep with a large budget reads nothing";
+    EXPECT_EQ(second.misses, first.misses);
+    // Pinned pages count a hit per pin; kept pages are read without one.
+    if (keep) {
+      EXPECT_EQ(second.hits, first.hits);
+    } else {
+      EXPECT_GT(second.hits, first.hits);
+    }
+    EXPECT_EQ(a, c) << "the store sweep equals the in-memory sweep bit for bit";
+    EXPECT_EQ(b, c);
+    EXPECT_LE(second.peak_resident_bytes, cache->budget());
+    EXPECT_EQ(cache->pinned_pages(), 0u) << "the cache's own pins on kept pages are not handles";
+  }
 }
 
 TEST(StorePaged, ASmallBudgetIsNeverExceededAndGivesTheSameBits) {
@@ -113,29 +137,83 @@ TEST(StorePaged, ASmallBudgetIsNeverExceededAndGivesTheSameBits) {
   EXPECT_GT(st.evictions, 0u) << "the budget forced evictions";
 }
 
-TEST(StorePaged, ConcurrentReadersShareOneCacheAndAgreeBitForBit) {
-  test::TempDir tmp;
-  const Diced d = dice_to_store(tmp, "vtkdata_mug.e", 3);
-  const FineMesh s = read_store(d.path, StoreOptions{4ull << 20, 4});
-  std::vector<std::thread> threads;
+// Four threads query s at random (node, element, point location, whole
+// blocks), each with its own cursor; returns the answers that differ from
+// mem's.
+namespace {
+int concurrent_mismatches(const FineMesh& s, const FineMesh& mem, std::uint64_t seed) {
   std::atomic<int> mismatches{0};
-  for (int t = 0; t < 4; ++t)
-    threads.emplace_back([&, t] {
-      std::mt19937_64 rng(100 + t);
+  std::vector<std::thread> threads;
+  for (std::uint64_t th = 0; th < 4; ++th)
+    threads.emplace_back([&, th] {
+      std::mt19937_64 rng(seed + th);
       MeshCursor cur;
       FineBlock b;
       for (int q = 0; q < 300; ++q) {
         const Id id = std::uniform_int_distribution<Id>(0, s.num_nodes() - 1)(rng);
-        if (!(s.node(id, cur) == d.mem.node(id))) ++mismatches;
-        const Id h = std::uniform_int_distribution<Id>(0, s.num_coarse_elements() - 1)(rng);
-        s.fill_block(h, b);
-        for (Id g = 0; g < b.num_points(); g += 7)
-          if (!(Vec3{b.x[g], b.y[g], b.z[g]} == d.mem.node(b.node_id[g]))) ++mismatches;
+        if (!(s.node(id, cur) == mem.node(id))) ++mismatches;
+        const Id e = std::uniform_int_distribution<Id>(0, s.num_elements() - 1)(rng);
+        if (s.element(e, cur).nodes != mem.element(e).nodes) ++mismatches;
+        const Vec3 p = mem.node(id);
+        if (locate_point(s, {p.x, p.y, p.z}).element != locate_point(mem, {p.x, p.y, p.z}).element) ++mismatches;
+        if (q % 10 == 0) {
+          s.fill_block(std::uniform_int_distribution<Id>(0, s.num_coarse_elements() - 1)(rng), b);
+          for (Id g = 0; g < b.num_points(); g += 7)
+            if (!(Vec3{b.x[g], b.y[g], b.z[g]} == mem.node(b.node_id[g]))) ++mismatches;
+        }
       }
     });
   for (auto& th : threads) th.join();
-  EXPECT_EQ(mismatches.load(), 0);
+  return mismatches.load();
+}
+}  // namespace
+
+TEST(StorePaged, ConcurrentReadersShareOneCacheAndAgreeBitForBit) {
+  test::TempDir tmp;
+  const Diced d = dice_to_store(tmp, "vtkdata_mug.e", 3);
+  const FineMesh s = read_store(d.path, StoreOptions{4ull << 20, 4});
+  EXPECT_EQ(concurrent_mismatches(s, d.mem, 100), 0);
   EXPECT_LE(store_cache(s)->stats().peak_resident_bytes, store_cache(s)->budget());
+}
+
+// read_store's kept coarse tables (store.hpp): the same bits whichever
+// tables are kept, and the kept pages within a quarter of the budget. The
+// disk's coarse tables decode to about 10 MiB, so a 32 MiB budget (a
+// quarter: 8 MiB) keeps some of them and not all, 64 MiB keeps all, and
+// below 32 MiB none. Four threads query at once (also under
+// ThreadSanitizer): kept pages are read without pins.
+TEST(StorePaged, ConcurrentQueriesWithKeptCoarseTablesGiveTheSameBits) {
+  test::TempDir tmp;
+  const Diced d = dice_to_store(tmp, "vtkdata_disk_out_ref.ex2", 2);
+  struct Case {
+    std::uint64_t mib;
+    bool keep;
+  };
+  for (const Case c : {Case{31, true}, Case{32, true}, Case{64, true}, Case{64, false}}) {
+    SCOPED_TRACE(std::to_string(c.mib) + " MiB, keep " + std::to_string(c.keep));
+    StoreOptions o{c.mib << 20, 4};
+    o.keep_coarse_tables = c.keep;
+    const FineMesh s = read_store(d.path, o);
+    const MeshTables& t = s.tables();
+    const bool all = t.elements.kept_resident() && t.corners.kept_resident() && t.bounds.kept_resident() &&
+                     t.edges.kept_resident() && t.faces.kept_resident() && t.vertex_nodes.kept_resident() &&
+                     t.vertex_owner.kept_resident();
+    const bool any = t.elements.kept_resident() || t.corners.kept_resident() || t.bounds.kept_resident() ||
+                     t.edges.kept_resident() || t.faces.kept_resident() || t.vertex_nodes.kept_resident() ||
+                     t.vertex_owner.kept_resident();
+    if (!c.keep || c.mib < 32) {
+      EXPECT_FALSE(any);
+    } else if (c.mib == 32) {
+      EXPECT_TRUE(any && !all) << "a quarter of 32 MiB holds some of the tables";
+    } else {
+      EXPECT_TRUE(all);
+    }
+    EXPECT_EQ(concurrent_mismatches(s, d.mem, 300), 0);
+    const CacheStats st = store_cache(s)->stats();
+    EXPECT_LE(st.kept_bytes, (c.mib << 20) / 4);
+    EXPECT_EQ(st.kept_bytes > 0, any);
+    EXPECT_LE(st.peak_resident_bytes, c.mib << 20);
+  }
 }
 
 TEST(StorePaged, AFlippedByteInAPageIsACorruptErrorNamingDatasetAndPage) {

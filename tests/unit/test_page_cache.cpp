@@ -652,3 +652,141 @@ TEST(PageCache, PinIntoReleasesTheOldPinFirst) {
   EXPECT_TRUE(g.empty());
   EXPECT_EQ(small.pinned_pages(), 0u);
 }
+
+namespace {
+// The bytes of a kept page as its directory shows them: page_bytes(k)
+// long, as the synthetic loader wrote them.
+bool kept_ok(const std::atomic<const std::uint8_t*>* dir, PageKey k) {
+  const std::uint8_t* p = dir[k.page].load(std::memory_order_acquire);
+  if (p == nullptr) return false;
+  for (std::size_t i = 0; i < page_bytes(k); ++i)
+    if (p[i] != byte_at(k, i)) return false;
+  return true;
+}
+}  // namespace
+
+TEST(PageCache, KeptPagesStayAtTheirAddressUnderPressureAndNeedNoPin) {
+  for (bool background : {false, true}) {
+    SyntheticPages pages(2, 200);
+    PageCache cache(pages.loader(), opts(12 * kMaxPage, 4, background));
+    pages.declare(cache, 2);
+    // A page resident before keep_resident is kept at once; one pinned
+    // later, when it is admitted; the rest stay unread.
+    const std::uint8_t* first = cache.pin({0, 0}).data();
+    const auto* dir = cache.keep_resident(0);
+    EXPECT_EQ(cache.keep_resident(0), dir) << "idempotent";
+    EXPECT_EQ(dir[0].load(), first);
+    EXPECT_EQ(dir[1].load(), nullptr);
+    cache.pin({0, 3});
+    EXPECT_NE(dir[3].load(), nullptr);
+    EXPECT_EQ(dir[2].load(), nullptr) << "nothing is read for a kept array in advance";
+    const std::uint8_t* third = dir[3].load();
+    EXPECT_EQ(cache.stats().kept_bytes, page_bytes({0, 0}) + page_bytes({0, 3}));
+    EXPECT_EQ(cache.pinned_pages(), 0u) << "the cache's own pins are not handles";
+    std::mt19937_64 rng(11);
+    for (int i = 0; i < 2000; ++i) {  // sweeps and random pins on the other array: heavy pressure
+      const std::uint64_t p = i < 400 ? static_cast<std::uint64_t>(i % 200) : rng() % 200;
+      ASSERT_TRUE(content_ok(cache.pin({1, p})));
+    }
+    EXPECT_GT(cache.stats().evictions, 100u);
+    EXPECT_EQ(dir[0].load(), first);
+    EXPECT_EQ(dir[3].load(), third);
+    EXPECT_TRUE(kept_ok(dir, {0, 0}));
+    EXPECT_TRUE(kept_ok(dir, {0, 3}));
+    EXPECT_EQ(pages.loads({0, 0}), 1);
+    EXPECT_EQ(pages.loads({0, 3}), 1);
+    // A pin of a kept page is still a hit on the same bytes.
+    EXPECT_EQ(cache.pin({0, 3}).data(), third);
+    EXPECT_EQ(pages.loads({0, 3}), 1);
+    const CacheStats s = cache.stats();
+    EXPECT_LE(s.peak_resident_bytes, cache.budget());
+    EXPECT_LE(s.kept_bytes, s.resident_bytes);
+    cache.reset_stats();
+    EXPECT_EQ(cache.stats().kept_bytes, s.kept_bytes) << "kept_bytes is a state, not a counter";
+  }
+}
+
+TEST(PageCache, ReadAheadPagesOfAKeptArrayAreKept) {
+  SyntheticPages pages(1, 50);
+  PageCache cache(pages.loader(), opts(200 * kMaxPage, 4, false));  // read-ahead on the pinning thread
+  pages.declare(cache, 1);
+  const auto* dir = cache.keep_resident(0);
+  cache.pin({0, 0});
+  cache.pin({0, 1});  // a stream: pages 2..5 are read ahead before pin() returns
+  for (std::uint64_t p = 2; p <= 5; ++p) EXPECT_TRUE(kept_ok(dir, {0, p})) << "page " << p;
+  EXPECT_EQ(dir[6].load(), nullptr);
+  for (std::uint64_t p = 0; p <= 5; ++p) EXPECT_EQ(pages.loads({0, p}), 1);
+}
+
+TEST(PageCache, KeptPagesCountAgainstTheBudgetAndKeepingIsUsageChecked) {
+  SyntheticPages pages(2, 20);
+  PageCache cache(pages.loader(), opts(4 * kMaxPage, 0, false));
+  pages.declare(cache, 2);
+  const auto* dir = cache.keep_resident(0);
+  // Kept pages fill the budget: they are pinned for good, so a page that
+  // does not fit beside them is refused, naming them.
+  std::string message;
+  std::uint64_t p = 0;
+  try {
+    for (; p < 20; ++p) cache.pin({0, p});
+    FAIL() << "20 kept pages fit a 4-page budget";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.kind(), ErrorKind::Usage);
+    message = e.what();
+  }
+  EXPECT_NE(message.find("too small"), std::string::npos) << message;
+  EXPECT_NE(message.find("kept resident"), std::string::npos) << message;
+  EXPECT_GE(p, 3u);
+  for (std::uint64_t q = 0; q < p; ++q) EXPECT_TRUE(kept_ok(dir, {0, q}));
+  EXPECT_EQ(dir[p].load(), nullptr) << "the page that did not fit is not published";
+  EXPECT_LE(cache.stats().peak_resident_bytes, cache.budget());
+  EXPECT_EQ(cache.pinned_pages(), 0u);
+  // An array never declared cannot be kept; a kept array's count is fixed.
+  EXPECT_EQ(kind_of([&] { cache.keep_resident(7); }), ErrorKind::Usage);
+  EXPECT_EQ(kind_of([&] { cache.set_array_pages(0, 30); }), ErrorKind::Usage);
+  EXPECT_TRUE(kept_ok(dir, {0, 0})) << "the refused declaration changed nothing";
+}
+
+// Readers of a kept array's directory (no pins) beside threads that pin,
+// evict and fail loads on another array, and first loads of kept pages
+// racing each other: every page a reader finds is whole, it never moves,
+// and each kept page is loaded once. Runs under ThreadSanitizer.
+TEST(PageCache, ConcurrentKeptReadersBesideEvictions) {
+  constexpr int kThreads = 4, kReads = 3000;
+  constexpr std::uint64_t kKept = 16, kOther = 120;
+  for (bool background : {false, true}) {
+    SyntheticPages pages(2, kOther);
+    PageCache cache(pages.loader(), opts((kKept + 2 * kThreads + 10) * kMaxPage, 2, background));
+    pages.declare(cache, 2);
+    const auto* dir = cache.keep_resident(0);
+    std::vector<std::atomic<const std::uint8_t*>> seen(kKept);
+    std::atomic<int> bad{0};
+    std::vector<std::thread> threads;
+    for (int t = 0; t < kThreads; ++t)
+      threads.emplace_back([&, t] {
+        std::mt19937_64 rng(5 + t);
+        PageCache::Handle h;
+        for (int i = 0; i < kReads; ++i) {
+          const std::uint64_t p = rng() % kKept;
+          const std::uint8_t* at = dir[p].load(std::memory_order_acquire);
+          if (at == nullptr) {  // first read: the pinned way, which keeps it
+            PageCache::Handle k = cache.pin({0, p});
+            at = dir[p].load(std::memory_order_acquire);
+            if (at != k.data()) bad.fetch_add(1);
+          }
+          const std::uint8_t* was = nullptr;
+          if (!seen[p].compare_exchange_strong(was, at) && was != at) bad.fetch_add(1);
+          if (!kept_ok(dir, {0, p})) bad.fetch_add(1);
+          cache.pin_into(h, {1, rng() % kOther});  // pressure on the other array
+          if (!content_ok(h)) bad.fetch_add(1);
+        }
+      });
+    for (auto& th : threads) th.join();
+    EXPECT_EQ(bad.load(), 0);
+    const CacheStats s = cache.stats();
+    EXPECT_GT(s.evictions, 0u);
+    EXPECT_LE(s.peak_resident_bytes, cache.budget());
+    for (std::uint64_t p = 0; p < kKept; ++p) EXPECT_EQ(pages.loads({0, p}), 1) << "kept page " << p;
+    EXPECT_EQ(cache.pinned_pages(), 0u);
+  }
+}
