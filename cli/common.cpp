@@ -183,12 +183,13 @@ void print_cache_stats(const FineMesh& mesh, const std::string& command) {
       st.distinct_pages_read ? static_cast<double>(st.pages_read) / static_cast<double>(st.distinct_pages_read) : 0.0;
   std::fprintf(stderr,
                "dicer %s: cache: %llu pages read (%llu distinct, %.2fx), %s read from file, %s decompressed, %llu hits, "
-               "%llu misses, %llu evictions, peak resident %s of %s budget\n",
+               "%llu misses, %llu evictions, peak resident %s of %s budget (%s kept resident)\n",
                command.c_str(), static_cast<unsigned long long>(st.pages_read),
                static_cast<unsigned long long>(st.distinct_pages_read), amplification, human_bytes(st.bytes_read).c_str(),
                human_bytes(st.bytes_decompressed).c_str(), static_cast<unsigned long long>(st.hits),
                static_cast<unsigned long long>(st.misses), static_cast<unsigned long long>(st.evictions),
-               human_bytes(st.peak_resident_bytes).c_str(), human_bytes(cache->budget()).c_str());
+               human_bytes(st.peak_resident_bytes).c_str(), human_bytes(cache->budget()).c_str(),
+               human_bytes(st.kept_bytes).c_str());
   // The tables a query reads by element: how much of each it touched (a
   // box query reads the pages of the groups its box meets).
   const MeshTables& t = mesh.tables();

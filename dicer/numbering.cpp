@@ -115,6 +115,7 @@ void fill_page_buckets(const LazyIdGuide& g, const RowReader& R, const MeshTable
   const Id from = index[static_cast<size_t>(p)];
   const Id to = last ? (by_node ? t.fine_nodes : t.fine_elements) : index[static_cast<size_t>(p) + 1];
   if (lo < hi && from >= 0 && to >= from && first(lo) == from) {
+    for (Id r = lo; r < hi; ++r) g.first[r].store(first(r), std::memory_order_relaxed);
     const Id step = Id{1} << g.shift;
     const size_t end = last ? g.buckets : to > from ? std::min(g.buckets, static_cast<size_t>((to - 1) / step + 1)) : 0;
     Id r = lo;
@@ -149,12 +150,19 @@ Id search_elements(const MeshTables& t, Id x, bool by_node, MeshCursor& cur) {
   }
   const LazyIdGuide* lazy = by_node ? t.node_row_guide.get() : nullptr;
   if (const auto b = static_cast<std::uint64_t>(x) >> (lazy ? lazy->shift : 0); lazy && x >= 0 && b + 1 < lazy->buckets) {
-    // As the in-memory guide, once both buckets are filled and their rows
-    // share a page (search_first reads one page).
+    // As the in-memory guide, once both buckets are filled: a few rows'
+    // values from the guide's copy (all filled: a row's page was filled
+    // with its own copy), more rows by search_first if they share a page.
     const Id r0 = lazy->row[b].load(std::memory_order_relaxed), r1 = lazy->row[b + 1].load(std::memory_order_relaxed);
     if (r0 >= 0 && r1 >= 0) {
       const Id glo = r0 + 1, ghi = std::min(t.elements.rows(), r1 + 1);
       if (glo >= ghi) return r0;
+      if (ghi - glo <= 4) {
+        Id r = glo;
+        std::int64_t v = 0;
+        while (r < ghi && (v = lazy->first[r].load(std::memory_order_relaxed)) >= 0 && v <= x) ++r;
+        if (r == ghi || v >= 0) return r - 1;
+      }
       if (ghi - glo <= t.elements.run(glo)) return R.search_first(glo, ghi, x, by_node) - 1;
     }
   }
@@ -242,6 +250,8 @@ std::shared_ptr<const LazyIdGuide> make_lazy_guide(Id rows, Id total, Id pages) 
   std::tie(g->shift, g->buckets) = guide_shape(rows, total);
   g->row.reset(new std::atomic<std::int64_t>[g->buckets]);
   for (size_t b = 0; b < g->buckets; ++b) g->row[b].store(-1, std::memory_order_relaxed);
+  g->first.reset(new std::atomic<std::int64_t>[static_cast<size_t>(rows)]);
+  for (Id r = 0; r < rows; ++r) g->first[r].store(-1, std::memory_order_relaxed);
   g->page_done.reset(new std::atomic<bool>[static_cast<size_t>(pages)]);
   for (Id p = 0; p < pages; ++p) g->page_done[static_cast<size_t>(p)].store(false, std::memory_order_relaxed);
   return g;
@@ -254,7 +264,10 @@ Id owner_element(const MeshTables& t, Id id, MeshCursor& cur) {
   // The page index chose the page: the next row must start after the node,
   // or the index lied (a node found "in" the wrong element may still match
   // one of its corners, a right answer by accident, not by the numbering).
-  if (h + 1 < t.elements.rows() && R.node_first(h + 1) <= id)
+  // (The guide's copy of that value, where filled: the same checked bytes.)
+  const LazyIdGuide* lazy = t.node_row_guide.get();
+  const std::int64_t copied = lazy && h + 1 < t.elements.rows() ? lazy->first[h + 1].load(std::memory_order_relaxed) : -1;
+  if (h + 1 < t.elements.rows() && (copied >= 0 ? copied : R.node_first(h + 1)) <= id)
     R.corrupt(RowTable::Elements, h + 1,
               "node " + std::to_string(id) + " lies past the element the " +
                   (t.node_index.empty() ? std::string("id search") : std::string("page index (numbering/element_page_node)")) +

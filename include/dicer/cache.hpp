@@ -231,7 +231,11 @@ class PageCache {
   // acquire load. A reader that finds a page there needs no pin, and so
   // no atomic read-modify-write on a line that other threads' pins write
   // too (stores keep their small coarse tables this way: store.hpp).
-  // Such reads are not counted in CacheStats::hits.
+  // Such reads are not counted in CacheStats::hits. A page admitted after
+  // this call is copied, before anyone can see it, into 2 MiB-aligned
+  // chunks that the kernel may back with transparent huge pages (a TLB
+  // entry per 2 MiB of a table read at random); at most one partly used
+  // chunk, under 2 MiB, is memory beyond the pages' bytes.
   // Kept pages are pinned pages: they count toward the budget for good,
   // so keep only arrays well inside it; pin() fails as invariant 1 says
   // when they and the other pins leave no room. CacheStats::kept_bytes

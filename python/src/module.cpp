@@ -135,6 +135,7 @@ py::dict cache_stats(const Store& s) {
   d["evictions"] = st.evictions;
   d["resident_bytes"] = st.resident_bytes;
   d["peak_resident_bytes"] = st.peak_resident_bytes;
+  d["kept_bytes"] = st.kept_bytes;
   return d;
 }
 

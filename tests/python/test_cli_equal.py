@@ -55,6 +55,20 @@ def test_nodes_by_ids_equal_ranges(sphere_store):
     assert s.nodes([]).shape == (0, 3) and s.nodes(5, 5).shape == (0, 3)
 
 
+def test_kept_coarse_tables_give_the_same_nodes(sphere_store):
+    # The default 64 MiB cache keeps the sphere's coarse tables resident
+    # (read_store); 4 MiB keeps none. The same bits either way.
+    ids = np.random.default_rng(11).integers(0, 10**9, 2000)
+    got = {}
+    for mb in (64, 4):
+        s = dicer.open(sphere_store, cache_mb=mb)
+        got[mb] = s.nodes(ids % s.num_nodes)
+        kept = s.cache_stats()["kept_bytes"]
+        assert (kept > 0) == (mb == 64), (mb, kept)
+        assert kept <= mb * 2**20 // 4
+    assert np.array_equal(bits(got[64]), bits(got[4]))
+
+
 @pytest.mark.parametrize("fixture", ["sphere_store", "prism_store", "shell_store", "graded_store"])
 def test_elements_equal_to_query(request, cli, fixture):
     path = request.getfixturevalue(fixture)
