@@ -49,7 +49,9 @@ struct StoreOptions {
 // vertex owners, bounding arrays) are kept resident once read
 // (PageCache::keep_resident): random queries read their rows with one load
 // and no pin. Those pages count toward the budget (CacheStats::kept_bytes);
-// nothing is read for them in advance. The element table takes about 540
+// nothing is read for them in advance. A kept element table also gets a
+// node-id guide (tables.hpp LazyIdGuide), 24 bytes per coarse element
+// outside the budget. The element table takes about 540
 // bytes per coarse hex: the default 64 MiB budget keeps it up to ~31,000
 // coarse hexes, 256 MiB up to ~125,000.
 FineMesh read_store(const std::string& path, const StoreOptions& options = {});
