@@ -114,12 +114,17 @@ void fill_page_buckets(const LazyIdGuide& g, const RowReader& R, const MeshTable
   const bool last = static_cast<size_t>(p) + 1 >= index.size();
   const Id from = index[static_cast<size_t>(p)];
   const Id to = last ? (by_node ? t.fine_nodes : t.fine_elements) : index[static_cast<size_t>(p) + 1];
-  if (lo < hi && from >= 0 && to >= from && first(lo) == from) {
+  // Rows out of order or past the next page's start (a damaged store) fill
+  // nothing either: the guide and the page's search could then disagree,
+  // and a query's answer would depend on whether its bucket was filled.
+  bool ordered = lo < hi && from >= 0 && to >= from && first(lo) == from;
+  for (Id r = lo + 1; ordered && r < hi; ++r) ordered = first(r - 1) <= first(r) && first(r) <= to;
+  if (ordered) {
     for (Id r = lo; r < hi; ++r) g.first[r].store(first(r), std::memory_order_relaxed);
     const Id step = Id{1} << g.shift;
     const size_t end = last ? g.buckets : to > from ? std::min(g.buckets, static_cast<size_t>((to - 1) / step + 1)) : 0;
     Id r = lo;
-    for (size_t b = static_cast<size_t>((from + step - 1) / step); b < end; ++b) {
+    for (size_t b = static_cast<size_t>(from / step + (from % step != 0)); b < end; ++b) {
       const Id start = static_cast<Id>(b) << g.shift;
       while (r + 1 < hi && first(r + 1) <= start) ++r;
       g.row[b].store(r, std::memory_order_relaxed);

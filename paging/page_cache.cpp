@@ -123,8 +123,9 @@ class KeyRing {
 // pages are read at random and never leave: packed into huge pages, a
 // table's pages take a TLB entry per 2 MiB instead of one per 4 KiB of
 // the heap's 64 KiB buffers, and random queries on a store ran 0.87-0.92
-// of the time (bench/README.md, stop 43). At most one partly used chunk
-// (< 2 MiB) is not page bytes.
+// of the time (bench/README.md, stop 43). Not page bytes: up to 63 bytes
+// of rounding per page, the tail of each chunk a page did not fit in
+// (under a page), and the last chunk's unused rest (under 2 MiB).
 class KeptArena {
  public:
   static constexpr std::size_t kChunk = std::size_t{2} << 20;
@@ -504,8 +505,9 @@ struct PageCache::Impl {
     std::uint8_t* at = ai && ai->kept && size > 0 && size <= UINT32_MAX ? arena.allocate(size) : nullptr;
     if (at != nullptr) {
       // A kept page's bytes go to the arena, the page's buffer back to
-      // the heap (buf, as it goes out of scope): published before Ready.
+      // the heap at once: published before Ready.
       std::memcpy(at, buf.data(), size);
+      PageBytes().swap(buf);
       e->arena_bytes = static_cast<std::uint32_t>(size);
       e->pins.fetch_add(1, std::memory_order_relaxed);
       e->kept = true;
@@ -568,8 +570,14 @@ struct PageCache::Impl {
     // times over: below that, read-ahead pages evict pages the streams
     // still need and a sweep reads its pages many times (bench/README.md,
     // bench_cache: 189x at a 1% budget with ~10 streams, 5.4x without).
-    if (opt.budget_bytes / kReadAheadHeadroom < r * streams * max_page_bytes) return;
-    const std::uint64_t last = (ai.pages - 1 - key.page > r) ? key.page + r : ai.pages - 1;
+    // (Kept pages never leave: the rest of the budget is what streams share.)
+    if ((opt.budget_bytes - st.kept_bytes) / kReadAheadHeadroom < r * streams * max_page_bytes) return;
+    // A kept array's stream reads the pages read ahead without pins, so no
+    // pin of one extends the window: its next miss does (pin_locked). A
+    // window 4x as long makes that one miss per 4r + 1 pages; its pages
+    // never leave and are the kept array's, which fits its share.
+    const std::uint64_t window = ai.kept ? 4 * r : r;
+    const std::uint64_t last = (ai.pages - 1 - key.page > window) ? key.page + window : ai.pages - 1;
     std::uint64_t first = key.page + 1;
     if (ai.ra_next > first && ai.ra_next <= last + 1) first = ai.ra_next;
     bool pushed = false;
@@ -682,6 +690,11 @@ PageCache::Handle PageCache::pin_locked(std::unique_lock<SpinMutex>& lock, PageK
   if (ai != nullptr) {
     const std::uint64_t last = ai->last_pin.load(std::memory_order_relaxed);
     sequential = Impl::continues_stream(last, key.page);
+    // A stream over a kept array reads the pages read-ahead brought in
+    // through the directory, without pins (tables.hpp): a kept page before
+    // this one continues it too, or each window would end in misses.
+    if (!sequential && ai->kept && key.page > 0 && ai->kept[key.page - 1].load(std::memory_order_relaxed) != nullptr)
+      sequential = true;
     if (last == Impl::kNoPin) ++m.streams;
     ai->last_pin.store(key.page, std::memory_order_relaxed);
   }

@@ -234,8 +234,9 @@ class PageCache {
   // Such reads are not counted in CacheStats::hits. A page admitted after
   // this call is copied, before anyone can see it, into 2 MiB-aligned
   // chunks that the kernel may back with transparent huge pages (a TLB
-  // entry per 2 MiB of a table read at random); at most one partly used
-  // chunk, under 2 MiB, is memory beyond the pages' bytes.
+  // entry per 2 MiB of a table read at random); memory beyond the pages'
+  // bytes: the last chunk's unused rest (under 2 MiB), and per chunk and
+  // page a little rounding (under a page per chunk, 63 bytes per page).
   // Kept pages are pinned pages: they count toward the budget for good,
   // so keep only arrays well inside it; pin() fails as invariant 1 says
   // when they and the other pins leave no room. CacheStats::kept_bytes
