@@ -100,20 +100,21 @@ std::pair<int, size_t> guide_shape(Id H, Id total) {
   return {shift, static_cast<size_t>((total >> shift) + 2)};
 }
 
-// Fills g's buckets whose start lies on page p of a store's elements (ids
-// index[p] .. index[p + 1], or past the last id for the last page): each
+// Fills the node-id guide g's buckets whose start lies on page p of a
+// store's elements (ids index[p] .. index[p + 1], or past the last id for
+// the last page): each
 // gets the last row of the page whose first id is <= its start, the value
 // guide_over would give (the page's first row starts at index[p], the
 // next page's above the bucket). A page whose first row disagrees with
 // the index fills nothing: its searches keep the page index's way, whose
 // checks report the damage.
-void fill_page_buckets(const LazyIdGuide& g, const RowReader& R, const MeshTables& t, Id p, bool by_node) {
-  const std::vector<std::int64_t>& index = by_node ? t.node_index : t.element_index;
-  auto first = [&](Id r) { return by_node ? R.node_first(r) : R.element_first(r); };
+void fill_page_buckets(const LazyIdGuide& g, const RowReader& R, const MeshTables& t, Id p) {
+  const std::vector<std::int64_t>& index = t.node_index;
+  auto first = [&](Id r) { return R.node_first(r); };
   const Id rpp = t.elements.rows_per_page(), lo = p * rpp, hi = std::min(t.elements.rows(), lo + rpp);
   const bool last = static_cast<size_t>(p) + 1 >= index.size();
   const Id from = index[static_cast<size_t>(p)];
-  const Id to = last ? (by_node ? t.fine_nodes : t.fine_elements) : index[static_cast<size_t>(p) + 1];
+  const Id to = last ? t.fine_nodes : index[static_cast<size_t>(p) + 1];
   // Rows out of order or past the next page's start (a damaged store) fill
   // nothing either: the guide and the page's search could then disagree,
   // and a query's answer would depend on whether its bucket was filled.
@@ -199,7 +200,7 @@ Id search_elements(const MeshTables& t, Id x, bool by_node, MeshCursor& cur) {
     }
     if (p < 0) return -1;
     if (lazy && !lazy->page_done[static_cast<size_t>(p)].load(std::memory_order_relaxed))
-      fill_page_buckets(*lazy, R, t, p, by_node);
+      fill_page_buckets(*lazy, R, t, p);
     lo = p * rpp;
     hi = std::min(t.elements.rows(), lo + rpp);
     // The page's first value and the next page's (past the last page: the

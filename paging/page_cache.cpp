@@ -505,23 +505,21 @@ struct PageCache::Impl {
     std::uint8_t* at = ai && ai->kept && size > 0 && size <= UINT32_MAX ? arena.allocate(size) : nullptr;
     if (at != nullptr) {
       // A kept page's bytes go to the arena, the page's buffer back to
-      // the heap at once: published before Ready.
+      // the heap at once.
       std::memcpy(at, buf.data(), size);
       PageBytes().swap(buf);
       e->arena_bytes = static_cast<std::uint32_t>(size);
-      e->pins.fetch_add(1, std::memory_order_relaxed);
-      e->kept = true;
-      st.kept_bytes += size;
-      ai->kept[e->key.page].store(at, std::memory_order_release);
     } else {
       e->data = std::move(buf);
     }
+    // Published before Ready: a handle on an arena page finds its bytes in
+    // the directory. (No room in the arena: kept where it is.)
+    if (ai && ai->kept) keep(*ai, e, at != nullptr ? at : e->data.data());
     e->state.store(State::Ready, std::memory_order_release);
     st.resident_bytes += size;
     if (st.resident_bytes > st.peak_resident_bytes) st.peak_resident_bytes = st.resident_bytes;
     if (ai && size > ai->max_page_bytes) ai->max_page_bytes = size;
     max_page_bytes = std::max(max_page_bytes, size);
-    if (ai && ai->kept) keep(*ai, e);  // no room in the arena: kept where it is
     load_done.notify_all();
     return true;
   }
@@ -533,15 +531,15 @@ struct PageCache::Impl {
                                : e->data.data();
   }
 
-  // e (Ready, of ai's array) takes the cache's own pin and is published in
-  // ai's directory. The pin comes first: no evict() can detach e after it,
-  // so the bytes a reader finds there stay.
-  void keep(ArrayInfo& ai, Entry* e) {
+  // e (of ai's array, its bytes at `at`, in place) takes the cache's own
+  // pin and is published in ai's directory. The pin comes first: no
+  // evict() can detach e after it, so the bytes a reader finds there stay.
+  void keep(ArrayInfo& ai, Entry* e, const std::uint8_t* at) {
     if (e->kept) return;
     e->pins.fetch_add(1, std::memory_order_relaxed);
     e->kept = true;
-    st.kept_bytes += e->data.size();
-    ai.kept[e->key.page].store(e->data.data(), std::memory_order_release);
+    st.kept_bytes += e->size();
+    ai.kept[e->key.page].store(at, std::memory_order_release);
   }
 
   std::exception_ptr budget_error(PageKey key, std::uint64_t size) const {
@@ -807,7 +805,8 @@ const std::atomic<const std::uint8_t*>* PageCache::keep_resident(std::uint32_t a
     // Pages resident now; those still loading are kept when admitted.
     if (const Impl::PageTable* t = ai->table.load(std::memory_order_relaxed))
       for (std::uint64_t p = 0; p < t->size; ++p)
-        if (Entry* e = t->slot[p].load(std::memory_order_relaxed); e && e->state == State::Ready) m.keep(*ai, e);
+        if (Entry* e = t->slot[p].load(std::memory_order_relaxed); e && e->state == State::Ready)
+          m.keep(*ai, e, e->data.data());
   }
   return ai->kept.get();
 }

@@ -140,6 +140,11 @@ struct PagedDataset {
   bool shuffled = false;           // HDF5 byte shuffle before LZ4 (every 8-byte integer table)
   std::vector<std::uint32_t> crc;  // CRC-32 of every decoded page (companion dataset)
   std::vector<int> derived;        // columns copied after the rows of each page (Table::derived)
+  std::size_t rows_bytes() const { return static_cast<std::size_t>(rows_per_page * width) * elem; }
+  // A decoded page's size (what the cache's budget counts): its rows, and
+  // room for the derived columns from the start, so that the vector the
+  // page ends in never grows past it.
+  std::size_t page_bytes() const { return rows_bytes() + derived.size() * static_cast<std::size_t>(rows_per_page) * elem; }
 };
 
 struct OpenStore {
@@ -174,12 +179,8 @@ struct OpenStore {
         throw Error(ErrorKind::Corrupt, what + ": HDF5 cannot read the page (truncated or damaged file)");
       if (mask != 0) throw Error(ErrorKind::Corrupt, what + ": page was stored with filters skipped");
     }
-    const size_t rows_bytes = static_cast<size_t>(a.rows_per_page * a.width) * a.elem;
-    // Room for the derived columns from the start in the vector the page
-    // ends in, so that it never grows past the exact size the cache's
-    // budget counts.
-    const size_t page_bytes = rows_bytes + a.derived.size() * static_cast<size_t>(a.rows_per_page) * a.elem;
-    out.resize(page_bytes);  // PageBytes: not zero-filled; every byte is written below
+    const size_t rows_bytes = a.rows_bytes();
+    out.resize(a.page_bytes());  // PageBytes: not zero-filled; every byte is written below
 #ifndef NDEBUG
     // Debug builds (the sanitizer stage too) poison the page first, so that
     // a byte this loader fails to write shows as garbage, not as the bytes
@@ -544,10 +545,7 @@ void keep_small_tables(MeshTables& tab, const OpenStore& s, std::uint64_t budget
   std::uint64_t room = budget / 4;
   auto keep = [&](auto& table) {
     if (table.rows() == 0) return;
-    const PagedDataset& a = s.arrays[table.array()];
-    const auto page = static_cast<std::uint64_t>(a.rows_per_page) *
-                      (static_cast<std::uint64_t>(a.width) + a.derived.size()) * a.elem;
-    const std::uint64_t bytes = static_cast<std::uint64_t>(table.pages()) * page;
+    const std::uint64_t bytes = static_cast<std::uint64_t>(table.pages()) * s.arrays[table.array()].page_bytes();
     if (bytes > room) return;
     room -= bytes;
     table.keep_resident();
