@@ -6,9 +6,11 @@
 #include <gtest/gtest.h>
 #include <hdf5.h>
 
+#include <algorithm>
 #include <array>
 #include <cstring>
 #include <filesystem>
+#include <random>
 #include <sstream>
 #include <string>
 #include <tuple>
@@ -322,6 +324,61 @@ TEST(CraftedRows, ALyingPageIndexIsCorruptForEveryCommand) {
     EXPECT_EQ(swept.exit_code, 0) << swept.err;
     EXPECT_EQ(checksum(swept), checksum(good_swept));
     EXPECT_NE(checksum(good_swept), "(none)") << good_swept.out;
+  }
+}
+
+// The same lie in one process, where a kept element table's node-id guide
+// (tables.hpp LazyIdGuide) fills page by page as queries land: each moved
+// id is Corrupt every time it is asked, before and after the pages around
+// it were filled, and every other id is the good store's node, bit for bit.
+// (The CLI test above asks each id once, in a process of its own, so it
+// never reaches a filled guide.)
+TEST(CraftedRows, ALyingPageIndexIsCorruptAtEveryAskingInOneProcess) {
+  const Store& s = store(true);
+  test::TempDir tmp;
+  const std::string bad = tmp.path("bad.dice.h5");
+  fs::copy_file(s.path, bad);
+  hid_t f = H5Fopen(bad.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+  std::int64_t first = -1;
+  test::forge_page(f, "numbering/element_page_node", 0, [&](std::vector<std::uint8_t>& page) {
+    std::memcpy(&first, page.data() + 8, 8);
+    const std::int64_t v = first + 40;
+    std::memcpy(page.data() + 8, &v, 8);
+  }, true);
+  H5Fclose(f);
+  ASSERT_GT(first, 0);
+  const FineMesh good = read_store(s.path);
+  for (const bool keep : {true, false}) {
+    SCOPED_TRACE(keep ? "kept tables" : "nothing kept");
+    const FineMesh m = read_store(bad, StoreOptions{64ull << 20, 4, keep});
+    const LazyIdGuide* guide = m.tables().node_row_guide.get();
+    ASSERT_EQ(guide != nullptr, keep) << "the guide is what this test is about";
+    std::vector<Id> ids(static_cast<size_t>(s.nodes));
+    for (Id i = 0; i < s.nodes; ++i) ids[static_cast<size_t>(i)] = i;
+    std::mt19937_64 rng(7);
+    size_t corrupt = 0;
+    for (int round = 0; round < 3; ++round) {
+      std::shuffle(ids.begin(), ids.end(), rng);
+      MeshCursor cur;
+      for (const Id id : ids) {
+        const bool moved = id >= first && id < first + 40;
+        try {
+          const Vec3 p = m.node(id, cur), q = good.node(id);
+          EXPECT_FALSE(moved) << "node " << id << " answered through a lying index";
+          EXPECT_EQ(std::memcmp(&p, &q, sizeof p), 0) << "node " << id;
+        } catch (const Error& e) {
+          EXPECT_TRUE(moved) << "node " << id << ": " << e.what();
+          EXPECT_EQ(e.kind(), ErrorKind::Corrupt) << e.what();
+          EXPECT_NE(std::string(e.what()).find("bad.dice.h5"), std::string::npos) << e.what();
+          ++corrupt;
+        }
+      }
+      if (keep) {  // after the first round every page has been landed on
+        const Id pages = static_cast<Id>(m.tables().node_index.size());
+        for (Id p = 0; p < pages; ++p) EXPECT_TRUE(guide->page_done[static_cast<size_t>(p)].load()) << "page " << p;
+      }
+    }
+    EXPECT_EQ(corrupt, 3u * 40u);
   }
 }
 
