@@ -216,6 +216,12 @@ StoreFlags::StoreFlags(Command& cmd)
             group);
   cmd.value("--read-ahead", read_ahead_, "N",
             "pages read ahead when rows are read in order, 0 to 1024", group);
+  cmd.flag("--no-keep-tables", no_keep_tables_,
+           "do not keep the small coarse tables resident once read (by default "
+           "those that fit a quarter of a budget of 32 MiB or more stay, so "
+           "random queries read their rows without a pin); every page can then "
+           "be evicted",
+           group);
   cmd.flag("--stats", stats_,
            "print the page cache counters to stderr when done: pages "
            "and bytes read, bytes decompressed, hits, misses, "
@@ -231,6 +237,7 @@ StoreOptions StoreFlags::options() const {
   const auto n = parse_int("--read-ahead", read_ahead_);
   if (n < 0 || n > 1024) throw Error(ErrorKind::Usage, "--read-ahead: must be between 0 and 1024 pages");
   o.read_ahead_pages = static_cast<unsigned>(n);
+  o.keep_coarse_tables = !no_keep_tables_;
   return o;
 }
 

@@ -69,7 +69,7 @@ class Command {
 // The option sets below register options bound to their own members: the
 // object must outlive parse() and not be const (parse() writes into it).
 //
-// --cache-mb, --read-ahead, --stats: one declaration for every command that
+// --cache-mb, --read-ahead, --no-keep-tables, --stats: one declaration for every command that
 // opens a store (info, query, verify, footprint, export, sweep).
 class StoreFlags {
  public:
@@ -81,7 +81,7 @@ class StoreFlags {
 
  private:
   std::string command_, cache_mb_, read_ahead_;
-  bool stats_ = false;
+  bool no_keep_tables_ = false, stats_ = false;
 };
 
 // --interval, --size, --block-interval, --sheet-interval, --entity-interval,

@@ -210,12 +210,19 @@ def _run_dicer_cad(args):
 
 # ---- the API
 
-def open(path, cache_mb=64, read_ahead=4):  # noqa: A001  (dicer.open, as the brief names it)
+def open(path, cache_mb=64, read_ahead=4, keep_tables=True):  # noqa: A001  (dicer.open, as the brief names it)
     """Opens a store. Memory stays under cache_mb MiB of decoded pages plus a
-    small constant, whatever the fine mesh size."""
+    small constant, whatever the fine mesh size.
+
+    keep_tables: the coarse tables that fit a quarter of a budget of 32 MiB
+    or more stay resident once read (counted in cache_stats()["kept_bytes"]),
+    so random queries read their rows without a pin; False lets every page
+    be evicted (the CLI's --no-keep-tables)."""
     path = _os.fspath(path)
     _check_input(path, "STORE")
-    return _core._open(path, _whole("--cache-mb", cache_mb), _whole("--read-ahead", read_ahead))
+    if not isinstance(keep_tables, bool):
+        raise UsageError("--no-keep-tables: keep_tables must be True or False, not %r" % (keep_tables,))
+    return _core._open(path, _whole("--cache-mb", cache_mb), _whole("--read-ahead", read_ahead), keep_tables)
 
 
 def dice(mesh, out, interval=None, sheet_intervals=None, block_intervals=None, size=None,

@@ -57,7 +57,7 @@ struct Store {
   }
 };
 
-Store open_store(const std::string& path, std::int64_t cache_mb, std::int64_t read_ahead) {
+Store open_store(const std::string& path, std::int64_t cache_mb, std::int64_t read_ahead, bool keep_tables) {
   // The CLI's --cache-mb and --read-ahead limits and words (messages name
   // the command-line option of each argument, as every message here does).
   if (cache_mb < 1 || cache_mb > (std::int64_t{1} << 30))
@@ -67,6 +67,7 @@ Store open_store(const std::string& path, std::int64_t cache_mb, std::int64_t re
   s.path = path;
   s.options.cache_bytes = static_cast<std::uint64_t>(cache_mb) << 20;
   s.options.read_ahead_pages = static_cast<unsigned>(read_ahead);
+  s.options.keep_coarse_tables = keep_tables;
   py::gil_scoped_release release;
   s.mesh = std::make_shared<const FineMesh>(read_store(path, s.options));
   return s;
@@ -688,7 +689,7 @@ PYBIND11_MODULE(_core, m) {
 
   m.def("_dice", &dice_to_store, py::arg("mesh"), py::arg("out"), py::arg("interval"), py::arg("size"),
         py::arg("block_intervals"), py::arg("sheet_intervals"), py::arg("intervals_file"));
-  m.def("_open", &open_store, py::arg("path"), py::arg("cache_mb"), py::arg("read_ahead"));
+  m.def("_open", &open_store, py::arg("path"), py::arg("cache_mb"), py::arg("read_ahead"), py::arg("keep_tables"));
 
   py::class_<Batch>(m, "Batch",
                     "The fine nodes and elements of one coarse element: node_ids, points (n, 3) and "

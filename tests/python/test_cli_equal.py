@@ -57,16 +57,20 @@ def test_nodes_by_ids_equal_ranges(sphere_store):
 
 def test_kept_coarse_tables_give_the_same_nodes(sphere_store):
     # The default 64 MiB cache keeps the sphere's coarse tables resident
-    # (read_store); 4 MiB keeps none. The same bits either way.
+    # (read_store); 4 MiB keeps none, nor does keep_tables=False. The same
+    # bits every way.
     ids = np.random.default_rng(11).integers(0, 10**9, 2000)
     got = {}
-    for mb in (64, 4):
-        s = dicer.open(sphere_store, cache_mb=mb)
-        got[mb] = s.nodes(ids % s.num_nodes)
+    for mb, keep in ((64, True), (4, True), (64, False)):
+        s = dicer.open(sphere_store, cache_mb=mb, keep_tables=keep)
+        got[mb, keep] = s.nodes(ids % s.num_nodes)
         kept = s.cache_stats()["kept_bytes"]
-        assert (kept > 0) == (mb == 64), (mb, kept)
+        assert (kept > 0) == (mb == 64 and keep), (mb, keep, kept)
         assert kept <= mb * 2**20 // 4
-    assert np.array_equal(bits(got[64]), bits(got[4]))
+    assert np.array_equal(bits(got[64, True]), bits(got[4, True]))
+    assert np.array_equal(bits(got[64, True]), bits(got[64, False]))
+    with pytest.raises(dicer.UsageError, match="keep_tables"):
+        dicer.open(sphere_store, keep_tables="no")
 
 
 @pytest.mark.parametrize("fixture", ["sphere_store", "prism_store", "shell_store", "graded_store"])

@@ -308,6 +308,16 @@ TEST(StorePaged, FootprintAndStatsOnTheCommandLine) {
   EXPECT_NE(q.err.find("pages read"), std::string::npos) << q.err;
   EXPECT_NE(q.err.find("peak resident"), std::string::npos) << q.err;
   EXPECT_EQ(test::run_cli({"info", store, "--cache-mb", "0"}).exit_code, 2);
+  // The default budget keeps the coarse tables a query reads (read_store);
+  // --no-keep-tables keeps none, and the nodes printed are the same.
+  const auto kept = test::run_cli({"query", store, "--nodes", "0:100", "--stats"});
+  const auto none = test::run_cli({"query", store, "--nodes", "0:100", "--stats", "--no-keep-tables"});
+  ASSERT_EQ(kept.exit_code, 0) << kept.err;
+  ASSERT_EQ(none.exit_code, 0) << none.err;
+  EXPECT_EQ(kept.err.find("(0 B kept resident)"), std::string::npos) << kept.err;
+  EXPECT_NE(none.err.find("(0 B kept resident)"), std::string::npos) << none.err;
+  EXPECT_EQ(kept.out, none.out);
+  EXPECT_FALSE(kept.out.empty());
 }
 
 // Issue "store v6", item 2: a store several times larger than the cache
