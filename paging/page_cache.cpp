@@ -67,6 +67,7 @@
 #include <sys/mman.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cassert>
 #include <condition_variable>
@@ -261,13 +262,60 @@ struct PageCache::Impl {
   static constexpr std::uint64_t kNoPin = ~std::uint64_t{0};
   // A pin of `page` after one of `last` continues a sequential stream.
   static bool continues_stream(std::uint64_t last, std::uint64_t page) { return last != kNoPin && last + 1 == page; }
+  // A sequential reader of one array: the page it pinned last, the first
+  // page its read-ahead window has not scheduled yet, and when it last
+  // moved (the least recent is replaced). Each thread that sweeps a part of
+  // an array is one: with a single last page per array, two threads' pins
+  // interleaved and neither was ever seen as a stream (a 2-thread sweep of
+  // the 1e9 box read 9,286 of its 10,922 pages as misses, no read-ahead).
+  // A stream starts when a thread pins the page after its own last pin of
+  // the array (ThreadPin).
+  struct Stream {
+    std::atomic<std::uint64_t> last{kNoPin};  // written with the lock
+    std::uint64_t ra_next = 0;
+    std::uint64_t used = 0;
+  };
+  static constexpr int kStreams = 16;
+  // This thread's last pin of each of a few arrays (slot: the id's low
+  // bits), tagged with the cache: per thread, so that no other thread's pin
+  // in between hides a stream's start, and no unlocked hit writes a line
+  // that other threads read. A cache at a destroyed one's address may
+  // match a stale slot: a heuristic's miss, one read-ahead at most.
+  struct ThreadPin {  // zero-initialised (thread storage): no cache
+    const void* cache;
+    std::uint32_t array;
+    std::uint64_t page;
+  };
+  static constexpr std::uint32_t kThreadPins = 8;
+  static inline thread_local ThreadPin thread_pins[kThreadPins];
+  bool thread_continues(PageKey k) const {
+    const ThreadPin& t = thread_pins[k.array % kThreadPins];
+    return t.cache == this && t.array == k.array && continues_stream(t.page, k.page);
+  }
+  void thread_note(PageKey k) const { thread_pins[k.array % kThreadPins] = {this, k.array, k.page}; }  // per array: a sweep's threads (the locked path scans them)
   struct ArrayInfo {
     std::uint64_t pages = 0;  // pages of the array (set_array_pages)
-    // Page of the last pin() on this array (kNoPin: none yet). Written by
-    // unlocked pins too: the sequential detector is a heuristic, and a
-    // stale value only costs a read-ahead or a reference bit.
-    std::atomic<std::uint64_t> last_pin{kNoPin};
-    std::uint64_t ra_next = 0;         // first page the current read-ahead window has not scheduled yet
+    std::atomic<bool> pinned{false};  // pinned at least once (counted in `streams`)
+    std::array<Stream, kStreams> stream;
+    int streams_used = 0;
+    // The stream whose next page is `page`, or nullptr.
+    Stream* stream_to(std::uint64_t page) {
+      for (int i = 0; i < streams_used; ++i)
+        if (continues_stream(stream[i].last.load(std::memory_order_relaxed), page)) return &stream[i];
+      return nullptr;
+    }
+    // The stream that read ahead of `page`'s window (its last page below
+    // `page`, at most `window` pages before it), or nullptr.
+    Stream* stream_before(std::uint64_t page, std::uint64_t window) {
+      Stream* best = nullptr;
+      for (int i = 0; i < streams_used; ++i) {
+        const std::uint64_t l = stream[i].last.load(std::memory_order_relaxed);
+        if (l != kNoPin && l < page && page - l <= window &&
+            (best == nullptr || l > best->last.load(std::memory_order_relaxed)))
+          best = &stream[i];
+      }
+      return best;
+    }
     std::uint64_t max_page_bytes = 0;  // largest decoded page admitted so far (read-ahead's size estimate)
     std::vector<bool> read;            // pages loaded since the last reset_stats (1 bit each)
     // The declared pages' table (the map holds the rest); every table this
@@ -303,7 +351,8 @@ struct PageCache::Impl {
     }
     st.distinct_pages_read += fresh;
   }
-  std::uint64_t streams = 0;         // arrays pinned at least once: possible sequential streams
+  std::uint64_t streams = 0;         // arrays pinned at least once, plus their streams past the first
+  std::uint64_t stream_clock = 0;    // Stream::used
   std::uint64_t max_page_bytes = 0;  // largest decoded page admitted, any array
   KeyRing queue;
   KeptArena arena;  // kept pages' bytes (admit)
@@ -358,8 +407,11 @@ struct PageCache::Impl {
     if (t == nullptr || key.page >= t->size) return nullptr;
     Entry* e = t->slot[key.page].load(std::memory_order_acquire);
     if (e == nullptr || e->state.load(std::memory_order_acquire) != State::Ready) return nullptr;
-    const std::uint64_t last = ai->last_pin.load(std::memory_order_relaxed);
-    if (last == kNoPin || continues_stream(last, key.page)) return nullptr;  // the stream bookkeeping is the locked path's
+    // The stream bookkeeping is the locked path's: a first pin, and this
+    // thread's pin of the page after its last (a stream is one thread's;
+    // random queries start spurious ones, so a test of every stream here
+    // sent a quarter of random hits to the lock).
+    if (!ai->pinned.load(std::memory_order_relaxed) || thread_continues(key)) return nullptr;
     // One increment pins and counts the hit; a lost race takes both back.
     if (e->pins.fetch_add(1 + kHit, std::memory_order_acq_rel) & kDetached) {
       e->pins.fetch_sub(1 + kHit, std::memory_order_relaxed);
@@ -376,7 +428,7 @@ struct PageCache::Impl {
       e->pins.fetch_sub(1 + kHit, std::memory_order_release);
       return nullptr;
     }
-    if (last != key.page) ai->last_pin.store(key.page, std::memory_order_relaxed);
+    thread_note(key);
     if (!e->referenced.load(std::memory_order_relaxed)) e->referenced.store(true, std::memory_order_relaxed);
     return e;
   }
@@ -414,6 +466,23 @@ struct PageCache::Impl {
   }
 
   // False: a pin came first (the hand moves on).
+  // A stream of ai whose last page is `page` (a new one, or the least
+  // recently moved one replaced).
+  Stream& start_stream(ArrayInfo& ai, std::uint64_t page) {
+    Stream* s;
+    if (ai.streams_used < kStreams) {
+      s = &ai.stream[ai.streams_used];
+      if (ai.streams_used++ > 0) ++streams;  // the first is the array's own count
+    } else {
+      s = &ai.stream[0];
+      for (Stream& t : ai.stream)
+        if (t.used < s->used) s = &t;
+    }
+    s->last.store(page, std::memory_order_relaxed);
+    s->ra_next = 0;
+    return *s;
+  }
+
   bool evict(Entry* e) {
     assert(e->state == State::Ready);
     if (!detach(e)) return false;
@@ -559,9 +628,9 @@ struct PageCache::Impl {
     return std::make_exception_ptr(Error(ErrorKind::Usage, msg));
   }
 
-  // pin() of page p continues a sequential stream: queue the pages after p
-  // that the current window has not scheduled yet.
-  void schedule(ArrayInfo& ai, PageKey key) {
+  // pin() of page p continues stream s: queue the pages after p that s's
+  // window has not scheduled yet.
+  void schedule(ArrayInfo& ai, Stream& s, PageKey key) {
     const std::uint64_t r = opt.read_ahead_pages;
     if (r == 0 || key.page + 1 >= ai.pages) return;
     // Only when the budget holds every stream's window kReadAheadHeadroom
@@ -577,13 +646,19 @@ struct PageCache::Impl {
     const std::uint64_t window = ai.kept ? 4 * r : r;
     const std::uint64_t last = (ai.pages - 1 - key.page > window) ? key.page + window : ai.pages - 1;
     std::uint64_t first = key.page + 1;
-    if (ai.ra_next > first && ai.ra_next <= last + 1) first = ai.ra_next;
+    if (s.ra_next > first && s.ra_next <= last + 1) first = s.ra_next;
+    // A window more than half ahead of the stream waits, and is then topped
+    // up half a window at a time: each top-up wakes the worker once. (A
+    // wake per page was ~4% of a one-thread sweep of the 1e9 box in perf:
+    // the futex wake of the worker on the other core.) Kept arrays' windows
+    // are extended by misses alone, already one per window.
+    if (!ai.kept && first - key.page - 1 > window / 2) return;
     bool pushed = false;
     for (std::uint64_t q = first; q <= last && !queue.full(); ++q) {
       const PageKey k{key.array, q};
       if (find(&ai, k) == nullptr) queue.push(k), pushed = true;
     }
-    ai.ra_next = last + 1;
+    s.ra_next = last + 1;
     if (pushed && worker.joinable()) work.notify_one();
   }
 
@@ -593,8 +668,9 @@ struct PageCache::Impl {
     try {
       ArrayInfo* ai = array_info(key.array);
       if (ai == nullptr || key.page >= ai->pages) return;
-      if (const std::uint64_t last = ai->last_pin.load(std::memory_order_relaxed); last != kNoPin && key.page <= last)
-        return;  // the stream is already past it
+      // No stream still ahead of it within a window (each is past it):
+      // skipped.
+      if (ai->stream_before(key.page, 4 * std::uint64_t{opt.read_ahead_pages}) == nullptr) return;
       if (find(ai, key) != nullptr) return;
       if (!readahead_room(ai->max_page_bytes)) return;  // cache full of pages not to evict: skip
       Entry* e = new_entry(key);
@@ -684,18 +760,26 @@ PageCache::Handle PageCache::pin_locked(std::unique_lock<SpinMutex>& lock, PageK
   if (ai != nullptr && key.page >= ai->pages)
     throw Error(ErrorKind::Usage, "page cache: page " + key_text(key) + " is beyond the end of the array (" +
                                       std::to_string(ai->pages) + " pages)");
-  bool sequential = false;
+  Impl::Stream* stream = nullptr;  // the sequential stream this pin continues, if any
   if (ai != nullptr) {
-    const std::uint64_t last = ai->last_pin.load(std::memory_order_relaxed);
-    sequential = Impl::continues_stream(last, key.page);
+    stream = ai->stream_to(key.page);
+    if (stream == nullptr && m.thread_continues(key)) stream = &m.start_stream(*ai, key.page - 1);
     // A stream over a kept array reads the pages read-ahead brought in
     // through the directory, without pins (tables.hpp): a kept page before
     // this one continues it too, or each window would end in misses.
-    if (!sequential && ai->kept && key.page > 0 && ai->kept[key.page - 1].load(std::memory_order_relaxed) != nullptr)
-      sequential = true;
-    if (last == Impl::kNoPin) ++m.streams;
-    ai->last_pin.store(key.page, std::memory_order_relaxed);
+    if (stream == nullptr && ai->kept && key.page > 0 &&
+        ai->kept[key.page - 1].load(std::memory_order_relaxed) != nullptr) {
+      stream = ai->stream_before(key.page, 4 * std::uint64_t{m.opt.read_ahead_pages} + 1);
+      if (stream == nullptr) stream = &m.start_stream(*ai, key.page - 1);
+    }
+    if (!ai->pinned.load(std::memory_order_relaxed)) ++m.streams, ai->pinned.store(true, std::memory_order_relaxed);
+    m.thread_note(key);
+    if (stream != nullptr) {
+      stream->last.store(key.page, std::memory_order_relaxed);
+      stream->used = ++m.stream_clock;
+    }
   }
+  const bool sequential = stream != nullptr;
   const bool sync_read_ahead = !m.worker.joinable();
 
   if (Entry* e = m.find(ai, key)) {  // hit, or the load is in flight
@@ -704,7 +788,7 @@ PageCache::Handle PageCache::pin_locked(std::unique_lock<SpinMutex>& lock, PageK
     if (!sequential) e->referenced.store(true, std::memory_order_relaxed);
     const bool extends_window = sequential && e->prefetched.load(std::memory_order_relaxed);
     e->prefetched.store(false, std::memory_order_relaxed);
-    if (extends_window) m.schedule(*ai, key);
+    if (extends_window) m.schedule(*ai, *stream, key);
     if (e->state == State::Loading) {
       m.load_done.wait(lock, [e] { return e->state != State::Loading; });
       if (e->state == State::Failed) {
@@ -722,7 +806,7 @@ PageCache::Handle PageCache::pin_locked(std::unique_lock<SpinMutex>& lock, PageK
   Entry* e = m.new_entry(key);
   e->pins.fetch_add(1, std::memory_order_relaxed);
   e->referenced.store(!sequential, std::memory_order_relaxed);
-  if (sequential) m.schedule(*ai, key);
+  if (sequential) m.schedule(*ai, *stream, key);
   lock.unlock();
   PageBytes buf;
   std::uint64_t nread = 0;
@@ -785,7 +869,7 @@ void PageCache::set_array_pages(std::uint32_t array, std::uint64_t pages) {
   // unlocked pin may be reading it) but empty, so its readers lock.
   for (Entry* e : mine) m.unindex(e->key);
   ai.pages = pages;
-  ai.ra_next = 0;
+  for (Impl::Stream& st : ai.stream) st.ra_next = 0;
   ai.read.swap(read);
   ai.tables.push_back(std::move(table));
   ai.table.store(ai.tables.back().get(), std::memory_order_release);

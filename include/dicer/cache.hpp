@@ -30,18 +30,20 @@
 // pages still loading. See page_cache.cpp for why CLOCK (cost per hit,
 // behaviour under sweeps) and the exact victim order.
 //
-// Read-ahead: when pin() sees page p of an array right after page p-1 of
-// the same array (a sequential stream) and p was a miss or a page that
-// read-ahead brought in, the next Options::read_ahead_pages pages of that
-// array are scheduled. With background_read_ahead one worker thread loads
-// them (bounded queue; the destructor stops and joins it); otherwise the
-// pinning thread loads them before pin() returns. Read-ahead only runs for
-// arrays whose page count was given by set_array_pages() and never past
-// it, and only while the budget holds 4 x read_ahead_pages x (arrays pinned
-// so far) of the largest page seen: a smaller budget would let each
-// stream's read-ahead evict the others' pages in use. Read-ahead never
-// evicts pinned pages, pages with their reference bit
-// set, or other read-ahead pages not yet pinned; if that leaves no room it
+// Read-ahead: when a thread's pin() of page p of an array comes right
+// after its own pin of page p-1 (a sequential stream; each thread that
+// sweeps a part of an array is one, up to 16 per array) and p was a miss or
+// a page that read-ahead brought in, the next Options::read_ahead_pages
+// pages of that array are scheduled (topped up half a window at a time).
+// With background_read_ahead one worker thread loads them (bounded queue;
+// the destructor stops and joins it); otherwise the pinning thread loads
+// them before pin() returns. Read-ahead only runs for arrays whose page
+// count was given by set_array_pages() and never past it, and only while
+// the budget holds 4 x read_ahead_pages x (streams so far: one per array
+// pinned, plus each array's further streams) of the largest page seen: a
+// smaller budget would let each stream's read-ahead evict the others'
+// pages in use. Read-ahead never evicts pinned pages, pages with their
+// reference bit set, or other read-ahead pages not yet pinned; if that leaves no room it
 // is skipped (a hot working set is not flushed by a speculative read).
 // Pages that a sequential stream pins do not get their reference bit set
 // (scan resistance), so a sweep evicts its own past pages first. In a

@@ -584,6 +584,42 @@ TEST(PageCache, ConcurrentSweepsReadEachPageOnce) {
   }
 }
 
+// Threads that sweep parts of one array side by side each get read-ahead:
+// pins taken in strict turns (thread 0's page, thread 1's, ...) so that
+// every pin of a thread follows another thread's pin of the same array.
+// Each thread misses its first page (no stream yet) and its second (the
+// stream starts there), then finds every page read ahead. With one last
+// page per array, no thread's pins were ever seen as a stream: every pin
+// was a miss.
+TEST(PageCache, ThreadsSweepingOneArrayEachReadAhead) {
+  constexpr int kThreads = 4;
+  constexpr std::uint64_t kPart = 40;
+  SyntheticPages pages(1, kThreads * kPart);
+  PageCache cache(pages.loader(), opts(200 * kMaxPage, 4, false));  // inline read-ahead: deterministic
+  pages.declare(cache, 1);
+  std::atomic<std::uint64_t> turn{0};
+  std::atomic<int> bad{0};
+  std::vector<std::thread> threads;
+  for (int t = 0; t < kThreads; ++t)
+    threads.emplace_back([&, t] {
+      for (std::uint64_t i = 0; i < kPart; ++i) {
+        while (turn.load(std::memory_order_acquire) != i * kThreads + static_cast<std::uint64_t>(t))
+          std::this_thread::yield();
+        if (!content_ok(cache.pin({0, static_cast<std::uint64_t>(t) * kPart + i}))) bad.fetch_add(1);
+        turn.fetch_add(1, std::memory_order_release);
+      }
+    });
+  for (auto& th : threads) th.join();
+  EXPECT_EQ(bad.load(), 0);
+  const CacheStats s = cache.stats();
+  EXPECT_EQ(s.misses, 2u * kThreads);
+  EXPECT_EQ(s.hits, kThreads * (kPart - 2));
+  // Read-ahead stops at each part's end only at the array's: a part's
+  // window reaches at most 4 pages into the next part, which that part's
+  // own stream then finds resident.
+  EXPECT_EQ(pages.total_loads(), kThreads * kPart);
+}
+
 // A declared array's pages are found through its page table, others (and
 // ids past the table's range) through the hash map; declaring or
 // re-declaring a page count moves resident pages between the two. Any
