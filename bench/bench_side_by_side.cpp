@@ -4,6 +4,10 @@
 //   BM_WriteBandwidth      baseline: x, y, z of every fine node written into a
 //                          block-sized buffer, block after block (what block
 //                          iteration would cost if TFI were free)
+//   BM_WriteBandwidthConn  the same with what the batch API hands out per
+//                          coarse element: x, y, z of its points and 8 node
+//                          ids of each of its elements (n0 n1 n2 of them),
+//                          a second baseline of the bytes BM_Batches writes
 //   BM_BlockIteration/<nodes only 1|with connectivity 0>
 //                          fill_block over every coarse element of the store
 //   BM_Batches             the batch API (batch.hpp) over the whole store:
@@ -89,6 +93,32 @@ void BM_WriteBandwidth(benchmark::State& st) {
     for (Id h = 0; h < m.num_coarse_elements(); ++h) {
       const Id n = points[static_cast<size_t>(h)];
       bench::write_xyz(x.data(), y.data(), z.data(), static_cast<size_t>(n), static_cast<double>(h));
+      nodes += n;
+    }
+  }
+  st.counters["nodes_per_s"] = benchmark::Counter(static_cast<double>(nodes), benchmark::Counter::kIsRate);
+}
+
+void BM_WriteBandwidthConn(benchmark::State& st) {
+  const FineMesh m = open_store();
+  std::vector<Id> points(static_cast<size_t>(m.num_coarse_elements())), cells(points.size());
+  MeshCursor cur;
+  for (Id h = 0; h < m.num_coarse_elements(); ++h) {
+    const auto n = block_intervals(m, h, cur);
+    points[static_cast<size_t>(h)] = (n[0] + 1) * (n[1] + 1) * (n[2] + 1);
+    cells[static_cast<size_t>(h)] = n[0] * n[1] * n[2];
+  }
+  cur.release();
+  const size_t most = static_cast<size_t>(*std::max_element(points.begin(), points.end()));
+  const size_t most_cells = static_cast<size_t>(*std::max_element(cells.begin(), cells.end()));
+  std::vector<double> x(most), y(most), z(most);
+  std::vector<Id> conn(8 * most_cells);
+  Id nodes = 0;
+  for (auto _ : st) {
+    for (Id h = 0; h < m.num_coarse_elements(); ++h) {
+      const Id n = points[static_cast<size_t>(h)];
+      bench::write_xyz(x.data(), y.data(), z.data(), static_cast<size_t>(n), static_cast<double>(h));
+      bench::write_ids(conn.data(), static_cast<size_t>(8 * cells[static_cast<size_t>(h)]), h);
       nodes += n;
     }
   }
@@ -347,6 +377,7 @@ void guarded(benchmark::State& st) {
 }  // namespace
 
 BENCHMARK(guarded<BM_WriteBandwidth>)->Name("BM_WriteBandwidth")->Unit(benchmark::kMillisecond);
+BENCHMARK(guarded<BM_WriteBandwidthConn>)->Name("BM_WriteBandwidthConn")->Unit(benchmark::kMillisecond);
 BENCHMARK(guarded<BM_BlockIteration>)->Name("BM_BlockIteration")->Arg(1)->Arg(0)->Unit(benchmark::kMillisecond);
 BENCHMARK(guarded<BM_Batches>)->Name("BM_Batches")->Unit(benchmark::kMillisecond);
 BENCHMARK(guarded<BM_Gmsh>)->Name("BM_Gmsh")->Arg(0)->Arg(1)->Iterations(1)->UseManualTime()->Unit(benchmark::kSecond);

@@ -67,4 +67,12 @@ inline void write_xyz(double* x, double* y, double* z, size_t n, double v) {
   benchmark::ClobberMemory();
 }
 
+// n ids written into a block-sized buffer: a pattern the vectoriser turns
+// into plain stores (the connectivity of BM_WriteBandwidthConn).
+inline void write_ids(std::int64_t* ids, size_t n, std::int64_t v) {
+  for (size_t i = 0; i < n; ++i) ids[i] = v + static_cast<std::int64_t>(i);
+  benchmark::DoNotOptimize(ids);
+  benchmark::ClobberMemory();
+}
+
 }  // namespace dicer::bench

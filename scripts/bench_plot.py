@@ -82,6 +82,8 @@ def table_side_by_side(res):
         rows.append("| %s | %s |" % (label, " | ".join(f(r) for r in cols)))
 
     row("(a) write-bandwidth baseline", lambda r: fmt(g(r, "write_bandwidth", "nodes_per_s"), " nodes/s"))
+    row("(a) the same + 8 ids per element (the batch API's bytes)",
+        lambda r: fmt(g(r, "write_bandwidth_conn", "nodes_per_s"), " nodes/s"))
     row("(b) block iteration, nodes only", lambda r: fmt(g(r, "block_iteration_nodes", "nodes_per_s"), " nodes/s"))
     row("(b) block iteration, + connectivity", lambda r: fmt(g(r, "block_iteration_conn", "nodes_per_s"), " nodes/s"))
     row("(b) batch API (`BatchCursor`: nodes + connectivity)", lambda r: fmt(g(r, "batches", "nodes_per_s"), " nodes/s"))
@@ -122,8 +124,18 @@ def table_side_by_side(res):
         return "%.3f" % v + (" (rounds %.3f-%.3f)" % (min(runs), max(runs)) if runs else "")
 
     for key, label in (("batches", "batch API / write bandwidth, median of rounds"),
+                       ("write_bandwidth_conn", "writing the batch API's bytes / write bandwidth, median of rounds"),
                        ("sweep", "sweep / write bandwidth, median of rounds")):
         row(label, lambda r, key=key: paired(r, key))
+
+    def same_bytes(r):
+        v = g(r, "ratios", "batches_over_write_bandwidth_conn")
+        runs = r.get("paired_batches_over_write_bandwidth_conn")
+        if v is None:
+            return "n/a"
+        return "%.3f" % v + (" (rounds %.3f-%.3f)" % (min(runs), max(runs)) if runs else "")
+
+    row("batch API / writing its bytes, median of rounds", same_bytes)
     f = res["floor"]
     rows.append("")
     rows.append("Floors (1 hex, interval 1, medians): dice %s / %s, sweep %s / %s, export %s / %s, "

@@ -10,6 +10,9 @@ Mesh: a box of coarse hexes (scripts/bench_box_msh.py, interior vertices
 jittered so the hexes are not all congruent), diced at several global
 intervals. At each interval, all on the same fine mesh:
   (a) write-bandwidth baseline          bench_side_by_side BM_WriteBandwidth
+                                        (and BM_WriteBandwidthConn: the same
+                                        with the connectivity the batch API
+                                        writes, 8 ids per element)
   (b) dicer block iteration + sweep     BM_BlockIteration, `dicer sweep --threads 2`,
                                         BM_Batches (the batch API alone: nodes +
                                         connectivity, no checksum)
@@ -89,8 +92,8 @@ def interleaved(cases, reps):
     apart: this machine's speed drifts over minutes (a 1-thread write
     bandwidth of one store 1.0-1.6 G nodes/s within an hour), and medians
     of separate blocks of runs divided each other's drift. Returns
-    {name: summarize(runs)} and, per case, the ratio of each round's case
-    to that round's baseline (in nodes/s)."""
+    {name: summarize(runs)}, per case the ratio of each round's case to
+    that round's baseline (in nodes/s), and the rounds."""
     rounds = [{k: fn() for k, fn in cases.items()} for _ in range(reps)]
     base = next(iter(cases))
     out = {k: summarize([r[k] for r in rounds]) for k in cases}
@@ -98,7 +101,7 @@ def interleaved(cases, reps):
     for k in cases:
         if k != base:
             paired[k] = [r[k]["nodes_per_s"] / r[base]["nodes_per_s"] for r in rounds]
-    return out, paired
+    return out, paired, rounds
 
 
 class Harness:
@@ -172,11 +175,15 @@ class Harness:
             cases = {"write_bandwidth": lambda: self.bench_case(store, "BM_WriteBandwidth"),
                      "sweep": lambda: self.sweep(store),
                      "batches": lambda: self.bench_case(store, "BM_Batches"),
+                     "write_bandwidth_conn": lambda: self.bench_case(store, "BM_WriteBandwidthConn"),
                      "block_iteration_nodes": lambda: self.bench_case(store, "BM_BlockIteration/1"),
                      "block_iteration_conn": lambda: self.bench_case(store, "BM_BlockIteration/0")}
-            got, paired = interleaved(cases, reps)
+            got, paired, rounds = interleaved(cases, reps)
             rec.update(got)
             rec["paired_over_write_bandwidth"] = paired
+            # The batch API against a write of the bytes it hands out.
+            rec["paired_batches_over_write_bandwidth_conn"] = [
+                r["batches"]["nodes_per_s"] / r["write_bandwidth_conn"]["nodes_per_s"] for r in rounds]
             log("interval %d: export msh" % interval)
             rec["export_msh"] = repeat(lambda: self.export_msh(store), reps)
             log("interval %d: gmsh" % interval)
@@ -261,10 +268,12 @@ def ratios(rec):
         # has no rounds (older JSON), the ratio of the medians.
         wb = rec["write_bandwidth"]["nodes_per_s"]
         paired = rec.get("paired_over_write_bandwidth", {})
-        for key in ("block_iteration_nodes", "block_iteration_conn", "sweep", "batches"):
+        for key in ("block_iteration_nodes", "block_iteration_conn", "sweep", "batches", "write_bandwidth_conn"):
             if rec.get(key):
                 r[key + "_over_write_bandwidth"] = med(paired[key]) if key in paired else rec[key]["nodes_per_s"] / wb
                 r[key + "_over_write_bandwidth_of_medians"] = rec[key]["nodes_per_s"] / wb
+        if rec.get("paired_batches_over_write_bandwidth_conn"):
+            r["batches_over_write_bandwidth_conn"] = med(rec["paired_batches_over_write_bandwidth_conn"])
     if ex:
         r["export_elements_per_s_net"] = div(e, ex["net_wall_s"])
     if gw:
