@@ -96,27 +96,63 @@ constexpr std::uint64_t kReadAheadHeadroom = 4;
 
 // Fixed-capacity FIFO of keys to read ahead: scheduling never allocates
 // (it can happen on the hit path); when full, new requests are dropped.
-class KeyRing {
+template <class T>
+class Ring {
  public:
-  explicit KeyRing(std::size_t capacity) : keys_(capacity) {}
+  explicit Ring(std::size_t capacity) : items_(capacity) {}
   bool empty() const { return count_ == 0; }
-  bool full() const { return count_ == keys_.size(); }
-  void push(PageKey k) {
-    keys_[(head_ + count_) % keys_.size()] = k;
+  bool full() const { return count_ == items_.size(); }
+  void push(const T& k) {
+    items_[(head_ + count_) % items_.size()] = k;
     ++count_;
   }
-  PageKey pop() {
-    PageKey k = keys_[head_];
-    head_ = (head_ + 1) % keys_.size();
+  T pop() {
+    T k = items_[head_];
+    head_ = (head_ + 1) % items_.size();
     --count_;
     return k;
   }
   void clear() { head_ = count_ = 0; }
 
  private:
-  std::vector<PageKey> keys_;
+  std::vector<T> items_;
   std::size_t head_ = 0, count_ = 0;
 };
+
+// This thread's last pin of each of the last few arrays it pinned, by
+// (cache, array), the least recent replaced: per thread, so that no other
+// thread's pin in between hides a stream's start, and no unlocked hit
+// writes a line that other threads read. Fully associative, so two arrays
+// read in turn (or one array id in two caches, as `dicer transfer` reads
+// two stores) keep an entry each. A cache at a destroyed one's address
+// may meet a stale entry: one spurious stream start at most.
+class ThreadPins {
+ public:
+  struct Pin {
+    const void* cache;
+    std::uint32_t array;
+    std::uint64_t page, used;
+  };
+  Pin* find(const void* cache, std::uint32_t array) {
+    for (Pin& p : pins_)
+      if (p.cache == cache && p.array == array) return &p;
+    return nullptr;
+  }
+  // at: find()'s answer for (cache, array).
+  void note(Pin* at, const void* cache, std::uint32_t array, std::uint64_t page) {
+    if (at == nullptr) {
+      at = &pins_[0];
+      for (Pin& p : pins_)
+        if (p.used < at->used) at = &p;
+    }
+    *at = {cache, array, page, ++clock_};
+  }
+
+ private:
+  Pin pins_[8];
+  std::uint64_t clock_;
+};
+thread_local ThreadPins thread_pins;  // zero-initialised: no entry matches a cache
 
 // Where kept pages live (keep_resident): 2 MiB-aligned chunks that the
 // kernel may back with transparent huge pages (madvise; the system
@@ -241,7 +277,9 @@ class SpinMutex {
 using Lock = std::unique_lock<SpinMutex>;
 
 struct PageCache::Impl {
-  Impl(Loader l, Options o) : loader(std::move(l)), opt(o), queue(std::max<std::size_t>(64, 4 * std::size_t{o.read_ahead_pages})) {}
+  // The queue holds a window per stream: a sweep on many threads has
+  // several streams in each of a few arrays.
+  Impl(Loader l, Options o) : loader(std::move(l)), opt(o), queue(std::max<std::size_t>(256, 16 * std::size_t{o.read_ahead_pages})) {}
 
   Loader loader;
   Options opt;
@@ -262,46 +300,30 @@ struct PageCache::Impl {
   static constexpr std::uint64_t kNoPin = ~std::uint64_t{0};
   // A pin of `page` after one of `last` continues a sequential stream.
   static bool continues_stream(std::uint64_t last, std::uint64_t page) { return last != kNoPin && last + 1 == page; }
-  // A sequential reader of one array: the page it pinned last, the first
-  // page its read-ahead window has not scheduled yet, and when it last
-  // moved (the least recent is replaced). Each thread that sweeps a part of
-  // an array is one: with a single last page per array, two threads' pins
+  // A sequential reader of one array. Each thread that sweeps a part of an
+  // array is one: with a single last page per array, two threads' pins
   // interleaved and neither was ever seen as a stream (a 2-thread sweep of
   // the 1e9 box read 9,286 of its 10,922 pages as misses, no read-ahead).
   // A stream starts when a thread pins the page after its own last pin of
-  // the array (ThreadPin).
+  // the array (ThreadPins). All fields are the locked path's.
   struct Stream {
-    std::atomic<std::uint64_t> last{kNoPin};  // written with the lock
-    std::uint64_t ra_next = 0;
-    std::uint64_t used = 0;
+    std::uint64_t last = kNoPin;  // the page it pinned last
+    std::uint64_t ra_next = 0;    // the first page its window has not scheduled yet
+    std::uint64_t used = 0;       // stream_clock when it last moved: the least recent is replaced
+    std::uint64_t run = 0;        // its pins so far (live_streams)
+    std::uint64_t generation = 0; // replacements so far: a queued page names the stream it was read for
   };
-  static constexpr int kStreams = 16;
-  // This thread's last pin of each of a few arrays (slot: the id's low
-  // bits), tagged with the cache: per thread, so that no other thread's pin
-  // in between hides a stream's start, and no unlocked hit writes a line
-  // that other threads read. A cache at a destroyed one's address may
-  // match a stale slot: a heuristic's miss, one read-ahead at most.
-  struct ThreadPin {  // zero-initialised (thread storage): no cache
-    const void* cache;
-    std::uint32_t array;
-    std::uint64_t page;
-  };
-  static constexpr std::uint32_t kThreadPins = 8;
-  static inline thread_local ThreadPin thread_pins[kThreadPins];
-  bool thread_continues(PageKey k) const {
-    const ThreadPin& t = thread_pins[k.array % kThreadPins];
-    return t.cache == this && t.array == k.array && continues_stream(t.page, k.page);
-  }
-  void thread_note(PageKey k) const { thread_pins[k.array % kThreadPins] = {this, k.array, k.page}; }  // per array: a sweep's threads (the locked path scans them)
+  static constexpr int kStreams = 16;  // per array: a sweep's threads
   struct ArrayInfo {
     std::uint64_t pages = 0;  // pages of the array (set_array_pages)
     std::atomic<bool> pinned{false};  // pinned at least once (counted in `streams`)
     std::array<Stream, kStreams> stream;
     int streams_used = 0;
-    // The stream whose next page is `page`, or nullptr.
-    Stream* stream_to(std::uint64_t page) {
+    // The stream whose next page is `page` (at = false) or whose last page
+    // is `page` (at = true), or nullptr.
+    Stream* stream_to(std::uint64_t page, bool at = false) {
       for (int i = 0; i < streams_used; ++i)
-        if (continues_stream(stream[i].last.load(std::memory_order_relaxed), page)) return &stream[i];
+        if (at ? stream[i].last == page : continues_stream(stream[i].last, page)) return &stream[i];
       return nullptr;
     }
     // The stream that read ahead of `page`'s window (its last page below
@@ -309,10 +331,8 @@ struct PageCache::Impl {
     Stream* stream_before(std::uint64_t page, std::uint64_t window) {
       Stream* best = nullptr;
       for (int i = 0; i < streams_used; ++i) {
-        const std::uint64_t l = stream[i].last.load(std::memory_order_relaxed);
-        if (l != kNoPin && l < page && page - l <= window &&
-            (best == nullptr || l > best->last.load(std::memory_order_relaxed)))
-          best = &stream[i];
+        const std::uint64_t l = stream[i].last;
+        if (l != kNoPin && l < page && page - l <= window && (best == nullptr || l > best->last)) best = &stream[i];
       }
       return best;
     }
@@ -351,10 +371,34 @@ struct PageCache::Impl {
     }
     st.distinct_pages_read += fresh;
   }
-  std::uint64_t streams = 0;         // arrays pinned at least once, plus their streams past the first
-  std::uint64_t stream_clock = 0;    // Stream::used
+  std::uint64_t streams = 0;         // arrays pinned at least once: possible sequential streams
   std::uint64_t max_page_bytes = 0;  // largest decoded page admitted, any array
-  KeyRing queue;
+  // A page queued for read-ahead, and the stream it is read for (skipped
+  // once that stream is past it or replaced).
+  struct Queued {
+    PageKey key;
+    Stream* stream;
+    std::uint64_t generation;
+  };
+  Ring<Queued> queue;
+  std::uint64_t stream_clock = 0;         // Stream::used
+  std::vector<ArrayInfo*> stream_arrays;  // the arrays with streams (live_streams)
+  // A stream that has not moved in this many stream pins (of any stream)
+  // no longer counts toward read-ahead's headroom.
+  static constexpr std::uint64_t kLiveTicks = 256;
+  // Streams beyond one per array that read ahead now: at least two pins,
+  // the last among the last kLiveTicks stream pins. (A stream that stopped,
+  // or a random query's pins of p then p + 1, holds no window.)
+  std::uint64_t extra_live_streams() const {
+    std::uint64_t n = 0;
+    for (const ArrayInfo* a : stream_arrays) {
+      std::uint64_t live = 0;
+      for (int i = 0; i < a->streams_used; ++i)
+        live += a->stream[i].run >= 2 && stream_clock - a->stream[i].used < kLiveTicks;
+      n += live > 1 ? live - 1 : 0;
+    }
+    return n;
+  }
   KeptArena arena;  // kept pages' bytes (admit)
   CacheStats st;
   bool stop = false;
@@ -408,10 +452,13 @@ struct PageCache::Impl {
     Entry* e = t->slot[key.page].load(std::memory_order_acquire);
     if (e == nullptr || e->state.load(std::memory_order_acquire) != State::Ready) return nullptr;
     // The stream bookkeeping is the locked path's: a first pin, and this
-    // thread's pin of the page after its last (a stream is one thread's;
-    // random queries start spurious ones, so a test of every stream here
-    // sent a quarter of random hits to the lock).
-    if (!ai->pinned.load(std::memory_order_relaxed) || thread_continues(key)) return nullptr;
+    // thread's pin of the page after its last. (A stream is one thread's:
+    // a hit that continues another thread's stays here, and that stream's
+    // next miss starts it again. Random queries start spurious streams, so
+    // a test of every stream here sent a quarter of random hits to the lock.)
+    ThreadPins::Pin* const tp = thread_pins.find(this, key.array);
+    if (!ai->pinned.load(std::memory_order_relaxed) || (tp != nullptr && continues_stream(tp->page, key.page)))
+      return nullptr;
     // One increment pins and counts the hit; a lost race takes both back.
     if (e->pins.fetch_add(1 + kHit, std::memory_order_acq_rel) & kDetached) {
       e->pins.fetch_sub(1 + kHit, std::memory_order_relaxed);
@@ -428,7 +475,7 @@ struct PageCache::Impl {
       e->pins.fetch_sub(1 + kHit, std::memory_order_release);
       return nullptr;
     }
-    thread_note(key);
+    thread_pins.note(tp, this, key.array, key.page);
     if (!e->referenced.load(std::memory_order_relaxed)) e->referenced.store(true, std::memory_order_relaxed);
     return e;
   }
@@ -465,24 +512,26 @@ struct PageCache::Impl {
     free_slots.push_back(e);
   }
 
-  // False: a pin came first (the hand moves on).
-  // A stream of ai whose last page is `page` (a new one, or the least
-  // recently moved one replaced).
+  // A stream of ai whose last page is `page`: a new one, or the least
+  // recently moved one replaced.
   Stream& start_stream(ArrayInfo& ai, std::uint64_t page) {
     Stream* s;
     if (ai.streams_used < kStreams) {
-      s = &ai.stream[ai.streams_used];
-      if (ai.streams_used++ > 0) ++streams;  // the first is the array's own count
+      if (ai.streams_used == 0) stream_arrays.push_back(&ai);
+      s = &ai.stream[ai.streams_used++];
     } else {
       s = &ai.stream[0];
       for (Stream& t : ai.stream)
         if (t.used < s->used) s = &t;
+      ++s->generation;
     }
-    s->last.store(page, std::memory_order_relaxed);
+    s->last = page;
     s->ra_next = 0;
+    s->run = 0;
     return *s;
   }
 
+  // False: a pin came first (the hand moves on).
   bool evict(Entry* e) {
     assert(e->state == State::Ready);
     if (!detach(e)) return false;
@@ -638,7 +687,8 @@ struct PageCache::Impl {
     // still need and a sweep reads its pages many times (bench/README.md,
     // bench_cache: 189x at a 1% budget with ~10 streams, 5.4x without).
     // (Kept pages never leave: the rest of the budget is what streams share.)
-    if ((opt.budget_bytes - st.kept_bytes) / kReadAheadHeadroom < r * streams * max_page_bytes) return;
+    if ((opt.budget_bytes - st.kept_bytes) / kReadAheadHeadroom < r * (streams + extra_live_streams()) * max_page_bytes)
+      return;
     // A kept array's stream reads the pages read ahead without pins, so no
     // pin of one extends the window: its next miss does (pin_locked). A
     // window 4x as long makes that one miss per 4r + 1 pages; its pages
@@ -656,7 +706,7 @@ struct PageCache::Impl {
     bool pushed = false;
     for (std::uint64_t q = first; q <= last && !queue.full(); ++q) {
       const PageKey k{key.array, q};
-      if (find(&ai, k) == nullptr) queue.push(k), pushed = true;
+      if (find(&ai, k) == nullptr) queue.push({k, &s, s.generation}), pushed = true;
     }
     s.ra_next = last + 1;
     if (pushed && worker.joinable()) work.notify_one();
@@ -664,13 +714,13 @@ struct PageCache::Impl {
 
   // Reads one queued page ahead. Called with `lock` held; drops it around
   // the loader call. Never throws (a failed read-ahead only informs waiters).
-  void prefetch_one(Lock& lock, PageKey key) noexcept {
+  void prefetch_one(Lock& lock, const Queued& q) noexcept {
+    const PageKey key = q.key;
     try {
       ArrayInfo* ai = array_info(key.array);
       if (ai == nullptr || key.page >= ai->pages) return;
-      // No stream still ahead of it within a window (each is past it):
-      // skipped.
-      if (ai->stream_before(key.page, 4 * std::uint64_t{opt.read_ahead_pages}) == nullptr) return;
+      // The stream it was read for is past it, or gone.
+      if (q.stream->generation != q.generation || (q.stream->last != kNoPin && key.page <= q.stream->last)) return;
       if (find(ai, key) != nullptr) return;
       if (!readahead_room(ai->max_page_bytes)) return;  // cache full of pages not to evict: skip
       Entry* e = new_entry(key);
@@ -762,8 +812,14 @@ PageCache::Handle PageCache::pin_locked(std::unique_lock<SpinMutex>& lock, PageK
                                       std::to_string(ai->pages) + " pages)");
   Impl::Stream* stream = nullptr;  // the sequential stream this pin continues, if any
   if (ai != nullptr) {
+    ThreadPins::Pin* const tp = thread_pins.find(&m, key.array);
     stream = ai->stream_to(key.page);
-    if (stream == nullptr && m.thread_continues(key)) stream = &m.start_stream(*ai, key.page - 1);
+    if (stream == nullptr && tp != nullptr && Impl::continues_stream(tp->page, key.page)) {
+      // This thread's pin after its own last: a stream that had come this
+      // far already (a look back, then on) goes on; else one starts.
+      stream = ai->stream_to(key.page, true);
+      if (stream == nullptr) stream = &m.start_stream(*ai, key.page - 1);
+    }
     // A stream over a kept array reads the pages read-ahead brought in
     // through the directory, without pins (tables.hpp): a kept page before
     // this one continues it too, or each window would end in misses.
@@ -773,11 +829,8 @@ PageCache::Handle PageCache::pin_locked(std::unique_lock<SpinMutex>& lock, PageK
       if (stream == nullptr) stream = &m.start_stream(*ai, key.page - 1);
     }
     if (!ai->pinned.load(std::memory_order_relaxed)) ++m.streams, ai->pinned.store(true, std::memory_order_relaxed);
-    m.thread_note(key);
-    if (stream != nullptr) {
-      stream->last.store(key.page, std::memory_order_relaxed);
-      stream->used = ++m.stream_clock;
-    }
+    thread_pins.note(tp, &m, key.array, key.page);
+    if (stream != nullptr) stream->last = key.page, stream->used = ++m.stream_clock, ++stream->run;
   }
   const bool sequential = stream != nullptr;
   const bool sync_read_ahead = !m.worker.joinable();

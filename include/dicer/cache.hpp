@@ -30,17 +30,19 @@
 // pages still loading. See page_cache.cpp for why CLOCK (cost per hit,
 // behaviour under sweeps) and the exact victim order.
 //
-// Read-ahead: when a thread's pin() of page p of an array comes right
-// after its own pin of page p-1 (a sequential stream; each thread that
-// sweeps a part of an array is one, up to 16 per array) and p was a miss or
-// a page that read-ahead brought in, the next Options::read_ahead_pages
-// pages of that array are scheduled (topped up half a window at a time).
+// Read-ahead: a thread's pin() of page p of an array right after its own
+// pin of page p-1 starts a sequential stream, and a pin of the page after
+// a stream's last continues it (each thread that sweeps a part of an array
+// is one; up to 16 per array, the least recent replaced). When a pin
+// continues a stream and p was a miss or a page that read-ahead brought
+// in, the next Options::read_ahead_pages pages of that array are
+// scheduled (topped up half a window at a time).
 // With background_read_ahead one worker thread loads them (bounded queue;
 // the destructor stops and joins it); otherwise the pinning thread loads
 // them before pin() returns. Read-ahead only runs for arrays whose page
 // count was given by set_array_pages() and never past it, and only while
-// the budget holds 4 x read_ahead_pages x (streams so far: one per array
-// pinned, plus each array's further streams) of the largest page seen: a
+// the budget holds 4 x read_ahead_pages x (one stream per array pinned,
+// plus each array's further streams that read now) of the largest page seen: a
 // smaller budget would let each stream's read-ahead evict the others'
 // pages in use. Read-ahead never evicts pinned pages, pages with their
 // reference bit set, or other read-ahead pages not yet pinned; if that leaves no room it
@@ -55,10 +57,11 @@
 // array (a store's coarse tables) finds a page with one load and no pin.
 //
 // Cost. Hit: O(1), no allocation. A hit on a Ready page of a declared
-// array (id below 4096) that neither starts nor continues a sequential
-// stream and was not brought in by read-ahead takes no lock: a page-table
-// load and one atomic increment on the page's slot (page_cache.cpp says
-// why that is safe against eviction). Other hits take the mutex and one
+// array (id below 4096) that is not the calling thread's pin of the page
+// after its own last pin of that array (a stream's start or next page) and
+// was not brought in by read-ahead takes no lock: a page-table load, a
+// look at the thread's own last pins, and one atomic increment on the
+// page's slot (page_cache.cpp says why that is safe against eviction). Other hits take the mutex and one
 // page-table load (a hash lookup for an array never declared or with an id
 // of 4096 or more); when a hit extends a read-ahead window it also does
 // read_ahead_pages lookups and, without a background worker, the loads.

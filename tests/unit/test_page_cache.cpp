@@ -614,10 +614,72 @@ TEST(PageCache, ThreadsSweepingOneArrayEachReadAhead) {
   const CacheStats s = cache.stats();
   EXPECT_EQ(s.misses, 2u * kThreads);
   EXPECT_EQ(s.hits, kThreads * (kPart - 2));
-  // Read-ahead stops at each part's end only at the array's: a part's
-  // window reaches at most 4 pages into the next part, which that part's
-  // own stream then finds resident.
+  // A part's window near its end reaches the first pages of the next part,
+  // which that part's thread pinned long before: still resident, they are
+  // not scheduled again.
   EXPECT_EQ(pages.total_loads(), kThreads * kPart);
+}
+
+// One thread reading two streams in turn: two arrays whose ids are 8
+// apart, or the same array id in two caches (`dicer transfer` reads a
+// fine and a coarse store so). Each is a stream of its own: two misses
+// each, the rest read ahead.
+TEST(PageCache, OneThreadsStreamsAreTrackedPerCacheAndArray) {
+  constexpr std::uint64_t kPages = 200;
+  {
+    SyntheticPages pages(10, kPages);
+    PageCache cache(pages.loader(), opts(400 * kMaxPage, 4, false));
+    pages.declare(cache, 10);
+    for (std::uint64_t p = 0; p < kPages; ++p) {
+      ASSERT_TRUE(content_ok(cache.pin({1, p})));
+      ASSERT_TRUE(content_ok(cache.pin({9, p})));
+    }
+    EXPECT_EQ(cache.stats().misses, 4u);
+  }
+  SyntheticPages a(4, kPages), b(4, kPages);
+  PageCache ca(a.loader(), opts(400 * kMaxPage, 4, false)), cb(b.loader(), opts(400 * kMaxPage, 4, false));
+  a.declare(ca, 4), b.declare(cb, 4);
+  for (std::uint64_t p = 0; p < kPages; ++p) {
+    ASSERT_TRUE(content_ok(ca.pin({3, p})));
+    ASSERT_TRUE(content_ok(cb.pin({3, p})));
+  }
+  EXPECT_EQ(ca.stats().misses, 2u);
+  EXPECT_EQ(cb.stats().misses, 2u);
+}
+
+// Read-ahead's headroom counts the streams that read now. Random queries
+// that pin a page and then the next start streams that never go on, and a
+// sweep that looks back a page and goes on is one stream, not two: after
+// either, a sweep of another array under a budget that holds only a few
+// streams' windows still reads ahead (two misses).
+TEST(PageCache, StreamsThatStoppedLeaveReadAheadItsRoom) {
+  {
+    SyntheticPages pages(4, 1000);
+    PageCache cache(pages.loader(), opts(600 * kMaxPage, 4, false));
+    pages.declare(cache, 4);
+    std::mt19937_64 rng(1);
+    for (int i = 0; i < 30000; ++i) {
+      const auto a = static_cast<std::uint32_t>(rng() % 3);
+      const std::uint64_t p = rng() % 99;
+      cache.pin({a, p});
+      if (rng() % 8 == 0) cache.pin({a, p + 1});
+    }
+    cache.reset_stats();
+    for (std::uint64_t p = 0; p < 1000; ++p) ASSERT_TRUE(content_ok(cache.pin({3, p})));
+    EXPECT_EQ(cache.stats().misses, 2u);
+  }
+  SyntheticPages pages(2, 400);
+  PageCache cache(pages.loader(), opts(64 * kMaxPage, 4, false));
+  pages.declare(cache, 2);
+  for (std::uint64_t p = 1; p < 60; ++p) {
+    cache.pin({0, p});
+    cache.pin({0, p - 1});
+    cache.pin({0, p});
+  }
+  cache.reset_stats();
+  for (std::uint64_t p = 0; p < 400; ++p) ASSERT_TRUE(content_ok(cache.pin({1, p})));
+  EXPECT_EQ(cache.stats().misses, 2u);
+  for (std::uint64_t p = 0; p < 400; ++p) EXPECT_EQ(pages.loads({1, p}), 1) << "page " << p;
 }
 
 // A declared array's pages are found through its page table, others (and
