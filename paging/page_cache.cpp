@@ -122,24 +122,24 @@ class Ring {
 // This thread's last pin of each of the last few arrays it pinned, by
 // (cache, array), the least recent replaced: per thread, so that no other
 // thread's pin in between hides a stream's start, and no unlocked hit
-// writes a line that other threads read. Fully associative, so two arrays
+// writes a line that other threads read. Fully associative, so arrays
 // read in turn (or one array id in two caches, as `dicer transfer` reads
-// two stores) keep an entry each. A cache at a destroyed one's address
-// may meet a stale entry: one spurious stream start at most.
+// two stores) keep an entry each. Caches by a process-wide id (never 0),
+// not by address: a new cache where a destroyed one was meets no entry.
 class ThreadPins {
  public:
   struct Pin {
-    const void* cache;
+    std::uint64_t cache;
     std::uint32_t array;
     std::uint64_t page, used;
   };
-  Pin* find(const void* cache, std::uint32_t array) {
+  Pin* find(std::uint64_t cache, std::uint32_t array) {
     for (Pin& p : pins_)
       if (p.cache == cache && p.array == array) return &p;
     return nullptr;
   }
   // at: find()'s answer for (cache, array).
-  void note(Pin* at, const void* cache, std::uint32_t array, std::uint64_t page) {
+  void note(Pin* at, std::uint64_t cache, std::uint32_t array, std::uint64_t page) {
     if (at == nullptr) {
       at = &pins_[0];
       for (Pin& p : pins_)
@@ -149,10 +149,11 @@ class ThreadPins {
   }
 
  private:
-  Pin pins_[8];
+  Pin pins_[16];  // a store's arrays, or two stores' (transfer) when nothing is kept
   std::uint64_t clock_;
 };
 thread_local ThreadPins thread_pins;  // zero-initialised: no entry matches a cache
+std::atomic<std::uint64_t> next_cache_id{1};
 
 // Where kept pages live (keep_resident): 2 MiB-aligned chunks that the
 // kernel may back with transparent huge pages (madvise; the system
@@ -310,7 +311,7 @@ struct PageCache::Impl {
     std::uint64_t last = kNoPin;  // the page it pinned last
     std::uint64_t ra_next = 0;    // the first page its window has not scheduled yet
     std::uint64_t used = 0;       // stream_clock when it last moved: the least recent is replaced
-    std::uint64_t run = 0;        // its pins so far (live_streams)
+    std::uint64_t run = 0;        // its pins so far (extra_live_streams)
     std::uint64_t generation = 0; // replacements so far: a queued page names the stream it was read for
   };
   static constexpr int kStreams = 16;  // per array: a sweep's threads
@@ -382,19 +383,22 @@ struct PageCache::Impl {
   };
   Ring<Queued> queue;
   std::uint64_t stream_clock = 0;         // Stream::used
-  std::vector<ArrayInfo*> stream_arrays;  // the arrays with streams (live_streams)
-  // A stream that has not moved in this many stream pins (of any stream)
-  // no longer counts toward read-ahead's headroom.
-  static constexpr std::uint64_t kLiveTicks = 256;
+  std::vector<ArrayInfo*> stream_arrays;  // the arrays with streams (extra_live_streams)
+  std::uint64_t streams_in_use = 0;       // their streams_used, summed
+  const std::uint64_t id = next_cache_id.fetch_add(1, std::memory_order_relaxed);  // ThreadPins' key
   // Streams beyond one per array that read ahead now: at least two pins,
-  // the last among the last kLiveTicks stream pins. (A stream that stopped,
-  // or a random query's pins of p then p + 1, holds no window.)
+  // the last among the last 4 x (streams in use) stream pins, min 16 (each
+  // live stream of a sweep on many threads moves about once per that many
+  // pins, so 4x leaves room for uneven threads; one that stopped, or a
+  // random query's pins of p then p + 1, holds no window, and a stopped
+  // sweep's streams stop counting after a few pins of the next).
   std::uint64_t extra_live_streams() const {
+    const std::uint64_t ticks = std::max<std::uint64_t>(16, 4 * streams_in_use);
     std::uint64_t n = 0;
     for (const ArrayInfo* a : stream_arrays) {
       std::uint64_t live = 0;
       for (int i = 0; i < a->streams_used; ++i)
-        live += a->stream[i].run >= 2 && stream_clock - a->stream[i].used < kLiveTicks;
+        live += a->stream[i].run >= 2 && stream_clock - a->stream[i].used < ticks;
       n += live > 1 ? live - 1 : 0;
     }
     return n;
@@ -456,7 +460,7 @@ struct PageCache::Impl {
     // a hit that continues another thread's stays here, and that stream's
     // next miss starts it again. Random queries start spurious streams, so
     // a test of every stream here sent a quarter of random hits to the lock.)
-    ThreadPins::Pin* const tp = thread_pins.find(this, key.array);
+    ThreadPins::Pin* const tp = thread_pins.find(id, key.array);
     if (!ai->pinned.load(std::memory_order_relaxed) || (tp != nullptr && continues_stream(tp->page, key.page)))
       return nullptr;
     // One increment pins and counts the hit; a lost race takes both back.
@@ -475,7 +479,7 @@ struct PageCache::Impl {
       e->pins.fetch_sub(1 + kHit, std::memory_order_release);
       return nullptr;
     }
-    thread_pins.note(tp, this, key.array, key.page);
+    thread_pins.note(tp, id, key.array, key.page);
     if (!e->referenced.load(std::memory_order_relaxed)) e->referenced.store(true, std::memory_order_relaxed);
     return e;
   }
@@ -519,6 +523,7 @@ struct PageCache::Impl {
     if (ai.streams_used < kStreams) {
       if (ai.streams_used == 0) stream_arrays.push_back(&ai);
       s = &ai.stream[ai.streams_used++];
+      ++streams_in_use;
     } else {
       s = &ai.stream[0];
       for (Stream& t : ai.stream)
@@ -682,13 +687,6 @@ struct PageCache::Impl {
   void schedule(ArrayInfo& ai, Stream& s, PageKey key) {
     const std::uint64_t r = opt.read_ahead_pages;
     if (r == 0 || key.page + 1 >= ai.pages) return;
-    // Only when the budget holds every stream's window kReadAheadHeadroom
-    // times over: below that, read-ahead pages evict pages the streams
-    // still need and a sweep reads its pages many times (bench/README.md,
-    // bench_cache: 189x at a 1% budget with ~10 streams, 5.4x without).
-    // (Kept pages never leave: the rest of the budget is what streams share.)
-    if ((opt.budget_bytes - st.kept_bytes) / kReadAheadHeadroom < r * (streams + extra_live_streams()) * max_page_bytes)
-      return;
     // A kept array's stream reads the pages read ahead without pins, so no
     // pin of one extends the window: its next miss does (pin_locked). A
     // window 4x as long makes that one miss per 4r + 1 pages; its pages
@@ -703,6 +701,13 @@ struct PageCache::Impl {
     // the futex wake of the worker on the other core.) Kept arrays' windows
     // are extended by misses alone, already one per window.
     if (!ai.kept && first - key.page - 1 > window / 2) return;
+    // Only when the budget holds every stream's window kReadAheadHeadroom
+    // times over: below that, read-ahead pages evict pages the streams
+    // still need and a sweep reads its pages many times (bench/README.md,
+    // bench_cache: 189x at a 1% budget with ~10 streams, 5.4x without).
+    // (Kept pages never leave: the rest of the budget is what streams share.)
+    const std::uint64_t room = (opt.budget_bytes - st.kept_bytes) / kReadAheadHeadroom, one = r * max_page_bytes;
+    if (room < one * streams || room < one * (streams + extra_live_streams())) return;
     bool pushed = false;
     for (std::uint64_t q = first; q <= last && !queue.full(); ++q) {
       const PageKey k{key.array, q};
@@ -812,7 +817,7 @@ PageCache::Handle PageCache::pin_locked(std::unique_lock<SpinMutex>& lock, PageK
                                       std::to_string(ai->pages) + " pages)");
   Impl::Stream* stream = nullptr;  // the sequential stream this pin continues, if any
   if (ai != nullptr) {
-    ThreadPins::Pin* const tp = thread_pins.find(&m, key.array);
+    ThreadPins::Pin* const tp = thread_pins.find(m.id, key.array);
     stream = ai->stream_to(key.page);
     if (stream == nullptr && tp != nullptr && Impl::continues_stream(tp->page, key.page)) {
       // This thread's pin after its own last: a stream that had come this
@@ -829,7 +834,7 @@ PageCache::Handle PageCache::pin_locked(std::unique_lock<SpinMutex>& lock, PageK
       if (stream == nullptr) stream = &m.start_stream(*ai, key.page - 1);
     }
     if (!ai->pinned.load(std::memory_order_relaxed)) ++m.streams, ai->pinned.store(true, std::memory_order_relaxed);
-    thread_pins.note(tp, &m, key.array, key.page);
+    thread_pins.note(tp, m.id, key.array, key.page);
     if (stream != nullptr) stream->last = key.page, stream->used = ++m.stream_clock, ++stream->run;
   }
   const bool sequential = stream != nullptr;

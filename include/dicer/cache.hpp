@@ -36,17 +36,18 @@
 // is one; up to 16 per array, the least recent replaced). When a pin
 // continues a stream and p was a miss or a page that read-ahead brought
 // in, the next Options::read_ahead_pages pages of that array are
-// scheduled (topped up half a window at a time).
-// With background_read_ahead one worker thread loads them (bounded queue;
-// the destructor stops and joins it); otherwise the pinning thread loads
-// them before pin() returns. Read-ahead only runs for arrays whose page
-// count was given by set_array_pages() and never past it, and only while
-// the budget holds 4 x read_ahead_pages x (one stream per array pinned,
-// plus each array's further streams that read now) of the largest page seen: a
-// smaller budget would let each stream's read-ahead evict the others'
-// pages in use. Read-ahead never evicts pinned pages, pages with their
-// reference bit set, or other read-ahead pages not yet pinned; if that leaves no room it
-// is skipped (a hot working set is not flushed by a speculative read).
+// scheduled (topped up half a window at a time). With
+// background_read_ahead one worker thread loads them (bounded queue; the
+// destructor stops and joins it); otherwise the pinning thread loads them
+// before pin() returns. Read-ahead only runs for arrays whose page count
+// was given by set_array_pages() and never past it, and only while the
+// budget (less the kept pages) holds 4 x read_ahead_pages x (one stream
+// per array pinned, plus each array's further streams that read now) of
+// the largest page seen: a smaller budget would let each stream's
+// read-ahead evict the others' pages in use. Read-ahead never evicts
+// pinned pages, pages with their reference bit set, or other read-ahead
+// pages not yet pinned; if that leaves no room it is skipped (a hot
+// working set is not flushed by a speculative read).
 // Pages that a sequential stream pins do not get their reference bit set
 // (scan resistance), so a sweep evicts its own past pages first. In a
 // single sweep whose budget holds at least read_ahead_pages + 3 pages, every

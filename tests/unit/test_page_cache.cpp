@@ -647,6 +647,35 @@ TEST(PageCache, OneThreadsStreamsAreTrackedPerCacheAndArray) {
   EXPECT_EQ(cb.stats().misses, 2u);
 }
 
+// A sweep on four threads ends; a sweep of another array on one thread
+// follows, under a budget that holds the windows of two streams but not
+// of five. The four stopped streams stop counting after a few pins of the
+// new one (4 x the streams in use: 20 here): read-ahead resumes within
+// its first pages, not after hundreds.
+TEST(PageCache, AStoppedSweepsStreamsLeaveReadAheadItsRoomSoon) {
+  constexpr int kThreads = 4;
+  constexpr std::uint64_t kPart = 30, kPages = 200;
+  SyntheticPages pages(2, kPages);
+  PageCache cache(pages.loader(), opts(48 * kMaxPage, 4, false));
+  pages.declare(cache, 2);
+  std::atomic<std::uint64_t> turn{0};
+  std::vector<std::thread> threads;
+  for (int t = 0; t < kThreads; ++t)
+    threads.emplace_back([&, t] {
+      for (std::uint64_t i = 0; i < kPart; ++i) {
+        while (turn.load(std::memory_order_acquire) != i * kThreads + static_cast<std::uint64_t>(t))
+          std::this_thread::yield();
+        cache.pin({0, static_cast<std::uint64_t>(t) * kPart + i});
+        turn.fetch_add(1, std::memory_order_release);
+      }
+    });
+  for (auto& th : threads) th.join();
+  cache.reset_stats();
+  for (std::uint64_t p = 0; p < kPages; ++p) ASSERT_TRUE(content_ok(cache.pin({1, p})));
+  EXPECT_LE(cache.stats().misses, 2u + 4u * (kThreads + 1));
+  for (std::uint64_t p = 0; p < kPages; ++p) EXPECT_EQ(pages.loads({1, p}), 1) << "page " << p;
+}
+
 // Read-ahead's headroom counts the streams that read now. Random queries
 // that pin a page and then the next start streams that never go on, and a
 // sweep that looks back a page and goes on is one stream, not two: after
