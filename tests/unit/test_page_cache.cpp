@@ -587,6 +587,29 @@ TEST(PageCache, ConcurrentSweepsReadEachPageOnce) {
 // Threads that sweep parts of one array side by side each get read-ahead:
 // pins taken in strict turns (thread 0's page, thread 1's, ...) so that
 // every pin of a thread follows another thread's pin of the same array.
+namespace {
+// `threads` threads, thread t pinning pages t part .. (t + 1) part - 1 of
+// `array`, in strict turns (thread 0's next page, thread 1's, ...): every
+// pin of a thread follows another thread's pin of the array. Returns the
+// pins whose bytes were wrong.
+int sweep_parts_in_turns(PageCache& cache, std::uint32_t array, int threads, std::uint64_t part) {
+  std::atomic<std::uint64_t> turn{0};
+  std::atomic<int> bad{0};
+  std::vector<std::thread> ts;
+  for (int t = 0; t < threads; ++t)
+    ts.emplace_back([&, t] {
+      for (std::uint64_t i = 0; i < part; ++i) {
+        while (turn.load(std::memory_order_acquire) != i * threads + static_cast<std::uint64_t>(t))
+          std::this_thread::yield();
+        if (!content_ok(cache.pin({array, static_cast<std::uint64_t>(t) * part + i}))) bad.fetch_add(1);
+        turn.fetch_add(1, std::memory_order_release);
+      }
+    });
+  for (auto& th : ts) th.join();
+  return bad.load();
+}
+}  // namespace
+
 // Each thread misses its first page (no stream yet) and its second (the
 // stream starts there), then finds every page read ahead. With one last
 // page per array, no thread's pins were ever seen as a stream: every pin
@@ -597,20 +620,7 @@ TEST(PageCache, ThreadsSweepingOneArrayEachReadAhead) {
   SyntheticPages pages(1, kThreads * kPart);
   PageCache cache(pages.loader(), opts(200 * kMaxPage, 4, false));  // inline read-ahead: deterministic
   pages.declare(cache, 1);
-  std::atomic<std::uint64_t> turn{0};
-  std::atomic<int> bad{0};
-  std::vector<std::thread> threads;
-  for (int t = 0; t < kThreads; ++t)
-    threads.emplace_back([&, t] {
-      for (std::uint64_t i = 0; i < kPart; ++i) {
-        while (turn.load(std::memory_order_acquire) != i * kThreads + static_cast<std::uint64_t>(t))
-          std::this_thread::yield();
-        if (!content_ok(cache.pin({0, static_cast<std::uint64_t>(t) * kPart + i}))) bad.fetch_add(1);
-        turn.fetch_add(1, std::memory_order_release);
-      }
-    });
-  for (auto& th : threads) th.join();
-  EXPECT_EQ(bad.load(), 0);
+  EXPECT_EQ(sweep_parts_in_turns(cache, 0, kThreads, kPart), 0);
   const CacheStats s = cache.stats();
   EXPECT_EQ(s.misses, 2u * kThreads);
   EXPECT_EQ(s.hits, kThreads * (kPart - 2));
@@ -658,18 +668,7 @@ TEST(PageCache, AStoppedSweepsStreamsLeaveReadAheadItsRoomSoon) {
   SyntheticPages pages(2, kPages);
   PageCache cache(pages.loader(), opts(48 * kMaxPage, 4, false));
   pages.declare(cache, 2);
-  std::atomic<std::uint64_t> turn{0};
-  std::vector<std::thread> threads;
-  for (int t = 0; t < kThreads; ++t)
-    threads.emplace_back([&, t] {
-      for (std::uint64_t i = 0; i < kPart; ++i) {
-        while (turn.load(std::memory_order_acquire) != i * kThreads + static_cast<std::uint64_t>(t))
-          std::this_thread::yield();
-        cache.pin({0, static_cast<std::uint64_t>(t) * kPart + i});
-        turn.fetch_add(1, std::memory_order_release);
-      }
-    });
-  for (auto& th : threads) th.join();
+  EXPECT_EQ(sweep_parts_in_turns(cache, 0, kThreads, kPart), 0);
   cache.reset_stats();
   for (std::uint64_t p = 0; p < kPages; ++p) ASSERT_TRUE(content_ok(cache.pin({1, p})));
   EXPECT_LE(cache.stats().misses, 2u + 4u * (kThreads + 1));
