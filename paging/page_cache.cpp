@@ -132,20 +132,28 @@ class ThreadPins {
     std::uint64_t cache;
     std::uint32_t array;
     std::uint64_t page, used;
+    // The stream this thread moved last in the array (the cache's Stream;
+    // null: none) and its generation then: a replaced stream is no longer
+    // this thread's.
+    void* stream;
+    std::uint64_t generation;
   };
   Pin* find(std::uint64_t cache, std::uint32_t array) {
     for (Pin& p : pins_)
       if (p.cache == cache && p.array == array) return &p;
     return nullptr;
   }
-  // at: find()'s answer for (cache, array).
-  void note(Pin* at, std::uint64_t cache, std::uint32_t array, std::uint64_t page) {
+  // at: find()'s answer for (cache, array). Returns the entry.
+  Pin* note(Pin* at, std::uint64_t cache, std::uint32_t array, std::uint64_t page) {
     if (at == nullptr) {
       at = &pins_[0];
       for (Pin& p : pins_)
         if (p.used < at->used) at = &p;
+      *at = {cache, array, page, ++clock_, nullptr, 0};
+      return at;
     }
-    *at = {cache, array, page, ++clock_};
+    at->page = page, at->used = ++clock_;
+    return at;
   }
 
  private:
@@ -314,27 +322,22 @@ struct PageCache::Impl {
     std::uint64_t run = 0;        // its pins so far (extra_live_streams)
     std::uint64_t generation = 0; // replacements so far: a queued page names the stream it was read for
   };
-  static constexpr int kStreams = 16;  // per array: a sweep's threads
+  // Per array: a sweep's threads (`--threads` goes to 1024; beyond this
+  // many, the least recently moved is replaced).
+  static constexpr std::size_t kStreams = 256;
   struct ArrayInfo {
     std::uint64_t pages = 0;  // pages of the array (set_array_pages)
     std::atomic<bool> pinned{false};  // pinned at least once (counted in `streams`)
-    std::array<Stream, kStreams> stream;
-    int streams_used = 0;
-    // The stream whose next page is `page` (at = false) or whose last page
-    // is `page` (at = true), or nullptr.
-    Stream* stream_to(std::uint64_t page, bool at = false) {
-      for (int i = 0; i < streams_used; ++i)
-        if (at ? stream[i].last == page : continues_stream(stream[i].last, page)) return &stream[i];
-      return nullptr;
-    }
+    // Grows to kStreams; a deque, so the Stream* that queued pages and
+    // threads' pins hold stay valid.
+    std::deque<Stream> stream;
     // The stream that read ahead of `page`'s window (its last page below
     // `page`, at most `window` pages before it), or nullptr.
     Stream* stream_before(std::uint64_t page, std::uint64_t window) {
       Stream* best = nullptr;
-      for (int i = 0; i < streams_used; ++i) {
-        const std::uint64_t l = stream[i].last;
-        if (l != kNoPin && l < page && page - l <= window && (best == nullptr || l > best->last)) best = &stream[i];
-      }
+      for (Stream& s : stream)
+        if (s.last != kNoPin && s.last < page && page - s.last <= window && (best == nullptr || s.last > best->last))
+          best = &s;
       return best;
     }
     std::uint64_t max_page_bytes = 0;  // largest decoded page admitted so far (read-ahead's size estimate)
@@ -384,7 +387,7 @@ struct PageCache::Impl {
   Ring<Queued> queue;
   std::uint64_t stream_clock = 0;         // Stream::used
   std::vector<ArrayInfo*> stream_arrays;  // the arrays with streams (extra_live_streams)
-  std::uint64_t streams_in_use = 0;       // their streams_used, summed
+  std::uint64_t streams_in_use = 0;       // their streams, summed
   const std::uint64_t id = next_cache_id.fetch_add(1, std::memory_order_relaxed);  // ThreadPins' key
   // Streams beyond one per array that read ahead now: at least two pins,
   // the last among the last 4 x (streams in use) stream pins, min 16 (each
@@ -397,8 +400,7 @@ struct PageCache::Impl {
     std::uint64_t n = 0;
     for (const ArrayInfo* a : stream_arrays) {
       std::uint64_t live = 0;
-      for (int i = 0; i < a->streams_used; ++i)
-        live += a->stream[i].run >= 2 && stream_clock - a->stream[i].used < ticks;
+      for (const Stream& s : a->stream) live += s.run >= 2 && stream_clock - s.used < ticks;
       n += live > 1 ? live - 1 : 0;
     }
     return n;
@@ -456,10 +458,10 @@ struct PageCache::Impl {
     Entry* e = t->slot[key.page].load(std::memory_order_acquire);
     if (e == nullptr || e->state.load(std::memory_order_acquire) != State::Ready) return nullptr;
     // The stream bookkeeping is the locked path's: a first pin, and this
-    // thread's pin of the page after its last. (A stream is one thread's:
-    // a hit that continues another thread's stays here, and that stream's
-    // next miss starts it again. Random queries start spurious streams, so
-    // a test of every stream here sent a quarter of random hits to the lock.)
+    // thread's pin of the page after its last. (A stream is one thread's,
+    // and only that thread moves it. Random queries start spurious
+    // streams, so a test of every stream here sent a quarter of random
+    // hits to the lock.)
     ThreadPins::Pin* const tp = thread_pins.find(id, key.array);
     if (!ai->pinned.load(std::memory_order_relaxed) || (tp != nullptr && continues_stream(tp->page, key.page)))
       return nullptr;
@@ -520,9 +522,10 @@ struct PageCache::Impl {
   // recently moved one replaced.
   Stream& start_stream(ArrayInfo& ai, std::uint64_t page) {
     Stream* s;
-    if (ai.streams_used < kStreams) {
-      if (ai.streams_used == 0) stream_arrays.push_back(&ai);
-      s = &ai.stream[ai.streams_used++];
+    if (ai.stream.size() < kStreams) {
+      if (ai.stream.empty()) stream_arrays.reserve(stream_arrays.size() + 1);  // no throw after the stream is in
+      s = &ai.stream.emplace_back();
+      if (ai.stream.size() == 1) stream_arrays.push_back(&ai);
       ++streams_in_use;
     } else {
       s = &ai.stream[0];
@@ -818,12 +821,18 @@ PageCache::Handle PageCache::pin_locked(std::unique_lock<SpinMutex>& lock, PageK
   Impl::Stream* stream = nullptr;  // the sequential stream this pin continues, if any
   if (ai != nullptr) {
     ThreadPins::Pin* const tp = thread_pins.find(m.id, key.array);
-    stream = ai->stream_to(key.page);
-    if (stream == nullptr && tp != nullptr && Impl::continues_stream(tp->page, key.page)) {
-      // This thread's pin after its own last: a stream that had come this
-      // far already (a look back, then on) goes on; else one starts.
-      stream = ai->stream_to(key.page, true);
-      if (stream == nullptr) stream = &m.start_stream(*ai, key.page - 1);
+    if (tp != nullptr && Impl::continues_stream(tp->page, key.page)) {
+      // Only this thread's pin of the page after its own last moves a
+      // stream, and only its own: the one it moved last here goes on (also
+      // after a look back: it is at this page), else one starts. (Any pin
+      // after any stream's last moving it let random queries keep old
+      // streams going, and read-ahead's headroom counted them.)
+      auto* own = static_cast<Impl::Stream*>(tp->stream);
+      if (own != nullptr && own->generation == tp->generation &&
+          (Impl::continues_stream(own->last, key.page) || own->last == key.page))
+        stream = own;
+      else
+        stream = &m.start_stream(*ai, key.page - 1);
     }
     // A stream over a kept array reads the pages read-ahead brought in
     // through the directory, without pins (tables.hpp): a kept page before
@@ -834,8 +843,11 @@ PageCache::Handle PageCache::pin_locked(std::unique_lock<SpinMutex>& lock, PageK
       if (stream == nullptr) stream = &m.start_stream(*ai, key.page - 1);
     }
     if (!ai->pinned.load(std::memory_order_relaxed)) ++m.streams, ai->pinned.store(true, std::memory_order_relaxed);
-    thread_pins.note(tp, m.id, key.array, key.page);
-    if (stream != nullptr) stream->last = key.page, stream->used = ++m.stream_clock, ++stream->run;
+    ThreadPins::Pin* const mine = thread_pins.note(tp, m.id, key.array, key.page);
+    if (stream != nullptr) {
+      stream->last = key.page, stream->used = ++m.stream_clock, ++stream->run;
+      mine->stream = stream, mine->generation = stream->generation;
+    }
   }
   const bool sequential = stream != nullptr;
   const bool sync_read_ahead = !m.worker.joinable();

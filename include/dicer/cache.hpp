@@ -31,12 +31,12 @@
 // behaviour under sweeps) and the exact victim order.
 //
 // Read-ahead: a thread's pin() of page p of an array right after its own
-// pin of page p-1 starts a sequential stream, and a pin of the page after
-// a stream's last continues it (each thread that sweeps a part of an array
-// is one; up to 16 per array, the least recent replaced). When a pin
-// continues a stream and p was a miss or a page that read-ahead brought
-// in, the next Options::read_ahead_pages pages of that array are
-// scheduled (topped up half a window at a time). With
+// pin of page p-1 starts or continues that thread's sequential stream in
+// the array (each thread that sweeps a part of an array has one; up to 256
+// per array, the least recently moved replaced). When a pin continues a
+// stream and p was a miss or a page that read-ahead brought in, the next
+// Options::read_ahead_pages pages of that array are scheduled (topped up
+// half a window at a time). With
 // background_read_ahead one worker thread loads them (bounded queue; the
 // destructor stops and joins it); otherwise the pinning thread loads them
 // before pin() returns. Read-ahead only runs for arrays whose page count

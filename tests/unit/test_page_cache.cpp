@@ -614,20 +614,24 @@ int sweep_parts_in_turns(PageCache& cache, std::uint32_t array, int threads, std
 // stream starts there), then finds every page read ahead. With one last
 // page per array, no thread's pins were ever seen as a stream: every pin
 // was a miss.
+// Forty threads likewise: each keeps its own stream (an array holds up to
+// 256).
 TEST(PageCache, ThreadsSweepingOneArrayEachReadAhead) {
-  constexpr int kThreads = 4;
-  constexpr std::uint64_t kPart = 40;
-  SyntheticPages pages(1, kThreads * kPart);
-  PageCache cache(pages.loader(), opts(200 * kMaxPage, 4, false));  // inline read-ahead: deterministic
-  pages.declare(cache, 1);
-  EXPECT_EQ(sweep_parts_in_turns(cache, 0, kThreads, kPart), 0);
-  const CacheStats s = cache.stats();
-  EXPECT_EQ(s.misses, 2u * kThreads);
-  EXPECT_EQ(s.hits, kThreads * (kPart - 2));
-  // A part's window near its end reaches the first pages of the next part,
-  // which that part's thread pinned long before: still resident, they are
-  // not scheduled again.
-  EXPECT_EQ(pages.total_loads(), kThreads * kPart);
+  for (const auto& [threads, part] : {std::pair<int, std::uint64_t>{4, 40}, {40, 10}}) {
+    SCOPED_TRACE(threads);
+    const std::uint64_t n = static_cast<std::uint64_t>(threads) * part;
+    SyntheticPages pages(1, n);
+    PageCache cache(pages.loader(), opts(1000 * kMaxPage, 4, false));  // inline read-ahead: deterministic
+    pages.declare(cache, 1);
+    EXPECT_EQ(sweep_parts_in_turns(cache, 0, threads, part), 0);
+    const CacheStats s = cache.stats();
+    EXPECT_EQ(s.misses, 2u * threads);
+    EXPECT_EQ(s.hits, threads * (part - 2));
+    // A part's window near its end reaches the first pages of the next
+    // part, which that part's thread pinned long before: still resident,
+    // they are not scheduled again.
+    EXPECT_EQ(pages.total_loads(), n);
+  }
 }
 
 // One thread reading two streams in turn: two arrays whose ids are 8
