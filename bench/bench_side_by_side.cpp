@@ -77,29 +77,10 @@ FineMesh open_store() { return read_store(store_path(), StoreOptions{64ull << 20
 // gmsh_transfinite reads).
 std::array<Id, 3> block_intervals(const FineMesh& m, Id h, MeshCursor& cur) { return RowReader(m.tables(), cur).element(h).n; }
 
+// The baseline; with conn, also 8 ids per element of each block (the
+// bytes BM_Batches writes).
+template <bool conn>
 void BM_WriteBandwidth(benchmark::State& st) {
-  const FineMesh m = open_store();
-  std::vector<Id> points(static_cast<size_t>(m.num_coarse_elements()));
-  MeshCursor cur;
-  for (Id h = 0; h < m.num_coarse_elements(); ++h) {
-    const auto n = block_intervals(m, h, cur);
-    points[static_cast<size_t>(h)] = (n[0] + 1) * (n[1] + 1) * (n[2] + 1);
-  }
-  cur.release();
-  const size_t most = static_cast<size_t>(*std::max_element(points.begin(), points.end()));
-  std::vector<double> x(most), y(most), z(most);
-  Id nodes = 0;
-  for (auto _ : st) {
-    for (Id h = 0; h < m.num_coarse_elements(); ++h) {
-      const Id n = points[static_cast<size_t>(h)];
-      bench::write_xyz(x.data(), y.data(), z.data(), static_cast<size_t>(n), static_cast<double>(h));
-      nodes += n;
-    }
-  }
-  st.counters["nodes_per_s"] = benchmark::Counter(static_cast<double>(nodes), benchmark::Counter::kIsRate);
-}
-
-void BM_WriteBandwidthConn(benchmark::State& st) {
   const FineMesh m = open_store();
   std::vector<Id> points(static_cast<size_t>(m.num_coarse_elements())), cells(points.size());
   MeshCursor cur;
@@ -110,15 +91,14 @@ void BM_WriteBandwidthConn(benchmark::State& st) {
   }
   cur.release();
   const size_t most = static_cast<size_t>(*std::max_element(points.begin(), points.end()));
-  const size_t most_cells = static_cast<size_t>(*std::max_element(cells.begin(), cells.end()));
   std::vector<double> x(most), y(most), z(most);
-  std::vector<Id> conn(8 * most_cells);
+  std::vector<Id> ids(conn ? 8 * static_cast<size_t>(*std::max_element(cells.begin(), cells.end())) : 0);
   Id nodes = 0;
   for (auto _ : st) {
     for (Id h = 0; h < m.num_coarse_elements(); ++h) {
       const Id n = points[static_cast<size_t>(h)];
       bench::write_xyz(x.data(), y.data(), z.data(), static_cast<size_t>(n), static_cast<double>(h));
-      bench::write_ids(conn.data(), static_cast<size_t>(8 * cells[static_cast<size_t>(h)]), h);
+      if constexpr (conn) bench::write_ids(ids.data(), static_cast<size_t>(8 * cells[static_cast<size_t>(h)]), h);
       nodes += n;
     }
   }
@@ -376,8 +356,8 @@ void guarded(benchmark::State& st) {
 
 }  // namespace
 
-BENCHMARK(guarded<BM_WriteBandwidth>)->Name("BM_WriteBandwidth")->Unit(benchmark::kMillisecond);
-BENCHMARK(guarded<BM_WriteBandwidthConn>)->Name("BM_WriteBandwidthConn")->Unit(benchmark::kMillisecond);
+BENCHMARK(guarded<BM_WriteBandwidth<false>>)->Name("BM_WriteBandwidth")->Unit(benchmark::kMillisecond);
+BENCHMARK(guarded<BM_WriteBandwidth<true>>)->Name("BM_WriteBandwidthConn")->Unit(benchmark::kMillisecond);
 BENCHMARK(guarded<BM_BlockIteration>)->Name("BM_BlockIteration")->Arg(1)->Arg(0)->Unit(benchmark::kMillisecond);
 BENCHMARK(guarded<BM_Batches>)->Name("BM_Batches")->Unit(benchmark::kMillisecond);
 BENCHMARK(guarded<BM_Gmsh>)->Name("BM_Gmsh")->Arg(0)->Arg(1)->Iterations(1)->UseManualTime()->Unit(benchmark::kSecond);
