@@ -14,6 +14,15 @@
 //                          every node once with coordinates, every element
 //                          with connectivity, no checksum (issue 13's
 //                          "batch API alone")
+//   BM_SweepColdWarm/<threads>
+//                          dicer::sweep (what `dicer sweep --threads T`
+//                          times) twice on one store opened just before:
+//                          the first sweep reads and decodes the pages it
+//                          needs (the CLI's case), the second finds the
+//                          kept coarse tables resident. Time: the first;
+//                          counters cold_s, warm_s, their node rates and
+//                          cold_over_warm, the share a sweep spends on its
+//                          first read of the store (bench/README.md, stop 45)
 //   BM_Gmsh/<write 0|1>    Gmsh 4.8 transfinite (bench/gmsh_transfinite.cpp) on
 //                          the store's coarse hexes and intervals: build +
 //                          generate(3), /1 also gmsh::write binary MSH 4.1
@@ -54,6 +63,7 @@
 #include "dicer/rows.hpp"
 #include "dicer/batch.hpp"
 #include "dicer/store.hpp"
+#include "dicer/sweep.hpp"
 #include "gmsh_transfinite.hpp"
 
 using namespace dicer;
@@ -343,6 +353,23 @@ void BM_RandomQueries(benchmark::State& st) {
   st.counters["peak_rss_MiB"] = peak / kMiB;
 }
 
+void BM_SweepColdWarm(benchmark::State& st) {
+  const auto threads = static_cast<unsigned>(st.range(0));
+  double cold = 0, warm = 0, nodes = 0;
+  for (auto _ : st) {
+    const FineMesh m = open_store();
+    const SweepResult first = sweep(m, threads), second = sweep(m, threads);
+    if (first.checksum != second.checksum) throw std::runtime_error("BM_SweepColdWarm: the two sweeps' checksums differ");
+    st.SetIterationTime(first.seconds);
+    cold += first.seconds, warm += second.seconds, nodes += static_cast<double>(first.nodes);
+  }
+  st.counters["cold_s"] = cold / static_cast<double>(st.iterations());
+  st.counters["warm_s"] = warm / static_cast<double>(st.iterations());
+  st.counters["cold_nodes_per_s"] = nodes / cold;
+  st.counters["warm_nodes_per_s"] = nodes / warm;
+  st.counters["cold_over_warm"] = cold / warm;
+}
+
 // A case that throws (a store of another format version, Gmsh or HDF5
 // refusing) is reported as skipped with the message, not a crash.
 template <void (*Case)(benchmark::State&)>
@@ -360,6 +387,7 @@ BENCHMARK(guarded<BM_WriteBandwidth<false>>)->Name("BM_WriteBandwidth")->Unit(be
 BENCHMARK(guarded<BM_WriteBandwidth<true>>)->Name("BM_WriteBandwidthConn")->Unit(benchmark::kMillisecond);
 BENCHMARK(guarded<BM_BlockIteration>)->Name("BM_BlockIteration")->Arg(1)->Arg(0)->Unit(benchmark::kMillisecond);
 BENCHMARK(guarded<BM_Batches>)->Name("BM_Batches")->Unit(benchmark::kMillisecond);
+BENCHMARK(guarded<BM_SweepColdWarm>)->Name("BM_SweepColdWarm")->Arg(1)->Arg(2)->Iterations(1)->UseManualTime()->Unit(benchmark::kMillisecond);
 BENCHMARK(guarded<BM_Gmsh>)->Name("BM_Gmsh")->Arg(0)->Arg(1)->Iterations(1)->UseManualTime()->Unit(benchmark::kSecond);
 BENCHMARK(guarded<BM_RandomQueries>)->Name("BM_RandomQueries")->Arg(0)->Arg(1)->Iterations(1)->UseManualTime()->Unit(benchmark::kSecond);
 BENCHMARK(guarded<BM_Explicit>)->Name("BM_Explicit")->Arg(0)->Arg(1)->Arg(2)->Iterations(1)->UseManualTime()->Unit(benchmark::kSecond);
