@@ -225,7 +225,9 @@ StoreFlags::StoreFlags(Command& cmd)
   cmd.flag("--stats", stats_,
            "print the page cache counters to stderr when done: pages "
            "and bytes read, bytes decompressed, hits, misses, "
-           "evictions, peak resident bytes",
+           "evictions, peak resident bytes; the time spent loading pages, "
+           "the part the threads that missed paid themselves (the rest "
+           "was read ahead), and the time spent waiting for pages in flight",
            group);
 }
 

@@ -3,6 +3,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <chrono>
@@ -190,6 +191,14 @@ void print_cache_stats(const FineMesh& mesh, const std::string& command) {
                static_cast<unsigned long long>(st.misses), static_cast<unsigned long long>(st.evictions),
                human_bytes(st.peak_resident_bytes).c_str(), human_bytes(cache->budget()).c_str(),
                human_bytes(st.kept_bytes).c_str());
+  if (st.load_ns > 0 || st.load_wait_ns > 0) {
+    const auto calls = std::max<std::uint64_t>(1, st.pages_read);
+    std::fprintf(stderr,
+                 "dicer %s: page loads: %s in the loader (%s a page), %s of it by pins that missed, %s "
+                 "waiting for pages in flight (threads summed)\n",
+                 command.c_str(), human_duration(st.load_ns).c_str(), human_duration(st.load_ns / calls).c_str(),
+                 human_duration(st.demand_load_ns).c_str(), human_duration(st.load_wait_ns).c_str());
+  }
   // The tables a query reads by element: how much of each it touched (a
   // box query reads the pages of the groups its box meets).
   const MeshTables& t = mesh.tables();
@@ -232,6 +241,16 @@ std::string human_count(std::int64_t n) {
   while (std::fabs(v) >= 1000 && u < 4) v /= 1000, ++u;
   char buf[32];
   std::snprintf(buf, sizeof buf, u == 0 ? "%.0f%s" : "%.2f%s", v, unit[u]);
+  return buf;
+}
+
+std::string human_duration(std::uint64_t ns) {
+  const double v = static_cast<double>(ns);
+  char buf[32];
+  if (v < 1e3) std::snprintf(buf, sizeof buf, "%.0f ns", v);
+  else if (v < 1e6) std::snprintf(buf, sizeof buf, "%.1f us", v / 1e3);
+  else if (v < 1e9) std::snprintf(buf, sizeof buf, "%.1f ms", v / 1e6);
+  else std::snprintf(buf, sizeof buf, "%.2f s", v / 1e9);
   return buf;
 }
 

@@ -77,6 +77,7 @@ void print_cache_stats(const FineMesh& mesh, const std::string& command);
 
 std::string human_bytes(std::uint64_t bytes);
 std::string human_count(std::int64_t n);
+std::string human_duration(std::uint64_t ns);  // "850 ns", "37.5 us", "6.9 ms", "1.23 s"
 
 // A progress bar on stderr, drawn only when stderr is a terminal and not
 // --quiet; at most ~10 redraws per second.

@@ -116,6 +116,13 @@ struct CacheStats {
   std::uint64_t resident_bytes = 0;      // decoded bytes resident now (<= budget)
   std::uint64_t peak_resident_bytes = 0; // maximum of resident_bytes since construction or reset_stats()
   std::uint64_t kept_bytes = 0;          // of resident_bytes: pages kept for good (keep_resident)
+  // Where a cold run's time went (steady-clock nanoseconds, all threads
+  // summed, failed loads included): how much of it a store's reads and
+  // decoding cost, and how much of that the threads that asked for pages
+  // paid themselves rather than the read-ahead thread.
+  std::uint64_t load_ns = 0;         // in the loader, every call
+  std::uint64_t demand_load_ns = 0;  // of load_ns: misses, loaded by the pin that needed the page
+  std::uint64_t load_wait_ns = 0;    // pins waiting for a page another thread was loading
 };
 
 class SpinMutex;  // the cache's lock (page_cache.cpp)

@@ -137,6 +137,9 @@ py::dict cache_stats(const Store& s) {
   d["resident_bytes"] = st.resident_bytes;
   d["peak_resident_bytes"] = st.peak_resident_bytes;
   d["kept_bytes"] = st.kept_bytes;
+  d["load_seconds"] = static_cast<double>(st.load_ns) * 1e-9;
+  d["demand_load_seconds"] = static_cast<double>(st.demand_load_ns) * 1e-9;
+  d["load_wait_seconds"] = static_cast<double>(st.load_wait_ns) * 1e-9;
   return d;
 }
 

@@ -73,6 +73,18 @@ def test_kept_coarse_tables_give_the_same_nodes(sphere_store):
         dicer.open(sphere_store, keep_tables="no")
 
 
+def test_cache_stats_time_the_page_loads(sphere_store):
+    # A fresh store's sweep loads pages, so it spent time loading them.
+    s = dicer.open(sphere_store, read_ahead=0)
+    s.sweep(threads=1)
+    st = s.cache_stats()
+    assert st["pages_read"] > 0
+    assert st["load_seconds"] > 0
+    # No read-ahead and one thread: every load was a miss's, nobody waited.
+    assert st["demand_load_seconds"] == st["load_seconds"]
+    assert st["load_wait_seconds"] == 0
+
+
 @pytest.mark.parametrize("fixture", ["sphere_store", "prism_store", "shell_store", "graded_store"])
 def test_elements_equal_to_query(request, cli, fixture):
     path = request.getfixturevalue(fixture)

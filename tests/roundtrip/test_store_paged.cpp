@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <random>
+#include <regex>
 #include <thread>
 
 #include <nlohmann/json.hpp>
@@ -307,6 +308,10 @@ TEST(StorePaged, FootprintAndStatsOnTheCommandLine) {
   EXPECT_EQ(q.exit_code, 0) << q.err;
   EXPECT_NE(q.err.find("pages read"), std::string::npos) << q.err;
   EXPECT_NE(q.err.find("peak resident"), std::string::npos) << q.err;
+  // A fresh process loads pages, so it has load time to report (the
+  // counters themselves: PageCache.LoadAndWaitTimesCoverTheLoadsAndTheWaits).
+  EXPECT_TRUE(std::regex_search(q.err, std::regex("page loads: [0-9.]+ (ns|us|ms|s) in the loader \\([0-9.]+ (ns|us|ms|s) a page\\)")))
+      << q.err;
   EXPECT_EQ(test::run_cli({"info", store, "--cache-mb", "0"}).exit_code, 2);
   // The default budget keeps the coarse tables a query reads (read_store);
   // --no-keep-tables keeps none, and the nodes printed are the same.

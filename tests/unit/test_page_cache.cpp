@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <cstring>
 #include <map>
@@ -436,6 +437,75 @@ TEST(PageCache, ConcurrentLoaderErrorReachesEveryWaiterAndALaterPinRetries) {
   EXPECT_TRUE(content_ok(h));
   EXPECT_EQ(gate.calls.load(), 3);
   EXPECT_EQ(cache.stats().pages_read, 1u);
+}
+
+// CacheStats' times against sleeps that bound them from below (no upper
+// bound: the machine may be slow, never faster than a sleep). A waiter's
+// clock starts under the lock that also counts its hit, so once the hits
+// show, every waiter's wait covers the sleep before the gate opens.
+TEST(PageCache, LoadAndWaitTimesCoverTheLoadsAndTheWaits) {
+  using namespace std::chrono_literals;
+  constexpr int kThreads = 3;
+  constexpr std::uint64_t kGateNs = 30'000'000;
+  GatedLoader gate;
+  PageCache cache(gate.loader(), opts(1 << 20, 0, false));
+  const PageKey key{2, 5};
+  {
+    std::vector<std::thread> threads;
+    for (int t = 0; t < kThreads; ++t) threads.emplace_back([&] { cache.pin(key); });
+    spin_until([&] {
+      const CacheStats s = cache.stats();
+      return s.hits + s.misses == kThreads;
+    });
+    std::this_thread::sleep_for(std::chrono::nanoseconds(kGateNs));
+    gate.open();
+    for (auto& t : threads) t.join();
+  }
+  CacheStats s = cache.stats();
+  ASSERT_EQ(s.misses, 1u);
+  EXPECT_GE(s.load_ns, kGateNs);
+  EXPECT_EQ(s.demand_load_ns, s.load_ns);  // the one load was the miss's
+  EXPECT_GE(s.load_wait_ns, (kThreads - 1) * kGateNs);
+  // A hit on the resident page loads and waits for nothing.
+  const std::uint64_t load = s.load_ns, wait = s.load_wait_ns;
+  cache.pin(key);
+  s = cache.stats();
+  EXPECT_EQ(s.load_ns, load);
+  EXPECT_EQ(s.load_wait_ns, wait);
+  cache.reset_stats();
+  s = cache.stats();
+  EXPECT_EQ(s.load_ns + s.demand_load_ns + s.load_wait_ns, 0u);
+
+  // Failed loads count too.
+  GatedLoader failing;
+  failing.fail = true;
+  PageCache bad(failing.loader(), opts(1 << 20, 0, false));
+  std::thread t([&] { EXPECT_EQ(kind_of([&] { bad.pin(key); }), ErrorKind::Corrupt); });
+  spin_until([&] { return failing.calls.load() == 1; });
+  std::this_thread::sleep_for(std::chrono::nanoseconds(kGateNs));
+  failing.open();
+  t.join();
+  EXPECT_GE(bad.stats().load_ns, kGateNs);
+  EXPECT_EQ(bad.stats().pages_read, 0u);
+}
+
+// The read-ahead's loads count in load_ns but not in demand_load_ns.
+TEST(PageCache, ReadAheadLoadsAreNotTheMissesTime) {
+  constexpr std::uint64_t kLoadNs = 1'000'000, kPages = 24;
+  SyntheticPages src(1, kPages);
+  auto slow = [inner = src.loader(), kLoadNs](PageKey k, PageBytes& out) {
+    std::this_thread::sleep_for(std::chrono::nanoseconds(kLoadNs));
+    return inner(k, out);
+  };
+  PageCache cache(slow, opts(1 << 20, 4, false));  // read-ahead on the pinning thread
+  src.declare(cache, 1);
+  for (std::uint64_t p = 0; p < kPages; ++p) cache.pin({0, p});
+  const CacheStats s = cache.stats();
+  ASSERT_EQ(s.pages_read, kPages);
+  ASSERT_LT(s.misses, kPages);  // read-ahead loaded the rest
+  EXPECT_GE(s.demand_load_ns, s.misses * kLoadNs);
+  EXPECT_GE(s.load_ns - s.demand_load_ns, (kPages - s.misses) * kLoadNs);
+  EXPECT_EQ(s.load_wait_ns, 0u);  // one thread: nothing in flight to wait for
 }
 
 TEST(PageCache, RandomAccessNeverExceedsTheBudget) {
