@@ -1,8 +1,8 @@
 // PageCache (include/dicer/cache.hpp) against its own contract, with a
 // synthetic loader: page bytes are a hash of (array, page, offset) and page
 // sizes vary between 256 and 1024 bytes. Every check is on counters and
-// contents, never on timing; waits for other threads poll the cache's
-// counters. The concurrent tests also run under ThreadSanitizer
+// contents, never on timing (the load-time counters only from below, by
+// sleeps); waits for other threads poll the cache's counters. The concurrent tests also run under ThreadSanitizer
 // (scripts/run_tsan.sh).
 #include <gtest/gtest.h>
 
@@ -444,7 +444,6 @@ TEST(PageCache, ConcurrentLoaderErrorReachesEveryWaiterAndALaterPinRetries) {
 // clock starts under the lock that also counts its hit, so once the hits
 // show, every waiter's wait covers the sleep before the gate opens.
 TEST(PageCache, LoadAndWaitTimesCoverTheLoadsAndTheWaits) {
-  using namespace std::chrono_literals;
   constexpr int kThreads = 3;
   constexpr std::uint64_t kGateNs = 30'000'000;
   GatedLoader gate;
