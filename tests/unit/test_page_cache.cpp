@@ -2,8 +2,8 @@
 // synthetic loader: page bytes are a hash of (array, page, offset) and page
 // sizes vary between 256 and 1024 bytes. Every check is on counters and
 // contents, never on timing (the load-time counters only from below, by
-// sleeps); waits for other threads poll the cache's counters. The concurrent tests also run under ThreadSanitizer
-// (scripts/run_tsan.sh).
+// sleeps); waits for other threads poll the cache's counters. The
+// concurrent tests also run under ThreadSanitizer (scripts/run_tsan.sh).
 #include <gtest/gtest.h>
 
 #include <atomic>
