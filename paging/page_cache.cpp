@@ -717,7 +717,7 @@ struct PageCache::Impl {
     // bench_cache: 189x at a 1% budget with ~10 streams, 5.4x without).
     // (Kept pages never leave: the rest of the budget is what streams share.)
     const std::uint64_t room = (opt.budget_bytes - st.kept_bytes) / kReadAheadHeadroom, one = r * max_page_bytes;
-    if (room < one * streams || room < one * (streams + extra_live_streams())) return;
+    if (room < one * streams || room < one * (streams + extra_live_streams())) return;  // the cheap test first
     bool pushed = false;
     for (std::uint64_t q = first; q <= last && !queue.full(); ++q) {
       const PageKey k{key.array, q};
@@ -725,6 +725,21 @@ struct PageCache::Impl {
     }
     s.ra_next = last + 1;
     if (pushed && worker.joinable()) work.notify_one();
+  }
+
+  // The loader, unlocked, its time (also when it throws) in `ns`.
+  std::uint64_t timed_load(PageKey key, PageBytes& buf, std::uint64_t& ns) {
+    struct Clock {
+      std::uint64_t& ns;
+      const std::uint64_t t0 = now_ns();
+      ~Clock() { ns = now_ns() - t0; }
+    } clock{ns};
+    return loader(key, buf);
+  }
+  // With the lock: a load's time into CacheStats (demand: a miss's own).
+  void count_load_time(std::uint64_t ns, bool demand) {
+    st.load_ns += ns;
+    if (demand) st.demand_load_ns += ns;
   }
 
   // Reads one queued page ahead. Called with `lock` held; drops it around
@@ -744,15 +759,14 @@ struct PageCache::Impl {
       PageBytes buf;
       std::uint64_t nread = 0;
       std::exception_ptr err;
-      const std::uint64_t t0 = now_ns();
+      std::uint64_t ns = 0;
       try {
-        nread = loader(key, buf);
+        nread = timed_load(key, buf, ns);
       } catch (...) {
         err = std::current_exception();
       }
-      const std::uint64_t t1 = now_ns();
       lock.lock();
-      st.load_ns += t1 - t0;
+      count_load_time(ns, false);
       if (err) return fail(e, err);
       count_load(key);
       st.bytes_read += nread;
@@ -892,23 +906,18 @@ PageCache::Handle PageCache::pin_locked(std::unique_lock<SpinMutex>& lock, PageK
   lock.unlock();
   PageBytes buf;
   std::uint64_t nread = 0;
-  const std::uint64_t t0 = now_ns();
-  const auto count_time = [&](std::uint64_t t) {  // with the lock
-    m.st.load_ns += t, m.st.demand_load_ns += t;
-  };
+  std::uint64_t ns = 0;
   try {
-    nread = m.loader(key, buf);
+    nread = m.timed_load(key, buf, ns);
   } catch (...) {
-    const std::uint64_t t = now_ns() - t0;
     lock.lock();
-    count_time(t);
+    m.count_load_time(ns, true);
     m.fail(e, std::current_exception());
     m.release_pin(e);
     throw;
   }
-  const std::uint64_t t = now_ns() - t0;
   lock.lock();
-  count_time(t);
+  m.count_load_time(ns, true);
   m.count_load(key);
   m.st.bytes_read += nread;
   m.st.bytes_decompressed += buf.size();
