@@ -79,7 +79,7 @@ bool BatchCursor::next(FineBatch& out) {
     // (a curved hex, whose interior needs its whole boundary; a surface
     // element) by way of the block's scratch.
     const bool direct = k0 == 0 && vol && !row_.curved();
-    mesh_.fill_slab(h_, k0, k1, block_, true, opt_.conn, vol ? interior : nullptr, &row_, direct ? front : nullptr, own);
+    mesh_.fill_slab(h_, k0, k1, block_, true, opt_.conn, opt_.grid, vol ? interior : nullptr, &row_, direct ? front : nullptr, own);
     if (k0 == 0 && !direct) {
       // fill_slab has just evaluated the element's owned entities (at
       // least) into the block's scratch, in their canonical frames.
@@ -92,7 +92,7 @@ bool BatchCursor::next(FineBatch& out) {
     out.y = std::span<const double>(xyz_[1]).first(nodes);
     out.z = std::span<const double>(xyz_[2]).first(nodes);
   } else {
-    if (opt_.conn || opt_.grid) mesh_.fill_slab(h_, k0, k1, block_, false, opt_.conn, nullptr, &row_);
+    if (opt_.conn || opt_.grid || opt_.lines) mesh_.fill_slab(h_, k0, k1, block_, false, opt_.conn, opt_.grid, nullptr, &row_);
     out.x = out.y = out.z = {};
   }
   // Elements: layers [k0, k1) (surface: the element's one layer).
@@ -101,6 +101,19 @@ bool BatchCursor::next(FineBatch& out) {
   out.element_end = row_.element_first + layer * (vol ? k1 : 1);
   out.conn = opt_.conn ? std::span<const Id>(block_.conn) : std::span<const Id>();
   out.grid = opt_.grid ? std::span<const Id>(block_.node_id) : std::span<const Id>();
+  out.lines = {};
+  if (opt_.lines) {
+    // From the element's boundary ids, which fill_slab keeps in the
+    // block, and its cell's numbering: no grid written.
+    const Id rows = (n_[1] + 1) * (vol ? k1 - k0 + 1 : 1);
+    const auto r = static_cast<size_t>(rows);
+    lines_.resize(4 * r);
+    Id* const l = lines_.data();
+    DICER_ASSERT(block_.scratch.boundary.h == h_, "batches: the lines read the element's own boundary");
+    detail::slab_lines(block_.scratch.boundary, row_.cell_node, k0, k1, l, l + rows, l + 2 * rows, l + 3 * rows);
+    const std::span<const Id> all(lines_);
+    out.lines = {all.first(r), all.subspan(r, r), all.subspan(2 * r, r), all.subspan(3 * r, r)};
+  }
   // Advance.
   if (vol && k1 < n2_) {
     k0_ = k1;

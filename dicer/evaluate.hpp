@@ -150,6 +150,13 @@ Id own_boundary_nodes(const Evaluator& E, const ElementRow& h, Id hid, const Fin
 inline constexpr Id kPatchSlack = 8;
 void bilinear_patch(const double* s, const double* t, Id nu, Id nv, const double* p, double* out);
 
+// FineBatch::lines of grid planes k0..k1 (0 in surface mode) of the element
+// whose ids B holds (fill_slab keeps them) and whose cell's first node is
+// cell_node: row r = j + (n[1] + 1) (k - k0) into start[r], first[r],
+// step[r], end[r]. O(rows); the interior rows' ends are the ring's.
+void slab_lines(const FineBlock::Scratch::Boundary& B, Id cell_node, Id k0, Id k1, Id* start, Id* first, Id* step,
+                Id* end);
+
 // The same patches, many over one (s, t) grid (a hex's interior planes,
 // three coordinates each): prepare_patch_grid lays out each row's weights
 // and each point's s and row once, after which a patch is one pass over

@@ -243,11 +243,11 @@ void quad_conn_row(const Id* p, Id sj, Id m, Id* out) {
 }  // namespace
 
 void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool conn) const {
-  fill_slab(hid, k0, k1, b, coords, conn, nullptr, nullptr, nullptr, 0);
+  fill_slab(hid, k0, k1, b, coords, conn, true, nullptr, nullptr, nullptr, 0);
 }
 
-void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool conn, double* const* interior,
-                         const ElementRow* row, double* const* own, Id own_size) const {
+void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool conn, bool ids_wanted,
+                         double* const* interior, const ElementRow* row, double* const* own, Id own_size) const {
   const detail::Evaluator E(tables_, b.cursor);
   ElementRow decoded;
   if (!row) E.R.element(hid, decoded);
@@ -283,7 +283,8 @@ void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool c
   b.node_first = h.node_first;
   const Id ni = n[0] + 1, nj = n[1] + 1, pp = ni * nj;
   const size_t np = static_cast<size_t>(pp * b.planes);
-  b.node_id.resize(np);
+  const bool want_ids = ids_wanted || conn;
+  want_ids ? b.node_id.resize(np) : b.node_id.clear();
   // Compact: x, y, z hold one plane, the ring the kernel reads.
   const size_t nx = interior ? static_cast<size_t>(pp) : np;
   for (auto* x : {&b.x, &b.y, &b.z}) coords ? x->resize(nx) : x->clear();
@@ -312,7 +313,7 @@ void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool c
     if (coords) X[0] = b.x.data() + xat, X[1] = b.y.data() + xat, X[2] = b.z.data() + xat;
     if (!vol || k == 0 || k == n[2]) {  // a face plane: all boundary
       const size_t from = static_cast<size_t>(B.index(0, 0, k));
-      std::copy_n(B.id.data() + from, pp, ids);
+      if (want_ids) std::copy_n(B.id.data() + from, pp, ids);
       for (int d = 0; d < 3 && coords && !interior; ++d) std::copy_n(B.x[d].data() + from, pp, X[d]);
       continue;
     }
@@ -322,8 +323,10 @@ void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool c
       for (Id i = 0; i < ni; ++i) dst[i] = src[i], dst[i + n[1] * ni] = src[ni + i];
       for (Id j = 1; j < n[1]; ++j) dst[j * ni] = src[2 * ni + j - 1], dst[n[0] + j * ni] = src[2 * ni + n[1] - 1 + j - 1];
     };
-    ring_copy(B.id.data() + ring, ids);
-    cell_plane_ids(h.cell_node, n, k, ids);
+    if (want_ids) {
+      ring_copy(B.id.data() + ring, ids);
+      cell_plane_ids(h.cell_node, n, k, ids);
+    }
     // Compact: the planes after k0 only (plane k0 ended the previous slab).
     if (interior && (k == k0 || in == 0)) continue;
     if (!coords) continue;
@@ -368,6 +371,46 @@ void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool c
     for (Id j = 0; j < n[1]; ++j, out += 4 * n[0]) quad_conn_row(ids + b.point_index(0, j, 0), ni, n[0], out);
   }
 }
+
+namespace detail {
+
+void slab_lines(const FineBlock::Scratch::Boundary& B, Id cell_node, Id k0, Id k1, Id* start, Id* first, Id* step,
+                Id* end) {
+  const auto n = B.n;
+  const Id n0 = n[0], w = n[1] + 1;
+  // A row held whole in the boundary (a face plane's, a ring's j = 0 or
+  // n[1]): its ends and its interior's first two points.
+  auto whole = [&](const Id* q, Id r) {
+    start[r] = q[0], end[r] = q[n0];
+    first[r] = q[std::min<Id>(n0, 1)];
+    step[r] = n0 >= 3 ? q[2] - q[1] : 0;
+  };
+  for (Id k = k0; k <= k1; ++k) {
+    const Id* const plane = B.id.data() + B.index(0, 0, k);
+    const Id r0 = w * (k - k0);
+    if (!B.volume || k == 0 || k == n[2]) {
+      for (Id j = 0; j < w; ++j) whole(plane + j * (n0 + 1), r0 + j);
+      continue;
+    }
+    // The ring (Boundary::index): rows j = 0 and n[1], then the i = 0 and
+    // i = n[0] columns; the rest of each row is the cell's own interior,
+    // consecutive ids (numbering.hpp).
+    whole(plane, r0), whole(plane + n0 + 1, r0 + w - 1);
+    const Id* const left = plane + 2 * (n0 + 1);
+    const Id* const right = left + n[1] - 1;
+    const Id m = n[1] - 1, r = r0 + 1;
+    std::copy_n(left, m, start + r), std::copy_n(right, m, end + r);
+    std::fill_n(step + r, m, n0 >= 3 ? 1 : 0);
+    if (n0 < 2) {
+      std::copy_n(right, m, first + r);
+      continue;
+    }
+    const Id c = ids::cell_node(cell_node, n, 1, 1, k);  // rows n[0] - 1 apart
+    for (Id j = 0; j < m; ++j) first[r + j] = c + j * (n0 - 1);
+  }
+}
+
+}  // namespace detail
 
 void FineMesh::fill_block(Id hid, FineBlock& b, bool nodes_only) const { fill_slab(hid, 0, -1, b, true, !nodes_only); }
 

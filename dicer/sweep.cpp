@@ -170,10 +170,11 @@ void grid_lines(const std::uint64_t* p, Id rows, Id n0, const GridLines& L) {
 // progressions, element i's argument (id K4 + the sum of corner id x key)
 // is a1 + (i - 1) step for 1 <= i <= n0 - 2, and the two end elements
 // differ from the line only by their end points' offsets times the keys of
-// the corners that read them. idk[r]: the id part of the row's element 1.
+// the corners that read them. base + idk[r]: the id part of the row's
+// element 1.
 // Every r < count, also those that are no element row (j = n1): one
 // unit-stride vector loop over the whole grid.
-DICER_WIDE_CLONES void element_lines(const GridLines& L, const std::uint64_t* idk, Id count, Id w, Id n0,
+DICER_WIDE_CLONES void element_lines(const GridLines& L, std::uint64_t base, const std::uint64_t* idk, Id count, Id w, Id n0,
                                      std::uint64_t* __restrict a0, std::uint64_t* __restrict a1,
                                      std::uint64_t* __restrict step, std::uint64_t* __restrict an) {
   const std::uint64_t* first[4] = {L.first, L.first + 1, L.first + w, L.first + w + 1};
@@ -182,7 +183,7 @@ DICER_WIDE_CLONES void element_lines(const GridLines& L, const std::uint64_t* id
   const std::uint64_t* on[4] = {L.offn, L.offn + 1, L.offn + w, L.offn + w + 1};
   const auto m2 = static_cast<std::uint64_t>(n0 - 2);
   for (Id r = 0; r < count; ++r) {
-    std::uint64_t s = K[4], h = idk[r], e0 = 0, en = 0;
+    std::uint64_t s = K[4], h = base + idk[r], e0 = 0, en = 0;
     for (int q = 0; q < 4; ++q) {
       s += kRowKeys.ab[q] * st[q][r];
       h += kRowKeys.ab[q] * first[q][r] + kRowKeys.b[q] * st[q][r];
@@ -237,6 +238,67 @@ DICER_WIDE_CLONES std::uint64_t hash_lines(const std::uint64_t* a0, const std::u
   return sum;
 }
 
+// The grid rows' lines and the element rows' work space of one batch, warm
+// after the first: no allocation per batch. Rows r < er: every element
+// row's r (and the j = n1 between layers), padded to whole vectors with
+// rows kept out; the grid rows' lines padded too (element_lines reads up
+// to row ep + w).
+struct LineSpace {
+  GridLines L;
+  std::uint64_t *a0, *a1, *step, *an, *idk, *keep;
+  size_t er, ep;
+};
+LineSpace line_space(Id grid_rows, Id w, Id layers) {
+  const size_t gr = static_cast<size_t>(grid_rows), er = static_cast<size_t>(w * layers - 1);
+  const size_t ep = (er + kLanes - 1) / kLanes * kLanes, gp = gr + kLanes;
+  thread_local std::vector<std::uint64_t> space;
+  thread_local std::vector<std::uint8_t> oks;
+  space.resize(4 * gp + 6 * ep), oks.resize(gr);
+  std::uint64_t* const ws = space.data();
+  LineSpace S{{ws, ws + gp, ws + 2 * gp, ws + 3 * gp, oks.data()}, nullptr, nullptr, nullptr, nullptr, nullptr,
+              nullptr, er, ep};
+  S.a0 = ws + 4 * gp, S.a1 = S.a0 + ep, S.step = S.a1 + ep, S.an = S.step + ep, S.idk = S.an + ep,
+  S.keep = S.idk + ep;
+  std::fill(S.idk + er, S.idk + ep, 0), std::fill(S.keep + er, S.keep + ep, 0);
+  return S;
+}
+
+// Of a batch's shape alone: element row r = j + (n1 + 1) k's element 1
+// less the batch's first element, times K4 (idk), and which rows are
+// element rows (keep: not j = n1 between layers, nor the padding past er).
+// Formed once per shape: a sweep's batches mostly share one (formed per
+// batch, they were 2.8% of a sweep at interval 10).
+struct RowIds {
+  Id n0 = -1, n1 = -1, layers = -1;
+  std::vector<std::uint64_t> idk, keep;
+};
+const RowIds& row_ids(Id n0, Id n1, Id layers, size_t ep) {
+  thread_local RowIds c;
+  if (c.n0 != n0 || c.n1 != n1 || c.layers != layers) {
+    c.n0 = -1;  // a throw below leaves no shape to reuse
+    c.idk.assign(ep, 0), c.keep.assign(ep, 0);
+    const Id w = n1 + 1;
+    for (Id k = 0; k < layers; ++k)
+      for (Id j = 0; j < n1; ++j) {
+        const auto r = static_cast<size_t>(j + w * k);
+        c.idk[r] = static_cast<std::uint64_t>(j + n1 * k) * static_cast<std::uint64_t>(n0) * K[4];
+        c.keep[r] = ~std::uint64_t{0};
+      }
+    c.n0 = n0, c.n1 = n1, c.layers = layers;
+  }
+  return c;
+}
+
+// The hex terms of `layers` layers of n0 x n1 elements, ids from `id` on,
+// whose grid rows all are the lines in S.L (none bends): element rows as
+// lines (element_lines), hashed side by side (hash_lines).
+std::uint64_t straight_rows_checksum(const LineSpace& S, std::uint64_t id, Id n0, Id n1, Id layers) {
+  const RowIds& rows = row_ids(n0, n1, layers, S.ep);
+  const auto ep = static_cast<Id>(S.ep);
+  element_lines(S.L, (id + 1) * K[4], rows.idk.data(), ep, n1 + 1, n0, S.a0, S.a1, S.step, S.an);
+  return hash_lines(S.a0, S.a1, S.step, S.an, rows.keep.data(), ep, n0);
+}
+
 // checksum_hex_grid; lines: the grid rows' interiors are known to be
 // progressions (a batch's grid: batch.hpp), so they are checked only in
 // debug builds (a check that cost 7-12% of a sweep).
@@ -263,19 +325,9 @@ std::uint64_t grid_checksum(Id first, const std::array<Id, 3>& n, Id layers, std
         sum += sum_hex_row(id, row_rows(j + w * k).data(), n0);
     return sum;
   }
-  // Work space, warm after the first batch: no allocation per batch. Rows
-  // r < er: every element row's r (and the j = n1 between layers), padded
-  // to whole vectors with rows kept out.
-  const size_t gr = static_cast<size_t>(grid_rows), er = static_cast<size_t>(w * layers - 1);
-  // The grid rows' lines padded too: element_lines reads up to row ep + w.
-  const size_t ep = (er + kLanes - 1) / kLanes * kLanes, gp = gr + kLanes;
-  thread_local std::vector<std::uint64_t> space;
-  thread_local std::vector<std::uint8_t> oks;
-  space.resize(4 * gp + 6 * ep), oks.resize(gr);
-  std::uint64_t* const ws = space.data();
-  const GridLines L{ws, ws + gp, ws + 2 * gp, ws + 3 * gp, oks.data()};
-  std::uint64_t *const a0 = ws + 4 * gp, *const a1 = a0 + ep, *const step = a1 + ep, *const an = step + ep;
-  std::uint64_t *const idk = an + ep, *const keep = idk + ep;
+  const LineSpace S = line_space(grid_rows, w, layers);
+  const GridLines& L = S.L;
+  const size_t er = S.er;
   // Signed and unsigned variants of one type may alias.
   const auto* p = reinterpret_cast<const std::uint64_t*>(grid.data());
 #ifdef NDEBUG
@@ -301,35 +353,62 @@ std::uint64_t grid_checksum(Id first, const std::array<Id, 3>& n, Id layers, std
     bent = bends(p, points, inner.data()) != 0;
     DICER_ASSERT(!lines || !bent, "checksum of a batch's grid: a grid row's interior is no progression (batch.hpp)");
   }
+  if (!bent) {  // every element row a line
+    straight_lines(p, grid_rows, n0, L.first, L.step, L.off0, L.offn);
+    return straight_rows_checksum(S, id, n0, n1, layers);
+  }
   // Which rows the lines hash; the others' terms in full.
   std::uint64_t sum = 0;
-  std::fill(idk + er, idk + ep, 0), std::fill(keep + er, keep + ep, 0);
-  if (!bent) {  // every element row a line; rows' first ids a progression
-    straight_lines(p, grid_rows, n0, L.first, L.step, L.off0, L.offn);
-    const std::uint64_t stride = static_cast<std::uint64_t>(n0) * K[4];
-    std::uint64_t at = (id + 1) * K[4];
-    for (Id k = 0; k < layers; ++k) {
-      std::uint64_t* const ik = idk + w * k;
-      std::uint64_t* const kk = keep + w * k;
-      for (Id j = 0; j < n1; ++j, at += stride) ik[j] = at, kk[j] = ~std::uint64_t{0};
-      if (w * k + n1 < static_cast<Id>(er)) ik[n1] = at, kk[n1] = 0;  // j = n1: between layers
-    }
-    element_lines(L, idk, static_cast<Id>(ep), w, n0, a0, a1, step, an);
-    return hash_lines(a0, a1, step, an, keep, static_cast<Id>(ep), n0);
-  }
   grid_lines(p, grid_rows, n0, L);
   for (Id k = 0; k < layers; ++k)
     for (Id j = 0; j <= n1 && j + w * k < static_cast<Id>(er); ++j) {
       const Id r = j + w * k;
-      idk[r] = (id + 1) * K[4];  // element 1 of the row
+      S.idk[r] = (id + 1) * K[4];  // element 1 of the row
       const bool line = j < n1 && (L.ok[r] & L.ok[r + 1] & L.ok[r + w] & L.ok[r + w + 1]);
-      keep[r] = line ? ~std::uint64_t{0} : 0;
+      S.keep[r] = line ? ~std::uint64_t{0} : 0;
       if (j == n1) continue;
       if (!line) sum += sum_hex_row(id, row_rows(r).data(), n0);
       id += static_cast<std::uint64_t>(n0);
     }
-  element_lines(L, idk, static_cast<Id>(ep), w, n0, a0, a1, step, an);
-  return sum + hash_lines(a0, a1, step, an, keep, static_cast<Id>(ep), n0);
+  element_lines(L, 0, S.idk, static_cast<Id>(S.ep), w, n0, S.a0, S.a1, S.step, S.an);
+  return sum + hash_lines(S.a0, S.a1, S.step, S.an, S.keep, static_cast<Id>(S.ep), n0);
+}
+
+// The lines of a batch (FineBatch::lines) as straight_lines would find them
+// in its grid: off0 = start - (first - step), offn = end - (first + (n0 - 1) step).
+DICER_WIDE_CLONES void batch_lines(const std::uint64_t* start, const std::uint64_t* first, const std::uint64_t* step,
+                                   const std::uint64_t* end, Id rows, Id n0, std::uint64_t* __restrict f,
+                                   std::uint64_t* __restrict s, std::uint64_t* __restrict off0,
+                                   std::uint64_t* __restrict offn) {
+  const auto m = static_cast<std::uint64_t>(n0 - 1);
+  for (Id r = 0; r < rows; ++r) {
+    const std::uint64_t a = first[r], st = step[r];
+    f[r] = a, s[r] = st, off0[r] = start[r] - a + st, offn[r] = end[r] - a - m * st;
+  }
+}
+
+// A batch's hex terms from its lines, the same sum as grid_checksum over
+// the grid they describe.
+std::uint64_t lines_checksum(Id first, const std::array<Id, 3>& n, Id layers, const FineBatch::Lines& lines) {
+  const Id n0 = n[0], n1 = n[1], w = n1 + 1, rows = w * (layers + 1);
+  DICER_ASSERT(static_cast<Id>(lines.start.size()) == rows && lines.first.size() == lines.start.size() &&
+                   lines.step.size() == lines.start.size() && lines.end.size() == lines.start.size(),
+               "sweep: a batch's lines, one per grid row");
+  if (n0 < 3 || layers == 0) {  // short rows: their few points in full, as grid_checksum takes them
+    thread_local std::vector<Id> grid;
+    grid.resize(static_cast<size_t>(rows * (n0 + 1)));
+    for (Id r = 0; r < rows; ++r) {
+      Id* const q = grid.data() + r * (n0 + 1);
+      q[0] = lines.start[r], q[n0] = lines.end[r];
+      for (Id i = 1; i < n0; ++i) q[i] = lines.first[r] + (i - 1) * lines.step[r];
+    }
+    return grid_checksum(first, n, layers, grid, true);
+  }
+  const LineSpace S = line_space(rows, w, layers);
+  const auto u = [](std::span<const Id> v) { return reinterpret_cast<const std::uint64_t*>(v.data()); };
+  batch_lines(u(lines.start), u(lines.first), u(lines.step), u(lines.end), rows, n0, S.L.first, S.L.step, S.L.off0,
+              S.L.offn);
+  return straight_rows_checksum(S, static_cast<std::uint64_t>(first), n0, n1, layers);
 }
 
 }  // namespace
@@ -448,10 +527,11 @@ SweepResult sweep(const FineMesh& mesh, unsigned threads, const std::function<vo
     try {
       std::uint64_t sum = 0;
       Id local = 0;
-      // Hexes from the slab's grid (no connectivity formed), quads from conn.
+      // Hexes from the slab's grid rows as lines (no grid or connectivity
+      // formed), quads from conn.
       BatchOptions opt;
-      opt.grid = mesh.mode() == Mode::Volume;
-      opt.conn = !opt.grid;
+      opt.lines = mesh.mode() == Mode::Volume;
+      opt.conn = !opt.lines;
       std::optional<BatchCursor> batches;
       FineBatch b;
       for (unsigned c = next_chunk++; c < chunks; c = next_chunk++) {
@@ -459,8 +539,8 @@ SweepResult sweep(const FineMesh& mesh, unsigned threads, const std::function<vo
         else batches.emplace(mesh, split[c], split[c + 1], opt);
         while (batches->next(b)) {
           sum += checksum_nodes(b.node_begin, b.x, b.y, b.z);
-          sum += opt.grid ? grid_checksum(b.element_begin, b.n, b.num_elements() / (b.n[0] * b.n[1]), b.grid, true)
-                          : checksum_elements(b.element_begin, b.corners, b.conn);
+          sum += opt.lines ? lines_checksum(b.element_begin, b.n, b.num_elements() / (b.n[0] * b.n[1]), b.lines)
+                           : checksum_elements(b.element_begin, b.corners, b.conn);
           local += b.num_nodes() + b.num_elements();
           if (local >= 65536) done += local, local = 0;
         }

@@ -45,12 +45,23 @@ struct FineBatch {
   // element layers (surface: the one plane, k = 0), at
   // i + (n[0] + 1) * (j + (n[1] + 1) * (k - first_layer)). An element's
   // corners are its cell's grid points (what conn lists): consumers that
-  // use the structure (the sweep's checksum) read it instead of conn.
+  // use the structure read it instead of conn.
   // Along each grid row (fixed j, k) the interior points i = 1 .. n[0] - 1
   // are one entity's (a cell's interior, a face's or an edge's) and their
   // ids an arithmetic progression (step 1, -1 or a row of a face's
-  // canonical grid): the sweep's checksum relies on it (debug builds check).
+  // canonical grid): `lines` below relies on it.
   std::span<const Id> grid;
+  // The same grid, row by row, as lines (BatchOptions::lines; empty
+  // otherwise): grid row r = j + (n[1] + 1) * (k - first_layer), one entry
+  // per row of the planes `grid` spans, holds the id of point i = 0 in
+  // lines.start[r], of i = n[0] in lines.end[r], and of 0 < i < n[0] in
+  // lines.first[r] + (i - 1) * lines.step[r] (n[0] < 3: step 0; n[0] = 1:
+  // first = end). 4 (n[1] + 1) ids a plane where the grid has
+  // (n[0] + 1) (n[1] + 1): the sweep's checksum reads these, and the
+  // batch never writes the grid point by point for them.
+  struct Lines {
+    std::span<const Id> start, first, step, end;
+  } lines;
   Id num_nodes() const { return node_end - node_begin; }
   Id num_elements() const { return element_end - element_begin; }
 };
@@ -64,7 +75,8 @@ struct BatchOptions {
   // layer and its nodes up to grid plane first_layer (its own boundary
   // included) are skipped. The cursors start mid-element with it.
   Id first_layer = 0;
-  bool grid = false;  // the slab's grid of node ids (FineBatch::grid)
+  bool grid = false;   // the slab's grid of node ids (FineBatch::grid)
+  bool lines = false;  // the grid as one line per row (FineBatch::lines)
 };
 
 class BatchCursor {
@@ -91,6 +103,7 @@ class BatchCursor {
   ElementRow row_;  // the element's validated row, decoded once on entry
   FineBlock block_;
   std::vector<double> xyz_[3];  // the batch's nodes
+  std::vector<Id> lines_;       // FineBatch::lines: start, first, step, end
 };
 
 }  // namespace dicer

@@ -236,8 +236,10 @@ class FineMesh {
   // 0): the coordinates of the nodes h owns outside its interior written
   // to own[d][id - node_first] (own_size values, then room for 8 doubles
   // the interior overwrites), with no copy through the block's scratch.
+  // ids = false (and no conn): out.node_id left empty (the batch's lines
+  // come from the boundary the slab keeps, detail::slab_lines).
   friend class BatchCursor;
-  void fill_slab(Id h, Id k0, Id k1, FineBlock& out, bool coords, bool conn, double* const* interior,
+  void fill_slab(Id h, Id k0, Id k1, FineBlock& out, bool coords, bool conn, bool ids, double* const* interior,
                  const ElementRow* row, double* const* own = nullptr, Id own_size = 0) const;
   static std::uint64_t next_serial();
   void require_memory(const char* what) const;

@@ -89,10 +89,10 @@ TEST(WarmAllocation, BlockFillsAllocateNothingOnceWarm) {
 TEST(WarmAllocation, BatchCursorsAllocateNothingOnceWarm) {
   for (const FineMesh& f : meshes()) {
     for (const Id slab : {Id{7}, kCursorSlabPoints})
-    for (const bool sweep_like : {false, true}) {  // the sweep's batches: the grid instead of connectivity
+    for (const int kind : {0, 1, 2}) {  // connectivity; the grid; its lines (the sweep's batches)
       BatchOptions opt;
       opt.slab_points = slab;
-      opt.grid = sweep_like, opt.conn = !sweep_like;
+      opt.conn = kind == 0, opt.grid = kind == 1, opt.lines = kind == 2;
       BatchCursor c(f, 0, f.num_coarse_elements(), opt);
       FineBatch batch;
       Id nodes = 0;

@@ -70,6 +70,33 @@ void check_batches(const FineMesh& f, Id first, Id end, BatchOptions opt) {
         }
       }
     }
+    if (opt.lines) {  // each element's corners where its cell's grid rows put them (batch.hpp's lines)
+      const Id n0 = b.n[0], nj = b.n[1] + 1;
+      const Id planes = f.mode() == Mode::Volume ? b.num_elements() / (b.n[0] * b.n[1]) + 1 : 1;
+      for (const auto* v : {&b.lines.start, &b.lines.first, &b.lines.step, &b.lines.end})
+        ASSERT_EQ(static_cast<Id>(v->size()), nj * planes);
+      for (Id r = 0; r < nj * planes; ++r) {
+        if (n0 < 3) {
+          ASSERT_EQ(b.lines.step[r], 0) << "row " << r;
+        }
+        if (n0 == 1) {
+          ASSERT_EQ(b.lines.first[r], b.lines.end[r]) << "row " << r;
+        }
+      }
+      auto id_at = [&](Id i, Id r) {
+        return i == 0 ? b.lines.start[r] : i == n0 ? b.lines.end[r] : b.lines.first[r] + (i - 1) * b.lines.step[r];
+      };
+      for (Id e = b.element_begin; e < b.element_end; ++e) {
+        const FineElement el = f.element(e);
+        const Id l = e - b.element_begin, i = l % n0, j = (l / n0) % b.n[1], k = l / (n0 * b.n[1]);
+        for (int q = 0; q < b.corners; ++q) {
+          const auto* c = kHexCorner[q];
+          ASSERT_EQ(el.nodes[q], id_at(i + c[0], j + c[1] + nj * (k + c[2]))) << "element " << e << " corner " << q;
+        }
+      }
+    } else {
+      ASSERT_TRUE(b.lines.start.empty() && b.lines.first.empty() && b.lines.step.empty() && b.lines.end.empty());
+    }
     for (Id e = b.element_begin; e < b.element_end && opt.conn; ++e) {
       const FineElement el = f.element(e);
       ASSERT_EQ(el.coarse_element, b.coarse_element);
@@ -112,12 +139,14 @@ TEST(Batches, TileTheChunkInIdOrderWithTheBitsOfNodeAndElement) {
     const FineMesh f = FineMesh::dice(m, req);
     const Id H = f.num_coarse_elements();
     for (const Id slab : {Id{1}, Id{30}, kCursorSlabPoints}) {
-      // (coords, conn, grid): every array alone and together.
-      for (const auto& [coords, conn, grid] : {std::tuple{true, true, false}, std::tuple{true, false, true},
-                                               std::tuple{false, true, false}, std::tuple{false, false, true},
-                                               std::tuple{true, true, true}, std::tuple{true, false, false}}) {
+      // (coords, conn, grid, lines): every array alone and together.
+      for (const auto& [coords, conn, grid, lines] :
+           {std::tuple{true, true, false, false}, std::tuple{true, false, true, false},
+            std::tuple{false, true, false, false}, std::tuple{false, false, true, false},
+            std::tuple{true, true, true, true}, std::tuple{true, false, false, false},
+            std::tuple{true, false, false, true}, std::tuple{false, false, false, true}}) {
         BatchOptions opt;
-        opt.coords = coords, opt.conn = conn, opt.slab_points = slab, opt.grid = grid;
+        opt.coords = coords, opt.conn = conn, opt.slab_points = slab, opt.grid = grid, opt.lines = lines;
         check_batches(f, 0, H, opt);
         check_batches(f, 1, H - 1, opt);
         check_batches(f, H / 2, H / 2, opt);
@@ -140,7 +169,7 @@ TEST(Batches, LongRowsToo) {
   const FineMesh f = FineMesh::dice(m, req);
   for (const auto& [coords, conn, grid] : {std::tuple{true, true, true}, std::tuple{true, false, false}}) {
     BatchOptions opt;
-    opt.coords = coords, opt.conn = conn, opt.grid = grid;
+    opt.coords = coords, opt.conn = conn, opt.grid = grid, opt.lines = grid;
     check_batches(f, 0, f.num_coarse_elements(), opt);
   }
 }
@@ -230,7 +259,7 @@ TEST(Batches, SurfaceMeshesToo) {
                                            std::tuple{true, false, false}, std::tuple{true, false, true},
                                            std::tuple{false, false, true}}) {
     BatchOptions opt;
-    opt.coords = coords, opt.conn = conn, opt.grid = grid;
+    opt.coords = coords, opt.conn = conn, opt.grid = grid, opt.lines = !conn;
     check_batches(f, 0, f.num_coarse_elements(), opt);
     check_batches(f, 2, 5, opt);
   }
@@ -238,8 +267,8 @@ TEST(Batches, SurfaceMeshesToo) {
 
 // Batches from any layer of any element (first_layer, what the cursors
 // use), on elements one and two intervals thin along each axis: the
-// coordinates written straight into the batch, the connectivity and the grid
-// equal node(id) and element(id).
+// coordinates written straight into the batch, the connectivity, the grid
+// and its lines equal node(id) and element(id).
 TEST(Batches, FromAnyLayerOfThinElements) {
   std::mt19937_64 rng(29);
   test::BoxSpec spec;
@@ -258,7 +287,7 @@ TEST(Batches, FromAnyLayerOfThinElements) {
       for (Id layer = 0; layer < n[2]; ++layer)
         for (const Id slab : {Id{1}, Id{60}}) {
           BatchOptions opt;
-          opt.first_layer = layer, opt.slab_points = slab, opt.grid = true;
+          opt.first_layer = layer, opt.slab_points = slab, opt.grid = true, opt.lines = true;
           BatchCursor c(f, h, h + 1, opt);
           while (c.next(b)) {
             for (Id id = b.node_begin; id < b.node_end; ++id) {
@@ -275,6 +304,12 @@ TEST(Batches, FromAnyLayerOfThinElements) {
                 ASSERT_EQ(el.nodes[q], b.conn[static_cast<size_t>(8 * l + q)]) << "element " << e;
                 const auto* c3 = kHexCorner[q];
                 ASSERT_EQ(el.nodes[q], b.grid[static_cast<size_t>(i + c3[0] + ni * (j + c3[1] + nj * (k + c3[2])))]);
+                const auto r = static_cast<size_t>(j + c3[1] + nj * (k + c3[2]));
+                const Id at = i + c3[0];
+                ASSERT_EQ(el.nodes[q], at == 0        ? b.lines.start[r]
+                                       : at == b.n[0] ? b.lines.end[r]
+                                                      : b.lines.first[r] + (at - 1) * b.lines.step[r])
+                    << "element " << e << " corner " << q << " from the lines";
               }
             }
           }
