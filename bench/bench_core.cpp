@@ -10,7 +10,9 @@
 //   BM_Batches           the batch API: every node (coordinates) and element
 //                        (connectivity) once, slab by slab (batch.hpp)
 //   BM_BatchesGrid       the same with the slab's grid of node ids instead of
-//                        connectivity (what the sweep reads)
+//                        connectivity
+//   BM_BatchesLines      the same with the grid as one line per row (what the
+//                        sweep reads)
 //   BM_ChecksumGrid      the sweep's element checksum over every batch's grid
 //                        (checksum_hex_grid), held in memory: elements/s;
 //                        baseline BM_ChecksumConn: checksum_elements over the
@@ -141,11 +143,18 @@ void batches_rate(benchmark::State& st, const BatchOptions& opt) {
   st.counters["nodes_per_s"] = benchmark::Counter(static_cast<double>(nodes), benchmark::Counter::kIsRate);
 }
 void BM_Batches(benchmark::State& st) { batches_rate(st, {}); }
-// The sweep's batches: coordinates and the slab's grid of node ids, no
-// connectivity formed (BatchOptions::grid).
+// Coordinates and the slab's grid of node ids, no connectivity formed
+// (BatchOptions::grid).
 void BM_BatchesGrid(benchmark::State& st) {
   BatchOptions opt;
   opt.conn = false, opt.grid = true;
+  batches_rate(st, opt);
+}
+// The sweep's batches: coordinates and the grid as one line per row
+// (BatchOptions::lines), no grid or connectivity formed.
+void BM_BatchesLines(benchmark::State& st) {
+  BatchOptions opt;
+  opt.conn = false, opt.lines = true;
   batches_rate(st, opt);
 }
 
@@ -200,6 +209,7 @@ BENCHMARK(BM_ElementQuery)->Arg(8)->Arg(32);
 BENCHMARK(BM_NodeCursor)->Arg(8)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Batches)->Arg(8)->Arg(32)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_BatchesGrid)->Arg(8)->Arg(32)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_BatchesLines)->Arg(8)->Arg(32)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_ChecksumConn)->Arg(10)->Arg(20)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_ChecksumGrid)->Arg(10)->Arg(20)->Unit(benchmark::kMillisecond);
 BENCHMARK_MAIN();

@@ -101,6 +101,56 @@ TEST(Sweep, ChecksumIsTheSameForEveryThreadCountAndCacheBudget) {
   }
 }
 
+// The sweep's hex terms from the batches' lines take the element rows of
+// a hex's inner layers (both their grid planes inside the hex) from the
+// two layers before them (sweep.cpp: affine in the layer). Here the
+// checksum is the sum over node(id) and element(id) on random boxes
+// (random local numbering: every face orientation) whose hexes have 1 to
+// 9 intervals per axis, with a whole hex in one batch, and on one hex cut
+// into slabs of 4 layers (127 x 127 points a plane: the slab ends inside
+// the hex), whose slabs start on, before and after the inner layers.
+TEST(Sweep, InnerLayersOfEveryShapeAndSlabEqualTheTermsOfTheirElements) {
+  std::mt19937_64 rng(20261128);
+  auto expected = [](const FineMesh& f) {
+    std::uint64_t want = 0;
+    for (Id id = 0; id < f.num_nodes(); ++id) want += node_term(id, f.node(id));
+    for (Id id = 0; id < f.num_elements(); ++id) want += element_term(f.element(id));
+    return want;
+  };
+  for (int trial = 0; trial < 6; ++trial) {
+    test::BoxSpec spec;
+    spec.a = 2, spec.b = 1 + trial % 2, spec.c = 2;
+    IntervalRequest req;
+    req.global = 5 + trial % 3;
+    std::uniform_int_distribution<Id> n(1, 9);
+    for (Id sheet = 0; sheet < 5; ++sheet) req.sheets.push_back({sheet, n(rng)});
+    const FineMesh f = FineMesh::dice(test::random_box(spec, rng), req);
+    EXPECT_EQ(sweep(f, 1).checksum, expected(f)) << "trial " << trial;
+    EXPECT_EQ(sweep(f, 2).checksum, expected(f)) << "trial " << trial;
+  }
+  test::BoxSpec one;
+  one.a = one.b = one.c = 1;
+  const CoarseMesh hex = test::random_box(one, rng);
+  for (const Id layers : {Id{12}, Id{9}, Id{3}}) {
+    // The sheet across the hex's local k axis: the one whose interval is
+    // its n[2].
+    bool found = false;
+    for (Id across = 0; across < 3 && !found; ++across) {
+      IntervalRequest req;
+      for (Id sheet = 0; sheet < 3; ++sheet) req.sheets.push_back({sheet, sheet == across ? layers : 126});
+      const FineMesh f = FineMesh::dice(hex, req);
+      FineBatch b;
+      BatchCursor probe(f);
+      ASSERT_TRUE(probe.next(b));
+      if (b.n != std::array<Id, 3>{126, 126, layers}) continue;
+      found = true;
+      EXPECT_EQ(b.num_elements(), 126 * 126 * std::min<Id>(4, layers)) << "slabs of 4 layers";
+      EXPECT_EQ(sweep(f, 1).checksum, expected(f)) << layers << " layers";
+    }
+    EXPECT_TRUE(found) << "a sheet across the hex's k axis";
+  }
+}
+
 // The threads' split of a store comes from its page index: no page read
 // before a thread starts (a row read per probe used to load pages one at a
 // time, a tenth of a short sweep), and each part within a few pages' work
