@@ -3,6 +3,7 @@
 #include "evaluate.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #if defined(__x86_64__)
@@ -132,6 +133,35 @@ void prepare_patch_grid(const double* s, const double* t, Id nu, Id nv, PatchGri
 #else
   g.su = s, g.tv = t, g.nu = nu, g.nv = nv, g.permute = false;
 #endif
+}
+
+void series_values(Id n, const tfi::Grading& g, Id t0, Id t1, double* out) {
+  constexpr Id kMaxN = 64;
+  constexpr int kSlots = 8;
+  struct Slot {
+    Id n = -1;
+    tfi::Grading g;
+    std::array<double, kMaxN + 1> at;
+  };
+  thread_local std::array<Slot, kSlots> slots;
+  thread_local int next = 0;
+  DICER_ASSERT(0 <= t0 && t0 <= t1 && t1 <= n + 1, "series_values: parameters of the series' points");
+  if (n < 1 || n > kMaxN) {
+    const tfi::Series series(n, g);
+    for (Id t = t0; t < t1; ++t) out[t] = series.at(t);
+    return;
+  }
+  Slot* hit = nullptr;
+  for (Slot& c : slots)
+    if (c.n == n && c.g == g) hit = &c;
+  if (hit == nullptr) {
+    hit = &slots[static_cast<size_t>(next)];
+    next = (next + 1) % kSlots;
+    const tfi::Series series(n, g);
+    for (Id t = 0; t <= n; ++t) hit->at[static_cast<size_t>(t)] = series.at(t);
+    hit->n = n, hit->g = g;
+  }
+  std::copy(hit->at.begin() + t0, hit->at.begin() + t1, out + t0);
 }
 
 void bilinear_patch(const PatchGrid& g, const double* p, double* out) {
@@ -487,9 +517,8 @@ void element_boundary(const Evaluator& E, const ElementRow& h, Id hid, FineBlock
         const Vec3& hi = out.corner[h.rev(k) ? a : b];
         const tfi::Grading g = h.edge_grading(k, mode);
         if (n != series_n || !(g == series_g)) {  // edges along one axis mostly share their series
-          const tfi::Series series(n, g);
           out.s.resize(static_cast<size_t>(std::max<Id>(n, 1)));
-          for (Id t = 1; t < n; ++t) out.s[t] = series.at(t);
+          series_values(n, g, 1, n, out.s.data());
           series_n = n, series_g = g;
         }
         edge_fill(lo.x, hi.x, out.s.data(), n, dst[0]);
@@ -543,9 +572,8 @@ void element_boundary(const Evaluator& E, const ElementRow& h, Id hid, FineBlock
       s.s.resize(static_cast<size_t>(nu + kPatchSlack)), s.t.resize(static_cast<size_t>(nv));
       std::fill(s.s.begin() + nu, s.s.end(), 0.0);
       const auto g = face_grading(mode, h, lf);
-      const tfi::Series su(nu, g[0]), sv(nv, g[1]);
-      for (Id u = 1; u < nu; ++u) s.s[u] = su.at(u);
-      for (Id v = 1; v < nv; ++v) s.t[v] = sv.at(v);
+      series_values(nu, g[0], 1, nu, s.s.data());
+      series_values(nv, g[1], 1, nv, s.t.data());
       thread_local PatchGrid grid;
       if (straight) prepare_patch_grid(s.s.data(), s.t.data(), nu, nv, grid);
       const bool placed = to && to->face[lf][0];

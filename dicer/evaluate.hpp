@@ -181,6 +181,12 @@ struct PatchGrid {
 void prepare_patch_grid(const double* s, const double* t, Id nu, Id nv, PatchGrid& g);
 void bilinear_patch(const PatchGrid& g, const double* p, double* out);
 
+// tfi::Series(n, g).at(t) for 0 <= t0 <= t < t1 <= n + 1 into out[t], the same bits,
+// from a per-thread cache of the last few series of up to 64 intervals
+// (a sweep's hexes and faces mostly share a handful; each value is a
+// division, or a log and a power, otherwise). No allocation.
+void series_values(Id n, const tfi::Grading& g, Id t0, Id t1, double* out);
+
 // Every grid point of one facet of element h: local face `slot` (volume)
 // or local edge `slot` (surface), with its node id and coordinates, each
 // computed by its owner as everywhere else. O(facet points); uses `s`.

@@ -297,10 +297,9 @@ void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool c
     std::fill(s.u.begin() + n[0], s.u.end(), 0.0);
     s.P.resize(static_cast<size_t>(n[0])), s.G.resize(static_cast<size_t>(n[0]));
     s.v.resize(static_cast<size_t>(n[1])), s.w.resize(static_cast<size_t>(n[2]));
-    const tfi::Series su(n[0], h.grading[0]), sv(n[1], h.grading[1]), sw(n[2], h.grading[2]);
-    for (Id i = 1; i < n[0]; ++i) s.u[i] = su.at(i);
-    for (Id j = 1; j < n[1]; ++j) s.v[j] = sv.at(j);
-    for (Id k = std::max<Id>(k0, 1); k < std::min(k1 + 1, n[2]); ++k) s.w[k] = sw.at(k);
+    detail::series_values(n[0], h.grading[0], 1, n[0], s.u.data());
+    detail::series_values(n[1], h.grading[1], 1, n[1], s.v.data());
+    detail::series_values(n[2], h.grading[2], std::max<Id>(k0, 1), std::min(k1 + 1, n[2]), s.w.data());
   }
   // A straight hex's planes: one patch grid for all of them (evaluate.hpp).
   thread_local detail::PatchGrid patch_grid;

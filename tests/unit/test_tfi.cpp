@@ -216,5 +216,35 @@ TEST(Patches, EveryKernelGivesEachPointsBits) {
 #endif
 }
 
+// series_values (evaluate.hpp's cache) gives Series::at's bits for every
+// t asked and nothing else: equal, geometric either way and dual series of
+// 1 to 80 intervals (past the cache's 64: computed directly), asked in a
+// random order so that the cache's eight slots are taken over and hit again.
+TEST(Series, CachedValuesAreEachSeriesBits) {
+  std::mt19937_64 rng(28);
+  std::vector<std::pair<Id, tfi::Grading>> series;
+  for (const Id n : {1, 2, 3, 7, 10, 20, 64, 65, 80})
+    for (int kind = 0; kind < 4; ++kind) {
+      tfi::Grading g;
+      if (kind == 1 || kind == 2) g.kind = tfi::Spacing::Geometric, g.ratio = 1.3, g.flip = kind == 2;
+      if (kind == 3) g.kind = tfi::Spacing::Dual, g.ratio = 1.7;
+      series.push_back({n, g});
+    }
+  constexpr double kSentinel = -7.0;
+  for (int trial = 0; trial < 2000; ++trial) {
+    const auto& [n, g] = series[rng() % series.size()];
+    const Id t0 = static_cast<Id>(rng() % static_cast<std::uint64_t>(n + 1));
+    const Id t1 = t0 + static_cast<Id>(rng() % static_cast<std::uint64_t>(n + 2 - t0));
+    std::vector<double> out(static_cast<size_t>(n + 2), kSentinel);
+    detail::series_values(n, g, t0, t1, out.data());
+    const tfi::Series want(n, g);
+    for (Id t = 0; t < n + 2; ++t) {
+      const double w = t >= t0 && t < t1 ? want.at(t) : kSentinel;
+      ASSERT_EQ(std::bit_cast<std::uint64_t>(out[static_cast<size_t>(t)]), std::bit_cast<std::uint64_t>(w))
+          << "trial " << trial << ": n " << n << ", t " << t << " of [" << t0 << ", " << t1 << ")";
+    }
+  }
+}
+
 }  // namespace
 }  // namespace dicer
