@@ -306,7 +306,7 @@ void FineMesh::fill_slab(Id hid, Id k0, Id k1, FineBlock& b, bool coords, bool c
   if (coords && vol && !h.curved()) detail::prepare_patch_grid(s.u.data(), s.v.data(), n[0], n[1], patch_grid);
   for (Id k = k0; k <= k1; ++k) {
     const size_t at = static_cast<size_t>((k - k0) * pp);
-    Id* ids = b.node_id.data() + at;
+    Id* ids = want_ids ? b.node_id.data() + at : nullptr;  // no grid held: never written
     double* X[3] = {nullptr, nullptr, nullptr};
     const size_t xat = interior ? 0 : at;
     if (coords) X[0] = b.x.data() + xat, X[1] = b.y.data() + xat, X[2] = b.z.data() + xat;
