@@ -384,20 +384,21 @@ void slab_lines(const FineBlock::Scratch::Boundary& B, Id cell_node, Id k0, Id k
     first[r] = q[std::min<Id>(n0, 1)];
     step[r] = n0 >= 3 ? q[2] - q[1] : 0;
   };
+  const Id* const id = B.id.data();
   for (Id k = k0; k <= k1; ++k) {
-    const Id* const plane = B.id.data() + B.index(0, 0, k);
     const Id r0 = w * (k - k0);
     if (!B.volume || k == 0 || k == n[2]) {
-      for (Id j = 0; j < w; ++j) whole(plane + j * (n0 + 1), r0 + j);
+      for (Id j = 0; j < w; ++j) whole(id + B.index(0, j, k), r0 + j);
       continue;
     }
-    // The ring (Boundary::index): rows j = 0 and n[1], then the i = 0 and
-    // i = n[0] columns; the rest of each row is the cell's own interior,
-    // consecutive ids (numbering.hpp).
-    whole(plane, r0), whole(plane + n0 + 1, r0 + w - 1);
-    const Id* const left = plane + 2 * (n0 + 1);
-    const Id* const right = left + n[1] - 1;
+    // The ring: rows j = 0 and n[1] whole, then the i = 0 and i = n[0]
+    // columns, each consecutive (Boundary::index); the rest of each row is
+    // the cell's own interior, consecutive ids (numbering.hpp).
+    whole(id + B.index(0, 0, k), r0), whole(id + B.index(0, n[1], k), r0 + w - 1);
     const Id m = n[1] - 1, r = r0 + 1;
+    if (m == 0) continue;
+    const Id* const left = id + B.index(0, 1, k);
+    const Id* const right = id + B.index(n0, 1, k);
     std::copy_n(left, m, start + r), std::copy_n(right, m, end + r);
     std::fill_n(step + r, m, n0 >= 3 ? 1 : 0);
     if (n0 < 2) {

@@ -305,9 +305,9 @@ const RowIds& row_ids(Id n0, Id n1, Id layers, size_t ep) {
 // element_lines it replaced).
 DICER_WIDE_CLONES void continue_layers(std::uint64_t* const* x, Id w, Id from, Id to, std::uint64_t* run) {
   const Id chunks = (w + kLanes - 1) / kLanes;
+  std::uint64_t* const d = run + kLanes * chunks;  // then the steps
   for (int a = 0; a < 4; ++a) {
     std::uint64_t* const v = x[a];
-    std::uint64_t* const d = run + kLanes * chunks;  // then the steps
     for (Id c = 0; c < chunks; ++c) {
       U64xLanes x0, x1;
       std::memcpy(&x0, v + w * (from - 2) + kLanes * c, sizeof x0);
