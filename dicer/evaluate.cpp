@@ -394,8 +394,11 @@ AffineIds region_ids(const ElementRow& h, const int* s) {
   } else if (inside == 2) {
     const int axis = s[0] != 2 ? 0 : s[1] != 2 ? 1 : 2;
     const int lf = 2 * axis + s[axis];
-    const auto [nu, nv] = face_intervals(h, lf, Mode::Volume);
-    const FaceMap fm = face_map(h.code(lf), nu, nv);
+    // Not a structured binding: Clang before 16 (Debian 12's 14, the fuzz
+    // build) cannot capture one in a lambda.
+    const std::array<Id, 2> nf = face_intervals(h, lf, Mode::Volume);
+    const Id nu = nf[0];
+    const FaceMap fm = face_map(h.code(lf), nu, nf[1]);
     auto id = [&](Id a, Id b) { return ids::face_node(h.face_node[lf], nu, fm.u(a, b), fm.v(a, b)); };
     A.base = id(0, 0);
     A.c[kHexFaceAxes[lf][0]] = id(1, 0) - A.base, A.c[kHexFaceAxes[lf][1]] = id(0, 1) - A.base;

@@ -223,11 +223,12 @@ double pad_of(const double* q) {
   return kLocateTolerance * ext;
 }
 
-// Without branches (& not &&): scans test many boxes in a row, and which
-// hold a random point is unpredictable.
+// Without branches (& on ints, not &&): scans test many boxes in a row,
+// and which hold a random point is unpredictable.
 bool holds(const double* q, const P3& p, double pad = 0) {
-  return (p[0] >= q[0] - pad) & (p[0] <= q[3] + pad) & (p[1] >= q[1] - pad) & (p[1] <= q[4] + pad) &
-         (p[2] >= q[2] - pad) & (p[2] <= q[5] + pad);
+  const auto i = [](bool b) { return static_cast<unsigned>(b); };
+  return i(p[0] >= q[0] - pad) & i(p[0] <= q[3] + pad) & i(p[1] >= q[1] - pad) & i(p[1] <= q[4] + pad) &
+         i(p[2] >= q[2] - pad) & i(p[2] <= q[5] + pad);
 }
 
 double dist2(const double* q, const P3& p) {

@@ -141,8 +141,9 @@ void find_coincident_nodes(const FineMesh& mesh, const std::vector<Facet>& facet
                           std::bit_cast<std::uint64_t>(q->y) == std::bit_cast<std::uint64_t>(x.y) &&
                           std::bit_cast<std::uint64_t>(q->z) == std::bit_cast<std::uint64_t>(x.z);
         if (same) {
-          const bool fresh = coincident.insert(a.id[p]).second | coincident.insert(other).second;
-          if (!fresh) continue;
+          const bool fresh_a = coincident.insert(a.id[p]).second;  // both inserted
+          const bool fresh_b = coincident.insert(other).second;
+          if (!fresh_a && !fresh_b) continue;
           const bool iface = entity_corners(mesh, a.id[p], cur) == entity_corners(mesh, other, cur);
           if (iface) interface.insert(a.id[p]), interface.insert(other);
           if (examples < 5) {

@@ -285,7 +285,7 @@ void RowReader::element_entities(Id h, ElementRow& o) const {
     return (first >= 0) & (static_cast<std::uint64_t>(first) + static_cast<std::uint64_t>(count) <= static_cast<std::uint64_t>(N));
   };
   bool ok = true;
-  for (int k = 0; k < L.c; ++k) ok &= below(o.corner[k], V) & below(o.corner_node[k], N);
+  for (int k = 0; k < L.c; ++k) ok &= below(o.corner[k], V), ok &= below(o.corner_node[k], N);
   for (int k = 0; k < L.e; ++k) ok &= below(o.edge[k], t_.edges.rows()) & run(o.edge_node[k], o.n[vol ? k / 4 : k / 2] - 1);
   for (int k = 0; k < L.f; ++k) {
     const Id a = o.n[vol ? kHexFaceAxes[k][0] : 0] - 1, b = o.n[vol ? kHexFaceAxes[k][1] : 1] - 1;

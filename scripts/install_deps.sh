@@ -7,6 +7,7 @@
 # pytest suite, the pictures (matplotlib) and the finite-element solver
 # the Poisson example and test use (DOLFINx 0.5.2 with petsc4py); scipy
 # and petsc4py also read the transfer operators (the two-grid example).
+# Arguments: more packages to install with them.
 set -euo pipefail
 pkgs=(cmake g++ make pkg-config libhdf5-dev liblz4-dev libdeflate-dev libexodusii-dev libnetcdf-dev libgmsh-dev
       libgtest-dev libbenchmark-dev nlohmann-json3-dev libcli11-dev
@@ -14,7 +15,8 @@ pkgs=(cmake g++ make pkg-config libhdf5-dev liblz4-dev libdeflate-dev libexodusi
       hdf5-tools hdf5-filter-plugin python3-h5py python3-hdf5plugin
       python3-vtk9 python3-meshio python3-netcdf4 python3-gmsh
       pybind11-dev python3-dev python3-numpy python3-pytest python3-mpi4py python3-matplotlib
-      python3-dolfinx python3-petsc4py python3-scipy)
+      python3-dolfinx python3-petsc4py python3-scipy
+      "$@")  # more on request (run_tests.sh: clang)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

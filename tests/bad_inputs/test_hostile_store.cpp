@@ -271,8 +271,9 @@ TEST(HostileStore, DatasetsStoredOutsideTheFileAreRefused) {
          H5Dclose(ds), H5Pclose(dcpl), H5Sclose(sp);
        }},
   };
-  for (const auto& [what, make] : cases) {
+  for (const auto& [what, make_case] : cases) {
     SCOPED_TRACE(what);
+    const auto& make = make_case;  // Clang before 16 cannot capture a structured binding
     const std::string p = edited(d, [&](hid_t f) {
       const hsize_t n = read_u32(f, "sheets/sheet_interval_crc").size();
       replace_dataset(f, "sheets/sheet_interval_crc", [&](hid_t file, const char* name) { make(file, name, n); });
