@@ -120,7 +120,15 @@ CoarseConformity check_coarse_conformity(const CoarseMesh& mesh, const Topology&
   const double cell = std::max(sizes[sizes.size() / 2], 1e-300);
   constexpr double kRel = 1e-6;
   constexpr long long kMaxCells = 64;
-  auto cell_of = [&](double c) { return static_cast<long long>(std::floor(c / cell)); };
+  // Clamped to +-2^60: a coordinate far beyond the cell size (a tiny median
+  // facet, a huge coordinate) is no long long (a fuzzed mesh found the
+  // overflowing cast). A clamped facet still meets the vertices near it
+  // there, which clamp the same way.
+  auto cell_of = [&](double c) {
+    constexpr double kLimit = 0x1p60;
+    const double q = std::floor(c / cell);
+    return static_cast<long long>(q > kLimit ? kLimit : q < -kLimit ? -kLimit : q == q ? q : 0.0);
+  };
   auto hash = [](long long i, long long j, long long k) {
     return static_cast<std::uint64_t>(i) * 0x9E3779B97F4A7C15ull ^ static_cast<std::uint64_t>(j) * 0xC2B2AE3D27D4EB4Full ^
            static_cast<std::uint64_t>(k) * 0x165667B19E3779F9ull;
@@ -138,8 +146,10 @@ CoarseConformity check_coarse_conformity(const CoarseMesh& mesh, const Topology&
       for (int d = 0; d < 3; ++d) lo[d] = std::min(lo[d], c[d] - kRel * f.size), hi[d] = std::max(hi[d], c[d] + kRel * f.size);
     }
     long long a[3], b[3], count = 1;
+    bool finite = true;  // an overflowing size or box: no grid cells, the huge list
+    for (int d = 0; d < 3; ++d) finite &= std::isfinite(lo[d] / cell) && std::isfinite(hi[d] / cell);
     for (int d = 0; d < 3; ++d) a[d] = cell_of(lo[d]), b[d] = cell_of(hi[d]), count *= std::min(b[d] - a[d] + 1, kMaxCells + 1);
-    if (count > kMaxCells) {
+    if (!finite || count > kMaxCells) {
       huge.push_back(i);
       continue;
     }

@@ -114,6 +114,33 @@ TEST(CoarseConformity, SurfaceHangingVertexOnABoundaryEdge) {
   EXPECT_EQ(c.coincident_pairs, 0);
 }
 
+TEST(CoarseConformity, CoordinatesFarBeyondTheFacetSizeGiveTheSameAnswer) {
+  // The 2:1 interface and a unit hex 1e300 away: the grid's cell is about
+  // a facet (1), so that hex's cells are no integer (a fuzzed mesh cast
+  // them anyway: undefined). The answer is the 2:1 interface's alone.
+  CoarseMesh m = two_to_one();
+  const Id v0 = static_cast<Id>(m.x.size());
+  for (const auto& c : {std::array<int, 3>{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}}) {
+    m.x.push_back(1e300 + c[0] * 1e284), m.y.push_back(c[1]), m.z.push_back(c[2]);
+    m.conn.push_back(static_cast<Id>(m.x.size()) - 1);
+  }
+  ASSERT_EQ(m.conn.size(), 6u * 8u);
+  ASSERT_EQ(m.conn[40], v0);
+  const CoarseConformity c = check(m);
+  EXPECT_EQ(c.hanging_vertices, 5);
+  EXPECT_EQ(c.coincident_pairs, 0);
+  // Two hexes so large that a facet's diagonal overflows (its size and
+  // tolerance are infinite): conforming, so nothing hangs.
+  const double s = 1e307;
+  const CoarseMesh big = make(Mode::Volume,
+                              {{0, 0, 0}, {s, 0, 0}, {s, s, 0}, {0, s, 0}, {0, 0, s}, {s, 0, s}, {s, s, s}, {0, s, s},
+                               {-s, 0, 0}, {-s, s, 0}, {-s, 0, s}, {-s, s, s}},
+                              {8, 0, 3, 9, 10, 4, 7, 11, 0, 1, 2, 3, 4, 5, 6, 7});
+  const CoarseConformity cb = check(big);
+  EXPECT_EQ(cb.hanging_vertices, 0);
+  EXPECT_EQ(cb.coincident_pairs, 0);
+}
+
 TEST(CoarseConformity, DiceWarnsWithFileIds) {
   // MSH 2.2 with file node ids offset by 100: the warning names those.
   const CoarseMesh m = two_to_one();
