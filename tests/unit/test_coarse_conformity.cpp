@@ -115,9 +115,10 @@ TEST(CoarseConformity, SurfaceHangingVertexOnABoundaryEdge) {
 }
 
 TEST(CoarseConformity, CoordinatesFarBeyondTheFacetSizeGiveTheSameAnswer) {
-  // The 2:1 interface and a unit hex 1e300 away: the grid's cell is about
-  // a facet (1), so that hex's cells are no integer (a fuzzed mesh cast
-  // them anyway: undefined). The answer is the 2:1 interface's alone.
+  // The 2:1 interface and a hex 1e300 away (1e284 long in x, where a unit
+  // step vanishes, 1 in y and z): the grid's cell is about a facet (1.4),
+  // so that hex's cells are no integer (a fuzzed mesh cast them anyway:
+  // undefined). The answer is the 2:1 interface's alone.
   CoarseMesh m = two_to_one();
   const Id v0 = static_cast<Id>(m.x.size());
   for (const auto& c : {std::array<int, 3>{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}}) {
