@@ -99,7 +99,7 @@ struct H5Csr {
     Hid space(H5Screate_simple(1, &dims, &maxdims), H5Sclose);
     Hid dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
     if (!space || !dcpl || H5Pset_chunk(dcpl.get(), 1, &chunk) < 0 || (shuffle && H5Pset_shuffle(dcpl.get()) < 0) ||
-        H5Pset_deflate(dcpl.get(), 1) < 0)
+        H5Pset_deflate(dcpl.get(), 1) < 0 || H5Pset_obj_track_times(dcpl.get(), false) < 0)  // untimed_file_creation
       io(std::string(c.name) + ": cannot set up the dataset");
     c.id = Hid(H5Dcreate2(file.get(), c.name, c.disk, space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT), H5Dclose);
     if (!c.id) io(std::string("cannot create dataset ") + c.name);
@@ -197,7 +197,8 @@ void write_prolongation_hdf5(const Prolongation& p, const std::string& path, con
   {
     std::lock_guard lock(hdf5_lock());
     h5::quiet();
-    w.file = Hid(h5::create_file_id(out.temp_path(), &w.write_errno), H5Fclose);
+    const Hid fcpl = h5::untimed_file_creation();
+    w.file = fcpl ? Hid(h5::create_file_id(out.temp_path(), &w.write_errno, fcpl.get()), H5Fclose) : Hid();
     if (!w.file) w.io("cannot create " + out.temp_path());
     w.create(w.indptr, static_cast<hsize_t>(p.rows()) + 1, true);
     w.create(w.indices, static_cast<hsize_t>(p.nonzeros()), true);

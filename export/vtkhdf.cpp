@@ -99,8 +99,11 @@ struct VtkHdfWriter::Impl {
     throw Error(ErrorKind::Io, path + ": " + what + (reason.empty() ? "" : ": " + reason));
   }
 
+  // No object times (h5::untimed_file_creation).
   Hid group(hid_t parent, const char* name) {
-    Hid g(H5Gcreate2(parent, name, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
+    Hid gcpl(H5Pcreate(H5P_GROUP_CREATE), H5Pclose);
+    if (!gcpl || H5Pset_obj_track_times(gcpl.get(), false) < 0) io(std::string("cannot set up group ") + name);
+    Hid g(H5Gcreate2(parent, name, H5P_DEFAULT, gcpl.get(), H5P_DEFAULT), H5Gclose);
     if (!g) io(std::string("cannot create group ") + name);
     return g;
   }
@@ -118,7 +121,7 @@ struct VtkHdfWriter::Impl {
     Hid dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
     // Every row is written, so HDF5 need not fill new chunks first.
     if (!space || !dcpl || H5Pset_chunk(dcpl.get(), rank, chunk) < 0 ||
-        H5Pset_fill_time(dcpl.get(), H5D_FILL_TIME_NEVER) < 0)
+        H5Pset_fill_time(dcpl.get(), H5D_FILL_TIME_NEVER) < 0 || H5Pset_obj_track_times(dcpl.get(), false) < 0)
       io(d.name + ": cannot set up dataset");
     if (deflate > 0 && (H5Zfilter_avail(H5Z_FILTER_DEFLATE) <= 0 || H5Pset_shuffle(dcpl.get()) < 0 ||
                         H5Pset_deflate(dcpl.get(), static_cast<unsigned>(deflate)) < 0))
@@ -236,8 +239,10 @@ struct VtkHdfWriter::Impl {
     h5::quiet();  // this thread's switch (hdf5_file.hpp)
     // One process: dicer's driver (a full disk fails the write, yet the
     // file still closes). Several ranks write one file through MPI-IO.
-    file = par ? Hid(H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, static_cast<hid_t>(par->file_access)), H5Fclose)
-               : Hid(h5::create_file_id(tmp, &write_errno), H5Fclose);
+    const Hid fcpl = h5::untimed_file_creation();  // group()
+    if (!fcpl) io("cannot set up " + tmp);
+    file = par ? Hid(H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, fcpl.get(), static_cast<hid_t>(par->file_access)), H5Fclose)
+               : Hid(h5::create_file_id(tmp, &write_errno, fcpl.get()), H5Fclose);
     if (!file) io("cannot create " + tmp);
     root = group(file.get(), "VTKHDF");
     {  // Version = [1, 0]

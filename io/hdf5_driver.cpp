@@ -238,7 +238,13 @@ H5FD_class_t make_class() {
 
 }  // namespace
 
-hid_t create_file_id(const std::string& path, int* first_errno) {
+Handle untimed_file_creation() {
+  Handle fcpl(H5Pcreate(H5P_FILE_CREATE), H5Pclose);
+  if (fcpl && H5Pset_obj_track_times(fcpl.get(), false) < 0) fcpl.reset();
+  return fcpl;
+}
+
+hid_t create_file_id(const std::string& path, int* first_errno, hid_t fcpl) {
   quiet();
   static const H5FD_class_t cls = make_class();
   static std::mutex mu;
@@ -254,7 +260,7 @@ hid_t create_file_id(const std::string& path, int* first_errno) {
   if (!fapl || H5Pset_driver(fapl.get(), driver, &info) < 0 ||
       H5Pset_libver_bounds(fapl.get(), H5F_LIBVER_V110, H5F_LIBVER_V110) < 0)
     return -1;
-  const hid_t id = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get());
+  const hid_t id = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, fcpl, fapl.get());
   if (id >= 0) return id;
   // Closing the property list would clear the error stack the caller reads.
   const hid_t stack = H5Eget_current_stack();

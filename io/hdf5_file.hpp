@@ -62,7 +62,17 @@ bool error_stack_has(hid_t minor);
 // frees a file whose close fails yet keeps its id, and crashes at exit
 // (CVE-2020-10812). *first_errno (optional; must outlive the file) gets
 // the errno of the first failed write, also of one during the close.
-hid_t create_file_id(const std::string& path, int* first_errno = nullptr);
+// fcpl: the file creation property list (untimed_file_creation for an
+// export).
+hid_t create_file_id(const std::string& path, int* first_errno = nullptr, hid_t fcpl = H5P_DEFAULT);
+
+// A file creation property list whose root group records no object times
+// (HDF5 stores creation and modification times by default, so the same
+// data written a second later would differ in those bytes). Exports use it
+// and create their groups and datasets with H5Pset_obj_track_times off:
+// the same chunk exported twice is the same file, as an MSH or Exodus
+// export is. Invalid (closes nothing) when HDF5 cannot make one.
+Handle untimed_file_creation();
 
 class File {
  public:

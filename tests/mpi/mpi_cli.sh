@@ -57,6 +57,9 @@ PY
 run export prism.dice.h5 --format vtkhdf -o mpi.vtkhdf --quiet
 "$dicer" export prism.dice.h5 --format vtkhdf --chunks "$P" -o one.vtkhdf --quiet
 h5diff mpi.vtkhdf one.vtkhdf || fail "VTKHDF files differ"
+sleep 1.1  # HDF5 object times are in whole seconds; the writer records none
+run export prism.dice.h5 --format vtkhdf -o mpi2.vtkhdf --quiet
+cmp mpi.vtkhdf mpi2.vtkhdf || fail "two VTKHDF exports on $P ranks differ"
 ls | grep -q '\.tmp-' && fail "temporaries left behind: $(ls)"
 
 # dice --geometry: every rank dices the coarse mesh, places every P-th

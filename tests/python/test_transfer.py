@@ -74,6 +74,15 @@ def test_hdf5_csr_is_read_by_scipy_and_interpolates(levels, cli, tmp_path):
     assert doc["nested"] and doc["nonzeros"] == P.nnz and doc["bytes"] == os.path.getsize(out)
 
 
+def test_hdf5_file_is_the_same_bytes_a_second_later(levels, cli, tmp_path):
+    """Reproducible output: HDF5's object times (whole seconds) are off."""
+    import time
+    cli.run("transfer", levels[2], levels[4], "-o", tmp_path / "a.h5", "--quiet")
+    time.sleep(1.1)
+    cli.run("transfer", levels[2], levels[4], "-o", tmp_path / "b.h5", "--quiet")
+    assert (tmp_path / "a.h5").read_bytes() == (tmp_path / "b.h5").read_bytes()
+
+
 def test_petsc_file_is_read_by_matload_and_multiplies_like_scipy(levels, cli, tmp_path):
     PETSc = pytest.importorskip("petsc4py.PETSc")
     cli.run("transfer", levels[2], levels[4], "-o", tmp_path / "P.h5", "--quiet")
