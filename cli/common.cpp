@@ -99,6 +99,10 @@ void check_input_file(const std::string& path, const std::string& role) {
 
 void check_output_file(const std::string& path, const std::string& role,
                        const std::vector<std::pair<std::string, std::string>>& inputs) {
+  // Not standard output: an HDF5 or netCDF file needs seeking, and every
+  // output appears whole under its name (written to a temporary, renamed).
+  if (path == "-")
+    throw Error(ErrorKind::Usage, role + " -: dicer does not write to standard output; give a file name (./- for a file named \"-\")");
   struct stat out {};
   if (::stat(path.c_str(), &out) != 0) return;  // a new file (or a dangling link): nothing to protect
   if (S_ISDIR(out.st_mode))

@@ -44,7 +44,8 @@ std::pair<std::int64_t, std::int64_t> parse_range(const std::string& what, const
 // "--intervals-file").
 void check_input_file(const std::string& path, const std::string& role);
 // The file the command writes (`role`: "-o"): refused (Error{Usage}) when it
-// exists and is a directory or not a regular file, or is the same file
+// is "-" (no standard output), exists and is a directory or not a regular
+// file, or is the same file
 // (device and inode, so links and "./" spellings count) as one of `inputs`.
 void check_output_file(const std::string& path, const std::string& role,
                        const std::vector<std::pair<std::string, std::string>>& inputs);

@@ -68,7 +68,9 @@ MESH is an Exodus II file (.e .exo .ex2 .g) or a Gmsh MSH 2.2/4.1 file
 (ASCII or binary) holding hexahedra (volume dicing) or quadrilaterals
 (surface dicing). STORE is the HDF5 file `dice` writes (.dice.h5). Every
 file argument must be a regular file (not a directory or a FIFO), and an
-output may not be the same file as an input.
+output may not be the same file as an input; outputs appear whole under
+their name (written to a temporary file, then renamed), so -o - is refused
+rather than taken as standard output (./- names a file called -).
 
 Options are written --name VALUE or --name=VALUE; when an option that
 takes one value is given twice, the last one counts. Options marked

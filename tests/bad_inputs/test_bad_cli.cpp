@@ -167,6 +167,26 @@ TEST(BadCli, OutputThatIsADirectoryIsAUsageErrorNamingIt) {
   EXPECT_EQ(std::distance(fs::directory_iterator(tmp.dir()), fs::directory_iterator()), 1);
 }
 
+// "-o -" is not standard output (HDF5 and netCDF files need seeking, and an
+// output appears whole under its name): refused, and no file named "-" made.
+TEST(BadCli, OutputDashIsRefusedNotWrittenAsAFileNamedDash) {
+  ASSERT_FALSE(fs::exists("-")) << "a file named - in " << fs::current_path();
+  const std::string sphere = test::data_path("cardinal_sphere.e");
+  const std::vector<std::vector<std::string>> cases = {
+      {"dice", sphere, "--interval", "2", "-o", "-"},
+      {"export", sphere_store(), "--format", "msh", "-o", "-"},
+      {"export", sphere_store(), "--format", "vtkhdf", "--output=-"},
+      {"transfer", sphere, sphere_store(), "-o", "-"},
+      {"mesh-coarse", std::string(DICER_SOURCE_DIR) + "/examples/cylinder.brep", "--size", "1", "-o", "-"}};
+  for (const auto& args : cases) {
+    const auto r = run_cli(args);
+    EXPECT_EQ(r.exit_code, 2) << args[0] << ": " << r.err;
+    EXPECT_NE(r.err.find("standard output"), std::string::npos) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_FALSE(fs::exists("-")) << args[0];
+  }
+}
+
 TEST(BadCli, InputThatIsADirectoryOrAFifoIsRefusedBeforeAnyLibraryOpensIt) {
   test::TempDir tmp;
   const std::string dir = tmp.path("folder.dice.h5"), fifo = tmp.path("pipe.dice.h5");
