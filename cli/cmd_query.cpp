@@ -6,6 +6,8 @@
 #include <cstdlib>
 #include <cstring>
 
+#include <sys/stat.h>
+
 #include "command.hpp"
 #include "common.hpp"
 #include "dicer/error.hpp"
@@ -57,7 +59,20 @@ class PointReader {
     if (file_.empty()) return;
     f_ = file_ == "-" ? stdin : std::fopen(file_.c_str(), "rb");
     if (!f_) throw Error(ErrorKind::Io, file_ + ": cannot open: " + std::strerror(errno));
-    if (file_.size() > 4 && file_.compare(file_.size() - 4, 4, ".npy") == 0) open_npy();
+    // A FIFO streams points and is welcome; a directory opens but reads as an error.
+    struct stat st {};
+    if (::fstat(::fileno(f_), &st) == 0 && S_ISDIR(st.st_mode)) {
+      std::fclose(f_);  // no destructor after a constructor throws
+      throw Error(ErrorKind::Usage, file_ + ": --points is a directory, not a file of points");
+    }
+    if (file_.size() > 4 && file_.compare(file_.size() - 4, 4, ".npy") == 0) {
+      try {
+        open_npy();
+      } catch (...) {
+        if (f_ != stdin) std::fclose(f_);
+        throw;
+      }
+    }
   }
   ~PointReader() {
     if (f_ && f_ != stdin) std::fclose(f_);
@@ -263,6 +278,8 @@ int query(const std::vector<std::string>& argv, long long* chunk_count = nullptr
     return of_node ? print_list("node", "node", a, "elements", node_elements(m, a))
                    : print_list("element", "id", a, "neighbors", element_neighbors(m, a));
   }
+  if (cmd.given(o_points) && points_file.empty())
+    throw Error(ErrorKind::Usage, "--points: the file name is empty (- reads standard input)");
   if (cmd.given(o_point) || cmd.given(o_points)) {
     // Batches of 65536 points bound the memory of a long stream; answers
     // come in input order.

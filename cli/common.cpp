@@ -87,6 +87,7 @@ const char* file_kind(mode_t m) {
 }  // namespace
 
 void check_input_file(const std::string& path, const std::string& role) {
+  if (path.empty()) throw Error(ErrorKind::Usage, role + ": the file name is empty");
   // stat, never open: opening a FIFO without a writer blocks for ever.
   struct stat st {};
   if (::stat(path.c_str(), &st) != 0) {
@@ -103,6 +104,7 @@ void check_output_file(const std::string& path, const std::string& role,
   // output appears whole under its name (written to a temporary, renamed).
   if (path == "-")
     throw Error(ErrorKind::Usage, role + " -: dicer does not write to standard output; give a file name (./- for a file named \"-\")");
+  if (path.empty()) throw Error(ErrorKind::Usage, role + ": the file name is empty");
   struct stat out {};
   if (::stat(path.c_str(), &out) != 0) return;  // a new file (or a dangling link): nothing to protect
   if (S_ISDIR(out.st_mode))

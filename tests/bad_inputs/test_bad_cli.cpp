@@ -187,6 +187,31 @@ TEST(BadCli, OutputDashIsRefusedNotWrittenAsAFileNamedDash) {
   }
 }
 
+// An empty file name is a usage error naming the option, not "cannot open"
+// (exit 5) or another option's complaint (--points "" once read as --point).
+TEST(BadCli, EmptyFileNamesAndADirectoryOfPointsAreUsageErrors) {
+  test::TempDir tmp;
+  const std::string sphere = test::data_path("cardinal_sphere.e"), store = sphere_store();
+  struct Case {
+    std::vector<std::string> args;
+    std::string says;
+  };
+  const std::vector<Case> cases = {
+      {{"info", ""}, "STORE: the file name is empty"},
+      {{"dice", "", "--interval", "2", "-o", tmp.path("x.dice.h5")}, "MESH: the file name is empty"},
+      {{"dice", sphere, "--interval", "2", "-o", ""}, "-o: the file name is empty"},
+      {{"export", store, "--format", "msh", "-o", ""}, "-o: the file name is empty"},
+      {{"query", store, "--points", ""}, "--points: the file name is empty"},
+      {{"query", store, "--points", tmp.dir()}, "--points is a directory"}};
+  for (const auto& c : cases) {
+    const auto r = run_cli(c.args);
+    EXPECT_EQ(r.exit_code, 2) << c.args[0] << ": " << r.err;
+    EXPECT_NE(r.err.find(c.says), std::string::npos) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  }
+  EXPECT_TRUE(fs::is_empty(tmp.dir()));
+}
+
 TEST(BadCli, InputThatIsADirectoryOrAFifoIsRefusedBeforeAnyLibraryOpensIt) {
   test::TempDir tmp;
   const std::string dir = tmp.path("folder.dice.h5"), fifo = tmp.path("pipe.dice.h5");
