@@ -1,6 +1,7 @@
 // dicer export: a chunk, a box or the whole mesh to VTKHDF, MSH 4.1 or Exodus II.
 #include <algorithm>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <optional>
 
@@ -17,7 +18,7 @@ namespace dicer::cli {
 
 static const CommandDoc kDoc = {
     "export",
-    R"(export STORE --format FMT -o OUT [--chunk K/N | --chunks N [--nemesis]]
+    R"(export STORE [--format FMT] -o OUT [--chunk K/N | --chunks N [--nemesis]]
                     [--box x0,y0,z0,x1,y1,z1] [--deflate LEVEL] [--quiet] [store options])",
     R"(Writes fine elements for a solver or viewer, generated on the fly from the
 store and written as they are generated: memory is the store's cache budget
@@ -36,13 +37,16 @@ Formats:
               way for a parallel solver (global parameters, load balance,
               node communication maps), as N MPI ranks of dicer export write
 
+Without --format, OUT's extension says which: .vtkhdf or .hdf, .msh (binary),
+.e, .exo, .ex2 or .g (Exodus); any other needs --format.
+
 A chunk K of N is a contiguous range of coarse elements (in the store's
 order) holding ~1/N of the fine elements; nodes shared with other chunks
 keep their global ids and identical coordinates. OUT is written under a
 temporary name in its folder and renamed when complete: Ctrl-C, SIGTERM
 and SIGHUP (exit 130, 143, 129) leave nothing behind.
 )",
-    R"(dicer export fine.dice.h5 --format vtkhdf -o fine.vtkhdf
+    R"(dicer export fine.dice.h5 -o fine.vtkhdf                  # the format from the extension
 dicer export fine.dice.h5 --format exodus --chunk 3/16 -o part3.exo
 dicer export fine.dice.h5 --format exodus --chunks 8 --nemesis -o fine.e   # fine.e.8.0 .. fine.e.8.7
 dicer export fine.dice.h5 --format msh --box 0,0,0,1,1,0.5 -o cut.msh --stats
@@ -50,6 +54,23 @@ dicer export fine.dice.h5 --format vtkhdf --deflate 1 -o small.vtkhdf   # ~2x sm
 )"};
 
 namespace {
+
+constexpr const char* kFormats = "vtkhdf, msh, msh-ascii or exodus";
+
+// --format, or else the one OUT's extension names (kDoc).
+std::string format_of(const std::string& format, bool given, const std::string& out) {
+  if (!given) {
+    const std::string ext = std::filesystem::path(out).extension().string();
+    if (ext == ".vtkhdf" || ext == ".hdf") return "vtkhdf";
+    if (ext == ".msh") return "msh";
+    if (ext == ".e" || ext == ".exo" || ext == ".ex2" || ext == ".g") return "exodus";
+    throw Error(ErrorKind::Usage, std::string("missing --format FMT (") + kFormats + "): " +
+                                      (ext.empty() ? "OUT has no extension" : "OUT's extension " + ext + " names none"));
+  }
+  if (format != "vtkhdf" && format != "msh" && format != "msh-ascii" && format != "exodus")
+    throw Error(ErrorKind::Usage, "--format: \"" + format + "\" is not one of vtkhdf, msh, msh-ascii, exodus");
+  return format;
+}
 
 // The sets of the store `m` was read from: read_store_sets checks its uuid,
 // so a store replaced at `path` since (a re-dice) is Error{Io}, not mixed in.
@@ -114,8 +135,8 @@ int cmd_export(const std::vector<std::string>& argv) {
   bool quiet = false;
   cmd.input("STORE", path, "the store to export");
   cmd.output(out, "OUT", "the file to write");
-  auto* o_format = cmd.value("--format", format, "FMT", "vtkhdf, msh, msh-ascii or exodus (see Formats above)");
-  cmd.require(o_format, "vtkhdf, msh, msh-ascii or exodus");
+  auto* o_format = cmd.value("--format", format, "FMT", "vtkhdf, msh, msh-ascii or exodus (see Formats above)",
+                             "Options", "from OUT's extension");
   auto* o_chunk = cmd.value("--chunk", chunk, "K/N", "chunk K (0-based) of N", "Options", "the whole mesh");
   auto* o_chunks = cmd.value("--chunks", chunks, "N",
                              "vtkhdf: the whole mesh as N partitions of one file; exodus with --nemesis: N files",
@@ -143,8 +164,7 @@ int cmd_export(const std::vector<std::string>& argv) {
     agree([&] {
       run = cmd.parse(argv);
       if (!run) return;
-      if (format != "vtkhdf" && format != "msh" && format != "msh-ascii" && format != "exodus")
-        throw Error(ErrorKind::Usage, "--format: \"" + format + "\" is not one of vtkhdf, msh, msh-ascii, exodus");
+      format = format_of(format, cmd.given(o_format), out);
       parse_deflate();
       if (cmd.given(o_chunk) || cmd.given(o_chunks) || cmd.given(o_box))
         throw Error(ErrorKind::Usage, "under mpirun every rank exports its chunk of the whole mesh: no --chunk, "
@@ -153,8 +173,7 @@ int cmd_export(const std::vector<std::string>& argv) {
     return run ? export_ranks(path, out, format, deflate, quiet, store) : 0;
   }
   if (!cmd.parse(argv)) return 0;
-  if (format != "vtkhdf" && format != "msh" && format != "msh-ascii" && format != "exodus")
-    throw Error(ErrorKind::Usage, "--format: \"" + format + "\" is not one of vtkhdf, msh, msh-ascii, exodus");
+  format = format_of(format, cmd.given(o_format), out);
   parse_deflate();
   std::optional<Box> box;
   if (cmd.given(o_box)) box = parse_box(box_text);

@@ -460,9 +460,16 @@ TEST(BadCli, OptionSpellingsRepeatsAndHelp) {
   r = run_cli({"query", sphere_store(), "--node", "9223372036854775807"});
   EXPECT_EQ(r.exit_code, 2) << r.err;
   EXPECT_NE(r.err.find("--node"), std::string::npos) << r.err;
-  r = run_cli({"export", sphere_store(), "-o", tmp.path("y.msh")});
+  // No --format and an extension that names none (.msh, .vtkhdf, .exo ...
+  // would: test_export_cli.cpp).
+  r = run_cli({"export", sphere_store(), "-o", tmp.path("y.txt")});
   EXPECT_EQ(r.exit_code, 2);
-  EXPECT_NE(r.err.find("missing --format"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("missing --format FMT (vtkhdf, msh, msh-ascii or exodus): OUT's extension .txt names none"),
+            std::string::npos) << r.err;
+  r = run_cli({"export", sphere_store(), "-o", tmp.path("y")});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("OUT has no extension"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(tmp.path("y.txt")) || fs::exists(tmp.path("y")));
 }
 
 // What `dicer COMMAND --help` lists is what the parser accepts, both ways:

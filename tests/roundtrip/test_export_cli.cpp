@@ -47,6 +47,33 @@ TEST(ExportCli, EveryFormatChunkAndBoxFromTheCommandLine) {
   EXPECT_NE(r.out.find("--deflate LEVEL"), std::string::npos) << r.out;
 }
 
+// Without --format the extension of OUT names it: the same file, byte for
+// byte (exports are reproducible), as with the format given; the format
+// given wins over the extension.
+TEST(ExportCli, FormatFromTheOutputsExtension) {
+  test::TempDir tmp;
+  const std::string store = tmp.path("m.dice.h5");
+  ASSERT_EQ(test::run_cli({"dice", test::data_path("cardinal_sphere.e"), "--interval", "2", "-o", store}).exit_code, 0);
+  auto exported = [&](const std::string& file, const std::vector<std::string>& more) {
+    std::vector<std::string> args{"export", store, "-o", tmp.path(file), "--quiet"};
+    args.insert(args.end(), more.begin(), more.end());
+    const auto r = test::run_cli(args);
+    EXPECT_EQ(r.exit_code, 0) << file << ": " << r.err;
+    return test::read_file(tmp.path(file));
+  };
+  for (const auto& [ext, fmt] : std::vector<std::pair<std::string, std::string>>{
+           {".vtkhdf", "vtkhdf"}, {".hdf", "vtkhdf"}, {".msh", "msh"}, {".e", "exodus"}, {".exo", "exodus"},
+           {".ex2", "exodus"}, {".g", "exodus"}}) {
+    SCOPED_TRACE(ext);
+    const std::string inferred = exported("inferred" + ext, {});
+    EXPECT_FALSE(inferred.empty());
+    EXPECT_EQ(inferred, exported("given" + ext, {"--format", fmt}));
+  }
+  // --format wins: ASCII MSH into a .vtkhdf name is ASCII MSH.
+  EXPECT_EQ(exported("ascii.vtkhdf", {"--format", "msh-ascii"}).rfind("$MeshFormat\n4.1 0 8", 0), 0u);
+  EXPECT_EQ(exported("binary.msh", {}).rfind("$MeshFormat\n4.1 1 8", 0), 0u);
+}
+
 // Ctrl-C, SIGTERM (a scheduler's stop) and SIGHUP (a closed terminal) stop
 // the export cleanly with 128 + the signal, leaving nothing behind.
 struct SignalCase {
