@@ -14,12 +14,12 @@
 namespace dicer {
 
 Id checked_interval(const std::string& what, long double n) {
+  // As given ("0", "2.5", "1099511627777"), not std::to_string's "0.000000".
+  char given[48];
+  std::snprintf(given, sizeof given, "%.15Lg", n);
   if (!(n >= 1) || n != std::floor(n))
-    throw Error(ErrorKind::Usage, what + ": interval must be a whole number >= 1 (got " +
-                                      std::to_string(static_cast<double>(n)) + ")");
-  if (n > kMaxInterval)
-    throw Error(ErrorKind::Overflow, what + ": interval " + std::to_string(static_cast<double>(n)) +
-                                         " is too large (limit 2^40)");
+    throw Error(ErrorKind::Usage, what + ": interval must be a whole number >= 1 (got " + given + ")");
+  if (n > kMaxInterval) throw Error(ErrorKind::Overflow, what + ": interval " + given + " is too large (limit 2^40)");
   return static_cast<Id>(n);
 }
 

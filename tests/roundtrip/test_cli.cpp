@@ -222,8 +222,8 @@ TEST(Cli, RefusalsHaveDocumentedExitCodesAndLeaveNoOutput) {
   };
   const std::vector<Case> cases = {
       {{"dice", mesh, "--bogus", "-o", out}, 2, "unknown option --bogus"},
-      {{"dice", mesh, "--interval", "0", "-o", out}, 2, "interval must be a whole number >= 1"},
-      {{"dice", mesh, "--interval", "-4", "-o", out}, 2, "interval must be a whole number >= 1"},
+      {{"dice", mesh, "--interval", "0", "-o", out}, 2, "interval must be a whole number >= 1 (got 0)"},
+      {{"dice", mesh, "--interval", "-4", "-o", out}, 2, "interval must be a whole number >= 1 (got -4)"},
       {{"dice", mesh, "--interval", "abc", "-o", out}, 2, "not a whole number"},
       {{"dice", mesh, "--interval", "99999999999999999999", "-o", out}, 6, "does not fit in 64 bits"},
       {{"dice", mesh, "--interval", "1000000000", "-o", out}, 6, "more than 2^40 grid points"},
