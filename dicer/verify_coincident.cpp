@@ -9,6 +9,7 @@
 #include <array>
 #include <bit>
 #include <cmath>
+#include <cstdio>
 #include <list>
 #include <unordered_map>
 #include <unordered_set>
@@ -148,8 +149,11 @@ void find_coincident_nodes(const FineMesh& mesh, const std::vector<Facet>& facet
           if (iface) interface.insert(a.id[p]), interface.insert(other);
           if (examples < 5) {
             ++examples;
-            note("fine nodes " + std::to_string(a.id[p]) + " and " + std::to_string(other) + " coincide at (" +
-                 std::to_string(x.x) + ", " + std::to_string(x.y) + ", " + std::to_string(x.z) + ")" +
+            // %.17g, as coarse_conformity: to_string's six decimals print a
+            // millimetre part in metres as (0.000000, ...).
+            char at[96];
+            std::snprintf(at, sizeof at, "(%.17g, %.17g, %.17g)", x.x, x.y, x.z);
+            note("fine nodes " + std::to_string(a.id[p]) + " and " + std::to_string(other) + " coincide at " + at +
                  (iface ? ": on coincident coarse entities (an interface)" : ": the coarse mesh does not conform there"));
           }
         } else {

@@ -8,6 +8,8 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <map>
 #include <numeric>
 #include <random>
@@ -415,6 +417,28 @@ TEST(RandomMeshes, VerifyCountsCoincidentNodesExactlyAndTellsInterfacesFromNonCo
     EXPECT_EQ(near, 0);
     EXPECT_TRUE(r.ok()) << (r.problems.empty() ? "" : r.problems[0]);
     EXPECT_FALSE(r.warnings.empty());
+  }
+  {  // The notes name the place exactly: coordinates that read back to the
+     // node's bits (thirds, so six decimals would not).
+    CoarseMesh m = two_hexes_with_a_crack(0);
+    for (auto* c : {&m.x, &m.y, &m.z})
+      for (double& v : *c) v /= 3;
+    const FineMesh f = FineMesh::dice(m, req);
+    const VerifyReport r = verify(f);
+    int checked = 0;
+    for (const std::string& w : r.warnings) {
+      long long a = -1, b = -1;
+      char xyz[3][64];
+      if (std::sscanf(w.c_str(), "fine nodes %lld and %lld coincide at (%63[^,], %63[^,], %63[^)])", &a, &b, xyz[0], xyz[1],
+                      xyz[2]) != 5)
+        continue;
+      const Vec3 p = f.node(a);
+      const double want[3] = {p.x, p.y, p.z};
+      for (int d = 0; d < 3; ++d)
+        EXPECT_EQ(std::bit_cast<std::uint64_t>(std::strtod(xyz[d], nullptr)), std::bit_cast<std::uint64_t>(want[d])) << w;
+      ++checked;
+    }
+    EXPECT_GT(checked, 0) << (r.warnings.empty() ? "no warning" : r.warnings[0]);
   }
   {  // The same, apart by 1e-11: nothing identical, every node near.
     const FineMesh f = FineMesh::dice(two_hexes_with_a_crack(1e-11), req);
