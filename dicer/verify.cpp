@@ -4,6 +4,7 @@
 #include <array>
 #include <bit>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <unordered_map>
 
@@ -142,8 +143,9 @@ VerifyPart verify_part(const FineMesh& mesh, Id first, Id end, const std::functi
       r.min_scaled_jacobian = std::min(r.min_scaled_jacobian, sj);
       if (sj <= 0) {
         ++r.inverted;
-        note(r, "fine element " + std::to_string(b.first_element + e) + " is inverted (scaled Jacobian " +
-                    std::to_string(sj) + ")");
+        char sjt[32];  // %g: a sliver's -1e-09 is not to_string's "-0.000000"
+        std::snprintf(sjt, sizeof sjt, "%.6g", sj);
+        note(r, "fine element " + std::to_string(b.first_element + e) + " is inverted (scaled Jacobian " + sjt + ")");
       }
     }
     std::sort(faces.begin(), faces.end());
