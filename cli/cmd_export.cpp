@@ -68,7 +68,7 @@ std::string format_of(const std::string& format, bool given, const std::string& 
                                       (ext.empty() ? "OUT has no extension" : "OUT's extension " + ext + " names none"));
   }
   if (format != "vtkhdf" && format != "msh" && format != "msh-ascii" && format != "exodus")
-    throw Error(ErrorKind::Usage, "--format: \"" + format + "\" is not one of vtkhdf, msh, msh-ascii, exodus");
+    throw Error(ErrorKind::Usage, "--format: \"" + format + "\" is not one of " + kFormats);
   return format;
 }
 

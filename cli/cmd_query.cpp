@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <memory>
 
 #include <sys/stat.h>
 
@@ -57,25 +58,14 @@ class PointReader {
  public:
   PointReader(const std::string& file, const std::string& one) : file_(file), one_(one) {
     if (file_.empty()) return;
-    f_ = file_ == "-" ? stdin : std::fopen(file_.c_str(), "rb");
+    file_handle_.reset(file_ == "-" ? stdin : std::fopen(file_.c_str(), "rb"));
+    f_ = file_handle_.get();
     if (!f_) throw Error(ErrorKind::Io, file_ + ": cannot open: " + std::strerror(errno));
     // A FIFO streams points and is welcome; a directory opens but reads as an error.
     struct stat st {};
-    if (::fstat(::fileno(f_), &st) == 0 && S_ISDIR(st.st_mode)) {
-      std::fclose(f_);  // no destructor after a constructor throws
+    if (::fstat(::fileno(f_), &st) == 0 && S_ISDIR(st.st_mode))
       throw Error(ErrorKind::Usage, file_ + ": --points is a directory, not a file of points");
-    }
-    if (file_.size() > 4 && file_.compare(file_.size() - 4, 4, ".npy") == 0) {
-      try {
-        open_npy();
-      } catch (...) {
-        if (f_ != stdin) std::fclose(f_);
-        throw;
-      }
-    }
-  }
-  ~PointReader() {
-    if (f_ && f_ != stdin) std::fclose(f_);
+    if (file_.size() > 4 && file_.compare(file_.size() - 4, 4, ".npy") == 0) open_npy();
   }
   PointReader(const PointReader&) = delete;
   PointReader& operator=(const PointReader&) = delete;
@@ -180,7 +170,14 @@ class PointReader {
   }
 
   std::string file_, one_;
-  std::FILE* f_ = nullptr;
+  // Closed however the constructor ends (a refused .npy header throws); stdin stays open.
+  struct Close {
+    void operator()(std::FILE* f) const {
+      if (f != stdin) std::fclose(f);
+    }
+  };
+  std::unique_ptr<std::FILE, Close> file_handle_;
+  std::FILE* f_ = nullptr;  // file_handle_.get()
   bool npy_ = false, npy_f4_ = false;
   std::uint64_t npy_left_ = 0;
   bool done_ = false;

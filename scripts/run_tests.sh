@@ -10,11 +10,9 @@
 #       breaks it (a lambda capturing a structured binding, Clang < 16)
 set -euo pipefail
 cd "$(dirname "$0")/.."
-if [ "${DICER_CXX:-}" = clang ]; then
-  bash scripts/install_deps.sh clang
-else
-  bash scripts/install_deps.sh
-fi
+extra=()
+[ "${DICER_CXX:-}" = clang ] && extra=(clang)
+bash scripts/install_deps.sh "${extra[@]}"
 if [ "${DICER_CXX:-}" = clang ]; then
   cmake -S . -B build-clang -DCMAKE_BUILD_TYPE=Release -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ \
     -DDICER_BUILD_BENCH=OFF >/dev/null
