@@ -6,7 +6,8 @@
 # Then the Python package (pybind11, for Debian's /usr/bin/python3), its
 # pytest suite, the pictures (matplotlib) and the finite-element solver
 # the Poisson example and test use (DOLFINx 0.5.2 with petsc4py); scipy
-# and petsc4py also read the transfer operators (the two-grid example).
+# and petsc4py also read the transfer operators (the two-grid example);
+# help2man writes the man pages, which man-db and bash-completion check.
 # Arguments: more packages to install with them.
 set -euo pipefail
 pkgs=(cmake g++ make pkg-config libhdf5-dev liblz4-dev libdeflate-dev libexodusii-dev libnetcdf-dev libgmsh-dev
@@ -16,6 +17,7 @@ pkgs=(cmake g++ make pkg-config libhdf5-dev liblz4-dev libdeflate-dev libexodusi
       python3-vtk9 python3-meshio python3-netcdf4 python3-gmsh
       pybind11-dev python3-dev python3-numpy python3-pytest python3-mpi4py python3-matplotlib
       python3-dolfinx python3-petsc4py python3-scipy
+      help2man man-db groff-base bash-completion
       "$@")  # more on request (run_tests.sh: clang)
 missing=()
 for p in "${pkgs[@]}"; do
