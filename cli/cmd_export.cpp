@@ -101,6 +101,8 @@ int export_ranks(const std::string& path, const std::string& out, const std::str
   const FineMesh& m = *mesh;
   const CancelOnSignals cancel_on_signals;
   long long counts[2] = {0, 0}, totals[2] = {0, 0};
+  if (format != "vtkhdf")
+    agree([&] { check_output_file(nemesis_path(out, P, r), "--output", {{path, "STORE"}}); });
   if (format == "exodus") {
     const std::vector<NodeRun> sharing = mpi::exchange_sharing(mpi.comm(), m, plan);
     agree([&] {
@@ -143,7 +145,7 @@ int cmd_export(const std::vector<std::string>& argv) {
                              "Options", "about 4M fine elements per partition");
   bool nemesis = false;
   cmd.flag("--nemesis", nemesis, "exodus with --chunks N: one Nemesis file per chunk, OUT.N.r");
-  auto* o_box = cmd.value("--box", box_text, "x0,y0,z0,x1,y1,z1", "only the elements whose centroid is in the box");
+  auto* o_box = cmd.value("--box", box_text, "x0,y0,z0,x1,y1,z1", "only the elements whose centroid is in the box (vtkhdf with --chunks N: N partitions, the box's part of each chunk)");
   std::string deflate_text;
   auto* o_deflate = cmd.value("--deflate", deflate_text, "LEVEL",
                               "vtkhdf: byte shuffle + deflate at LEVEL (1 fastest .. 9 smallest) on every dataset",
@@ -196,12 +198,19 @@ int cmd_export(const std::vector<std::string>& argv) {
       throw Error(ErrorKind::Usage, "--chunk " + chunk + ": the mesh has only " + std::to_string(m.num_coarse_elements()) +
                                         " coarse elements, so at most that many chunks");
     ranges.push_back(plan_chunks(m, n)[static_cast<size_t>(k)]);
-  } else if ((format == "vtkhdf" && !box) || nemesis) {
+  } else if ((format == "vtkhdf" && (!box || cmd.given(o_chunks))) || nemesis) {
     Id n = cmd.given(o_chunks) ? parse_int("--chunks", chunks)
                                : std::max<Id>(1, (m.num_elements() + (Id{1} << 22) - 1) >> 22);
     if (n < 1) throw Error(ErrorKind::Usage, "--chunks must be at least 1");
+    if (cmd.given(o_chunks) && n > std::max<Id>(1, m.num_coarse_elements()))
+      throw Error(ErrorKind::Usage, "--chunks " + chunks + ": the mesh has only " +
+                                        std::to_string(m.num_coarse_elements()) +
+                                        " coarse elements, so at most that many chunks");
     n = std::min(n, std::max<Id>(1, m.num_coarse_elements()));
     ranges = plan_chunks(m, n);
+    // The files written are OUT.N.r, not OUT: each must not be an input.
+    if (nemesis)
+      for (Id r = 0; r < n; ++r) check_output_file(nemesis_path(out, n, r), "--output", {{path, "STORE"}});
   } else {
     ranges.push_back(ChunkRange{0, 1, 0, m.num_coarse_elements(), m.num_elements()});
   }
@@ -272,10 +281,14 @@ int cmd_export(const std::vector<std::string>& argv) {
     throw_if_cancelled(nothing_written);
     throw;
   }
-  if (!quiet)
-    std::printf("exported %s: %lld fine elements, %lld nodes in %zu %s to %s\n", path.c_str(),
-                static_cast<long long>(written_elements), static_cast<long long>(written_nodes), ranges.size(),
-                ranges.size() == 1 ? "chunk" : "chunks", out.c_str());
+  if (!quiet) {
+    const Id n = static_cast<Id>(ranges.size());
+    std::printf("exported %s: %lld fine elements, %lld nodes%s in %lld %s to %s\n", path.c_str(),
+                static_cast<long long>(written_elements), static_cast<long long>(written_nodes),
+                n > 1 ? " (shared ones once per chunk)" : "", static_cast<long long>(n), n == 1 ? "chunk" : "chunks",
+                nemesis ? (nemesis_path(out, n, 0) + (n > 1 ? " ... " + nemesis_path(out, n, n - 1) : "")).c_str()
+                        : out.c_str());
+  }
   store.report(m);
   return 0;
 }

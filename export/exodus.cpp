@@ -307,7 +307,8 @@ void write_exodus(const ChunkSource& chunk, const std::string& path, const Nemes
   ex_init_params init{};
   {
     std::string source = std::filesystem::path(info.source).filename().string();
-    std::string title = "dicer: chunk " + std::to_string(chunk.range().index + 1) + " of " +
+    // K/N as `--chunk K/N` and the Nemesis suffixes count them: from 0.
+    std::string title = "dicer: chunk " + std::to_string(chunk.range().index) + "/" +
                         std::to_string(chunk.range().count) + (source.empty() ? "" : " from " + source);
     title.resize(std::min<std::size_t>(title.size(), MAX_LINE_LENGTH));
     std::copy(title.begin(), title.end(), init.title);

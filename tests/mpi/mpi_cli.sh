@@ -54,6 +54,13 @@ for r in range(P):
         if not np.array_equal(np.asarray(a.variables[v][:]), np.asarray(b.variables[v][:])):
             sys.exit("rank %d: %s differs" % (r, v))
 PY
+# The last rank's Nemesis file would be the store itself: refused (exit 2)
+# on every rank before anything is written, the store left as it was.
+self=self.e.$P.$(printf '%0*d' ${#P} $((P - 1)))
+cp prism.dice.h5 "$self"
+set +e; out=$(run export "$self" --format exodus -o self.e 2>&1); code=$?; set -e
+[ "$code" = 2 ] || fail "export onto its own store: exit $code, expected 2: $out"
+cmp -s prism.dice.h5 "$self" || fail "export onto its own store changed the store"
 run export prism.dice.h5 --format vtkhdf -o mpi.vtkhdf --quiet
 "$dicer" export prism.dice.h5 --format vtkhdf --chunks "$P" -o one.vtkhdf --quiet
 h5diff mpi.vtkhdf one.vtkhdf || fail "VTKHDF files differ"

@@ -502,3 +502,23 @@ TEST(ExportVtkHdf, BadArgumentsAndPaths) {
   }
   EXPECT_TRUE(std::filesystem::is_empty(dir.dir()));
 }
+
+// --box with --chunks N: N partitions, each the box's part of one chunk;
+// together exactly the elements `query --box --count` counts.
+TEST(ExportVtkHdf, BoxWithChunksIsOnePartitionPerChunk) {
+  test::TempDir dir;
+  const std::string store = dir.path("s.dice.h5"), out = dir.path("box.vtkhdf");
+  ASSERT_EQ(test::run_cli({"dice", test::data_path("cardinal_sphere.e"), "--interval", "2", "-o", store}).exit_code, 0);
+  const std::string box = "-0.3,-1,-1,1,0.4,1";
+  const auto count = test::run_cli({"query", store, "--box", box, "--count"});
+  ASSERT_EQ(count.exit_code, 0) << count.err;
+  const auto r = test::run_cli({"export", store, "--box", box, "--chunks", "3", "-o", out});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("in 3 chunks"), std::string::npos) << r.out;
+  H5 fid{H5Fopen(out.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose};
+  ASSERT_GE(fid.id, 0);
+  const auto cells = read_i64(fid.id, "VTKHDF/NumberOfCells");
+  ASSERT_EQ(cells.size(), 3u);
+  EXPECT_GT(cells[0] + cells[1] + cells[2], 0);
+  EXPECT_EQ(std::to_string(cells[0] + cells[1] + cells[2]) + "\n", count.out);
+}

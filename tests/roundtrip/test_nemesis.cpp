@@ -65,6 +65,11 @@ TEST(Nemesis, FilesCarryThePartitionsAndReadBackEverywhere) {
       char ftype[2] = {0, 0};
       ASSERT_EQ(ex_get_init_info(e.id, &procs, &in_file, ftype), 0);
       EXPECT_EQ(procs, P);
+      // The title counts chunks as --chunk K/N and the file names do: from 0.
+      ex_init_params init{};
+      ASSERT_EQ(ex_get_init_ext(e.id, &init), 0);
+      EXPECT_EQ(std::string(init.title), "dicer: chunk " + std::to_string(rank) + "/" + std::to_string(P) +
+                                             " from cardinal_prism.exo");
       std::int64_t ni = 0, nb = 0, nx = 0, ei = 0, eb = 0, ncm = 0, ecm = 0;
       ASSERT_EQ(ex_get_loadbal_param(e.id, &ni, &nb, &nx, &ei, &eb, &ncm, &ecm, static_cast<int>(rank)), 0);
       EXPECT_EQ(ni + nb, part.num_nodes());
@@ -107,4 +112,39 @@ TEST(Nemesis, RefusedWithoutChunksOrWithAnotherFormat) {
     EXPECT_EQ(r.exit_code, 2) << r.err;
     EXPECT_NE(r.err.find("--nemesis"), std::string::npos) << r.err;
   }
+}
+
+// The files written are OUT.N.r: one of them that is the store itself is
+// refused before anything is written, and the store is left as it was.
+TEST(Nemesis, AnOutputFileThatIsTheStoreIsRefused) {
+  test::TempDir tmp;
+  const std::string store = tmp.path("p.e.2.1");
+  ASSERT_EQ(test::run_cli({"dice", test::data_path("cardinal_sphere.e"), "--interval", "1", "-o", store}).exit_code, 0);
+  const std::string before = test::read_file(store);
+  const auto r = test::run_cli({"export", store, "--format", "exodus", "--chunks", "2", "--nemesis", "-o", tmp.path("p.e")});
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("same file as STORE"), std::string::npos) << r.err;
+  EXPECT_EQ(test::read_file(store), before);
+  EXPECT_FALSE(std::filesystem::exists(tmp.path("p.e.2.0")));
+}
+
+// More chunks than coarse elements is refused, as --chunk K/N is, not
+// quietly cut (a job expecting OUT.N.* for N ranks would not find them).
+TEST(Nemesis, MoreChunksThanCoarseElementsIsRefused) {
+  test::TempDir tmp;
+  const std::string store = tmp.path("s.dice.h5");
+  ASSERT_EQ(test::run_cli({"dice", test::data_path("cardinal_sphere.e"), "--interval", "1", "-o", store}).exit_code, 0);
+  const Id coarse = read_store(store).num_coarse_elements();
+  const std::string too_many = std::to_string(coarse + 1);
+  for (const std::string fmt : {"exodus", "vtkhdf"}) {
+    std::vector<std::string> args{"export", store, "--format", fmt, "--chunks", too_many, "-o", tmp.path("x." + fmt)};
+    if (fmt == "exodus") args.push_back("--nemesis");
+    const auto r = test::run_cli(args);
+    EXPECT_EQ(r.exit_code, 2) << fmt << ": " << r.err;
+    EXPECT_NE(r.err.find("only " + std::to_string(coarse) + " coarse elements"), std::string::npos) << r.err;
+  }
+  EXPECT_EQ(std::distance(std::filesystem::directory_iterator(tmp.dir()), std::filesystem::directory_iterator()), 1);
+  const auto r = test::run_cli({"export", store, "--chunks", std::to_string(coarse), "-o", tmp.path("all.vtkhdf")});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("in " + std::to_string(coarse) + " chunks"), std::string::npos) << r.out;
 }
