@@ -75,7 +75,7 @@ class PointReader {
     if (file_.empty()) {
       if (done_) return false;
       done_ = true;
-      parse(one_, "--point", out);
+      parse(one_, "--point", ErrorKind::Usage, out);
       return true;
     }
     if (npy_) {
@@ -101,7 +101,7 @@ class PointReader {
       const size_t hash = line.find('#');
       if (hash != std::string::npos) line.resize(hash);
       if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
-      parse(line, file_ + ":" + std::to_string(line_no_), out);
+      parse(line, file_ + ":" + std::to_string(line_no_), ErrorKind::BadInput, out);
     }
     return !out.empty();
   }
@@ -111,26 +111,27 @@ class PointReader {
     line.clear();
     int c;
     while ((c = std::fgetc(f_)) != EOF && c != '\n') {
-      if (line.size() > 4096) throw Error(ErrorKind::Usage, file_ + ":" + std::to_string(line_no_ + 1) + ": line too long");
+      if (line.size() > 4096) throw Error(ErrorKind::BadInput, file_ + ":" + std::to_string(line_no_ + 1) + ": line too long");
       line.push_back(static_cast<char>(c));
     }
     if (c == EOF && std::ferror(f_)) throw Error(ErrorKind::Io, file_ + ": read failed");
     return c != EOF || !line.empty();
   }
-  // Three finite numbers separated by spaces, tabs or commas.
-  static void parse(const std::string& text, const std::string& where, std::vector<double>& out) {
+  // Three finite numbers separated by spaces, tabs or commas. `bad`: Usage
+  // for --point's value, BadInput for a line of a file.
+  static void parse(const std::string& text, const std::string& where, ErrorKind bad, std::vector<double>& out) {
     const char* p = text.c_str();
     for (int k = 0; k < 3; ++k) {
       while (*p == ' ' || *p == '\t' || *p == ',' || *p == '\r') ++p;
       char* end = nullptr;
       const double v = std::strtod(p, &end);
       if (end == p || !std::isfinite(v))
-        throw Error(ErrorKind::Usage, where + ": \"" + text + "\" is not three finite numbers x y z");
+        throw Error(bad, where + ": \"" + text + "\" is not three finite numbers x y z");
       out.push_back(v);
       p = end;
     }
     while (*p == ' ' || *p == '\t' || *p == '\r') ++p;
-    if (*p != '\0') throw Error(ErrorKind::Usage, where + ": \"" + text + "\" has more than three numbers");
+    if (*p != '\0') throw Error(bad, where + ": \"" + text + "\" has more than three numbers");
   }
 
   // NumPy format 1.0-3.0: magic, version, header length, a Python dict
@@ -215,12 +216,14 @@ int query(const std::vector<std::string>& argv, long long* chunk_count = nullptr
                             "the distance; the lowest id among quads as near");
   auto* o_points = cmd.value("--points", points_file, "FILE",
                              "as --point for every line \"x y z\" of FILE (- reads "
-                             "standard input) or every row of an (n, 3) .npy "
-                             "array, answers in input order");
-  cmd.value("--threads", threads_text, "N", "with --points: threads searching (1 to 1024, default 1)");
+                             "standard input; blank lines and # comments are "
+                             "skipped) or every row of an (n, 3) .npy array, "
+                             "one answer per point in input order");
+  auto* o_threads = cmd.value("--threads", threads_text, "N", "with --points: threads searching (1 to 1024)");
   auto* o_max_distance = cmd.value("--max-distance", max_distance_text, "D",
-                                   "surface stores, with --point or --points: -1 for "
-                                   "points farther than D from every quad (default: "
+                                   "surface stores, with --point or --points: -1 and "
+                                   "distance inf (JSON: null) for points farther than "
+                                   "D from every quad (default: "
                                    "no limit; the search reads less the smaller D is)");
   auto* o_neighbors = cmd.value("--element-neighbors", neighbors_of, "ID",
                                 "the fine elements across each side of element ID "
@@ -249,12 +252,16 @@ int query(const std::vector<std::string>& argv, long long* chunk_count = nullptr
                 "--element-neighbors, --node-elements");
   const Id threads = parse_threads(threads_text);
   if (cmd.given(o_count) && !cmd.given(o_box)) throw Error(ErrorKind::Usage, "--count goes with --box");
+  if (cmd.given(o_threads) && !cmd.given(o_points)) throw Error(ErrorKind::Usage, "--threads goes with --points");
   if (cmd.given(o_max_distance) && !cmd.given(o_point) && !cmd.given(o_points))
     throw Error(ErrorKind::Usage, "--max-distance goes with --point or --points");
   const double max_distance = cmd.given(o_max_distance) ? parse_double("--max-distance", max_distance_text) : INFINITY;
   if (!(max_distance >= 0)) throw Error(ErrorKind::Usage, "--max-distance: must be 0 or more");
 
   const FineMesh m = read_store(path, store.options());
+  if (cmd.given(o_max_distance) && m.mode() == Mode::Volume)
+    throw Error(ErrorKind::Usage, "--max-distance is for surface stores; " + path +
+                                      " is a volume store, where --point finds the element that contains the point");
   // --node-elements / --element-neighbors: one id in, a list of ids out.
   auto print_list = [&](const char* what, const char* key, Id id, const char* list, const std::vector<Id>& ids) {
     if (json) {
@@ -327,10 +334,7 @@ int query(const std::vector<std::string>& argv, long long* chunk_count = nullptr
   auto ll = [](Id v) { return static_cast<long long>(v); };
   if (cmd.given(o_node) || cmd.given(o_nodes)) {
     const auto [a, b] = cmd.given(o_node) ? parse_range("--node", node) : parse_range("--nodes", nodes);
-    if (a < 0 || b > m.num_nodes())
-      throw Error(ErrorKind::Usage, "node ids " + std::to_string(a) + ".." + std::to_string(b - 1) +
-                                        " out of range (the mesh has " + std::to_string(m.num_nodes()) + " nodes, ids 0.." +
-                                        std::to_string(m.num_nodes() - 1) + ")");
+    m.check_node_range(a, b);
     NodeCursor cur(m, a, b);
     Id id;
     Vec3 p;
@@ -342,10 +346,7 @@ int query(const std::vector<std::string>& argv, long long* chunk_count = nullptr
     return 0;
   }
   const auto [a, b] = cmd.given(o_element) ? parse_range("--element", element) : parse_range("--elements", elements);
-  if (a < 0 || b > m.num_elements())
-    throw Error(ErrorKind::Usage, "element ids " + std::to_string(a) + ".." + std::to_string(b - 1) +
-                                      " out of range (the mesh has " + std::to_string(m.num_elements()) +
-                                      " elements, ids 0.." + std::to_string(m.num_elements() - 1) + ")");
+  m.check_element_range(a, b);
   ElementCursor cur(m, a, b);
   FineElement el;
   const bool vol = m.mode() == Mode::Volume;

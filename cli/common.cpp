@@ -54,7 +54,8 @@ std::int64_t parse_int(const std::string& what, const std::string& text) {
   char* end = nullptr;
   const long long v = std::strtoll(text.c_str(), &end, 10);
   if (text.empty() || *end != '\0') throw Error(ErrorKind::Usage, what + ": \"" + text + "\" is not a whole number");
-  if (errno == ERANGE) throw Error(ErrorKind::Overflow, what + ": \"" + text + "\" does not fit in 64 bits");
+  // A bad value (2), like any other: exit 6 is for counts the mesh would overflow.
+  if (errno == ERANGE) throw Error(ErrorKind::Usage, what + ": \"" + text + "\" does not fit in 64 bits");
   return v;
 }
 

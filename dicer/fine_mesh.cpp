@@ -35,16 +35,31 @@ Vec3 FineMesh::node(Id id) const {
 
 namespace {
 
+std::string ids_of(Id count, const char* what) {
+  return " (the mesh has " + std::to_string(count) + " " + what + "s, ids 0.." + std::to_string(count - 1) + ")";
+}
+
+[[noreturn]] void out_of_range(Id id, Id count, const char* what) {
+  throw Error(ErrorKind::Usage, std::string(what) + " id " + std::to_string(id) + " is out of range" + ids_of(count, what));
+}
+
+// Ids [begin, end) of `what`s in a mesh of `count`: the first one that is
+// not an id, or an empty range past the end.
+void check_range(Id begin, Id end, Id count, const char* what) {
+  if (begin >= 0 && begin <= end && end <= count) return;
+  if (end < begin || begin == end)
+    throw Error(ErrorKind::Usage, std::string(what) + " ids " + std::to_string(begin) + ":" + std::to_string(end) + ": " +
+                                      (end < begin ? "the end is below the start" : "an empty range past the end") +
+                                      ids_of(count, what));
+  out_of_range(begin < 0 ? begin : std::max(begin, count), count, what);
+}
+
 void check_node_id(const FineMesh& m, Id id) {
-  if (id < 0 || id >= m.num_nodes())
-    throw Error(ErrorKind::Usage, "node id " + std::to_string(id) + " is out of range (the mesh has " +
-                                      std::to_string(m.num_nodes()) + " nodes)");
+  if (id < 0 || id >= m.num_nodes()) out_of_range(id, m.num_nodes(), "node");
 }
 
 void check_element_id(const FineMesh& m, Id id) {
-  if (id < 0 || id >= m.num_elements())
-    throw Error(ErrorKind::Usage, "element id " + std::to_string(id) + " is out of range (the mesh has " +
-                                      std::to_string(m.num_elements()) + " elements)");
+  if (id < 0 || id >= m.num_elements()) out_of_range(id, m.num_elements(), "element");
 }
 
 // Node `ref` of element hid (its row h), which owns it at `owner`'s slot.
@@ -133,6 +148,9 @@ bool visit_order(const char* what, std::span<const Id> ids, size_t room, std::ve
   return false;
 }
 }  // namespace
+
+void FineMesh::check_node_range(Id begin, Id end) const { check_range(begin, end, num_nodes(), "node"); }
+void FineMesh::check_element_range(Id begin, Id end) const { check_range(begin, end, num_elements(), "element"); }
 
 Vec3 FineMesh::node(Id id, MeshCursor& cur) const {
   check_node_id(*this, id);

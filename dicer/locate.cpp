@@ -279,6 +279,14 @@ struct Tree {
   }
 };
 
+// No element found: a surface store's miss has no distance within reach,
+// so it says so (infinity) rather than 0, which would read "on the surface".
+Located missed(const FineMesh& mesh) {
+  Located l;
+  if (mesh.mode() == Mode::Surface) l.distance = INFINITY;
+  return l;
+}
+
 struct Searcher {
   const FineMesh& mesh;
   const Tree& tree;
@@ -605,7 +613,7 @@ struct Searcher {
         for (size_t c = q.index * kFan; c < std::min(n, (q.index + 1) * kFan); ++c) push(q.level - 1, c);
       }
     }
-    return best;
+    return best.element < 0 ? missed(mesh) : best;
   }
 
   Located locate(const P3& p) {
@@ -627,7 +635,9 @@ void require_index(const FineMesh& mesh, double max_distance) {
 
 Located locate_point(const FineMesh& mesh, const std::array<double, 3>& p, double max_distance) {
   require_index(mesh, max_distance);
-  if (mesh.num_coarse_elements() == 0) return Located{};
+  if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2]))
+    throw Error(ErrorKind::Usage, "point location: the point has a coordinate that is not finite");
+  if (mesh.num_coarse_elements() == 0) return missed(mesh);
   const Tree tree(mesh.tables());
   Searcher s{mesh, tree, max_distance, {}, {}, {}, {}};
   return s.locate(p);
@@ -636,8 +646,13 @@ Located locate_point(const FineMesh& mesh, const std::array<double, 3>& p, doubl
 std::vector<Located> locate_points(const FineMesh& mesh, const std::vector<double>& xyz, int threads, double max_distance) {
   require_index(mesh, max_distance);
   if (xyz.size() % 3 != 0) throw Error(ErrorKind::Usage, "locate_points: coordinates are not a multiple of 3");
+  // A NaN point would come back "outside" (-1), indistinguishable from a
+  // real miss.
+  for (size_t i = 0; i < xyz.size(); ++i)
+    if (!std::isfinite(xyz[i]))
+      throw Error(ErrorKind::Usage, "point location: point " + std::to_string(i / 3) + " has a coordinate that is not finite");
   const size_t n = xyz.size() / 3;
-  std::vector<Located> out(n);
+  std::vector<Located> out(n, missed(mesh));
   if (mesh.num_coarse_elements() == 0) return out;
   threads = std::max(1, std::min<int>(threads, static_cast<int>(std::max<size_t>(1, n / 64))));
   const Tree tree(mesh.tables());

@@ -129,16 +129,23 @@ Box parse_box(const std::string& text) {
     }
   }
   if (*p != '\0') throw Error(ErrorKind::Usage, "--box: \"" + text + "\" has trailing characters");
-  for (int d = 0; d < 3; ++d) {
-    b.lo[d] = v[d], b.hi[d] = v[d + 3];
-    if (b.lo[d] > b.hi[d])
-      throw Error(ErrorKind::Usage, "--box: lower corner above upper corner along axis " + std::string(1, "xyz"[d]));
-  }
+  for (int d = 0; d < 3; ++d) b.lo[d] = v[d], b.hi[d] = v[d + 3];
+  check_box(b, "--box");
   return b;
+}
+
+void check_box(const Box& box, const std::string& what) {
+  for (int d = 0; d < 3; ++d) {
+    const std::string axis(1, "xyz"[d]);
+    if (!std::isfinite(box.lo[d]) || !std::isfinite(box.hi[d]))
+      throw Error(ErrorKind::Usage, what + ": a corner's " + axis + " is not a finite number");
+    if (box.lo[d] > box.hi[d]) throw Error(ErrorKind::Usage, what + ": lower corner above upper corner along axis " + axis);
+  }
 }
 
 Id for_each_in_box(const FineMesh& mesh, const Box& box, const std::function<void(const FineBlock&, Id)>& fn,
                    Id first_coarse, Id end_coarse) {
+  check_box(box, "box query");
   MeshCursor cur;
   FineBlock b;
   Id count = 0;

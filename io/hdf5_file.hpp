@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "hdf5_lock.hpp"
+
 namespace dicer::h5 {
 
 class Handle {
@@ -26,9 +28,15 @@ class Handle {
   Handle(const Handle&) = delete;
   Handle& operator=(const Handle&) = delete;
   ~Handle() { reset(); }
-  // True when there was nothing to close or the close succeeded.
+  // True when there was nothing to close or the close succeeded. Under the
+  // HDF5 lock like every other call: a handle may close on any thread (the
+  // last owner of a store's file may be a cache dropped by another thread).
   bool reset() {
-    const bool ok = id_ < 0 || !close_ || close_(id_) >= 0;
+    bool ok = true;
+    if (id_ >= 0 && close_) {
+      std::lock_guard lock(hdf5_lock());
+      ok = close_(id_) >= 0;
+    }
     id_ = -1;
     return ok;
   }

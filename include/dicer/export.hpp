@@ -50,6 +50,9 @@ struct Box {
 };
 // "x0,y0,z0,x1,y1,z1"; throws Error{Usage} naming what is wrong.
 Box parse_box(const std::string& text);
+// Throws Error{Usage} ("<what>: ...") unless every coordinate is finite and
+// lo <= hi on every axis (a NaN box would select nothing, silently).
+void check_box(const Box& box, const std::string& what);
 
 // Streams the fine elements whose centroid lies in `box`, in id order:
 // fn(block, local element index) with the block's coordinates and
@@ -57,7 +60,7 @@ Box parse_box(const std::string& text);
 // index: rows.hpp ElementBounds, curved elements included) miss the box are
 // skipped without generating or reading anything else; whole groups of
 // kBoundsGroup elements are skipped without reading. Returns the number of
-// elements.
+// elements. Throws Error{Usage} for a box check_box refuses.
 // [first_coarse, end_coarse) restricts the search (an MPI rank's chunk).
 Id for_each_in_box(const FineMesh& mesh, const Box& box,
                    const std::function<void(const FineBlock& block, Id local_element)>& fn, Id first_coarse = 0,

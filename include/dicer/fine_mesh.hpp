@@ -156,6 +156,12 @@ class FineMesh {
   Id num_coarse_elements() const { return info_.coarse_elements; }
   int corners() const { return mode() == Mode::Volume ? 8 : 4; }
 
+  // Error{Usage} unless [begin, end) is a range of ids of the mesh
+  // (0 <= begin <= end <= count); the message names the first id that is
+  // not one, in the words node(id) and element(id) use.
+  void check_node_range(Id begin, Id end) const;
+  void check_element_range(Id begin, Id end) const;
+
   // Throw Error{Usage} for an id out of range.
   Vec3 node(Id id) const;
   FineElement element(Id id) const;

@@ -40,8 +40,9 @@
 // (4) grid nodes each). Pages come through the store's cache.
 // Thread-safe (a cursor per thread).
 //
-// Errors: Usage for a negative or NaN max_distance, or coordinates not a
-// multiple of 3; Corrupt for an index or rows that break their invariants.
+// Errors: Usage for a negative or NaN max_distance, coordinates not a
+// multiple of 3 or not finite; Corrupt for an index or rows that break
+// their invariants.
 #pragma once
 
 #include <array>
@@ -57,7 +58,8 @@ inline constexpr double kLocateTolerance = 1e-10;
 struct Located {
   Id element = -1;             // -1: no element contains the point (surface: none within max_distance)
   std::array<double, 3> xi{};  // local coordinates (VTK/Exodus HEX8 / QUAD4 corner order; surface: xi[2] = 0)
-  double distance = 0;         // surface stores: from the point to the element's map at xi; volume: 0
+  double distance = 0;         // surface stores: from the point to the element's map at xi, infinity
+                               // when element is -1; volume: 0
 };
 
 // One point (p: x, y, z). max_distance: surface stores only (points

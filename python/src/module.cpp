@@ -9,8 +9,11 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <sys/stat.h>
+
 #include <algorithm>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <optional>
 #include <string>
@@ -45,7 +48,13 @@ using Mesh = std::shared_ptr<const FineMesh>;
 
 struct Store {
   Mesh mesh;
-  std::string path;
+  std::string path;  // as given (repr, messages)
+  // What info, chunk() and partition() read again (the sets, the file's
+  // size): the file opened, by absolute path, checked to be the same file
+  // (os.chdir, or a store written over it since, must not change answers).
+  std::string file;
+  dev_t dev = 0;
+  ino_t ino = 0;
   StoreOptions options;
   std::vector<std::string> warnings, notes;  // from dice(): the mesh reader's warnings, interval conflicts
 
@@ -54,6 +63,13 @@ struct Store {
   Mesh get() const {
     if (!mesh) throw Error(ErrorKind::Usage, path + ": the store is closed");
     return mesh;
+  }
+  // The opened file's path, after checking it is still that file.
+  const std::string& reread() const {
+    struct stat st {};
+    if (::stat(file.c_str(), &st) != 0 || st.st_dev != dev || st.st_ino != ino)
+      throw Error(ErrorKind::Io, path + ": the file was removed or replaced since the store was opened; open it again");
+    return file;
   }
 };
 
@@ -65,11 +81,16 @@ Store open_store(const std::string& path, std::int64_t cache_mb, std::int64_t re
   if (read_ahead < 0 || read_ahead > 1024) throw Error(ErrorKind::Usage, "--read-ahead: must be between 0 and 1024 pages");
   Store s;
   s.path = path;
+  s.file = std::filesystem::absolute(path).string();
   s.options.cache_bytes = static_cast<std::uint64_t>(cache_mb) << 20;
   s.options.read_ahead_pages = static_cast<unsigned>(read_ahead);
   s.options.keep_coarse_tables = keep_tables;
   py::gil_scoped_release release;
-  s.mesh = std::make_shared<const FineMesh>(read_store(path, s.options));
+  s.mesh = std::make_shared<const FineMesh>(read_store(s.file, s.options));
+  // The identity of the file read (a replacement in between is caught by
+  // the sets' uuid check, read_store_sets).
+  struct stat st {};
+  if (::stat(s.file.c_str(), &st) == 0) s.dev = st.st_dev, s.ino = st.st_ino;
   return s;
 }
 
@@ -78,7 +99,7 @@ py::dict info_dict(const Store& s) {
   const Mesh m = s.get();
   const StoreSummary sum = [&] {
     py::gil_scoped_release release;
-    return store_summary(s.path);
+    return store_summary(s.reread());
   }();
   const MeshInfo& c = m->info();
   py::list blocks;
@@ -151,20 +172,29 @@ struct IdSelection {
   size_t size() const { return range ? static_cast<size_t>(b - a) : ids.size(); }
 };
 
-IdSelection select_ids(const char* what, const py::object& first, const py::object& stop, Id count) {
+// A Python int or numpy integer (anything with __index__ but a bool, as
+// dicer._whole): an id. Beyond 64 bits: IdOverflowError, as _whole.
+Id whole_id(const py::object& v, const std::string& what) {
+  if (PyBool_Check(v.ptr()) || !py::hasattr(v, "__index__"))
+    throw Error(ErrorKind::Usage, what + ": \"" + std::string(py::str(v)) + "\" is not a whole number");
+  const py::object i = v.attr("__index__")();
+  int overflow = 0;
+  const long long out = PyLong_AsLongLongAndOverflow(i.ptr(), &overflow);
+  if (overflow != 0) throw Error(ErrorKind::Overflow, what + ": \"" + std::string(py::str(v)) + "\" does not fit in 64 bits");
+  if (out == -1 && PyErr_Occurred()) throw py::error_already_set();
+  return out;
+}
+
+IdSelection select_ids(const char* what, const py::object& first, const py::object& stop, const FineMesh& mesh) {
   IdSelection sel;
   const std::string plural = std::string(what) + "s";
   if (!stop.is_none()) {
-    if (!py::isinstance<py::int_>(first) || !py::isinstance<py::int_>(stop))
-      throw Error(ErrorKind::Usage, plural + "(start, stop): start and stop must be whole numbers");
-    sel.a = first.cast<Id>();
-    sel.b = stop.cast<Id>();
+    sel.a = whole_id(first, plural + "(start, stop): start");
+    sel.b = whole_id(stop, plural + "(start, stop): stop");
     if (sel.b < sel.a) throw Error(ErrorKind::Usage, plural + "(start, stop): stop is below start");
     // The CLI's words for `query --nodes a:b` out of range.
-    if (sel.a < 0 || sel.b > count)
-      throw Error(ErrorKind::Usage, std::string(what) + " ids " + std::to_string(sel.a) + ".." + std::to_string(sel.b - 1) +
-                                        " out of range (the mesh has " + std::to_string(count) + " " + plural +
-                                        ", ids 0.." + std::to_string(count - 1) + ")");
+    if (std::string(what) == "node") mesh.check_node_range(sel.a, sel.b);
+    else mesh.check_element_range(sel.a, sel.b);
     return sel;
   }
   sel.range = false;
@@ -187,7 +217,7 @@ constexpr size_t kIdsPerCall = size_t{1} << 18;
 
 py::array nodes(const Store& s, const py::object& first, const py::object& stop) {
   const Mesh m = s.get();
-  const IdSelection sel = select_ids("node", first, stop, m->num_nodes());
+  const IdSelection sel = select_ids("node", first, stop, *m);
   std::vector<double> xyz(3 * sel.size());
   {
     py::gil_scoped_release release;
@@ -227,7 +257,7 @@ ElementRows element_rows(const Store& s, const py::object& first, const py::obje
   ElementRows r;
   r.mesh = s.get();
   const FineMesh& m = *r.mesh;
-  const IdSelection sel = select_ids("element", first, stop, m.num_elements());
+  const IdSelection sel = select_ids("element", first, stop, m);
   r.count = static_cast<py::ssize_t>(sel.size());
   py::gil_scoped_release release;
   const int corners = m.corners(), dims = m.mode() == Mode::Volume ? 3 : 2;
@@ -281,6 +311,7 @@ py::array elements_in_box(const Store& s, const std::vector<double>& lo, const s
   Box box;
   std::copy(lo.begin(), lo.end(), box.lo.begin());
   std::copy(hi.begin(), hi.end(), box.hi.begin());
+  check_box(box, "elements_in_box");
   std::vector<Id> ids;
   {
     py::gil_scoped_release release;
@@ -410,8 +441,8 @@ py::dict range_dict(const ChunkRange& r) {
   return d;
 }
 
-MeshSets store_sets(const std::string& path) {
-  StoreSets s = read_store_sets(path);
+MeshSets store_sets(const FineMesh& mesh, const std::string& path) {
+  StoreSets s = read_store_sets(mesh, path);  // the uuid ties the sets to the mesh
   MeshSets sets;
   sets.side_sets = std::move(s.side_sets);
   sets.node_sets = std::move(s.node_sets);
@@ -431,12 +462,13 @@ std::unique_ptr<Chunk> make_chunk(const Store& s, std::int64_t k, std::int64_t n
   auto c = std::make_unique<Chunk>();
   c->mesh = s.get();
   const FineMesh& m = *c->mesh;
+  const std::string file = s.reread();
   SignalPoll poll;
   without_gil(poll, [&] {
     std::vector<ChunkRange> plan = checked_plan(m, k, n);
     c->chunk = std::make_unique<ExportChunk>(m, plan[static_cast<size_t>(k)]);
     c->chunk->set_plan(std::move(plan));
-    c->chunk->prepare(store_sets(s.path), {}, [&] { return poll.poll(); });
+    c->chunk->prepare(store_sets(m, file), {}, [&] { return poll.poll(); });
     c->xyz = interleave(c->chunk->x(), c->chunk->y(), c->chunk->z());
     c->block_id.reserve(c->chunk->element_block().size());
     for (const std::int32_t b : c->chunk->element_block()) c->block_id.push_back(block_file_id(m, b));
@@ -470,12 +502,13 @@ std::unique_ptr<PartitionBox> make_partition(const Store& s, std::int64_t rank, 
   auto p = std::make_unique<PartitionBox>();
   p->mesh = s.get();
   const FineMesh& m = *p->mesh;
+  const std::string file = s.reread();
   SignalPoll poll;
   without_gil(poll, [&] {
     const std::vector<ChunkRange> plan = checked_plan(m, rank, size);
     std::vector<std::vector<NodeRun>> sharing = in_process_sharing(m, plan);
     p->part = std::make_unique<Partition>(m, plan, rank, std::move(sharing[static_cast<size_t>(rank)]),
-                                          store_sets(s.path), std::function<void(Id, Id)>{},
+                                          store_sets(m, file), std::function<void(Id, Id)>{},
                                           [&] { return poll.poll(); });
     p->xyz = interleave(p->part->x(), p->part->y(), p->part->z());
   });
@@ -494,8 +527,8 @@ std::unique_ptr<PartitionBox> make_partition_mpi(const Store& s, const py::objec
   // Open MPI library on both sides (Debian's mpi4py links it too).
   const MPI_Comm c = MPI_Comm_f2c(comm.attr("py2f")().cast<MPI_Fint>());
   auto p = std::make_unique<PartitionBox>();
-  const std::string path = s.path;
   const Store* store = &s;
+  std::string path;
   py::gil_scoped_release release;
   MeshSets sets;
   // What only this rank can get wrong (a closed store, an unreadable file)
@@ -503,8 +536,9 @@ std::unique_ptr<PartitionBox> make_partition_mpi(const Store& s, const py::objec
   mpi::collectively(c, [&] {
     py::gil_scoped_acquire gil;  // Store::get() reads a Python-owned object
     p->mesh = store->get();
+    path = store->reread();
   });
-  mpi::collectively(c, [&] { sets = store_sets(path); });
+  mpi::collectively(c, [&] { sets = store_sets(*p->mesh, path); });
   p->part = std::make_unique<Partition>(mpi::make_partition(*p->mesh, c, sets));
   p->xyz = interleave(p->part->x(), p->part->y(), p->part->z());
   return p;
@@ -518,8 +552,27 @@ struct Batch {
   std::int64_t block_id = 0;
 };
 
+// One step of an iterator at a time, as Python's generators: step()
+// releases the GIL while it fills the iterator's buffers, so a second
+// thread calling next() on the same iterator would fill them under the
+// first (wrong batches, freed memory). Checked and set under the GIL.
+class Stepping {
+ public:
+  explicit Stepping(bool& busy) : busy_(busy) {
+    if (busy_) throw py::value_error("dicer iterator already executing (next() from two threads at once)");
+    busy_ = true;
+  }
+  ~Stepping() { busy_ = false; }
+  Stepping(const Stepping&) = delete;
+  Stepping& operator=(const Stepping&) = delete;
+
+ private:
+  bool& busy_;
+};
+
 struct BlockIterator {
   Mesh mesh;
+  bool busy = false;
   Id next = 0, end = 0;
   bool connectivity = true;
   FineBlock block;
@@ -530,6 +583,7 @@ struct BlockIterator {
   std::shared_ptr<Recycler<double>> points = std::make_shared<Recycler<double>>();
 
   Batch step() {
+    const Stepping one(busy);
     if (next >= end) throw py::stop_iteration();
     const FineMesh& m = *mesh;
     std::vector<Id> ids, conn;
@@ -591,6 +645,7 @@ struct IdBatch {
 
 struct BatchIterator {
   Mesh mesh;
+  bool busy = false;
   std::unique_ptr<BatchCursor> cursor;
   std::shared_ptr<Recycler<double>> xyz = std::make_shared<Recycler<double>>();
   std::shared_ptr<Recycler<Id>> conn = std::make_shared<Recycler<Id>>();
@@ -600,6 +655,7 @@ struct BatchIterator {
   // "Python": by way of fresh std::vectors, each value was zeroed, written
   // and copied, and each step's pages faulted in anew).
   IdBatch step() {
+    const Stepping one(busy);
     FineBatch b;
     bool more = false;
     {
@@ -689,6 +745,13 @@ PYBIND11_MODULE(_core, m) {
   m.attr("__version__") = kVersion;
   m.attr("STORE_FORMAT_VERSION") = kStoreFormatVersion;
   register_errors(m);
+  // numpy imported and pybind11's handle on its C API made now, while the
+  // import holds the GIL alone: made lazily, by the first call returning an
+  // array, two threads deadlocked (one in the static initialiser importing
+  // numpy, which waits for the GIL the other holds while it waits for the
+  // initialiser).
+  py::module_::import("numpy");
+  (void)py::array_t<double>(0);
 
   m.def("_dice", &dice_to_store, py::arg("mesh"), py::arg("out"), py::arg("interval"), py::arg("size"),
         py::arg("block_intervals"), py::arg("sheet_intervals"), py::arg("intervals_file"));
@@ -740,11 +803,15 @@ PYBIND11_MODULE(_core, m) {
                std::to_string(b.element_begin) + ".." + std::to_string(b.element_end) + ">";
       });
 
-  py::class_<BatchIterator>(m, "BatchIterator")
+  py::class_<BatchIterator>(m, "BatchIterator",
+                            "What Store.batches() returns: yields (n0, points, e0, connectivity) slab by slab in "
+                            "id order; one next() at a time (another thread's next() meanwhile: ValueError)")
       .def("__iter__", [](BatchIterator& it) -> BatchIterator& { return it; })
       .def("__next__", &BatchIterator::step);
 
-  py::class_<BlockIterator>(m, "BlockIterator")
+  py::class_<BlockIterator>(m, "BlockIterator",
+                            "What Store.blocks() returns: yields a Batch per coarse element; len() is the number "
+                            "left; one next() at a time (another thread's next() meanwhile: ValueError)")
       .def("__iter__", [](BlockIterator& it) -> BlockIterator& { return it; })
       .def("__next__", &BlockIterator::step)
       .def("__len__", [](const BlockIterator& it) { return it.end - it.next; });
@@ -883,7 +950,7 @@ PYBIND11_MODULE(_core, m) {
            "as `dicer query --points`. Volume stores: (element ids, xi (n, 3)) of an (n, 3) array of points: "
            "the fine element containing each (-1: none; the lowest id on a shared face) and the local "
            "coordinates in it. Surface stores: (element ids, xi (n, 2), distances): the nearest fine quad "
-           "(-1: none within max_distance), the nearest point's xi on it and its distance")
+           "(-1: none within max_distance, distance inf), the nearest point's xi on it and its distance")
       .def("blocks", &make_blocks, py::arg("chunk") = py::none(), py::arg("connectivity") = true,
            "iterator of Batch, one per coarse element, over the mesh or over chunk (k, n)")
       .def("batches", &make_batches, py::arg("chunk") = py::none(), py::arg("slab_points") = kCursorSlabPoints,

@@ -179,7 +179,11 @@ TEST(Locate, SurfacePointsGetTheNearestQuadAsABruteForceDoes) {
       for (Id e = 0; e < got.element; ++e)
         EXPECT_GT(rect_distance(quads[static_cast<size_t>(e)], p), nearest + 1e-12) << "element " << e << " is as near";
       // A limit below the distance finds nothing; at it, the same answer.
-      EXPECT_EQ(locate_point(mem, p, nearest * (1 - 1e-6)).element, nearest > 1e-9 ? -1 : got.element);
+      const Located below = locate_point(mem, p, nearest * (1 - 1e-6));
+      EXPECT_EQ(below.element, nearest > 1e-9 ? -1 : got.element);
+      if (below.element < 0) {
+        EXPECT_EQ(below.distance, INFINITY) << "a miss has no distance (0 would read: on it)";
+      }
       EXPECT_EQ(locate_point(mem, p, nearest * (1 + 1e-6) + 1e-12).element, got.element);
     }
     // Store, threads and memory agree bit for bit.

@@ -178,8 +178,10 @@ def test_locate_on_a_surface_is_the_nearest_quad(cli, shell_store, tmp_path):
     limit = float(np.median(dist))
     ids2, _, dist2 = s.locate(pts, max_distance=limit)
     assert np.array_equal(ids2 >= 0, dist <= limit) and np.array_equal(ids2[dist <= limit], ids[dist <= limit])
+    assert np.all(np.isinf(dist2[ids2 < 0])) and np.array_equal(dist2[ids2 >= 0], dist[ids2 >= 0])
     rows = cli.json_lines("query", shell_store, "--points", str(f), "--max-distance", repr(limit))
     assert [r["element"] for r in rows] == ids2.tolist()
+    assert all((r["distance"] is None) == (r["element"] < 0) for r in rows)  # a miss: no distance (inf)
     code, msg = cli.error("query", shell_store, "--point", "0,0,0", "--max-distance", "-1")
     assert code == 2 and "--max-distance" in msg
 

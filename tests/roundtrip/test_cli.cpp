@@ -104,8 +104,26 @@ TEST(Cli, DiceInfoQueryVerifyOnARealMesh) {
       f << "1 2\n";
     }
     r = run_cli({"query", store, "--points", pts});
-    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_EQ(r.exit_code, 3) << "a bad input file";
     EXPECT_NE(r.err.find("points.txt:5: \"1 2\" is not three finite numbers"), std::string::npos) << r.err;
+    r = run_cli({"query", store, "--point", "1,2"});
+    EXPECT_EQ(r.exit_code, 2) << "a bad value on the command line";
+    // Options that would be ignored are refused: --threads is for --points,
+    // --max-distance for surface stores.
+    r = run_cli({"query", store, "--point", "0,0,0", "--threads", "2"});
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_NE(r.err.find("--threads goes with --points"), std::string::npos) << r.err;
+    r = run_cli({"query", store, "--point", "0,0,0", "--max-distance", "1"});
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_NE(r.err.find("is a volume store"), std::string::npos) << r.err;
+  }
+  // A range partly out: the message names the first id that is not there.
+  {
+    const Id n = read_store(store).num_nodes();
+    r = run_cli({"query", store, "--nodes", std::to_string(n - 2) + ":" + std::to_string(n + 3)});
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_NE(r.err.find("node id " + std::to_string(n) + " is out of range (the mesh has " + std::to_string(n) + " nodes"),
+              std::string::npos) << r.err;
   }
   // --element-neighbors: 6 sides, the boundary -1, each neighbour names it back.
   r = run_cli({"query", store, "--element-neighbors", std::to_string(last), "--json"});
@@ -225,7 +243,7 @@ TEST(Cli, RefusalsHaveDocumentedExitCodesAndLeaveNoOutput) {
       {{"dice", mesh, "--interval", "0", "-o", out}, 2, "interval must be a whole number >= 1 (got 0)"},
       {{"dice", mesh, "--interval", "-4", "-o", out}, 2, "interval must be a whole number >= 1 (got -4)"},
       {{"dice", mesh, "--interval", "abc", "-o", out}, 2, "not a whole number"},
-      {{"dice", mesh, "--interval", "99999999999999999999", "-o", out}, 6, "does not fit in 64 bits"},
+      {{"dice", mesh, "--interval", "99999999999999999999", "-o", out}, 2, "does not fit in 64 bits"},
       {{"dice", mesh, "--interval", "1000000000", "-o", out}, 6, "more than 2^40 grid points"},
       {{"dice", mesh, "--block-interval", "9=2", "-o", out}, 2, "no block with id or name \"9\""},
       {{"dice", mesh, "--sheet-interval", "500=2", "-o", out}, 2, "no sheet 500"},

@@ -504,3 +504,26 @@ TEST(StorePaged, ElementPagesCarryTheSearchColumnsAndSearchesLandOnTheRowsElemen
     ASSERT_EQ(s.node(s.num_nodes() / 3, cur), m.node(s.num_nodes() / 3));
   }
 }
+
+// Stores opened, read and dropped on several threads at once: every HDF5
+// call, the closes of the last owner's file and datasets included, under the
+// one HDF5 lock (a close on one thread while another opened crashed HDF5).
+TEST(StorePaged, StoresOpenedAndDroppedOnThreadsAtOnce) {
+  test::TempDir tmp;
+  const Diced d = dice_to_store(tmp, "cardinal_prism.exo", 1);
+  const Id nodes = d.mem.num_nodes();
+  const size_t side_sets = read_store_sets(d.path).side_sets.size();
+  std::atomic<int> wrong{0};
+  std::vector<std::thread> threads;
+  for (int th = 0; th < 3; ++th)
+    threads.emplace_back([&] {
+      for (int k = 0; k < 40; ++k) {
+        const FineMesh s = read_store(d.path, StoreOptions{4ull << 20, k % 2 == 0 ? 4u : 0u});
+        if (s.num_nodes() != nodes || read_store_sets(s, d.path).side_sets.size() != side_sets ||
+            store_summary(d.path).format_version != kStoreFormatVersion)
+          ++wrong;
+      }
+    });
+  for (auto& th : threads) th.join();
+  EXPECT_EQ(wrong.load(), 0);
+}
