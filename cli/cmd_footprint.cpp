@@ -34,7 +34,7 @@ dicer footprint sphere.dice.h5 --exact --json
 int cmd_footprint(const std::vector<std::string>& argv) {
   Command cmd(kDoc);
   std::string path;
-  bool json = false, exact = false, quiet = false;
+  bool json = false, exact = false;
   cmd.input("STORE", path, "the store to measure");
   cmd.flag("--json", json,
            "one JSON object: store_bytes, open_resident_bytes, "
@@ -43,9 +43,7 @@ int cmd_footprint(const std::vector<std::string>& argv) {
            "ratio_lz4, fine_nodes, fine_elements, bounding_nodes, "
            "rest_bytes");
   cmd.flag("--exact", exact, "compress every page of the explicit mesh, not a sample");
-  cmd.flag("--quiet", quiet,
-           "accepted for scripts that pass it to every command; "
-           "footprint draws no progress bar");
+  cmd.quiet_accepted();
   StoreFlags store(cmd);
   if (!cmd.parse(argv)) return 0;
   const FineMesh m = read_store(path, store.options());

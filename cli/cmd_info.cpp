@@ -33,6 +33,7 @@ int cmd_info(const std::vector<std::string>& argv) {
            "in dicer sheets' numbering), sheet_gradings (one per sheet: "
            "null, or {kind, ratio, start}), fine_nodes, fine_elements, "
            "blocks [{id, name, coarse_elements, fine_elements}]");
+  cmd.quiet_accepted();
   StoreFlags store(cmd);
   if (!cmd.parse(argv)) return 0;
 

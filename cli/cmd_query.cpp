@@ -241,6 +241,7 @@ int query(const std::vector<std::string>& argv, long long* chunk_count = nullptr
            "         (surface: \"xi\":[a,b], \"distance\":d)\n"
            "neighbors: {\"id\":..., \"neighbors\":[6 or 4 ids]}\n"
            "node elements: {\"node\":..., \"elements\":[ids]}");
+  cmd.quiet_accepted();
   StoreFlags store(cmd);
   if (!cmd.parse(argv)) return 0;
   const int chosen = cmd.given(o_node) + cmd.given(o_nodes) + cmd.given(o_element) + cmd.given(o_elements) +

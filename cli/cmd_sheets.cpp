@@ -46,6 +46,7 @@ int cmd_sheets(const std::vector<std::string>& argv) {
            "also list each sheet's edges as node-id pairs, numbered "
            "as in the input file");
   IntervalFlags intervals(cmd);
+  cmd.quiet_accepted();
   if (!cmd.parse(argv)) return 0;
   const CoarseMesh mesh = read_coarse_mesh(path);
   const auto topo_kept = topology_of(mesh);

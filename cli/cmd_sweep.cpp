@@ -100,7 +100,9 @@ int cmd_sweep(const std::vector<std::string>& argv) {
             "Options", "all cores, here " + threads_text);
   cmd.flag("--json", json,
            "one JSON object: nodes, elements, seconds, nodes_per_s, "
-           "checksum (16 hex digits), threads");
+           "checksum (16 hex digits), threads; under mpirun also ranks, "
+           "rank_seconds [per rank], imbalance (slowest / mean), "
+           "rank_pages_read [per rank]");
   cmd.flag("--quiet", quiet, "no progress bar (--json draws none either)");
   StoreFlags store(cmd);
   // Under mpirun: rank r sweeps chunk r of P (the nodes it owns and its

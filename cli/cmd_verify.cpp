@@ -28,7 +28,9 @@ With --geometry CAD (the STEP/BREP file the store was diced against), also:
   - the largest distance from a fine node on a CAD curve or surface (as the
     store records its owner) to that entity; it must be at most
     max(1e-9 x the model's bounding-box diagonal, 1e-7), 1e-7 being
-    OpenCASCADE's own point-confusion tolerance (Precision::Confusion).
+    OpenCASCADE's own point-confusion tolerance (Precision::Confusion);
+    the nodes of boundary faces the store puts on no surface (diced
+    without --geometry) count with their distance to the nearest surface.
 Exit status 0 only if everything holds, 1 if a check fails.
 )",
     R"(dicer verify sphere.dice.h5
@@ -52,10 +54,12 @@ int cmd_verify(const std::vector<std::string>& argv) {
            "the report as one JSON object: ok, nodes, nodes_formula, "
            "elements, elements_formula, fine_faces_checked, "
            "boundary_fine_faces, id_errors, bit_identity_errors, "
-           "coincident_nodes, conformity_errors, inverted, "
-           "index_errors, min_scaled_jacobian, problems [text], and with --geometry "
+           "coincident_nodes, coincident_interface, near_coincident, "
+           "coincident_coarse_vertices, misoriented, conformity_errors, "
+           "inverted, index_errors, min_scaled_jacobian, problems [text], "
+           "warnings [text], and with --geometry "
            "geometry {max_distance, tolerance, diagonal, worst_node, "
-           "worst_entity, nodes_checked}");
+           "worst_entity, nodes_checked, unplaced_faces}");
   cmd.flag("--quiet", quiet, "no progress bar");
   StoreFlags store(cmd);
   // Under mpirun every rank checks its chunk; rank 0 merges, matches the
@@ -92,7 +96,7 @@ int report(const std::string& path, bool with_cad, const std::string& cad, bool 
   if (with_cad) {
     Progress bar("verify: geometry", 1, quiet);
     g = check_geometry(m, cad, [&](Id done, Id total) { bar.update(done, total); });
-    geo_ok = g.max_distance <= g.tolerance;
+    geo_ok = g.ok();
   }
   const bool ok = r.ok() && geo_ok;
   auto ll = [](Id v) { return static_cast<long long>(v); };
@@ -119,7 +123,8 @@ int report(const std::string& path, bool with_cad, const std::string& cad, bool 
               {"warnings", r.warnings}};
     if (with_cad)
       j["geometry"] = {{"max_distance", g.max_distance}, {"tolerance", g.tolerance}, {"diagonal", g.diagonal},
-                       {"worst_node", g.worst_node},     {"worst_entity", g.worst_entity}, {"nodes_checked", g.nodes_checked}};
+                       {"worst_node", g.worst_node},     {"worst_entity", g.worst_entity}, {"nodes_checked", g.nodes_checked},
+                       {"unplaced_faces", g.unplaced_faces}};
     print_json(j);
   } else {
     auto mark = [](bool ok) { return ok ? "ok  " : "FAIL"; };
@@ -146,6 +151,12 @@ int report(const std::string& path, bool with_cad, const std::string& cad, bool 
                   "%lld nodes checked\n",
                   mark(geo_ok), g.max_distance, ll(g.worst_node), g.worst_entity.empty() ? "-" : g.worst_entity.c_str(),
                   g.tolerance, g.diagonal > 0 ? g.max_distance / g.diagonal : 0.0, ll(g.nodes_checked));
+    if (with_cad && g.unplaced_faces > 0)
+      std::printf("    %lld boundary coarse faces are on no CAD surface in the store (diced without --geometry): "
+                  "their nodes measured against the nearest surface%s\n",
+                  ll(g.unplaced_faces), geo_ok ? "" : "; dice with --geometry to put them on it");
+    else if (with_cad && g.nodes_checked == 0)
+      std::printf("    no node of the store is on a CAD curve or surface (dice with --geometry %s)\n", cad.c_str());
     for (const auto& p : r.problems) std::printf("    %s\n", p.c_str());
     for (const auto& w : r.warnings) std::printf("    warning: %s\n", w.c_str());
     std::printf("%s\n", ok ? "all checks passed" : "VERIFY FAILED");

@@ -95,6 +95,11 @@ CLI::Option* Command::flag(const std::string& names, bool& into, const char* des
   return app_.add_flag(names, into, description)->group(group);
 }
 
+void Command::quiet_accepted() {
+  app_.add_flag("--quiet", quiet_, "accepted for scripts that pass it to every command; this one draws no progress bar")
+      ->group("Options");
+}
+
 CLI::Option* Command::input_value(const std::string& names, std::string& into, const char* value_name,
                                   const char* description, const std::string& group) {
   CLI::Option* o = value(names, into, value_name, description, group);

@@ -37,6 +37,9 @@ class Command {
   CLI::Option* values(const std::string& names, std::vector<std::string>& into, const char* value_name,
                       const char* description, const std::string& group = "Options");
   CLI::Option* flag(const std::string& names, bool& into, const char* description, const std::string& group = "Options");
+  // --quiet for a command that prints no progress: accepted, so that a
+  // script can pass it to every command.
+  void quiet_accepted();
   // A value option naming another file the command reads: checked by parse().
   CLI::Option* input_value(const std::string& names, std::string& into, const char* value_name, const char* description,
                            const std::string& group = "Options");
@@ -64,6 +67,7 @@ class Command {
   std::vector<std::pair<CLI::Option*, std::string>> required_;
   std::vector<CLI::Option*> inputs_;
   CLI::Option* output_ = nullptr;
+  bool quiet_ = false;  // quiet_accepted(): nothing to quiet
 };
 
 // The option sets below register options bound to their own members: the

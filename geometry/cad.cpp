@@ -3,8 +3,12 @@
 
 #include <gmsh.h>
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <atomic>
+#include <cstdio>
+#include <iostream>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -68,6 +72,32 @@ void gmsh_call(ErrorKind kind, const std::string& context, const std::function<v
   throw Error(kind, context + ": " + why);
 }
 
+namespace {
+// Standard output goes to stderr for the life of this object (fd level: the
+// kernel's own printf/cout included). Single-threaded use: dicer-cad prints
+// nothing else meanwhile.
+class StdoutToStderr {
+ public:
+  StdoutToStderr() {
+    std::fflush(stdout);
+    saved_ = ::dup(STDOUT_FILENO);
+    if (saved_ >= 0) ::dup2(STDERR_FILENO, STDOUT_FILENO);
+  }
+  ~StdoutToStderr() {
+    if (saved_ < 0) return;
+    std::fflush(stdout);
+    std::cout.flush();
+    ::dup2(saved_, STDOUT_FILENO);
+    ::close(saved_);
+  }
+  StdoutToStderr(const StdoutToStderr&) = delete;
+  StdoutToStderr& operator=(const StdoutToStderr&) = delete;
+
+ private:
+  int saved_ = -1;
+};
+}  // namespace
+
 Cad::Cad(const std::string& path) : path_(path), lock_(gmsh_mutex()) {
   const std::string ext = lower_ext(path);
   if (ext != ".step" && ext != ".stp" && ext != ".brep" && ext != ".brp")
@@ -84,6 +114,9 @@ Cad::Cad(const std::string& path) : path_(path), lock_(gmsh_mutex()) {
   gmsh_call(ErrorKind::BadInput, path + ": OpenCASCADE cannot read the CAD file", [&] {
     gmsh::model::add(model_);
     gmsh::vectorpair out;
+    // OpenCASCADE's STEP reader prints its complaints ("**** ERR StepFile")
+    // to standard output, where --json's document goes: onto stderr.
+    const StdoutToStderr occ_talks_to_stderr;
     gmsh::model::occ::importShapes(path, out, /*highestDimOnly=*/false);
     if (needs_fragment(out)) gmsh::model::occ::removeAllDuplicates();
     gmsh::model::occ::synchronize();

@@ -909,6 +909,40 @@ GeometryCheck check_geometry(const FineMesh& mesh, const std::string& cad_path, 
         g.worst_entity = std::string(dim_name(dim)) + " " + std::to_string(tag);
     }
   };
+  // Nodes of unplaced faces, a batch at a time: each against the surfaces
+  // whose box holds it (every surface when none does), the nearest counts.
+  std::vector<Vec3> loose;
+  std::vector<Id> loose_ids;
+  auto measure_loose = [&] {
+    if (loose.empty()) return;
+    std::vector<double> best(loose.size(), INFINITY);
+    std::vector<int> best_tag(loose.size(), -1);
+    auto against = [&](const CadEntity& e, const std::vector<size_t>& which) {
+      if (which.empty()) return;
+      std::vector<Vec3> pts;
+      for (size_t i : which) pts.push_back(loose[i]);
+      const auto d = distances(cad, {2, e.tag}, pts);
+      for (size_t k = 0; k < which.size(); ++k)
+        if (d[k] < best[which[k]]) best[which[k]] = d[k], best_tag[which[k]] = e.tag;
+    };
+    for (const CadEntity& e : cad.entities(2)) {
+      std::vector<size_t> which;
+      for (size_t i = 0; i < loose.size(); ++i)
+        if (in_box(e, loose[i], g.tolerance)) which.push_back(i);
+      against(e, which);
+    }
+    std::vector<size_t> far;
+    for (size_t i = 0; i < loose.size(); ++i)
+      if (best_tag[i] < 0) far.push_back(i);
+    for (const CadEntity& e : cad.entities(2)) against(e, far);
+    for (size_t i = 0; i < loose.size(); ++i) {
+      ++g.nodes_checked;
+      if (best[i] > g.max_distance || g.worst_node < 0)
+        g.max_distance = std::max(g.max_distance, best[i]), g.worst_node = loose_ids[i],
+        g.worst_entity = "surface " + std::to_string(best_tag[i]) + " (the nearest; the store names none)";
+    }
+    loose.clear(), loose_ids.clear();
+  };
   const Id V = T.num_vertices(), E = T.edges.rows(), F = T.faces.rows();
   const Id total = V + E + F;
   // Vertices, grouped per entity for batched projections.
@@ -940,8 +974,13 @@ GeometryCheck check_geometry(const FineMesh& mesh, const std::string& cad_path, 
   for (Id f = 0; f < F; ++f) {
     if (progress && (f & 255) == 0) progress(V + E + f, total);
     const std::int64_t o = mesh.owner(EntityKind::Face, f, cur);
-    if (owner_dim(o) != 2) continue;
     const FaceRow r = RowReader(T, cur).face(f);
+    // A boundary face the store puts on no CAD surface (a store diced
+    // without --geometry): its nodes were never placed, so they are measured
+    // against the nearest surface instead (a planar part passes, a curved
+    // one does not).
+    const bool unplaced = owner_dim(o) != 2 && (mesh.mode() == Mode::Surface || r.other_element < 0);
+    if (owner_dim(o) != 2 && !unplaced) continue;
     const Id nu = r.nu, nv = r.nv;
     std::vector<Vec3> pts;
     std::vector<Id> ids;
@@ -951,8 +990,16 @@ GeometryCheck check_geometry(const FineMesh& mesh, const std::string& cad_path, 
         q.kind = EntityKind::Face, q.entity = f, q.local = {u, v, 0};
         pts.push_back(mesh.node(q, cur)), ids.push_back(mesh.node_id(q, cur));
       }
-    check(2, owner_tag(o), pts, ids);
+    if (!unplaced) {
+      check(2, owner_tag(o), pts, ids);
+      continue;
+    }
+    ++g.unplaced_faces;
+    loose.insert(loose.end(), pts.begin(), pts.end());
+    loose_ids.insert(loose_ids.end(), ids.begin(), ids.end());
+    if (loose.size() >= (1u << 16)) measure_loose();
   }
+  measure_loose();
   if (progress) progress(total, total);
   return g;
 }

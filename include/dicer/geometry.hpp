@@ -100,13 +100,21 @@ struct GeometryCheck {
   std::string worst_entity;  // e.g. "surface 3"
   Id nodes_checked = 0;
   double tolerance = 0;      // documented bound: max(1e-9 * diagonal, kKernelTolerance)
+  // Boundary coarse faces (volume; surface: every face) the store puts on
+  // no CAD surface (a store diced without the CAD): their fine nodes are
+  // measured against the nearest surface.
+  Id unplaced_faces = 0;
+  bool ok() const { return max_distance <= tolerance && nodes_checked > 0; }
 };
 // OpenCASCADE's Precision::Confusion(), the distance under which its
 // projections call two points the same.
 inline constexpr double kKernelTolerance = 1e-7;
 
 // Distance of every fine node on a CAD curve or surface (owners as stored)
-// from that entity. Works on a store. progress(done, total) in coarse entities.
+// from that entity, and of the nodes of boundary faces the store puts on no
+// surface from the nearest one (bounding boxes pick the candidates; every
+// surface for a node outside them all). Works on a store.
+// progress(done, total) in coarse entities.
 GeometryCheck check_geometry(const FineMesh& mesh, const std::string& cad_path,
                              const std::function<void(Id, Id)>& progress = {});
 

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <bit>
 #include <filesystem>
+#include <fstream>
 #include <functional>
 #include <random>
 
@@ -262,6 +263,23 @@ TEST_P(CurvedPart, FineNodesOnTheCadNoInversionConformingAndBitIdenticalThroughT
     const GeometryCheck g = check_geometry(s, cad);
     EXPECT_LE(g.max_distance, 1e-9 * g.diagonal) << "worst node " << g.worst_node << " on " << g.worst_entity;
     EXPECT_GT(g.nodes_checked, 0);
+    EXPECT_EQ(g.unplaced_faces, 0);
+    EXPECT_TRUE(g.ok());
+    // The same coarse mesh diced without the CAD: its boundary faces are on
+    // no surface in the store, their nodes measured against the nearest
+    // surface. A curved boundary's chords are off it (verify fails); the
+    // sphere in a box has a planar boundary (the sphere is inside), on it.
+    {
+      const std::string flat = tmp.path("flat.dice.h5");
+      write_store(FineMesh::dice(read_coarse_mesh(msh), req), flat);
+      const GeometryCheck u = check_geometry(read_store(flat, StoreOptions{8ull << 20, 0}), cad);
+      EXPECT_GT(u.unplaced_faces, 0);
+      const bool curved_boundary = std::string(c.shape.name) != "sphere_in_box";
+      if (curved_boundary) {
+        EXPECT_GT(u.max_distance, 1e3 * u.tolerance);
+      }
+      EXPECT_EQ(u.ok(), !curved_boundary) << u.max_distance << " at node " << u.worst_node;
+    }
     const StoreSummary sum = store_summary(store);
     EXPECT_EQ(sum.bounding_nodes, fine.num_bounding_nodes());
     // Below raw float64 (24 B per node) after the prediction + shuffle + LZ4.
@@ -356,6 +374,14 @@ TEST(Geometry, PlanarBoxNeedsNoBoundingBytes) {
   EXPECT_EQ(sum.bounding_nodes, 0);
   EXPECT_EQ(sum.bounding_bytes, 0u);
   EXPECT_TRUE(verify(read_store(store, StoreOptions{8ull << 20, 0})).ok());
+  // Diced without the CAD, a box is on it all the same: its unplaced faces'
+  // nodes are on the nearest plane.
+  const std::string flat = tmp.path("flat.dice.h5");
+  write_store(FineMesh::dice(read_coarse_mesh(msh), req), flat);
+  const GeometryCheck g = check_geometry(read_store(flat, StoreOptions{8ull << 20, 0}), cad);
+  EXPECT_GT(g.unplaced_faces, 0);
+  EXPECT_LE(g.max_distance, g.tolerance) << "node " << g.worst_node << " on " << g.worst_entity;
+  EXPECT_TRUE(g.ok());
 }
 
 TEST(Geometry, RenumberedCadIsMatchedGeometrically) {
@@ -421,6 +447,15 @@ TEST(Geometry, MismatchedCadIsRefusedNamingVertexAndDistance) {
   EXPECT_EQ(m.exit_code, 5) << m.err;
   EXPECT_NE(m.err.find("missing.step"), std::string::npos) << m.err;
   EXPECT_FALSE(std::filesystem::exists(tmp.path("y.dice.h5")));
+  // A STEP file that is not STEP: exit 3, and OpenCASCADE's own complaints
+  // on stderr, not in the standard output a --json reader parses.
+  {
+    const std::string junk = tmp.path("junk.step");
+    std::ofstream(junk) << "garbage";
+    const auto j = test::run_cli({"dice", msh, "--geometry", junk, "--interval", "2", "-o", tmp.path("j.dice.h5"), "--quiet"});
+    EXPECT_EQ(j.exit_code, 3) << j.err;
+    EXPECT_EQ(j.out, "") << "stdout holds: " << j.out;
+  }
   // Not a CAD format.
   const auto u = test::run_cli({"dice", msh, "--geometry", msh, "-o", tmp.path("z.dice.h5")});
   EXPECT_EQ(u.exit_code, 4) << u.err;

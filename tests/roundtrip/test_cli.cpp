@@ -324,6 +324,28 @@ TEST(Cli, BadStoresAreRefusedClearly) {
   EXPECT_NE(r.err.find("out of range"), std::string::npos) << r.err;
 }
 
+// A script can pass --quiet to every command (those that draw no progress
+// accept it and do nothing), and it keeps progress off the terminal only.
+TEST(Cli, EveryCommandAcceptsQuiet) {
+  test::TempDir tmp;
+  const std::string mesh = test::data_path("cardinal_sphere.e"), store = tmp.path("s.dice.h5");
+  ASSERT_EQ(run_cli({"dice", mesh, "--interval", "1", "-o", store, "--quiet"}).exit_code, 0);
+  for (const std::vector<std::string>& args : std::vector<std::vector<std::string>>{
+           {"sheets", mesh},
+           {"info", store},
+           {"query", store, "--node", "0"},
+           {"verify", store},
+           {"footprint", store},
+           {"export", store, "-o", tmp.path("q.msh")},
+           {"sweep", store},
+           {"transfer", store, store, "--check"}}) {
+    std::vector<std::string> quiet = args;
+    quiet.push_back("--quiet");
+    const auto r = run_cli(quiet);
+    EXPECT_EQ(r.exit_code, 0) << args[0] << ": " << r.err;
+  }
+}
+
 TEST(Cli, HelpTeaches) {
   auto r = run_cli({"--help"});
   EXPECT_EQ(r.exit_code, 0);
