@@ -57,7 +57,9 @@ FineMesh open_level(const std::string& path, const StoreOptions& options) {
   if (std::string(sig, sizeof sig) == std::string("\x89HDF\r\n\x1a\n", 8)) return read_store(path, options);
   IntervalRequest one;
   one.global = 1;
-  return FineMesh::dice(read_coarse_mesh(path), one);
+  FineMesh m = FineMesh::dice(read_coarse_mesh(path), one);
+  m.set_origin(path);
+  return m;
 }
 
 }  // namespace

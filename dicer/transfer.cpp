@@ -73,11 +73,24 @@ Nesting check_nesting(const FineMesh& coarse, const FineMesh& fine) {
       differ(std::string(table) + " row " + std::to_string(row) + ": " + name + " is " + std::to_string(a) + " vs " +
              std::to_string(b));
   };
+  // A CAD owner in words: "no CAD entity" or "CAD surface 3".
+  auto cad_name = [](std::int64_t o) {
+    static const char* kDim[] = {"point", "curve", "surface", "volume"};
+    const int d = owner_dim(o);
+    return d < 0 || d > 3 ? std::string("no CAD entity") : "CAD " + std::string(kDim[d]) + " " + std::to_string(owner_tag(o));
+  };
+  auto cad_field = [&](const char* table, Id row, std::int64_t a, std::int64_t b) {
+    if (a == b) return;
+    const bool one_placed = (owner_dim(a) < 0) != (owner_dim(b) < 0);
+    differ(std::string(table) + " row " + std::to_string(row) + ": on " + cad_name(a) + " vs " + cad_name(b) +
+           (one_placed ? " (one was diced with --geometry and the other not: dice both with the same CAD)"
+                       : " (diced onto different CAD files?)"));
+  };
   for (Id v = 0; v < T.num_vertices(); ++v) {
     const VertexRow a = C.vertex(v), b = F.vertex(v);
     field("topology/vertex_nodes", v, "owner element", a.owner_element, b.owner_element);
     field("topology/vertex_nodes", v, "corner", a.corner, b.corner);
-    field("geometry/vertex_owner", v, "CAD entity", C.vertex_geo(v), F.vertex_geo(v));
+    cad_field("geometry/vertex_owner", v, C.vertex_geo(v), F.vertex_geo(v));
   }
   // Sheets: the first (in id order) whose fine interval is not a multiple.
   Nesting out;
@@ -93,7 +106,7 @@ Nesting check_nesting(const FineMesh& coarse, const FineMesh& fine) {
     const EdgeRow a = C.edge(e), b = F.edge(e);
     const char* t = "topology/edges";
     field(t, e, "lo", a.lo, b.lo), field(t, e, "hi", a.hi, b.hi), field(t, e, "sheet", a.sheet, b.sheet);
-    field(t, e, "owner element", a.owner_element, b.owner_element), field(t, e, "CAD entity", a.geo, b.geo);
+    field(t, e, "owner element", a.owner_element, b.owner_element), cad_field(t, e, a.geo, b.geo);
     field(t, e, "other element", a.other_element, b.other_element);
     if (a.sheet < 0 || a.sheet >= ci.sheets) C.corrupt(RowTable::Edges, e, "sheet id outside the sheets");
     auto& s_c = sc[static_cast<size_t>(a.sheet)];
@@ -109,7 +122,7 @@ Nesting check_nesting(const FineMesh& coarse, const FineMesh& fine) {
     const FaceRow a = C.face(f), b = F.face(f);
     const char* t = "topology/faces";
     for (int k = 0; k < 4; ++k) field(t, f, "corner", a.v[k], b.v[k]), field(t, f, "side", a.e[k], b.e[k]);
-    field(t, f, "owner element", a.owner_element, b.owner_element), field(t, f, "CAD entity", a.geo, b.geo);
+    field(t, f, "owner element", a.owner_element, b.owner_element), cad_field(t, f, a.geo, b.geo);
     field(t, f, "other element", a.other_element, b.other_element);
   }
   const int nc = C.corners(), ne = C.edges(), nf = C.faces();

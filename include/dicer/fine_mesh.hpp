@@ -141,6 +141,8 @@ class FineMesh {
   Mode mode() const { return info_.mode; }
   const MeshInfo& info() const { return info_; }
   const MeshTables& tables() const { return tables_; }
+  // The name errors give this mesh (a store's path; set by read_store).
+  void set_origin(std::string name) { tables_.origin = std::move(name); }
   // Interval of every sheet (ids of the input file), when diced in this
   // process or read from a store.
   const std::vector<Id>& sheet_intervals() const { return sheet_intervals_; }

@@ -456,6 +456,16 @@ TEST(Geometry, MismatchedCadIsRefusedNamingVertexAndDistance) {
     EXPECT_EQ(j.exit_code, 3) << j.err;
     EXPECT_EQ(j.out, "") << "stdout holds: " << j.out;
   }
+  // transfer from the mesh file to a store diced onto the CAD: not one
+  // dicing (the file has no CAD placement), said in words, the file named.
+  {
+    const std::string placed = tmp.path("placed.dice.h5");
+    ASSERT_EQ(test::run_cli({"dice", msh, "--geometry", cad, "--interval", "2", "-o", placed, "--quiet"}).exit_code, 0);
+    const auto t = test::run_cli({"transfer", msh, placed, "--check"});
+    EXPECT_EQ(t.exit_code, 3) << t.err;
+    EXPECT_NE(t.err.find(msh + " and " + placed + " are not dicings of one coarse mesh"), std::string::npos) << t.err;
+    EXPECT_NE(t.err.find("diced with --geometry and the other not"), std::string::npos) << t.err;
+  }
   // Not a CAD format.
   const auto u = test::run_cli({"dice", msh, "--geometry", msh, "-o", tmp.path("z.dice.h5")});
   EXPECT_EQ(u.exit_code, 4) << u.err;

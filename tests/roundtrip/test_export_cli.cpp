@@ -47,6 +47,22 @@ TEST(ExportCli, EveryFormatChunkAndBoxFromTheCommandLine) {
   EXPECT_NE(r.out.find("--deflate LEVEL"), std::string::npos) << r.out;
 }
 
+// A surface store's side sets on shell faces (sides 0, 1: the quads
+// themselves) have no MSH element: said on stderr, not dropped silently;
+// --quiet keeps it quiet.
+TEST(ExportCli, ShellFaceSidesNotWrittenToMshAreSaid) {
+  test::TempDir tmp;
+  const std::string store = tmp.path("shell.dice.h5");
+  ASSERT_EQ(test::run_cli({"dice", test::data_path("libmesh_cylinder_shell.exo"), "--interval", "1", "-o", store}).exit_code, 0);
+  auto r = test::run_cli({"export", store, "-o", tmp.path("s.msh")});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("note: side set 11: the face sides of"), std::string::npos) << r.err;
+  r = test::run_cli({"export", store, "-o", tmp.path("s.e")});
+  EXPECT_EQ(r.err.find("note:"), std::string::npos) << r.err;
+  r = test::run_cli({"export", store, "-o", tmp.path("q.msh"), "--quiet"});
+  EXPECT_EQ(r.err, "");
+}
+
 // Without --format the extension of OUT names it: the same file, byte for
 // byte (exports are reproducible), as with the format given; the format
 // given wins over the extension.
