@@ -50,7 +50,7 @@ and SIGHUP (exit 130, 143, 129) leave nothing behind.
 dicer export fine.dice.h5 --format exodus --chunk 3/16 -o part3.exo
 dicer export fine.dice.h5 --format exodus --chunks 8 --nemesis -o fine.e   # fine.e.8.0 .. fine.e.8.7
 dicer export fine.dice.h5 --format msh --box 0,0,0,1,1,0.5 -o cut.msh --stats
-dicer export fine.dice.h5 --format vtkhdf --deflate 1 -o small.vtkhdf   # ~2x smaller, slower
+dicer export fine.dice.h5 --format vtkhdf --deflate 1 -o small.vtkhdf   # 4-5x smaller, slower
 )"};
 
 namespace {

@@ -1,5 +1,8 @@
 // dicer mesh-coarse: CAD -> coarse all-hex (or all-quad) mesh via Gmsh.
+#include <algorithm>
+#include <cctype>
 #include <cstdio>
+#include <filesystem>
 
 #include "command.hpp"
 #include "common.hpp"
@@ -32,12 +35,26 @@ int cmd_mesh_coarse(const std::vector<std::string>& argv) {
   bool surface = false, subdivide = false, quiet = false;
   cmd.input("CAD", cad, "the STEP or BREP model");
   cmd.output(out, "MESH", "the MSH 4.1 file to write (temporary name, then renamed)");
-  auto* o_size = cmd.value("--size", size, "H", "target coarse element size, in the model's units");
+  auto* o_size = cmd.value("--size", size, "H",
+                           "target coarse element size, in the model's units: an upper "
+                           "bound; sizes the CAD file gives its points still apply "
+                           "(Gmsh's Mesh.MeshSizeFromPoints), so a larger --size may "
+                           "change nothing");
   cmd.require(o_size, "the coarse element size");
   cmd.flag("--surface", surface, "all-quad surface mesh of the model's surfaces");
   cmd.flag("--subdivide", subdivide, "skip the transfinite attempt");
   cmd.flag("--quiet", quiet, "no summary on stdout");
   if (!cmd.parse(argv)) return 0;
+  // MSH 4.1 under a name that says another format would be misread by
+  // whatever goes by the extension (dicer's own readers included).
+  {
+    std::string ext = std::filesystem::path(out).extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+    for (const char* other : {".e", ".exo", ".ex2", ".g", ".h5", ".hdf", ".vtkhdf", ".vtk", ".vtu"})
+      if (ext == other)
+        throw Error(ErrorKind::Usage, "-o " + out + ": mesh-coarse writes Gmsh MSH 4.1, and a " + ext +
+                                          " name says another format; give a .msh name");
+  }
   CoarseMeshOptions opt;
   opt.size = parse_double("--size", size);
   opt.surface = surface;

@@ -266,6 +266,8 @@ def dice(mesh, out, interval=None, sheet_intervals=None, block_intervals=None, s
     sheets = _pairs("--sheet-interval", sheet_intervals, _sheet_key)
     if geometry_tol is not None and geometry is None:
         raise UsageError("--geometry-tol needs --geometry CAD")
+    cache_mb = _whole("--cache-mb", cache_mb)
+    _core._check_open_options(cache_mb, 4)  # before the work, not after it
 
     if geometry is None:
         r = _core._dice(mesh, out, interval, size, blocks, sheets, intervals_file)

@@ -1,6 +1,8 @@
 #include "errors.hpp"
 
+#include <chrono>
 #include <string>
+#include <thread>
 
 #include "dicer/mpi.hpp"
 
@@ -90,6 +92,12 @@ void register_errors(py::module_& m) {
       PyErr_SetString(class_for(e.kind()), e.what());
     }
   });
+}
+
+ReleaseGil::~ReleaseGil() noexcept(false) {
+  // _Py_IsFinalizing: Python 3.11's name (Py_IsFinalizing from 3.13).
+  while (_Py_IsFinalizing()) std::this_thread::sleep_for(std::chrono::seconds(1));
+  PyEval_RestoreThread(state_);
 }
 
 SignalPoll::~SignalPoll() {

@@ -35,12 +35,30 @@ class SignalPoll {
   PyObject *type_ = nullptr, *value_ = nullptr, *trace_ = nullptr;
 };
 
+// py::gil_scoped_release for every call into dicer, except at interpreter
+// exit: a daemon thread that retakes the GIL while Python finalises is
+// ended by Python with pthread_exit, whose forced unwinding through
+// py::gil_scoped_release's (noexcept) destructor aborted the process
+// ("terminate called without an active exception"). This destructor lets
+// that unwinding through (noexcept(false)), and a thread that sees the
+// exit coming waits for it instead, as Python's own daemon threads do.
+class ReleaseGil {
+ public:
+  ReleaseGil() : state_(PyEval_SaveThread()) {}
+  ~ReleaseGil() noexcept(false);
+  ReleaseGil(const ReleaseGil&) = delete;
+  ReleaseGil& operator=(const ReleaseGil&) = delete;
+
+ private:
+  PyThreadState* state_;
+};
+
 // Runs fn() without the GIL; a KeyboardInterrupt seen by `poll` wins over
 // the Error{Cancelled} it provoked.
 template <class Fn>
 auto without_gil(SignalPoll& poll, Fn&& fn) {
   try {
-    py::gil_scoped_release release;
+    ReleaseGil release;
     return fn();
   } catch (const Error& e) {
     if (e.kind() == ErrorKind::Cancelled && poll.raised()) poll.rethrow();

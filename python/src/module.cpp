@@ -73,19 +73,23 @@ struct Store {
   }
 };
 
-Store open_store(const std::string& path, std::int64_t cache_mb, std::int64_t read_ahead, bool keep_tables) {
-  // The CLI's --cache-mb and --read-ahead limits and words (messages name
-  // the command-line option of each argument, as every message here does).
+// The CLI's --cache-mb and --read-ahead limits and words (messages name
+// the command-line option of each argument, as every message here does).
+void check_open_options(std::int64_t cache_mb, std::int64_t read_ahead) {
   if (cache_mb < 1 || cache_mb > (std::int64_t{1} << 30))
     throw Error(ErrorKind::Usage, "--cache-mb: must be between 1 and 2^30 (MiB)");
   if (read_ahead < 0 || read_ahead > 1024) throw Error(ErrorKind::Usage, "--read-ahead: must be between 0 and 1024 pages");
+}
+
+Store open_store(const std::string& path, std::int64_t cache_mb, std::int64_t read_ahead, bool keep_tables) {
+  check_open_options(cache_mb, read_ahead);
   Store s;
   s.path = path;
   s.file = std::filesystem::absolute(path).string();
   s.options.cache_bytes = static_cast<std::uint64_t>(cache_mb) << 20;
   s.options.read_ahead_pages = static_cast<unsigned>(read_ahead);
   s.options.keep_coarse_tables = keep_tables;
-  py::gil_scoped_release release;
+  ReleaseGil release;
   s.mesh = std::make_shared<const FineMesh>(read_store(s.file, s.options));
   // The identity of the file read (a replacement in between is caught by
   // the sets' uuid check, read_store_sets).
@@ -98,7 +102,7 @@ Store open_store(const std::string& path, std::int64_t cache_mb, std::int64_t re
 py::dict info_dict(const Store& s) {
   const Mesh m = s.get();
   const StoreSummary sum = [&] {
-    py::gil_scoped_release release;
+    ReleaseGil release;
     return store_summary(s.reread());
   }();
   const MeshInfo& c = m->info();
@@ -220,7 +224,7 @@ py::array nodes(const Store& s, const py::object& first, const py::object& stop)
   const IdSelection sel = select_ids("node", first, stop, *m);
   std::vector<double> xyz(3 * sel.size());
   {
-    py::gil_scoped_release release;
+    ReleaseGil release;
     if (sel.range) {
       // The cursor `dicer query --nodes` uses: one pass in id order.
       NodeCursor cur(*m, sel.a, sel.b);
@@ -259,7 +263,7 @@ ElementRows element_rows(const Store& s, const py::object& first, const py::obje
   const FineMesh& m = *r.mesh;
   const IdSelection sel = select_ids("element", first, stop, m);
   r.count = static_cast<py::ssize_t>(sel.size());
-  py::gil_scoped_release release;
+  ReleaseGil release;
   const int corners = m.corners(), dims = m.mode() == Mode::Volume ? 3 : 2;
   r.nodes.resize(sel.size() * static_cast<size_t>(corners));
   if (details) {
@@ -314,7 +318,7 @@ py::array elements_in_box(const Store& s, const std::vector<double>& lo, const s
   check_box(box, "elements_in_box");
   std::vector<Id> ids;
   {
-    py::gil_scoped_release release;
+    ReleaseGil release;
     for_each_in_box(*m, box, [&](const FineBlock& b, Id e) { ids.push_back(b.first_element + e); });
   }
   return owned(std::move(ids));
@@ -332,7 +336,7 @@ py::tuple locate(const Store& s, const py::array_t<double, py::array::c_style | 
   const std::vector<double> xyz(points.data(), points.data() + points.size());
   std::vector<Located> found;
   {
-    py::gil_scoped_release release;
+    ReleaseGil release;
     found = locate_points(*m, xyz, static_cast<int>(threads), max_distance.value_or(INFINITY));
   }
   const bool surface = m->mode() == Mode::Surface;
@@ -377,7 +381,7 @@ struct Transfer {
 
 Transfer make_transfer(const Store& coarse, const Store& fine) {
   Transfer t{coarse.get(), fine.get(), nullptr};
-  py::gil_scoped_release release;
+  ReleaseGil release;
   t.p = std::make_shared<const Prolongation>(*t.coarse, *t.fine);
   return t;
 }
@@ -390,7 +394,7 @@ py::array transfer_apply(const Transfer& t, const Vector& in, std::int64_t threa
   std::vector<double> out(static_cast<size_t>(transpose ? t.p->cols() : t.p->rows()));
   const std::span<const double> x(in.data(), static_cast<size_t>(in.size()));
   {
-    py::gil_scoped_release release;
+    ReleaseGil release;
     if (transpose) t.p->apply_transpose(x, out, static_cast<unsigned>(threads));
     else t.p->apply(x, out, static_cast<unsigned>(threads));
   }
@@ -402,7 +406,7 @@ py::dict sweep_dict(const Store& s, std::int64_t threads) {
   const Mesh m = s.get();
   SweepResult r;
   {
-    py::gil_scoped_release release;
+    ReleaseGil release;
     r = sweep(*m, static_cast<unsigned>(threads));
   }
   char checksum[24];
@@ -529,7 +533,7 @@ std::unique_ptr<PartitionBox> make_partition_mpi(const Store& s, const py::objec
   auto p = std::make_unique<PartitionBox>();
   const Store* store = &s;
   std::string path;
-  py::gil_scoped_release release;
+  ReleaseGil release;
   MeshSets sets;
   // What only this rank can get wrong (a closed store, an unreadable file)
   // is agreed on first, so no rank waits in the exchange for one that failed.
@@ -588,13 +592,13 @@ struct BlockIterator {
     const FineMesh& m = *mesh;
     std::vector<Id> ids, conn;
     {
-      py::gil_scoped_release release;
+      ReleaseGil release;
       m.fill_block(next, block, !connectivity);
     }
     auto xyz = points->array({static_cast<py::ssize_t>(block.x.size()), 3});
     double* p = xyz.mutable_data();
     {
-      py::gil_scoped_release release;
+      ReleaseGil release;
       interleave_into(block.x, block.y, block.z, p);
       // Handed over, not copied: fill_block refills them next time.
       ids = std::move(block.node_id);
@@ -659,7 +663,7 @@ struct BatchIterator {
     FineBatch b;
     bool more = false;
     {
-      py::gil_scoped_release release;
+      ReleaseGil release;
       more = cursor->next(b);
     }
     if (!more) throw py::stop_iteration();
@@ -675,7 +679,7 @@ struct BatchIterator {
     double* p = points.mutable_data();
     Id* c = ids.mutable_data();
     {
-      py::gil_scoped_release release;
+      ReleaseGil release;
       interleave_into(b.x, b.y, b.z, p);
       std::copy(b.conn.begin(), b.conn.end(), c);
     }
@@ -756,6 +760,7 @@ PYBIND11_MODULE(_core, m) {
   m.def("_dice", &dice_to_store, py::arg("mesh"), py::arg("out"), py::arg("interval"), py::arg("size"),
         py::arg("block_intervals"), py::arg("sheet_intervals"), py::arg("intervals_file"));
   m.def("_open", &open_store, py::arg("path"), py::arg("cache_mb"), py::arg("read_ahead"), py::arg("keep_tables"));
+  m.def("_check_open_options", &check_open_options, py::arg("cache_mb"), py::arg("read_ahead"));
 
   py::class_<Batch>(m, "Batch",
                     "The fine nodes and elements of one coarse element: node_ids, points (n, 3) and "
@@ -970,7 +975,7 @@ PYBIND11_MODULE(_core, m) {
            "this rank's partition of an mpi4py communicator (collective), sharing exchanged over MPI")
       .def("nesting", [](const Store& s, const Store& fine) {
         const Mesh c = s.get(), f = fine.get();
-        py::gil_scoped_release release;
+        ReleaseGil release;
         const Nesting n = check_nesting(*c, *f);
         py::gil_scoped_acquire acquire;
         return nesting_dict(n);

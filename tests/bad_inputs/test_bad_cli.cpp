@@ -187,6 +187,19 @@ TEST(BadCli, OutputDashIsRefusedNotWrittenAsAFileNamedDash) {
   }
 }
 
+// mesh-coarse writes MSH only: a name that says Exodus or HDF5 is refused,
+// not filled with MSH text that extension-based readers would misread.
+TEST(BadCli, MeshCoarseRefusesAnOutputNamedForAnotherFormat) {
+  test::TempDir tmp;
+  for (const std::string name : {"c.e", "c.EXO", "c.h5"}) {
+    const auto r = run_cli({"mesh-coarse", std::string(DICER_SOURCE_DIR) + "/examples/cylinder.brep", "--size", "1", "-o",
+                            tmp.path(name)});
+    EXPECT_EQ(r.exit_code, 2) << name << ": " << r.err;
+    EXPECT_NE(r.err.find("give a .msh name"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(tmp.path(name)));
+  }
+}
+
 // An empty file name is a usage error naming the option, not "cannot open"
 // (exit 5) or another option's complaint (--points "" once read as --point).
 TEST(BadCli, EmptyFileNamesAndADirectoryOfPointsAreUsageErrors) {

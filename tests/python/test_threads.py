@@ -139,3 +139,33 @@ def test_ids_as_numpy_integers_and_beyond_64_bits(sphere_store):
         s.nodes(0.0, 3)
     with pytest.raises(dicer.IdOverflowError, match="does not fit in 64 bits"):
         s.nodes(0, 2**70)
+
+
+def test_dice_checks_its_cache_budget_before_dicing(tmp_path):
+    out = tmp_path / "never.dice.h5"
+    with pytest.raises(dicer.UsageError, match="--cache-mb"):
+        dicer.dice(DATA / "cardinal_sphere.e", out, interval=2, cache_mb=0)
+    assert not out.exists()  # it wrote the whole store, then refused to open it
+
+
+@pytest.mark.parametrize("call", ["nodes", "locate", "batches"])
+def test_a_daemon_thread_in_dicer_at_exit_does_not_abort(sphere_store, call):
+    # Python ends a daemon thread that retakes the GIL during finalisation
+    # with pthread_exit; unwinding through a noexcept GIL guard aborted the
+    # process (exit 134) every time.
+    for _ in range(3):
+        out = child("""
+            import sys, threading, time, numpy as np, dicer
+            s = dicer.open(sys.argv[1]); call = sys.argv[2]
+            pts = np.zeros((500, 3))
+            def loop():
+                while True:
+                    if call == "nodes": s.nodes(0, 2000)
+                    elif call == "locate": s.locate(pts)
+                    else:
+                        for _ in s.batches(): pass
+            threading.Thread(target=loop, daemon=True).start()
+            time.sleep(0.2)
+            print("main done")
+        """, sphere_store, call, timeout=60)
+        assert out.strip() == "main done"
