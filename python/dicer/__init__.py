@@ -125,6 +125,10 @@ def _whole(what, value):
 
 
 def _finite(what, value):
+    # float("0.5") would take a string: a number is asked for, as --size's
+    # value is one on the command line only because argv is text.
+    if isinstance(value, (str, bytes)):
+        raise UsageError(f'{what}: "{value}" is not a finite number (a number, not a string)')
     try:
         v = float(value)
     except (TypeError, ValueError):
@@ -303,10 +307,11 @@ def mesh_coarse(cad, out, size, surface=False, subdivide=False):
     _check_input(cad, "CAD")
     _check_output(out, "-o", [(cad, "CAD")])
     args = ["mesh-coarse", cad, "--size", repr(_finite("--size", size)), "-o", out, "--quiet"]
-    if surface:
-        args.append("--surface")
-    if subdivide:
-        args.append("--subdivide")
+    for flag, value in (("--surface", surface), ("--subdivide", subdivide)):
+        if not isinstance(value, bool):
+            raise UsageError("%s: %s must be True or False, not %r" % (flag, flag[2:], value))
+        if value:
+            args.append(flag)
     _run_dicer_cad(args)
     return out
 

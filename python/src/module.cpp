@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
@@ -209,6 +210,14 @@ IdSelection select_ids(const char* what, const py::object& first, const py::obje
   const char k = arr.dtype().kind();
   if (arr.size() > 0 && k != 'i' && k != 'u')
     throw Error(ErrorKind::Usage, plural + "(ids): ids must be whole numbers, not " + std::string(py::str(arr.dtype())));
+  // Unsigned ids above 2^63 - 1 would wrap to negative ones in int64.
+  if (arr.size() > 0 && k == 'u' && arr.dtype().itemsize() == 8) {
+    const py::object top = arr.attr("max")();
+    if (top.cast<std::uint64_t>() > static_cast<std::uint64_t>(std::numeric_limits<Id>::max()))
+      throw Error(ErrorKind::Usage, std::string(what) + " id " + std::string(py::str(top)) + " is out of range (the mesh has " +
+                                        std::to_string(std::string(what) == "node" ? mesh.num_nodes() : mesh.num_elements()) +
+                                        " " + plural + ")");
+  }
   auto ids = np.attr("ascontiguousarray")(arr, py::arg("dtype") = "int64").cast<py::array_t<std::int64_t>>();
   sel.ids.assign(ids.data(), ids.data() + ids.size());
   return sel;
@@ -552,7 +561,7 @@ std::unique_ptr<PartitionBox> make_partition_mpi(const Store& s, const py::objec
 
 struct Batch {
   py::array node_ids, points, connectivity, owned_mask;
-  Id first_element = 0, coarse_element = 0, node_first = 0;
+  Id first_element = 0, num_elements = 0, coarse_element = 0, node_first = 0;
   std::int64_t block_id = 0;
 };
 
@@ -608,6 +617,7 @@ struct BlockIterator {
     }
     Batch b;
     b.first_element = block.first_element;
+    b.num_elements = block.num_elements();
     b.coarse_element = block.coarse_element;
     b.node_first = block.node_first;
     b.block_id = block_file_id(m, block.block);
@@ -768,20 +778,21 @@ PYBIND11_MODULE(_core, m) {
                     "owned[i] is True for the points this coarse element owns (node_ids >= node_first), "
                     "so keeping only owned points visits every fine node exactly once. Unpacks as "
                     "(node_ids, points, connectivity).")
-      .def_readonly("node_ids", &Batch::node_ids)
-      .def_readonly("points", &Batch::points)
-      .def_readonly("connectivity", &Batch::connectivity)
-      .def_readonly("owned", &Batch::owned_mask)
+      .def_readonly("node_ids", &Batch::node_ids, "int64 (n,): the global id of each grid point of the coarse element")
+      .def_readonly("points", &Batch::points, "float64 (n, 3): x, y, z of each grid point, rows as node_ids")
+      .def_readonly("connectivity", &Batch::connectivity, "int64 (e, 8|4): global node ids per element, VTK/Exodus order (e = 0 with connectivity=False)")
+      .def_readonly("owned", &Batch::owned_mask, "bool (n,): True where this coarse element owns the point (node_ids >= node_first)")
       .def_readonly("first_element", &Batch::first_element, "fine id of the first element; they are consecutive")
       .def_readonly("coarse_element", &Batch::coarse_element, "index in the store's (Morton) order")
-      .def_readonly("node_first", &Batch::node_first)
+      .def_readonly("node_first", &Batch::node_first, "the first node id this coarse element owns; its owned ids are consecutive from it")
       .def_readonly("block_id", &Batch::block_id, "the element block's id in the mesh file")
       .def_property_readonly("element_ids",
                              [](const Batch& b) {
                                py::module_ np = py::module_::import("numpy");
-                               const auto e = b.connectivity.shape(0);
-                               return np.attr("arange")(b.first_element, b.first_element + e, py::arg("dtype") = "int64");
-                             })
+                               // From the block, not the connectivity: blocks(connectivity=False) has none.
+                               return np.attr("arange")(b.first_element, b.first_element + b.num_elements,
+                                                        py::arg("dtype") = "int64");
+                             }, "int64 (e,): the fine element ids of the coarse element, first_element, first_element + 1, ... (the rows of connectivity; also with connectivity=False)")
       .def("__iter__", [](const Batch& b) { return py::iter(py::make_tuple(b.node_ids, b.points, b.connectivity)); })
       .def("__repr__", [](const Batch& b) {
         return "<dicer.Batch coarse element " + std::to_string(b.coarse_element) + ": " +
@@ -792,13 +803,13 @@ PYBIND11_MODULE(_core, m) {
                       "Consecutive fine ids of one slab (Store.batches): nodes node_begin..node_end-1 with "
                       "points (n, 3); elements element_begin..element_end-1 with connectivity (e, 8|4) in "
                       "global node ids. Unpacks as (node_begin, points, element_begin, connectivity).")
-      .def_readonly("coarse_element", &IdBatch::coarse_element)
-      .def_readonly("node_begin", &IdBatch::node_begin)
-      .def_readonly("node_end", &IdBatch::node_end)
-      .def_readonly("element_begin", &IdBatch::element_begin)
-      .def_readonly("element_end", &IdBatch::element_end)
-      .def_readonly("points", &IdBatch::points)
-      .def_readonly("connectivity", &IdBatch::connectivity)
+      .def_readonly("coarse_element", &IdBatch::coarse_element, "the coarse element the slab belongs to, in the store's order")
+      .def_readonly("node_begin", &IdBatch::node_begin, "the first node id of the slab")
+      .def_readonly("node_end", &IdBatch::node_end, "one past the last node id of the slab")
+      .def_readonly("element_begin", &IdBatch::element_begin, "the first element id of the slab")
+      .def_readonly("element_end", &IdBatch::element_end, "one past the last element id of the slab")
+      .def_readonly("points", &IdBatch::points, "float64 (node_end - node_begin, 3): the slab's nodes in id order")
+      .def_readonly("connectivity", &IdBatch::connectivity, "int64 (element_end - element_begin, 8|4): global node ids per element, VTK/Exodus order")
       .def("__iter__", [](const IdBatch& b) {
         return py::iter(py::make_tuple(b.node_begin, b.points, b.element_begin, b.connectivity));
       })
@@ -824,22 +835,22 @@ PYBIND11_MODULE(_core, m) {
   py::class_<Chunk>(m, "Chunk",
                     "Chunk k of n of the fine mesh (what `dicer export --chunk k/n` writes). Arrays are "
                     "read-only views into the chunk, no copies.")
-      .def_property_readonly("index", [](const Chunk& c) { return c.chunk->range().index; })
-      .def_property_readonly("count", [](const Chunk& c) { return c.chunk->range().count; })
-      .def_property_readonly("range", [](const Chunk& c) { return range_dict(c.chunk->range()); })
-      .def_property_readonly("mode", [](const Chunk& c) { return std::string(mode_name(c.chunk->mode())); })
-      .def_property_readonly("num_nodes", [](const Chunk& c) { return c.chunk->num_nodes(); })
-      .def_property_readonly("num_elements", [](const Chunk& c) { return c.chunk->num_elements(); })
+      .def_property_readonly("index", [](const Chunk& c) { return c.chunk->range().index; }, "k: this chunk's number, from 0")
+      .def_property_readonly("count", [](const Chunk& c) { return c.chunk->range().count; }, "n: the number of chunks the mesh was split into")
+      .def_property_readonly("range", [](const Chunk& c) { return range_dict(c.chunk->range()); }, "dict: index, count, first_coarse, end_coarse (coarse elements), fine_elements, node_begin, node_end (the node ids it owns)")
+      .def_property_readonly("mode", [](const Chunk& c) { return std::string(mode_name(c.chunk->mode())); }, "'volume' (hexes) or 'surface' (quads)")
+      .def_property_readonly("num_nodes", [](const Chunk& c) { return c.chunk->num_nodes(); }, "nodes in the chunk, shared ones with other chunks included")
+      .def_property_readonly("num_elements", [](const Chunk& c) { return c.chunk->num_elements(); }, "fine elements in the chunk")
       .def_property_readonly("points", [](py::object self) {
         const Chunk& c = self.cast<const Chunk&>();
         return view(std::span<const double>(c.xyz), {c.chunk->num_nodes(), 3}, self);
-      })
+      }, "float64 (num_nodes, 3): x, y, z of each local node")
       .def_property_readonly("cells", [](py::object self) {
         const Chunk& c = self.cast<const Chunk&>();
         return view(c.chunk->connectivity(), {c.chunk->num_elements(), c.chunk->corners()}, self);
       }, "local node ids (rows of points), VTK/Exodus HEX8 or QUAD4 order")
-      .def_property_readonly("global_node_ids", [](py::object self) { return view(self.cast<const Chunk&>().chunk->node_global(), self); })
-      .def_property_readonly("global_element_ids", [](py::object self) { return view(self.cast<const Chunk&>().chunk->element_global(), self); })
+      .def_property_readonly("global_node_ids", [](py::object self) { return view(self.cast<const Chunk&>().chunk->node_global(), self); }, "int64 (num_nodes,): the global id of each local node, ascending")
+      .def_property_readonly("global_element_ids", [](py::object self) { return view(self.cast<const Chunk&>().chunk->element_global(), self); }, "int64 (num_elements,): the global id of each local element, ascending")
       .def_property_readonly("node_owner", [](py::object self) { return view(self.cast<const Chunk&>().chunk->node_owner(), self); },
                              "the lowest chunk holding each node")
       .def_property_readonly("block_ids", [](py::object self) {
@@ -851,7 +862,7 @@ PYBIND11_MODULE(_core, m) {
         py::dict d;
         for (const auto& b : c.mesh->info().blocks) d[py::int_(b.id)] = b.name;
         return d;
-      })
+      }, "dict: block id -> name, for every block of the mesh")
       .def_property_readonly("side_sets", [](const Chunk& c) {
         return set_list(c.chunk->side_sets(), [](py::dict& d, const ExportChunk::SideMembers& s) {
           d["element"] = owned(std::vector<Id>(s.element));
@@ -872,27 +883,27 @@ PYBIND11_MODULE(_core, m) {
   py::class_<PartitionBox>(m, "Partition",
                            "Rank r of P (partition.hpp): owned nodes first (one global id range), then ghosts; "
                            "communication maps per neighbour. Arrays are read-only views.")
-      .def_property_readonly("rank", [](const PartitionBox& p) { return p.part->rank(); })
-      .def_property_readonly("size", [](const PartitionBox& p) { return p.part->size(); })
-      .def_property_readonly("range", [](const PartitionBox& p) { return range_dict(p.part->range()); })
-      .def_property_readonly("num_owned", [](const PartitionBox& p) { return p.part->num_owned(); })
-      .def_property_readonly("num_nodes", [](const PartitionBox& p) { return p.part->num_nodes(); })
-      .def_property_readonly("num_elements", [](const PartitionBox& p) { return p.part->num_elements(); })
-      .def_property_readonly("element_begin", [](const PartitionBox& p) { return p.part->element_begin(); })
-      .def_property_readonly("node_global", [](py::object self) { return view(self.cast<const PartitionBox&>().part->node_global(), self); })
-      .def_property_readonly("node_owner", [](py::object self) { return view(self.cast<const PartitionBox&>().part->node_owner(), self); })
+      .def_property_readonly("rank", [](const PartitionBox& p) { return p.part->rank(); }, "r: this partition's rank, from 0")
+      .def_property_readonly("size", [](const PartitionBox& p) { return p.part->size(); }, "P: the number of partitions")
+      .def_property_readonly("range", [](const PartitionBox& p) { return range_dict(p.part->range()); }, "dict: index, count, first_coarse, end_coarse, fine_elements, node_begin, node_end (the owned global node ids)")
+      .def_property_readonly("num_owned", [](const PartitionBox& p) { return p.part->num_owned(); }, "nodes this rank owns: local nodes 0..num_owned-1, global ids range['node_begin']..")
+      .def_property_readonly("num_nodes", [](const PartitionBox& p) { return p.part->num_nodes(); }, "local nodes: owned, then ghosts (owned by lower ranks)")
+      .def_property_readonly("num_elements", [](const PartitionBox& p) { return p.part->num_elements(); }, "fine elements of this rank (each element on exactly one rank)")
+      .def_property_readonly("element_begin", [](const PartitionBox& p) { return p.part->element_begin(); }, "the global id of the first local element; local element i is element_begin + i")
+      .def_property_readonly("node_global", [](py::object self) { return view(self.cast<const PartitionBox&>().part->node_global(), self); }, "int64 (num_nodes,): local -> global node id")
+      .def_property_readonly("node_owner", [](py::object self) { return view(self.cast<const PartitionBox&>().part->node_owner(), self); }, "int32 (num_nodes,): the rank that owns each local node")
       .def_property_readonly("points", [](py::object self) {
         const PartitionBox& p = self.cast<const PartitionBox&>();
         return view(std::span<const double>(p.xyz), {p.part->num_nodes(), 3}, self);
-      })
-      .def_property_readonly("x", [](py::object self) { return view(self.cast<const PartitionBox&>().part->x(), self); })
-      .def_property_readonly("y", [](py::object self) { return view(self.cast<const PartitionBox&>().part->y(), self); })
-      .def_property_readonly("z", [](py::object self) { return view(self.cast<const PartitionBox&>().part->z(), self); })
+      }, "float64 (num_nodes, 3): x, y, z of each local node")
+      .def_property_readonly("x", [](py::object self) { return view(self.cast<const PartitionBox&>().part->x(), self); }, "float64 (num_nodes,): x of each local node")
+      .def_property_readonly("y", [](py::object self) { return view(self.cast<const PartitionBox&>().part->y(), self); }, "float64 (num_nodes,): y of each local node")
+      .def_property_readonly("z", [](py::object self) { return view(self.cast<const PartitionBox&>().part->z(), self); }, "float64 (num_nodes,): z of each local node")
       .def_property_readonly("connectivity", [](py::object self) {
         const PartitionBox& p = self.cast<const PartitionBox&>();
         return view(p.part->connectivity(), {p.part->num_elements(), p.part->corners()}, self);
       }, "local node ids, VTK/Exodus HEX8 or QUAD4 order")
-      .def_property_readonly("neighbors", [](const PartitionBox& p) { return p.part->neighbors(); })
+      .def_property_readonly("neighbors", [](const PartitionBox& p) { return p.part->neighbors(); }, "the ranks this one shares nodes with, ascending; shared_nodes[k] goes with neighbors[k]")
       .def_property_readonly("shared_nodes", [](py::object self) {
         const PartitionBox& p = self.cast<const PartitionBox&>();
         py::list out;
@@ -909,8 +920,8 @@ PYBIND11_MODULE(_core, m) {
   py::class_<Transfer>(m, "Transfer",
                        "The prolongation P from a coarse store to a nested finer one (store.transfer(fine)): "
                        "fine nodes x coarse nodes, both in id order, never formed")
-      .def_property_readonly("shape", [](const Transfer& t) { return py::make_tuple(t.p->rows(), t.p->cols()); })
-      .def_property_readonly("nonzeros", [](const Transfer& t) { return t.p->nonzeros(); })
+      .def_property_readonly("shape", [](const Transfer& t) { return py::make_tuple(t.p->rows(), t.p->cols()); }, "(fine nodes, coarse nodes): P maps coarse nodal values to fine ones")
+      .def_property_readonly("nonzeros", [](const Transfer& t) { return t.p->nonzeros(); }, "stored entries of P")
       .def_property_readonly("nesting", [](const Transfer& t) { return nesting_dict(t.p->nesting()); },
                              "the keys of `dicer transfer --check --json`")
       .def("apply", [](const Transfer& t, const Vector& x, std::int64_t threads) { return transfer_apply(t, x, threads, false); },
@@ -923,16 +934,16 @@ PYBIND11_MODULE(_core, m) {
       });
 
   py::class_<Store>(m, "Store", "A fine mesh kept in a dicer store (open with dicer.open or dicer.dice).")
-      .def_readonly("path", &Store::path)
+      .def_readonly("path", &Store::path, "the path the store was opened by, as given")
       .def_readonly("warnings", &Store::warnings, "what the mesh reader accepted with a warning (from dice)")
       .def_readonly("notes", &Store::notes, "how interval conflicts were resolved (from dice)")
       .def_property_readonly("info", &info_dict, "the keys and values of `dicer info --json`")
-      .def_property_readonly("num_nodes", [](const Store& s) { return s.get()->num_nodes(); })
-      .def_property_readonly("num_elements", [](const Store& s) { return s.get()->num_elements(); })
-      .def_property_readonly("num_coarse_elements", [](const Store& s) { return s.get()->num_coarse_elements(); })
-      .def_property_readonly("mode", [](const Store& s) { return std::string(mode_name(s.get()->mode())); })
-      .def_property_readonly("corners", [](const Store& s) { return s.get()->corners(); })
-      .def_property_readonly("closed", [](const Store& s) { return !s.mesh; })
+      .def_property_readonly("num_nodes", [](const Store& s) { return s.get()->num_nodes(); }, "fine nodes; ids 0..num_nodes-1")
+      .def_property_readonly("num_elements", [](const Store& s) { return s.get()->num_elements(); }, "fine elements; ids 0..num_elements-1")
+      .def_property_readonly("num_coarse_elements", [](const Store& s) { return s.get()->num_coarse_elements(); }, "coarse elements (hexes or quads) the fine mesh refines")
+      .def_property_readonly("mode", [](const Store& s) { return std::string(mode_name(s.get()->mode())); }, "'volume' (hexes) or 'surface' (quads)")
+      .def_property_readonly("corners", [](const Store& s) { return s.get()->corners(); }, "nodes per element: 8 (volume) or 4 (surface)")
+      .def_property_readonly("closed", [](const Store& s) { return !s.mesh; }, "True after close(); every other call then raises UsageError")
       .def("cache_stats", &cache_stats, "the page cache's counters (what --stats prints)")
       .def("nodes", &nodes, py::arg("start"), py::arg("stop") = py::none(),
            "nodes(start, stop) or nodes(ids): coordinates, float64 (n, 3)")

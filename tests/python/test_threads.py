@@ -16,7 +16,7 @@ import pytest
 
 import dicer
 
-from conftest import DATA
+from conftest import DATA, SOURCE
 
 
 def child(script, *args, timeout=120):
@@ -169,3 +169,16 @@ def test_a_daemon_thread_in_dicer_at_exit_does_not_abort(sphere_store, call):
             print("main done")
         """, sphere_store, call, timeout=60)
         assert out.strip() == "main done"
+
+
+def test_argument_types_as_the_command_line_means_them(tmp_path, sphere_store):
+    s = dicer.open(sphere_store)
+    with pytest.raises(dicer.UsageError, match="out of range"):
+        s.nodes(np.array([2**63], dtype=np.uint64))  # not wrapped to a negative id
+    with pytest.raises(dicer.UsageError, match="not a string"):
+        dicer.dice(DATA / "cardinal_sphere.e", tmp_path / "x.dice.h5", size="0.5")
+    with pytest.raises(dicer.UsageError, match="True or False"):
+        dicer.mesh_coarse(SOURCE / "examples" / "cylinder.brep", tmp_path / "c.msh", size=1, surface="no")
+    # blocks(connectivity=False) still says which elements a batch holds.
+    for a, b in zip(s.blocks(connectivity=False), s.blocks()):
+        assert np.array_equal(a.element_ids, b.element_ids) and len(a.element_ids) == len(b.connectivity) > 0
