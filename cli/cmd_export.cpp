@@ -188,9 +188,9 @@ int cmd_export(const std::vector<std::string>& argv) {
   const FineMesh m = read_store(path, store.options());
   const MeshSets sets = sets_of(m, path);
   // MSH has no element for a quad's face side (it would be the quad again):
-  // the writer skips shell sides 0 and 1 (export/msh.cpp). Said, not lost
-  // silently; Exodus keeps them.
-  if (!quiet && m.mode() == Mode::Surface && (format == "msh" || format == "msh-ascii"))
+  // the writer skips shell sides 0 and 1 (export/msh.cpp). Said, even under
+  // --quiet (data left out, not progress); Exodus keeps them.
+  if (m.mode() == Mode::Surface && (format == "msh" || format == "msh-ascii"))
     for (const auto& set : sets.side_sets) {
       const auto faces = std::count_if(set.side.begin(), set.side.end(), [](std::int8_t k) { return k == 0 || k == 1; });
       if (faces > 0)

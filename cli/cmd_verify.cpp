@@ -151,12 +151,13 @@ int report(const std::string& path, bool with_cad, const std::string& cad, bool 
                   "%lld nodes checked\n",
                   mark(geo_ok), g.max_distance, ll(g.worst_node), g.worst_entity.empty() ? "-" : g.worst_entity.c_str(),
                   g.tolerance, g.diagonal > 0 ? g.max_distance / g.diagonal : 0.0, ll(g.nodes_checked));
-    if (with_cad && g.unplaced_faces > 0)
+    if (with_cad && g.nodes_checked == 0)
+      std::printf("    no node of the store was measured: none is on a CAD curve or surface%s (dice with --geometry %s)\n",
+                  g.unplaced_faces > 0 ? ", and its unplaced boundary faces have no interior nodes" : "", cad.c_str());
+    else if (with_cad && g.unplaced_faces > 0)
       std::printf("    %lld boundary coarse faces are on no CAD surface in the store (diced without --geometry): "
                   "their nodes measured against the nearest surface%s\n",
                   ll(g.unplaced_faces), geo_ok ? "" : "; dice with --geometry to put them on it");
-    else if (with_cad && g.nodes_checked == 0)
-      std::printf("    no node of the store is on a CAD curve or surface (dice with --geometry %s)\n", cad.c_str());
     for (const auto& p : r.problems) std::printf("    %s\n", p.c_str());
     for (const auto& w : r.warnings) std::printf("    warning: %s\n", w.c_str());
     std::printf("%s\n", ok ? "all checks passed" : "VERIFY FAILED");

@@ -46,7 +46,7 @@ _dicer()
     # Any other option that takes a value ("  --threads N   ..." in the
     # help): a number or a list, nothing to offer.
     if [[ $prev == -* ]] && "$1" "$cmd" --help 2>/dev/null |
-        grep -Eq -- "^ +(-[a-z], )?$prev[ =][^ ]"; then
+        grep -Eq -- "^  (-[a-z], )?$prev[ =][^ ]"; then
         return
     fi
     $split && return

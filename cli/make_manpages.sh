@@ -9,7 +9,7 @@
 # Usage: make_manpages.sh DICER OUTDIR
 set -euo pipefail
 
-if [ "$1" = "--joined-help" ]; then  # what help2man runs: DICER [CMD] --help
+if [ "${1:-}" = "--joined-help" ]; then  # what help2man runs: DICER [CMD] --help
   shift
   "$@" | awk 'NR == 1 { u = $0; next }
     u != "" && /^ +[^ ]/ { l = $0; sub(/^ +/, "", l); u = u " " l; next }
@@ -19,8 +19,10 @@ if [ "$1" = "--joined-help" ]; then  # what help2man runs: DICER [CMD] --help
   exit
 fi
 
+[ $# -eq 2 ] || { echo "usage: make_manpages.sh DICER OUTDIR" >&2; exit 2; }
 dicer=$1 out=$2
 mkdir -p "$out"
+rm -f "$out"/dicer.1 "$out"/dicer-*.1  # a command since removed leaves no page behind
 version=$("$dicer" --version | awk '{print $2}')
 # help2man runs "PROGRAM --help" through the shell.
 prog="$(printf '%q' "$BASH") $(printf '%q' "$0") --joined-help $(printf '%q' "$dicer")"
@@ -40,7 +42,7 @@ summaries=$("$dicer" --help | awk '
 # into a paragraph (or a tagged one, where a comment is far to the right):
 # the section is written again from the help, one line each, unfilled.
 tidy() {  # tidy [CMD]
-  "$dicer" "$@" --help |
+  "$dicer" "$@" --help </dev/null |
     awk '/^Examples:/ { on = 1; next } on && /^ / { sub(/^ +/, ""); print; next } on { exit }' |
     sed -e 's/\\/\\e/g' -e 's/-/\\-/g' -e "s/^[.']/\\\\\&&/" >"$examples"
   sed -e 's/^\.SS "Exit codes:"$/.SH "EXIT STATUS"/' |
@@ -64,5 +66,5 @@ help2man --no-info --version-string "dicer $version" \
 printf '[SEE ALSO]\n.BR dicer (1)\n' >"$see_also"
 while IFS=$'\t' read -r name desc; do
   help2man --no-info --version-string "dicer-$name $version" -n "$desc" \
-    --include "$see_also" "$prog $name" | tidy "$name" >"$out/dicer-$name.1"
+    --include "$see_also" "$prog $name" </dev/null | tidy "$name" >"$out/dicer-$name.1"
 done <<<"$summaries"

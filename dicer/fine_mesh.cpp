@@ -47,6 +47,7 @@ std::string ids_of(Id count, const char* what) {
 // not an id, or an empty range past the end.
 void check_range(Id begin, Id end, Id count, const char* what) {
   if (begin >= 0 && begin <= end && end <= count) return;
+  if (begin < 0) out_of_range(begin, count, what);
   if (end < begin || begin == end)
     throw Error(ErrorKind::Usage, std::string(what) + " ids " + std::to_string(begin) + ":" + std::to_string(end) + ": " +
                                       (end < begin ? "the end is below the start" : "an empty range past the end") +

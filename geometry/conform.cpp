@@ -927,8 +927,8 @@ GeometryCheck check_geometry(const FineMesh& mesh, const std::string& cad_path, 
     };
     for (const CadEntity& e : cad.entities(2)) {
       std::vector<size_t> which;
-      for (size_t i = 0; i < loose.size(); ++i)
-        if (in_box(e, loose[i], g.tolerance)) which.push_back(i);
+      for (size_t i = 0; i < loose.size(); ++i)  // a node already on a surface needs no other
+        if (!(best[i] <= g.tolerance) && in_box(e, loose[i], g.tolerance)) which.push_back(i);
       against(e, which);
     }
     std::vector<size_t> far;

@@ -66,6 +66,10 @@ void write_crcs(const h5::File& f, const std::string& name, const std::vector<st
 struct WriteProgress {
   std::int64_t done = 0, total = 0;
   const std::function<void(std::int64_t, std::int64_t)>* fn = nullptr;
+  // write_store's hold on the HDF5 lock, let go while the callback runs:
+  // the callback may wait for a lock whose holder waits for HDF5 (Python's
+  // GIL, held by a thread closing a store: a deadlock).
+  std::unique_lock<std::recursive_mutex>* hdf5 = nullptr;
 };
 thread_local WriteProgress* g_write_progress = nullptr;
 
@@ -106,6 +110,14 @@ void write_paged(const h5::File& f, const std::string& name, const T* data, std:
                                      " failed: " + f.write_failure());
     if (g_write_progress && g_write_progress->fn && *g_write_progress->fn) {
       ++g_write_progress->done;
+      std::unique_lock<std::recursive_mutex>* held = g_write_progress->hdf5;
+      if (held) held->unlock();
+      struct Relock {
+        std::unique_lock<std::recursive_mutex>* l;
+        ~Relock() {
+          if (l) l->lock();
+        }
+      } relock{held};
       (*g_write_progress->fn)(g_write_progress->done, std::max(g_write_progress->total, g_write_progress->done));
     }
   }
@@ -433,10 +445,11 @@ void write_store(const FineMesh& mesh, const std::string& path,
   const MeshTables& t = mesh.tables();
   AtomicOutput out(path);
   const std::string& tmp = out.temp_path();
-  std::lock_guard lock(hdf5_mutex());
+  std::unique_lock lock(hdf5_mutex());
   store::register_lz4_filter();
   WriteProgress wp;
   wp.fn = &progress;
+  wp.hdf5 = &lock;
   auto pages = [](const auto& tab) {
     const std::int64_t rpp = rows_per_page(tab.width(), sizeof(tab.memory()[0]));
     return (tab.rows() + rpp - 1) / rpp;

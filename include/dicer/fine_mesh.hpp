@@ -141,7 +141,7 @@ class FineMesh {
   Mode mode() const { return info_.mode; }
   const MeshInfo& info() const { return info_; }
   const MeshTables& tables() const { return tables_; }
-  // The name errors give this mesh (a store's path; set by read_store).
+  // The name errors give this mesh (read_store gives a store its path).
   void set_origin(std::string name) { tables_.origin = std::move(name); }
   // Interval of every sheet (ids of the input file), when diced in this
   // process or read from a store.

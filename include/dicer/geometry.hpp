@@ -111,8 +111,8 @@ struct GeometryCheck {
 inline constexpr double kKernelTolerance = 1e-7;
 
 // Distance of every fine node on a CAD curve or surface (owners as stored)
-// from that entity, and of the nodes of boundary faces the store puts on no
-// surface from the nearest one (bounding boxes pick the candidates; every
+// from that entity, and of the interior nodes of boundary faces the store
+// puts on no surface from the nearest one (bounding boxes pick the candidates; every
 // surface for a node outside them all). Works on a store.
 // progress(done, total) in coarse entities.
 GeometryCheck check_geometry(const FineMesh& mesh, const std::string& cad_path,

@@ -95,8 +95,11 @@ void register_errors(py::module_& m) {
 }
 
 ReleaseGil::~ReleaseGil() noexcept(false) {
-  // _Py_IsFinalizing: Python 3.11's name (Py_IsFinalizing from 3.13).
-  while (_Py_IsFinalizing()) std::this_thread::sleep_for(std::chrono::seconds(1));
+#if PY_VERSION_HEX >= 0x030D0000
+  while (Py_IsFinalizing()) std::this_thread::sleep_for(std::chrono::seconds(1));
+#else
+  while (_Py_IsFinalizing()) std::this_thread::sleep_for(std::chrono::seconds(1));  // its name before 3.13
+#endif
   PyEval_RestoreThread(state_);
 }
 

@@ -325,7 +325,7 @@ TEST(Cli, BadStoresAreRefusedClearly) {
 }
 
 // A script can pass --quiet to every command (those that draw no progress
-// accept it and do nothing), and it keeps progress off the terminal only.
+// accept it and do nothing).
 TEST(Cli, EveryCommandAcceptsQuiet) {
   test::TempDir tmp;
   const std::string mesh = test::data_path("cardinal_sphere.e"), store = tmp.path("s.dice.h5");
