@@ -11,7 +11,7 @@
 namespace dicer::cli {
 
 static const CommandDoc kDoc = {
-    "footprint", "footprint STORE [--json] [--exact] [store options]",
+    "footprint", "footprint STORE [--json] [--exact] [--quiet] [store options]",
     R"(What the diced mesh costs, side by side with the same fine mesh stored
 explicitly (float64 x,y,z per node + int64 node ids per element, as an
 explicit HDF5 or Exodus file holds it):

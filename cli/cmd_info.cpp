@@ -8,7 +8,7 @@
 namespace dicer::cli {
 
 static const CommandDoc kDoc = {
-    "info", "info STORE [--json] [store options]",
+    "info", "info STORE [--json] [--quiet] [store options]",
     R"(Prints what a store holds: mode (volume or surface), coarse counts
 (vertices, edges, faces, elements), number of sheets, fine node and element
 counts, and per block its id, name, coarse and fine element counts. Only a

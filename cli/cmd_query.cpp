@@ -27,7 +27,7 @@ static const CommandDoc kDoc = {
                    --point x,y,z | --points FILE [--threads N]
                    [--max-distance D] |
                    --element-neighbors ID | --node-elements ID)
-                   [--json] [store options])",
+                   [--json] [--quiet] [store options])",
     R"(Regenerates fine nodes or elements by id, by box or by point; ids start
 at 0. Ranges are half-open: --nodes 1000:2000 prints ids 1000..1999, one
 line each. Give exactly one of --node, --nodes, --element, --elements,

@@ -12,7 +12,7 @@
 namespace dicer::cli {
 
 static const CommandDoc kDoc = {
-    "sheets", "sheets MESH [--json] [--edges] [interval options]",
+    "sheets", "sheets MESH [--json] [--edges] [--quiet] [interval options]",
     R"(A dicer sheet is a set of coarse edges that must all be cut into the same
 number of intervals, so that the fine mesh stays conforming: opposite edges
 of every quad face are in the same sheet. A structured a x b x c box has

@@ -169,6 +169,7 @@ ExportChunk::ExportChunk(const FineMesh& mesh, ChunkRange range, std::optional<B
     : mesh_(mesh), range_(range), box_(box) {
   if (range_.first_coarse < 0 || range_.end_coarse > mesh.num_coarse_elements() || range_.first_coarse > range_.end_coarse)
     throw Error(ErrorKind::Usage, "chunk range is outside the mesh");
+  if (box_) check_box(*box_, "export box");
   // The own node range follows from the coarse range (owner order); a
   // caller-made ChunkRange need not know it.
   MeshCursor cur;

@@ -9,6 +9,7 @@
 
 #include <bit>
 #include <cctype>
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <map>
@@ -20,6 +21,7 @@
 #include "dicer/error.hpp"
 #include "dicer/export.hpp"
 #include "dicer/fine_mesh.hpp"
+#include "dicer/store.hpp"
 #include "test_support.hpp"
 
 
@@ -521,4 +523,31 @@ TEST(ExportVtkHdf, BoxWithChunksIsOnePartitionPerChunk) {
   ASSERT_EQ(cells.size(), 3u);
   EXPECT_GT(cells[0] + cells[1] + cells[2], 0);
   EXPECT_EQ(std::to_string(cells[0] + cells[1] + cells[2]) + "\n", count.out);
+}
+
+// A box with a NaN corner or lo above hi selects nothing: refused wherever a
+// box enters the library (for_each_in_box, ExportChunk), not answered empty.
+TEST(ExportBox, NotFiniteOrInvertedBoxesAreRefused) {
+  test::TempDir dir;
+  const std::string store = dir.path("s.dice.h5");
+  ASSERT_EQ(test::run_cli({"dice", test::data_path("cardinal_sphere.e"), "--interval", "1", "-o", store}).exit_code, 0);
+  const FineMesh m = read_store(store);
+  const ChunkRange all{0, 1, 0, m.num_coarse_elements(), m.num_elements()};
+  Box nan_box, inverted;
+  nan_box.lo = {std::nan(""), 0, 0}, nan_box.hi = {1, 1, 1};
+  inverted.lo = {0, 1, 0}, inverted.hi = {1, 0, 1};
+  for (const Box& b : {nan_box, inverted}) {
+    try {
+      for_each_in_box(m, b, [](const FineBlock&, Id) {});
+      ADD_FAILURE() << "for_each_in_box took the box";
+    } catch (const Error& e) {
+      EXPECT_EQ(e.kind(), ErrorKind::Usage) << e.what();
+    }
+    try {
+      ExportChunk c(m, all, b);
+      ADD_FAILURE() << "ExportChunk took the box";
+    } catch (const Error& e) {
+      EXPECT_EQ(e.kind(), ErrorKind::Usage) << e.what();
+    }
+  }
 }
