@@ -187,12 +187,12 @@ int cmd_export(const std::vector<std::string>& argv) {
 
   const FineMesh m = read_store(path, store.options());
   const MeshSets sets = sets_of(m, path);
-  // MSH has no element for a quad's face side (it would be the quad again):
-  // the writer skips shell sides 0 and 1 (export/msh.cpp). Said, even under
-  // --quiet (data left out, not progress); Exodus keeps them.
-  if (m.mode() == Mode::Surface && (format == "msh" || format == "msh-ascii"))
+  // Sides MSH has no element for (a shell's face sides: msh_writes_side) are
+  // said, even under --quiet (data left out, not progress); Exodus keeps them.
+  if (format == "msh" || format == "msh-ascii")
     for (const auto& set : sets.side_sets) {
-      const auto faces = std::count_if(set.side.begin(), set.side.end(), [](std::int8_t k) { return k == 0 || k == 1; });
+      const auto faces = std::count_if(set.side.begin(), set.side.end(),
+                                       [&](std::int8_t k) { return !msh_writes_side(m.mode(), k); });
       if (faces > 0)
         std::fprintf(stderr, "dicer export: note: side set %lld: the face sides of %lld coarse shells (the quads "
                              "themselves) are not written to MSH, which has no element for them; Exodus keeps them\n",

@@ -256,12 +256,11 @@ std::string msh_name(std::string s) {
 // Corners (ids from `conn`, the element's corners) of side `side`, Exodus
 // order; 0 when the side is not written (shell faces 0/1, bad side).
 int side_corners(Mode mode, const Id* conn, int side, Id out[4]) {
+  if (!msh_writes_side(mode, side)) return 0;
   if (mode == Mode::Volume) {
-    if (side < 0 || side > 5) return 0;
     for (int q = 0; q < 4; ++q) out[q] = conn[kHexSideCorners[side][q]];
     return 4;
   }
-  if (side < 2 || side > 5) return 0;
   const int a = side - 2;
   out[0] = conn[a], out[1] = conn[(a + 1) % 4];
   return 2;
@@ -554,6 +553,10 @@ void write_body(const ChunkSource& c, Out& o) {
 }
 
 }  // namespace
+
+bool msh_writes_side(Mode mode, int side) {
+  return mode == Mode::Volume ? side >= 0 && side <= 5 : side >= 2 && side <= 5;
+}
 
 void write_msh(const ChunkSource& chunk, const std::string& path, bool binary) {
   namespace fs = std::filesystem;

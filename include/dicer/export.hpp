@@ -380,6 +380,10 @@ class VtkHdfWriter {
 // section), elements once per block entity (plus once with global
 // connectivity when side sets have members).
 void write_msh(const ChunkSource& chunk, const std::string& path, bool binary);
+// Whether write_msh writes side `side` (0-based Exodus) of an element:
+// every hex side; a shell's edge sides 2..5 but not its face sides 0 and 1,
+// the quad itself, for which MSH has no boundary element.
+bool msh_writes_side(Mode mode, int side);
 
 // Exodus II through the Exodus library: element blocks with names, side sets
 // and node sets, global node and element id maps (1-based: global id + 1),
