@@ -12,6 +12,7 @@
 #include "dicer/version.hpp"
 #include "dicer/error.hpp"
 #include "exit_codes.hpp"
+#include "hdf5_file.hpp"
 
 namespace {
 
@@ -99,6 +100,7 @@ Examples:
 int main(int argc, char** argv) {
   using namespace dicer::cli;
   using dicer::ErrorKind;
+  dicer::h5::no_cleanup_at_exit();  // see there: an Exodus export on a full disk crashed at exit
   std::vector<std::string> args(argv + 1, argv + argc);
   if (args.empty() || args[0] == "--help" || args[0] == "-h" || args[0] == "help") {
     std::fputs(usage().c_str(), args.empty() ? stderr : stdout);

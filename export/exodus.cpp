@@ -83,7 +83,10 @@ class TempExodus {
   // Negative return codes are errors; positive ones are warnings, harmless
   // here (names are cut to the file's limit before they are written).
   void check(int rc, const std::string& call) const {
-    if (rc < 0) fail(call, exodus::reason(rc));
+    if (rc < 0) {
+      const int err = errno;
+      fail(call, exodus::reason(rc) + exodus::os_reason(err));
+    }
   }
 
   void create() {

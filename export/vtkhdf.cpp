@@ -25,8 +25,18 @@
 // ranks agree that none has failed (VtkHdfCollective::checkpoint): a rank
 // whose pass throws (a corrupt page, a cancel) tells the others at their
 // next slice, and all throw, instead of leaving them in a collective write.
+// A failure inside one of HDF5's own collective calls cannot be agreed on
+// that way: a rank whose write fails returns while the others wait in the
+// call's barrier (a full disk hung a 3-rank export in H5Fflush). So before
+// the first row, rank 0 reserves the file's blocks (fallocate, an upper
+// bound of the file's size) and a full disk or quota is one agreed error;
+// after the close the blocks past the end are given back.
+#include <fcntl.h>
 #include <hdf5.h>
+#include <sys/stat.h>
 #include <unistd.h>
+
+#include <cerrno>
 
 #include <algorithm>
 #include <cstdint>
@@ -268,10 +278,11 @@ struct VtkHdfWriter::Impl {
   // The datasets, at the first partition: chunks sized for it (collectively
   // for the largest rank's, the same on every rank).
   void create_datasets(const ChunkSource& c) {
-    std::int64_t nodes = c.num_nodes(), cells = c.num_elements();
+    std::int64_t nodes = c.num_nodes(), cells = c.num_elements(), all_nodes = nodes, all_cells = cells;
     if (par) {
-      for (std::int64_t v : par->allgather(nodes)) nodes = std::max(nodes, v);
-      for (std::int64_t v : par->allgather(cells)) cells = std::max(cells, v);
+      all_nodes = all_cells = 0;
+      for (std::int64_t v : par->allgather(nodes)) nodes = std::max(nodes, v), all_nodes += v;
+      for (std::int64_t v : par->allgather(cells)) cells = std::max(cells, v), all_cells += v;
     }
     const auto nn = static_cast<hsize_t>(nodes), ne = static_cast<hsize_t>(cells);
     const auto corners = static_cast<hsize_t>(c.corners()), parts = static_cast<hsize_t>(partitions);
@@ -286,6 +297,52 @@ struct VtkHdfWriter::Impl {
     create<std::int64_t>(global_element_id, cell_data.get(), "GlobalElementId", 1, ne);
     create<std::int64_t>(block_id, cell_data.get(), "BlockId", 1, ne);
     created = true;
+    if (par) {
+      std::exception_ptr e;
+      if (par->rank == 0) try {
+          reserve_space(all_nodes, all_cells, c.corners());
+        } catch (...) {
+          e = std::current_exception();
+        }
+      try {
+        par->checkpoint(e);
+      } catch (...) {
+        agreed = true;
+        throw;
+      }
+    }
+  }
+
+  // Blocks for the whole file (see the top of this file): the datasets'
+  // bytes (uncompressed; deflate only shrinks them, but for a few bytes a
+  // block), a part-filled chunk per dataset (no larger than the dataset),
+  // and for metadata 1% + 256 KiB + 2 KiB a partition (chunk indexes).
+  // A file system without fallocate (NFS v3) is written without a reserve.
+  void reserve_space(std::int64_t nodes, std::int64_t cells, int corners) const {
+    const auto n = static_cast<std::uint64_t>(nodes), e = static_cast<std::uint64_t>(cells);
+    const auto parts = static_cast<std::uint64_t>(partitions);
+    const std::uint64_t data = n * (3 * 8 + 8) + e * (1 + 8 * static_cast<std::uint64_t>(corners) + 8 + 8 + 8) +
+                               (parts + 3 * parts) * 8;
+    const std::uint64_t bytes =
+        data + data / 100 + std::min<std::uint64_t>(data, 10 * kChunkBytes) + (256 << 10) + parts * (2 << 10);
+    const int fd = ::open(tmp.c_str(), O_WRONLY | O_CLOEXEC);
+    if (fd < 0) throw Error(ErrorKind::Io, path + ": cannot open " + tmp + ": " + std::strerror(errno));
+    int rc;
+    while ((rc = ::fallocate(fd, FALLOC_FL_KEEP_SIZE, 0, static_cast<off_t>(bytes))) != 0 && errno == EINTR) {
+    }
+    const int err = rc == 0 ? 0 : errno;
+    ::close(fd);
+    if (err != 0 && err != EOPNOTSUPP && err != ENOSYS)
+      throw Error(ErrorKind::Io, path + ": cannot reserve " + std::to_string((bytes + (1 << 20) - 1) >> 20) +
+                                     " MiB for the export (its uncompressed size and a margin): " +
+                                     std::strerror(err));
+  }
+
+  // Gives back the reserved blocks past the end of the closed file.
+  void release_reserve() const {
+    struct stat st {};
+    if (::stat(tmp.c_str(), &st) == 0 && ::truncate(tmp.c_str(), st.st_size) != 0)
+      throw Error(ErrorKind::Io, path + ": cannot truncate " + tmp + ": " + std::strerror(errno));
   }
 
   void close_all() {
@@ -533,6 +590,7 @@ void VtkHdfWriter::finish() {
   if (m.par) m.par->checkpoint(e);
   else if (e) std::rethrow_exception(e);
   try {
+    if (m.par && m.out) m.release_reserve();
     if (m.out) m.out->commit();  // rank 0's (or the single process's) temporary
   } catch (...) {
     m.broken = true;

@@ -5,13 +5,27 @@
 #include <exodusII.h>
 #include <netcdf.h>
 
+#include <cerrno>
+#include <cstring>
 #include <string>
 
 namespace dicer::exodus {
 
 // The library keeps its last message in a static buffer; clear it before
 // each call so that a failure reports its own message, never a stale one.
-inline void clear_error() { ex_err("dicer", "", EX_MSG); }
+// errno too: a failed write's reason (os_reason) is the OS's.
+inline void clear_error() {
+  ex_err("dicer", "", EX_MSG);
+  errno = 0;
+}
+
+// After a failed call: the OS's reason for a failed write, which netCDF
+// reports only as "HDF error" (a full disk, a quota, the file size limit),
+// as " (No space left on device)"; "" for anything else.
+inline std::string os_reason(int err) {
+  if (err != ENOSPC && err != EDQUOT && err != EFBIG && err != EIO) return "";
+  return std::string(" (") + std::strerror(err) + ")";
+}
 
 inline std::string reason(int rc) {
   const char* msg = nullptr;

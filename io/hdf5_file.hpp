@@ -74,6 +74,17 @@ bool error_stack_has(hid_t minor);
 // export).
 hid_t create_file_id(const std::string& path, int* first_errno = nullptr, hid_t fcpl = H5P_DEFAULT);
 
+// For a program whose HDF5 files are all closed by their owners before
+// main returns (the dicer command): HDF5 then runs no cleanup at exit nor
+// at MPI_Finalize. A write that fails inside netCDF (an Exodus export on a
+// full disk) goes through HDF5's own POSIX driver, not create_file_id's,
+// and leaves the freed file's id behind, on which that cleanup crashes.
+// Call first thing in main, before MPI_Init: HDF5 is initialised here, and
+// parallel HDF5 hooks its cleanup to MPI_Finalize only when it starts
+// inside MPI. Not for libraries: other users' files in the process would
+// go unflushed at exit.
+void no_cleanup_at_exit();
+
 // A file creation property list whose root group records no object times
 // (HDF5 stores creation and modification times by default, so the same
 // data written a second later would differ in those bytes). Exports use it

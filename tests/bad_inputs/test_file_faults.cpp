@@ -103,6 +103,15 @@ TEST(FileFaults, DiskFullIsOneErrorAndNothingLeft) {
       {"export vtkhdf",
        {"export", test::diced_store("cardinal_sphere.e", 8), "--format", "vtkhdf", "-o", disk.path("out.vtkhdf"), "--quiet"},
        disk.path("out.vtkhdf")},
+      // Exodus writes through netCDF and HDF5's own driver: it crashed at
+      // exit the same way (exit 139) until the command stopped HDF5's exit
+      // cleanup (h5::no_cleanup_at_exit), and said only "NetCDF: HDF error".
+      {"export exodus",
+       {"export", test::diced_store("cardinal_sphere.e", 8), "--format", "exodus", "-o", disk.path("out.e"), "--quiet"},
+       disk.path("out.e")},
+      {"export msh",
+       {"export", test::diced_store("cardinal_sphere.e", 8), "--format", "msh", "-o", disk.path("out.msh"), "--quiet"},
+       disk.path("out.msh")},
   };
   for (const Run& run : runs) {
     SCOPED_TRACE(run.what);
@@ -124,6 +133,8 @@ TEST(FileFaults, FileSizeLimitIsAnErrorNotASignal) {
   const std::vector<std::pair<std::string, std::vector<std::string>>> runs = {
       {d.path("out.dice.h5"), {"dice", test::data_path(kBigMesh), "--interval", "2", "-o", d.path("out.dice.h5")}},
       {d.path("out.vtkhdf"), {"export", test::diced_store("cardinal_sphere.e", 8), "--format", "vtkhdf", "-o", d.path("out.vtkhdf"), "--quiet"}},
+      {d.path("out.e"), {"export", test::diced_store("cardinal_sphere.e", 8), "--format", "exodus", "-o", d.path("out.e"), "--quiet"}},
+      {d.path("out.msh"), {"export", test::diced_store("cardinal_sphere.e", 8), "--format", "msh", "-o", d.path("out.msh"), "--quiet"}},
   };
   for (const auto& [out, args] : runs) {
     SCOPED_TRACE(out);

@@ -9,7 +9,9 @@
 #   dice         --geometry: the CAD work shared out, the single process's
 #                store; a CAD that does not fit: exit 7, one message
 #   errors       a store damaged where only one rank reads: every rank ends
-#                with exit 8, one message, no hang
+#                with exit 8, one message, no hang; a full disk (a small
+#                tmpfs, as root) under every export format: exit 5, one
+#                message, no hang, the old file intact, nothing left
 # usage: mpi_cli.sh DICER P WORKDIR DATA_DIR
 set -euo pipefail
 dicer=$1 P=$2 work=$3 data=$4
@@ -124,5 +126,30 @@ PY
   set -e
   [ "$code" = 8 ] || fail "damaged page: exit $code, expected 8: $out"
   [ "$(printf '%s\n' "$out" | grep -c 'error')" = 1 ] || fail "damaged page: not one message: $out"
+fi
+# A full disk. The collective VTKHDF writer hung in HDF5's flush on 3 ranks
+# (rank 0's metadata write failed before the barrier the others waited in);
+# now rank 0 reserves the file's blocks first. Exodus failed at exit in
+# HDF5's cleanup (MPI_Finalize), exit 139.
+if [ "$(id -u)" = 0 ]; then
+  mkdir -p disk
+  if mount -t tmpfs -o size=300k tmpfs disk 2>/dev/null; then
+    trap 'umount disk 2>/dev/null || true' EXIT
+    for f in out.vtkhdf out.e; do
+      echo old > disk/$f
+      set +e
+      out=$(run export prism.dice.h5 -o disk/$f --quiet 2>&1)
+      code=$?
+      set -e
+      [ "$code" = 5 ] || fail "full disk, $f: exit $code, expected 5: $out"
+      [ "$(printf '%s\n' "$out" | grep -c 'dicer export: error')" = 1 ] || fail "full disk, $f: not one message: $out"
+      printf '%s\n' "$out" | grep -q 'No space left on device' || fail "full disk, $f: no reason: $out"
+      [ "$(cat disk/$f)" = old ] || fail "full disk, $f: the old file was changed"
+      rm disk/$f
+      [ -z "$(ls -A disk)" ] || fail "full disk, $f: left behind: $(ls -A disk)"
+    done
+    umount disk
+    trap - EXIT
+  fi
 fi
 echo "mpi_cli P=$P ok"
