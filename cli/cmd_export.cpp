@@ -103,12 +103,17 @@ int export_ranks(const std::string& path, const std::string& out, const std::str
   long long counts[2] = {0, 0}, totals[2] = {0, 0};
   if (format != "vtkhdf")
     agree([&] { check_output_file(nemesis_path(out, P, r), "--output", {{path, "STORE"}}); });
+  // The ranks' files appear together or not at all: each is written
+  // uncommitted (PendingFile), and committed once every rank has written.
+  PendingFile pending;
+  const std::string nothing_written =
+      "nothing written to " + nemesis_path(out, P, 0) + (P > 1 ? " ... " + nemesis_path(out, P, P - 1) : "");
   if (format == "exodus") {
     const std::vector<NodeRun> sharing = mpi::exchange_sharing(mpi.comm(), m, plan);
     agree([&] {
       const ChunkStream c(m, plan[static_cast<size_t>(r)], sets, {}, cancel_requested);
       const NemesisInfo info = nemesis_info(c, P, r, sharing, global_set_counts(m, sets));
-      write_exodus(c, nemesis_path(out, P, r), &info);
+      write_exodus(c, nemesis_path(out, P, r), &info, &pending);
       counts[0] = c.num_elements(), counts[1] = c.num_nodes();
     });
   } else {
@@ -116,9 +121,13 @@ int export_ranks(const std::string& path, const std::string& out, const std::str
     agree([&] {
       c.emplace(m, plan[static_cast<size_t>(r)], sets, std::function<void(Id, Id)>{}, cancel_requested);
       counts[0] = c->num_elements(), counts[1] = c->num_nodes();
-      if (format != "vtkhdf") write_msh(*c, nemesis_path(out, P, r), format == "msh");
+      if (format != "vtkhdf") write_msh(*c, nemesis_path(out, P, r), format == "msh", &pending);
     });
     if (format == "vtkhdf") mpi::write_vtkhdf_collective(mpi.comm(), *c, out, deflate);
+  }
+  if (pending) {
+    agree([&] { throw_if_cancelled(nothing_written); });
+    agree([&] { pending->commit(); });
   }
   MPI_Reduce(counts, totals, 2, MPI_LONG_LONG, MPI_SUM, 0, mpi.comm());
   if (r == 0 && !quiet)
@@ -227,7 +236,10 @@ int cmd_export(const std::vector<std::string>& argv) {
   }
 
   const CancelOnSignals cancel_on_signals;
-  const std::string nothing_written = "nothing written to " + out;
+  const Id files = static_cast<Id>(ranges.size());
+  const std::string nothing_written =
+      "nothing written to " + (nemesis ? nemesis_path(out, files, 0) + (files > 1 ? " ... " + nemesis_path(out, files, files - 1) : "")
+                                       : out);
   Id total_coarse = 0;
   for (const auto& r : ranges) total_coarse += r.end_coarse - r.first_coarse;
   Progress bar("export", total_coarse, quiet);
@@ -255,14 +267,17 @@ int cmd_export(const std::vector<std::string>& argv) {
       return c;
     };
     if (nemesis) {
+      // Committed together once all are written (PendingFile).
       const auto sharing = in_process_sharing(m, ranges);
       const SetCounts counts = global_set_counts(m, sets);
+      std::vector<PendingFile> files(ranges.size());
       for (const auto& r : ranges) {
         const ChunkStream c(m, r, sets, progress_of(r), cancel_requested);
         const NemesisInfo info = nemesis_info(c, r.count, r.index, sharing[static_cast<size_t>(r.index)], counts);
-        write_exodus(c, nemesis_path(out, r.count, r.index), &info);
+        write_exodus(c, nemesis_path(out, r.count, r.index), &info, &files[static_cast<size_t>(r.index)]);
         finished(r, c);
       }
+      for (auto& f : files) f->commit();
     } else if (format == "vtkhdf") {
       VtkHdfWriter w(out, static_cast<Id>(ranges.size()), deflate);
       for (const auto& r : ranges) {
@@ -282,9 +297,13 @@ int cmd_export(const std::vector<std::string>& argv) {
       std::unique_ptr<ChunkSource> c;
       if (box) c = boxed(ranges[0]);
       else c = std::make_unique<ChunkStream>(m, ranges[0], sets, progress_of(ranges[0]), cancel_requested);
-      if (format == "exodus") write_exodus(*c, out);
-      else write_msh(*c, out, format == "msh");
+      // Committed after the last check for a signal: once the file is in
+      // place, a signal no longer turns the export into "nothing written".
+      PendingFile file;
+      if (format == "exodus") write_exodus(*c, out, nullptr, &file);
+      else write_msh(*c, out, format == "msh", &file);
       finished(ranges[0], *c);
+      file->commit();
     }
   } catch (const Error&) {
     // The library stops a pass with an error of its own when the cancel

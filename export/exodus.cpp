@@ -69,7 +69,8 @@ constexpr std::size_t kMaxName = 255;                   // longest name kept (ne
 // The temporary file (AtomicOutput): closed, and removed unless committed.
 class TempExodus {
  public:
-  explicit TempExodus(const std::string& final_path) : final_(final_path), out_(final_path) {}
+  explicit TempExodus(const std::string& final_path)
+      : final_(final_path), out_(std::make_unique<AtomicOutput>(final_path)) {}
   ~TempExodus() {
     std::lock_guard lock(hdf5_lock());
     if (exoid_ >= 0) ex_close(exoid_);
@@ -95,23 +96,29 @@ class TempExodus {
     exodus::clear_error();
     // Exodus 6.02 formats the path into fixed buffers: hand it the short
     // /proc/self/fd name of the temporary, never the user's long path.
-    const int id = ex_create(out_.short_path().c_str(), mode, &cpu_word_size, &io_word_size);
+    const int id = ex_create(out_->short_path().c_str(), mode, &cpu_word_size, &io_word_size);
     if (id < 0) fail("ex_create", exodus::reason(id));
     exoid_ = id;
   }
   int id() const { return exoid_; }
 
-  void close_and_rename() {
+  // Commits, or leaves the file in *pending (PendingFile).
+  void close_and_rename(PendingFile* pending) {
     const int id = exoid_;
     exoid_ = -1;
     exodus::clear_error();
     check(ex_close(id), "ex_close");
-    out_.commit();
+    if (pending) {
+      out_->park();
+      *pending = std::move(out_);
+    } else {
+      out_->commit();
+    }
   }
 
  private:
   std::string final_;
-  AtomicOutput out_;
+  PendingFile out_;
   int exoid_ = -1;
 };
 
@@ -249,7 +256,7 @@ std::string nemesis_path(const std::string& out, Id processors, Id processor) {
 }
 
 
-void write_exodus(const ChunkSource& chunk, const std::string& path, const NemesisInfo* nem) {
+void write_exodus(const ChunkSource& chunk, const std::string& path, const NemesisInfo* nem, PendingFile* pending) {
   // netCDF-4 is HDF5 underneath: take the process-wide HDF5 lock (the
   // store's read-ahead thread may be loading pages meanwhile), except
   // during the chunk's passes (unlocked()).
@@ -470,7 +477,7 @@ void write_exodus(const ChunkSource& chunk, const std::string& path, const Nemes
     file.check(ex_put_names(exoid, EX_NODE_SET, names.data()), "ex_put_names(node sets)");
   }
 
-  file.close_and_rename();
+  file.close_and_rename(pending);
 }
 
 }  // namespace dicer

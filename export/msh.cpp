@@ -558,7 +558,7 @@ bool msh_writes_side(Mode mode, int side) {
   return mode == Mode::Volume ? side >= 0 && side <= 5 : side >= 2 && side <= 5;
 }
 
-void write_msh(const ChunkSource& chunk, const std::string& path, bool binary) {
+void write_msh(const ChunkSource& chunk, const std::string& path, bool binary, PendingFile* pending) {
   namespace fs = std::filesystem;
   // Boundary element tags must fit: E + 6 * (S * E + E) + 6 < 2^63.
   const auto E = static_cast<unsigned __int128>(chunk.mesh().num_elements());
@@ -566,14 +566,19 @@ void write_msh(const ChunkSource& chunk, const std::string& path, bool binary) {
   if (E + 6 * (S * E + E) + 7 > static_cast<unsigned __int128>(std::numeric_limits<std::int64_t>::max()))
     throw Error(ErrorKind::Overflow, path + ": MSH boundary element tags do not fit 64 bits");
 
-  AtomicOutput out(path);
-  const int fd = ::open(out.temp_path().c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) throw Error(ErrorKind::Io, path + ": cannot create " + out.temp_path() + ": " + std::strerror(errno));
+  auto out = std::make_unique<AtomicOutput>(path);
+  const int fd = ::open(out->temp_path().c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) throw Error(ErrorKind::Io, path + ": cannot create " + out->temp_path() + ": " + std::strerror(errno));
   try {
     Out o(fd, path, binary);
     write_body(chunk, o);
     o.close();
-    out.commit();
+    if (pending) {
+      out->park();
+      *pending = std::move(out);
+    } else {
+      out->commit();
+    }
   } catch (const Error&) {
     throw;
   } catch (const std::exception& e) {

@@ -21,21 +21,19 @@ namespace {
 
 // Live temporaries, for remove_uncommitted(): fixed slots of absolute
 // paths, claimed and released with atomics so a signal handler can read
-// them without locks.
-constexpr int kSlots = 64;
-struct Slot {
-  std::atomic<int> state{0};  // 0 free, 1 being filled, 2 live
-  char path[PATH_MAX + 1];
-};
-Slot g_slots[kSlots];
+// them without locks. The states apart from the paths: a scan touches 16
+// KiB, and only the path pages in use are ever backed by memory.
+constexpr int kSlots = 4096;  // a Nemesis set of that many files pending at once
+std::atomic<int> g_state[kSlots];  // 0 free, 1 being filled, 2 live
+char g_path[kSlots][PATH_MAX + 1];
 
 int claim_slot(const std::string& path) {
   if (path.size() > PATH_MAX) return -1;
   for (int i = 0; i < kSlots; ++i) {
     int expected = 0;
-    if (g_slots[i].state.compare_exchange_strong(expected, 1)) {
-      std::memcpy(g_slots[i].path, path.c_str(), path.size() + 1);
-      g_slots[i].state.store(2);
+    if (g_state[i].compare_exchange_strong(expected, 1)) {
+      std::memcpy(g_path[i], path.c_str(), path.size() + 1);
+      g_state[i].store(2);
       return i;
     }
   }
@@ -43,7 +41,7 @@ int claim_slot(const std::string& path) {
 }
 
 void release_slot(int i) {
-  if (i >= 0) g_slots[i].state.store(0);
+  if (i >= 0) g_state[i].store(0);
 }
 
 std::string errno_text() { return std::strerror(errno); }
@@ -91,12 +89,12 @@ AtomicOutput::AtomicOutput(const std::string& final_path) : final_(final_path) {
   std::error_code ec;
   if (name_.empty() || name_ == "." || name_ == ".." || fs::is_directory(p, ec))
     throw Error(ErrorKind::Usage, final_path + ": is a directory; give a file name to write");
-  const std::string dir = p.has_parent_path() ? p.parent_path().string() : std::string(".");
-  dir_fd_ = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (dir_fd_ < 0) throw Error(ErrorKind::Io, final_path + ": cannot open the output folder " + dir + ": " + errno_text());
+  dir_ = p.has_parent_path() ? p.parent_path().string() : std::string(".");
+  dir_fd_ = ::open(dir_.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (dir_fd_ < 0) throw Error(ErrorKind::Io, final_path + ": cannot open the output folder " + dir_ + ": " + errno_text());
   remove_stale(dir_fd_, name_);
   temp_name_ = temp_name_for(name_, static_cast<long>(::getpid()));
-  temp_ = (fs::path(dir) / temp_name_).string();
+  temp_ = (fs::path(dir_) / temp_name_).string();
   short_ = "/proc/self/fd/" + std::to_string(dir_fd_) + "/" + temp_name_;
   // A temporary of ours from an earlier failed attempt in this process.
   ::unlinkat(dir_fd_, temp_name_.c_str(), 0);
@@ -106,13 +104,26 @@ AtomicOutput::AtomicOutput(const std::string& final_path) : final_(final_path) {
 }
 
 AtomicOutput::~AtomicOutput() {
-  if (!committed_ && dir_fd_ >= 0) ::unlinkat(dir_fd_, temp_name_.c_str(), 0);
+  if (!committed_) {
+    if (dir_fd_ >= 0) ::unlinkat(dir_fd_, temp_name_.c_str(), 0);
+    else ::unlink(temp_.c_str());  // parked
+  }
   release_slot(slot_);
   if (dir_fd_ >= 0) ::close(dir_fd_);
 }
 
+void AtomicOutput::park() {
+  if (dir_fd_ >= 0) ::close(dir_fd_);
+  dir_fd_ = -1;
+  short_.clear();
+}
+
 void AtomicOutput::commit() {
   if (committed_) return;
+  if (dir_fd_ < 0) {  // parked
+    dir_fd_ = ::open(dir_.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    if (dir_fd_ < 0) throw Error(ErrorKind::Io, final_ + ": cannot open the output folder " + dir_ + ": " + errno_text());
+  }
   const int fd = ::openat(dir_fd_, temp_name_.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) throw Error(ErrorKind::Io, temp_ + ": the written file is gone: " + errno_text());
   const int rc = ::fsync(fd);
@@ -133,8 +144,8 @@ void AtomicOutput::commit() {
 }
 
 void AtomicOutput::remove_uncommitted() noexcept {
-  for (Slot& s : g_slots)
-    if (s.state.load() == 2) ::unlink(s.path);
+  for (int i = 0; i < kSlots; ++i)
+    if (g_state[i].load() == 2) ::unlink(g_path[i]);
 }
 
 }  // namespace dicer

@@ -9,7 +9,10 @@
 #     then removed before the next trial); for SIGINT, SIGTERM and SIGHUP,
 #     nothing at all (dicer removes its temporary and exits);
 #   - the exit status is 128 + the signal (137, 130, 143, 129), or 0 when
-#     the command finished first (then the new file must be complete).
+#     the command finished first (then the new file must be complete); a
+#     catchable signal that finds the new file in place no longer makes it
+#     exit 128 + signal ("nothing written"): only SIGKILL stops a process
+#     after its rename.
 # Each trial is classified by what the folder shows afterwards: before the
 # temporary file existed, during writing (temporary present, or for the
 # catchable signals the old file intact with exit 128 + signal), after the
@@ -174,7 +177,9 @@ run_kind() {
       if complete_new "$kind" "$dir/$name"; then :; else problems+=("final file is neither the old one nor a complete new one"); fi
       if ((temp_seen)); then phase=DURING; problems+=("temporary left beside a renamed file")
       elif ((rc == 0)); then phase=FINISHED
-      else phase=AFTER
+      else
+        phase=AFTER
+        [[ $sig != KILL ]] && problems+=("the new file is in place, yet exit $rc says interrupted")
       fi
     fi
     ((rc != 0 && rc != 128 + signum)) && problems+=("exit status $rc (expected $((128 + signum)) or 0)")
@@ -216,7 +221,7 @@ cat <<'EOF2'
   before: stopped before the temporary existed (old file intact)
   during: stopped while writing (SIGKILL: temporary .NAME.tmp-PID present; SIGINT/TERM/HUP:
           exit 128 + signal, temporary removed), old file intact
-  after:  stopped after the rename (a complete new file in place)
+  after:  stopped after the rename (a complete new file in place; SIGKILL only)
   finished: the run ended before the signal (complete new file, exit 0)
   leftover: temporaries SIGKILL left behind (removed between trials; any other is a violation)
   new files: dice = `verify --quiet` exit 0 + interval-7 element count; msh, exodus,

@@ -35,6 +35,11 @@ class AtomicOutput {
   const std::string& short_path() const { return short_; }  // /proc/self/fd/N/NAME: the same file, short
   // Durably replaces final_path() with the temporary. Throws Error{Io}.
   void commit();
+  // For a writer that holds many finished temporaries until all are
+  // written (a Nemesis set, committed together): lets go of the folder's
+  // handle (one file descriptor each) until commit(), which opens the
+  // folder again by name. short_path() is invalid after park().
+  void park();
   bool committed() const { return committed_; }
 
   // Unlinks every uncommitted temporary of this process. Async-signal-safe:
@@ -43,6 +48,7 @@ class AtomicOutput {
 
  private:
   std::string final_, name_, temp_name_, temp_, short_;
+  std::string dir_;
   int dir_fd_ = -1;
   int slot_ = -1;  // index in the process-wide registry of live temporaries
   bool committed_ = false;

@@ -17,11 +17,13 @@
 #include <array>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <span>
 #include <string>
 #include <vector>
 
+#include "dicer/atomic_output.hpp"
 #include "dicer/fine_mesh.hpp"
 
 namespace dicer {
@@ -373,13 +375,21 @@ class VtkHdfWriter {
   Impl* impl_;
 };
 
+// A finished file not yet in place (AtomicOutput, parked): commit() puts it
+// there; destroyed uncommitted, it is removed. Files that belong together
+// (a Nemesis set OUT.N.r, an MSH set under mpirun) are written each into
+// one, then committed together: a failure or a signal while any is being
+// written leaves every old file as it was.
+using PendingFile = std::unique_ptr<AtomicOutput>;
+
 // Gmsh MSH 4.1, ASCII or binary: one volume (surface) entity and physical
 // group per block, boundary elements per side set as surface (curve)
 // entities with physical groups. Passes: nodes without coordinates (counts,
 // tags), nodes with coordinates twice (entity boxes, then the $Nodes
 // section), elements once per block entity (plus once with global
 // connectivity when side sets have members).
-void write_msh(const ChunkSource& chunk, const std::string& path, bool binary);
+// `pending`: the file is left there uncommitted (PendingFile), not committed.
+void write_msh(const ChunkSource& chunk, const std::string& path, bool binary, PendingFile* pending = nullptr);
 // Whether write_msh writes side `side` (0-based Exodus) of an element:
 // every hex side; a shell's edge sides 2..5 but not its face sides 0 and 1,
 // the quad itself, for which MSH has no boundary element.
@@ -409,7 +419,9 @@ struct NemesisInfo {
 // elements before the header (border elements) and holds its processor
 // node and element maps: 8 B per node and per element (Exodus 6.02 has no
 // partial writer for them).
-void write_exodus(const ChunkSource& chunk, const std::string& path, const NemesisInfo* nemesis = nullptr);
+// `pending`: as for write_msh.
+void write_exodus(const ChunkSource& chunk, const std::string& path, const NemesisInfo* nemesis = nullptr,
+                  PendingFile* pending = nullptr);
 
 // "OUT.P.r" with r zero-padded to the digits of P (SEACAS epu/decomp, MOOSE).
 std::string nemesis_path(const std::string& out, Id processors, Id processor);

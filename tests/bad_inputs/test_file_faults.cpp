@@ -124,6 +124,30 @@ TEST(FileFaults, DiskFullIsOneErrorAndNothingLeft) {
   }
 }
 
+// A Nemesis set is written whole or not at all. On a 3 MiB tmpfs holding an
+// old set of three small files, the new set's first file (1.7 MB) fits and
+// its second does not: each file used to be committed as it was written,
+// so the old set was left with a new first file (a mix of two meshes).
+TEST(FileFaults, NemesisSetOnAFullDiskLeavesTheOldSet) {
+  if (!is_root()) DICER_SKIP_OR_FAIL_IN_CI("mounting a tmpfs needs root");
+  SmallDisk disk(3 << 20);
+  if (!disk.mounted()) DICER_SKIP_OR_FAIL_IN_CI("cannot mount a tmpfs: " << std::strerror(disk.error()));
+  const std::string out = disk.path("set.e");
+  const auto old = test::run_cli({"export", test::diced_store("firedrake_cube_hex.msh", 1), "--format", "exodus",
+                                  "--chunks", "3", "--nemesis", "-o", out, "--quiet"});
+  ASSERT_EQ(old.exit_code, 0) << old.err;
+  std::vector<std::string> before;
+  for (int r = 0; r < 3; ++r) before.push_back(test::read_file(out + ".3." + std::to_string(r)));
+  const auto r = test::run_cli({"export", test::diced_store("cardinal_prism.exo", 3), "--format", "exodus", "--chunks",
+                                "3", "--nemesis", "-o", out, "--quiet"});
+  EXPECT_EQ(r.exit_code, 5) << r.err;
+  EXPECT_EQ(lines(r.err), 1) << r.err;
+  EXPECT_NE(r.err.find("No space left on device"), std::string::npos) << r.err;
+  for (int k = 0; k < 3; ++k)
+    EXPECT_EQ(test::read_file(out + ".3." + std::to_string(k)), before[static_cast<size_t>(k)]) << "file " << k;
+  EXPECT_EQ(entries(disk.dir()).size(), 3u) << joined(entries(disk.dir()));
+}
+
 // Under a file size limit the kernel sends SIGXFSZ, whose default action
 // killed dicer and left its temporary. Ignored while writing, the write
 // fails with EFBIG: one error, exit 5.

@@ -130,13 +130,22 @@ fi
 # A full disk. The collective VTKHDF writer hung in HDF5's flush on 3 ranks
 # (rank 0's metadata write failed before the barrier the others waited in);
 # now rank 0 reserves the file's blocks first. Exodus failed at exit in
-# HDF5's cleanup (MPI_Finalize), exit 139.
+# HDF5's cleanup (MPI_Finalize), exit 139. The old file, or the old Nemesis
+# set (OUT.P.r, which the ranks commit together), is left as it was.
 if [ "$(id -u)" = 0 ]; then
   mkdir -p disk
   if mount -t tmpfs -o size=300k tmpfs disk 2>/dev/null; then
     trap 'umount disk 2>/dev/null || true' EXIT
-    for f in out.vtkhdf out.e; do
-      echo old > disk/$f
+    "$dicer" dice "$data/firedrake_cube_hex.msh" --interval 1 -o tiny.dice.h5 --quiet
+    for f in out.vtkhdf out.e out.msh; do
+      if [ $f = out.e ]; then
+        "$dicer" export tiny.dice.h5 --chunks "$P" --nemesis -o disk/$f --quiet
+      elif [ $f = out.msh ]; then
+        for ((k = 0; k < P; k++)); do echo old $k > disk/$f.$P.$(printf '%0*d' ${#P} $k); done
+      else
+        echo old > disk/$f
+      fi
+      before=$(cd disk && md5sum $(ls))
       set +e
       out=$(run export prism.dice.h5 -o disk/$f --quiet 2>&1)
       code=$?
@@ -144,9 +153,9 @@ if [ "$(id -u)" = 0 ]; then
       [ "$code" = 5 ] || fail "full disk, $f: exit $code, expected 5: $out"
       [ "$(printf '%s\n' "$out" | grep -c 'dicer export: error')" = 1 ] || fail "full disk, $f: not one message: $out"
       printf '%s\n' "$out" | grep -q 'No space left on device' || fail "full disk, $f: no reason: $out"
-      [ "$(cat disk/$f)" = old ] || fail "full disk, $f: the old file was changed"
-      rm disk/$f
-      [ -z "$(ls -A disk)" ] || fail "full disk, $f: left behind: $(ls -A disk)"
+      [ "$(cd disk && md5sum $(ls))" = "$before" ] || fail "full disk, $f: old files changed or left behind: $(ls -A disk)"
+      [ -z "$(ls -A disk | grep '^\.')" ] || fail "full disk, $f: temporaries left behind: $(ls -A disk)"
+      rm -f disk/*
     done
     umount disk
     trap - EXIT

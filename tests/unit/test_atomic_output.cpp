@@ -7,6 +7,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -123,6 +124,37 @@ TEST(AtomicOutput, RemoveUncommittedIsForSignalHandlers) {
   AtomicOutput::remove_uncommitted();
   EXPECT_FALSE(fs::exists(a.temp_path()));
   EXPECT_TRUE(fs::exists(tmp.path("b.h5")));
+}
+
+// Parked outputs (a Nemesis set held until all its files are written) hold
+// no file descriptor each, are committed or removed like the others, and
+// a signal handler still finds them: 1500 at once, more than the default
+// limit of 1024 descriptors and the 64 slots remove_uncommitted had.
+TEST(AtomicOutput, ParkedOutputsHoldNoDescriptorAndStillCommitOrVanish) {
+  test::TempDir tmp;
+  auto open_fds = [] {
+    return std::distance(fs::directory_iterator("/proc/self/fd"), fs::directory_iterator{});
+  };
+  const auto fds = open_fds();
+  constexpr int kFiles = 1500;
+  std::vector<std::unique_ptr<AtomicOutput>> outs;
+  for (int i = 0; i < kFiles; ++i) {
+    outs.push_back(std::make_unique<AtomicOutput>(tmp.path("set." + std::to_string(i))));
+    std::ofstream(outs.back()->temp_path()) << i;
+    outs.back()->park();
+  }
+  EXPECT_LE(open_fds(), fds + 2);
+  for (int i = 0; i < kFiles; i += 2) outs[static_cast<size_t>(i)]->commit();
+  outs[1].reset();  // destroyed parked: removed
+  AtomicOutput::remove_uncommitted();  // every other odd one, as a signal handler would
+  // Only the committed files are left: no temporary, not even past slot 64.
+  EXPECT_EQ(names(tmp.dir()).size(), static_cast<size_t>(kFiles / 2));
+  for (int i = 0; i < kFiles; i += 2) {
+    SCOPED_TRACE(i);
+    EXPECT_EQ(slurp(tmp.path("set." + std::to_string(i))), std::to_string(i));
+  }
+  outs.clear();
+  EXPECT_EQ(names(tmp.dir()).size(), static_cast<size_t>(kFiles / 2));
 }
 
 // Every writer goes through AtomicOutput: outputs with names of 243..255
