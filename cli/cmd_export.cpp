@@ -82,6 +82,26 @@ MeshSets sets_of(const FineMesh& m, const std::string& path) {
   return sets;
 }
 
+// What an MSH export leaves out is said, even under --quiet (data left
+// out, not progress); Exodus keeps it: sides MSH has no element for (a
+// shell's face sides: msh_writes_side), and node sets (MSH has none).
+void note_what_msh_leaves_out(const FineMesh& m, const MeshSets& sets) {
+  for (const auto& set : sets.side_sets) {
+    const auto faces = std::count_if(set.side.begin(), set.side.end(),
+                                     [&](std::int8_t k) { return !msh_writes_side(m.mode(), k); });
+    if (faces > 0)
+      std::fprintf(stderr, "dicer export: note: side set %lld: the face sides of %lld coarse shells (the quads "
+                           "themselves) are not written to MSH, which has no element for them; Exodus keeps them\n",
+                   static_cast<long long>(set.id), static_cast<long long>(faces));
+  }
+  std::string ids;
+  for (const auto& set : sets.node_sets)
+    if (!set.vertex.empty()) ids += (ids.empty() ? "" : ", ") + std::to_string(set.id);
+  if (!ids.empty())
+    std::fprintf(stderr, "dicer export: note: node sets %s are not written to MSH, which has no node sets; Exodus "
+                         "keeps them\n", ids.c_str());
+}
+
 // Under mpirun -n P: rank r exports chunk r of P. Exodus: the Nemesis file
 // OUT.P.r (communication maps exchanged between ranks); VTKHDF: one file,
 // written collectively; MSH: OUT.P.r. The same files as one process with
@@ -99,6 +119,7 @@ int export_ranks(const std::string& path, const std::string& out, const std::str
     plan = plan_chunks(*mesh, P);
   });
   const FineMesh& m = *mesh;
+  if (r == 0 && format != "vtkhdf" && format != "exodus") note_what_msh_leaves_out(m, sets);
   const CancelOnSignals cancel_on_signals;
   long long counts[2] = {0, 0}, totals[2] = {0, 0};
   if (format != "vtkhdf")
@@ -196,21 +217,12 @@ int cmd_export(const std::vector<std::string>& argv) {
 
   const FineMesh m = read_store(path, store.options());
   const MeshSets sets = sets_of(m, path);
-  // Sides MSH has no element for (a shell's face sides: msh_writes_side) are
-  // said, even under --quiet (data left out, not progress); Exodus keeps them.
-  if (format == "msh" || format == "msh-ascii")
-    for (const auto& set : sets.side_sets) {
-      const auto faces = std::count_if(set.side.begin(), set.side.end(),
-                                       [&](std::int8_t k) { return !msh_writes_side(m.mode(), k); });
-      if (faces > 0)
-        std::fprintf(stderr, "dicer export: note: side set %lld: the face sides of %lld coarse shells (the quads "
-                             "themselves) are not written to MSH, which has no element for them; Exodus keeps them\n",
-                     static_cast<long long>(set.id), static_cast<long long>(faces));
-    }
+  if (format == "msh" || format == "msh-ascii") note_what_msh_leaves_out(m, sets);
   std::vector<ChunkRange> ranges;
   if (cmd.given(o_chunk)) {
     const auto slash = chunk.find('/');
-    if (slash == std::string::npos) throw Error(ErrorKind::Usage, "--chunk: \"" + chunk + "\" is not K/N");
+    if (slash == std::string::npos || chunk.find('/', slash + 1) != std::string::npos)
+      throw Error(ErrorKind::Usage, "--chunk: \"" + chunk + "\" is not K/N");
     const Id k = parse_int("--chunk", chunk.substr(0, slash)), n = parse_int("--chunk", chunk.substr(slash + 1));
     if (n < 1 || k < 0 || k >= n)
       throw Error(ErrorKind::Usage, "--chunk " + chunk + ": need 0 <= K < N (chunks are numbered from 0)");

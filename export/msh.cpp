@@ -8,10 +8,13 @@
 //    "sideset <id>". Names are cut to the format's 127 characters; a '"' in
 //    a name becomes '\'' and a line break a space (the format cannot quote).
 //  - $Entities: one volume (surface) per block with elements in the chunk,
-//    tags 1, 2, ... in block order; one surface (curve) per side set with
-//    members in the chunk, tags 1, 2, ... in set order. Each carries one
-//    physical tag; bounding boxes are those of the entity's nodes. No BRep
-//    boundaries (points, bounding entities) are written.
+//    tag = the block's index in the mesh + 1; one surface (curve) per side
+//    set with members in the chunk, tag = the set's index + 1. The tags are
+//    the mesh's, not the chunk's, so chunk files merged in Gmsh keep each
+//    entity's physical group (tags counted per chunk put block 76 on the
+//    entity of block 1). Each carries one physical tag; bounding boxes are
+//    those of the entity's nodes. No BRep boundaries (points, bounding
+//    entities) are written.
 //  - $Nodes: every node of the chunk, node tag = global id + 1, each in the
 //    block entity of the lowest-tagged entity whose elements use it (Gmsh
 //    classifies a node on exactly one entity; elements of other entities may
@@ -28,6 +31,7 @@
 //    mesh and the same in every chunk, so chunk files can be merged:
 //    E + 1 + 6 * (set_index * E + global_element) + side, E = fine elements
 //    of the mesh (sparse tags are allowed by the format).
+// Node sets are not written (MSH has none; `dicer export` says so).
 // Physical tags: the block (side set) id when it is a positive int that no
 // earlier block (set) took, else the next free tag above the largest one.
 //
@@ -297,7 +301,7 @@ void write_body(const ChunkSource& c, Out& o) {
   for (std::size_t b = 0; b < blocks.size(); ++b)
     if (per_block[b] > 0) {
       entity_of_block[b] = static_cast<int>(vents.size());
-      vents.push_back({static_cast<int>(vents.size()) + 1, block_phys[b], b, static_cast<std::uint64_t>(per_block[b]), {}});
+      vents.push_back({static_cast<int>(b) + 1, block_phys[b], b, static_cast<std::uint64_t>(per_block[b]), {}});
     }
   const bool no_elements = vents.empty();
   if (no_elements && nn > 0) {
@@ -341,7 +345,7 @@ void write_body(const ChunkSource& c, Out& o) {
   }
   std::vector<Entity> sents;
   for (std::size_t s = 0; s < sets.size(); ++s)
-    if (!side[s].tag.empty()) sents.push_back({static_cast<int>(sents.size()) + 1, set_phys[s], s, side[s].tag.size(), {}});
+    if (!side[s].tag.empty()) sents.push_back({static_cast<int>(s) + 1, set_phys[s], s, side[s].tag.size(), {}});
 
   // Nodes per entity, and the node tag range (ids only).
   std::vector<std::uint64_t> nodes_in(vents.size(), 0);

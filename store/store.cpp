@@ -360,7 +360,7 @@ void check_links(const h5::File& f) {
   if (rc < 0) throw Error(ErrorKind::Corrupt, f.path() + ": its groups cannot be listed (damaged)");
   if (rc == 0) return;
   if (scan.count > kMaxLinks)
-    throw Error(ErrorKind::Corrupt, f.path() + ": more than " + std::to_string(kMaxLinks) + " objects (not a dicer store)");
+    throw Error(ErrorKind::BadInput, f.path() + ": more than " + std::to_string(kMaxLinks) + " objects (not a dicer store)");
   const char* kind = scan.type == H5L_TYPE_SOFT       ? "a soft link"
                      : scan.type == H5L_TYPE_EXTERNAL ? "an external link (to another file)"
                                                       : "a user-defined link";

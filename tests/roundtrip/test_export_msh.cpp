@@ -338,9 +338,9 @@ TEST(ExportMsh, WholeMeshChunkAndMergedChunksHoldEveryElement) {
   const std::string one = tmp.path("whole.msh");
   write_msh(*whole, one, true);
   std::vector<std::string> parts;
-  for (Id k = 0; k < 2; ++k) {
+  for (Id k = 0; k < 4; ++k) {
     parts.push_back(tmp.path("part" + std::to_string(k) + ".msh"));
-    write_msh(*make_chunk(m, k, 2), parts.back(), k == 1);
+    write_msh(*make_chunk(m, k, 4), parts.back(), k % 2 == 1);
   }
   gmsh::initialize();
   gmsh::option::setNumber("General.Terminal", 0);
@@ -356,14 +356,36 @@ TEST(ExportMsh, WholeMeshChunkAndMergedChunksHoldEveryElement) {
     gmsh::model::mesh::getElementsByType(3, btags, n2);
     return std::make_pair(tags.size(), btags.size());
   };
+  // Elements per physical group (block or side set).
+  auto groups = [] {
+    std::map<std::pair<int, int>, std::size_t> out;
+    gmsh::vectorpair g;
+    gmsh::model::getPhysicalGroups(g);
+    for (const auto& [dim, tag] : g) {
+      std::vector<int> ents;
+      gmsh::model::getEntitiesForPhysicalGroup(dim, tag, ents);  // once per merged file that names it
+      for (int e : std::set<int>(ents.begin(), ents.end())) {
+        std::vector<int> types;
+        std::vector<std::vector<std::size_t>> et, nt;
+        gmsh::model::mesh::getElements(types, et, nt, dim, e);
+        for (const auto& v : et) out[{dim, tag}] += v.size();
+      }
+    }
+    return out;
+  };
   gmsh::open(one);
   EXPECT_EQ(counts(), std::make_pair(static_cast<std::size_t>(m.num_elements()), static_cast<std::size_t>(boundary)));
+  const auto whole_groups = groups();
+  EXPECT_GE(whole_groups.size(), 3u);  // the prism's block and side sets
   // The chunk files merge into the whole mesh: volume and boundary tags are
-  // the same in every chunk and never collide.
+  // the same in every chunk and never collide, and so are entity tags: each
+  // physical group holds what it holds in the whole file (entity tags
+  // counted per chunk put side sets on each other's entities).
   gmsh::clear();
   gmsh::open(parts[0]);
-  gmsh::merge(parts[1]);
+  for (std::size_t k = 1; k < parts.size(); ++k) gmsh::merge(parts[k]);
   EXPECT_EQ(counts(), std::make_pair(static_cast<std::size_t>(m.num_elements()), static_cast<std::size_t>(boundary)));
+  EXPECT_EQ(groups(), whole_groups);
   std::set<std::size_t> all(tags.begin(), tags.end());
   all.insert(btags.begin(), btags.end());
   EXPECT_EQ(all.size(), tags.size() + btags.size());
