@@ -30,7 +30,8 @@ Formats:
               partition per chunk; point data GlobalNodeId, cell data
               GlobalElementId and BlockId; uncompressed unless --deflate
   msh         Gmsh MSH 4.1 binary (msh-ascii: ASCII); an entity and a
-              physical group per block, boundary elements per side set
+              physical group per block, boundary elements per side set;
+              chunk files merge in Gmsh; no node sets (the format has none)
   exodus      Exodus II: element blocks with names, side and node sets
               carried to the fine mesh, global id maps (1-based); with
               --chunks N --nemesis, N files OUT.N.r decomposed the Nemesis
@@ -44,7 +45,12 @@ A chunk K of N is a contiguous range of coarse elements (in the store's
 order) holding ~1/N of the fine elements; nodes shared with other chunks
 keep their global ids and identical coordinates. OUT is written under a
 temporary name in its folder and renamed when complete: Ctrl-C, SIGTERM
-and SIGHUP (exit 130, 143, 129) leave nothing behind.
+and SIGHUP (exit 130, 143, 129) leave nothing behind. The N files of
+--nemesis are renamed together once all are written.
+
+Under mpirun with P ranks, rank r writes chunk r of P (no --chunk, --chunks
+or --box): vtkhdf one file of P partitions (parallel HDF5), exodus the
+Nemesis files OUT.P.r, msh the files OUT.P.r.
 )",
     R"(dicer export fine.dice.h5 -o fine.vtkhdf                  # the format from the extension
 dicer export fine.dice.h5 --format exodus --chunk 3/16 -o part3.exo
@@ -128,32 +134,37 @@ int export_ranks(const std::string& path, const std::string& out, const std::str
   // uncommitted (PendingFile), and committed once every rank has written.
   PendingFile pending;
   const std::string nothing_written =
-      "nothing written to " + nemesis_path(out, P, 0) + (P > 1 ? " ... " + nemesis_path(out, P, P - 1) : "");
-  if (format == "exodus") {
-    const std::vector<NodeRun> sharing = mpi::exchange_sharing(mpi.comm(), m, plan);
-    agree([&] {
-      const ChunkStream c(m, plan[static_cast<size_t>(r)], sets, {}, cancel_requested);
-      const NemesisInfo info = nemesis_info(c, P, r, sharing, global_set_counts(m, sets));
-      write_exodus(c, nemesis_path(out, P, r), &info, &pending);
-      counts[0] = c.num_elements(), counts[1] = c.num_nodes();
-    });
-  } else {
-    std::optional<ChunkStream> c;
-    agree([&] {
-      c.emplace(m, plan[static_cast<size_t>(r)], sets, std::function<void(Id, Id)>{}, cancel_requested);
-      counts[0] = c->num_elements(), counts[1] = c->num_nodes();
-      if (format != "vtkhdf") write_msh(*c, nemesis_path(out, P, r), format == "msh", &pending);
-    });
-    if (format == "vtkhdf") mpi::write_vtkhdf_collective(mpi.comm(), *c, out, deflate);
+      "nothing written to " + (format == "vtkhdf" ? out
+                                                  : nemesis_path(out, P, 0) + (P > 1 ? " ... " + nemesis_path(out, P, P - 1) : ""));
+  try {
+    if (format == "exodus") {
+      const std::vector<NodeRun> sharing = mpi::exchange_sharing(mpi.comm(), m, plan);
+      agree([&] {
+        const ChunkStream c(m, plan[static_cast<size_t>(r)], sets, {}, cancel_requested);
+        const NemesisInfo info = nemesis_info(c, P, r, sharing, global_set_counts(m, sets));
+        write_exodus(c, nemesis_path(out, P, r), &info, &pending);
+        counts[0] = c.num_elements(), counts[1] = c.num_nodes();
+      });
+    } else {
+      std::optional<ChunkStream> c;
+      agree([&] {
+        c.emplace(m, plan[static_cast<size_t>(r)], sets, std::function<void(Id, Id)>{}, cancel_requested);
+        counts[0] = c->num_elements(), counts[1] = c->num_nodes();
+        if (format != "vtkhdf") write_msh(*c, nemesis_path(out, P, r), format == "msh", &pending);
+      });
+      if (format == "vtkhdf") mpi::write_vtkhdf_collective(mpi.comm(), *c, out, deflate);
+    }
+    if (pending) agree([&] { throw_if_cancelled(nothing_written); });
+  } catch (const Error&) {
+    // As one process says it: the signal, and that nothing was written.
+    throw_if_cancelled(nothing_written);
+    throw;
   }
-  if (pending) {
-    agree([&] { throw_if_cancelled(nothing_written); });
-    agree([&] { pending->commit(); });
-  }
+  if (pending) agree([&] { pending->commit(); });
   MPI_Reduce(counts, totals, 2, MPI_LONG_LONG, MPI_SUM, 0, mpi.comm());
   if (r == 0 && !quiet)
-    std::printf("exported %s: %lld fine elements, %lld nodes (shared ones once per rank) from %d ranks to %s%s\n",
-                path.c_str(), totals[0], totals[1], P, out.c_str(),
+    std::printf("exported %s: %lld fine elements, %lld nodes (shared ones once per rank) from %d %s to %s%s\n",
+                path.c_str(), totals[0], totals[1], P, P == 1 ? "rank" : "ranks", out.c_str(),
                 format == "vtkhdf" ? "" : (" (" + nemesis_path(out, P, 0) + " ...)").c_str());
   store.report(m);
   return 0;

@@ -102,12 +102,14 @@ int main(int argc, char** argv) {
   using dicer::ErrorKind;
   dicer::h5::no_cleanup_at_exit();  // see there: an Exodus export on a full disk crashed at exit
   std::vector<std::string> args(argv + 1, argv + argc);
+  // What is answered before MPI starts is printed by one rank under mpirun.
+  const bool speaks = dicer::mpi::launched_rank() == 0;
   if (args.empty() || args[0] == "--help" || args[0] == "-h" || args[0] == "help") {
-    std::fputs(usage().c_str(), args.empty() ? stderr : stdout);
+    if (speaks) std::fputs(usage().c_str(), args.empty() ? stderr : stdout);
     return args.empty() ? exit_code(ErrorKind::Usage, 0) : kExitSuccess;
   }
   if (args[0] == "--version") {
-    std::printf("dicer %s (store format %d)\n", dicer::kVersion, dicer::kStoreFormatVersion);
+    if (speaks) std::printf("dicer %s (store format %d)\n", dicer::kVersion, dicer::kStoreFormatVersion);
     return kExitSuccess;
   }
   const CommandEntry* command = nullptr;
@@ -117,8 +119,9 @@ int main(int argc, char** argv) {
     names += (names.empty() ? "" : ", ") + std::string(c.name);
   }
   if (!command) {
-    std::fprintf(stderr, "dicer: error: unknown command \"%s\" (commands: %s; see dicer --help)\n", args[0].c_str(),
-                 names.c_str());
+    if (speaks)
+      std::fprintf(stderr, "dicer: error: unknown command \"%s\" (commands: %s; see dicer --help)\n", args[0].c_str(),
+                   names.c_str());
     return exit_code(ErrorKind::Usage, 0);
   }
   // Commands that need the CAD re-execute dicer-cad before MPI starts
@@ -134,6 +137,7 @@ int main(int argc, char** argv) {
   // failing rank prints; an error that escaped agreement ends the job.
   dicer::mpi::Session mpi(argc, argv);
   set_session(&mpi);
+  dicer::mpi::set_signal_probe(&received_signal);
   const std::vector<std::string> rest(args.begin() + 1, args.end());
   int code = kExitSuccess;
   bool caught = false;
@@ -143,7 +147,7 @@ int main(int argc, char** argv) {
     code = command->distributed && !help ? command->run(rest) : on_rank0([&] { return command->run(rest); });
   } catch (const dicer::mpi::PeerFailed& e) {
     const int k = static_cast<int>(e.kind());
-    return k < 0 ? kExitInternal : exit_code(e.kind(), received_signal());
+    return k < 0 ? kExitInternal : exit_code(e.kind(), e.signal() ? e.signal() : received_signal());
   } catch (const dicer::Error& e) {
     std::fprintf(stderr, "dicer %s: error: %s\n", command->name, e.what());
     code = exit_code(e.kind(), received_signal()), caught = true;

@@ -30,9 +30,11 @@
 // call's barrier (a full disk hung a 3-rank export in H5Fflush). So before
 // the first row, rank 0 reserves the file's blocks (fallocate, an upper
 // bound of the file's size) and a full disk or quota is one agreed error;
-// after the close the blocks past the end are given back.
+// after the close the blocks past the end are given back. Every rank checks
+// its file size limit (ulimit -f) against the same bound.
 #include <fcntl.h>
 #include <hdf5.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -299,11 +301,13 @@ struct VtkHdfWriter::Impl {
     created = true;
     if (par) {
       std::exception_ptr e;
-      if (par->rank == 0) try {
-          reserve_space(all_nodes, all_cells, c.corners());
-        } catch (...) {
-          e = std::current_exception();
-        }
+      try {
+        const std::uint64_t bytes = file_bound(all_nodes, all_cells, c.corners());
+        check_file_size_limit(bytes);  // every rank: each writes its own rows wherever they fall
+        if (par->rank == 0) reserve_space(bytes);
+      } catch (...) {
+        e = std::current_exception();
+      }
       try {
         par->checkpoint(e);
       } catch (...) {
@@ -313,18 +317,32 @@ struct VtkHdfWriter::Impl {
     }
   }
 
-  // Blocks for the whole file (see the top of this file): the datasets'
+  // The file's size, at most (see the top of this file): the datasets'
   // bytes (uncompressed; deflate only shrinks them, but for a few bytes a
   // block), a part-filled chunk per dataset (no larger than the dataset),
   // and for metadata 1% + 256 KiB + 2 KiB a partition (chunk indexes).
-  // A file system without fallocate (NFS v3) is written without a reserve.
-  void reserve_space(std::int64_t nodes, std::int64_t cells, int corners) const {
+  std::uint64_t file_bound(std::int64_t nodes, std::int64_t cells, int corners) const {
     const auto n = static_cast<std::uint64_t>(nodes), e = static_cast<std::uint64_t>(cells);
     const auto parts = static_cast<std::uint64_t>(partitions);
     const std::uint64_t data = n * (3 * 8 + 8) + e * (1 + 8 * static_cast<std::uint64_t>(corners) + 8 + 8 + 8) +
                                (parts + 3 * parts) * 8;
-    const std::uint64_t bytes =
-        data + data / 100 + std::min<std::uint64_t>(data, 10 * kChunkBytes) + (256 << 10) + parts * (2 << 10);
+    return data + data / 100 + std::min<std::uint64_t>(data, 10 * kChunkBytes) + (256 << 10) + parts * (2 << 10);
+  }
+  static std::string mib(std::uint64_t bytes) { return std::to_string((bytes + (1 << 20) - 1) >> 20) + " MiB"; }
+
+  // A rank whose file size limit (ulimit -f) the file could pass would fail
+  // a write inside a collective HDF5 call, where the others would wait.
+  void check_file_size_limit(std::uint64_t bytes) const {
+    struct rlimit rl {};
+    if (::getrlimit(RLIMIT_FSIZE, &rl) == 0 && rl.rlim_cur != RLIM_INFINITY && rl.rlim_cur < bytes)
+      throw Error(ErrorKind::Io, path + ": the file may grow to " + mib(bytes) + " (its uncompressed size and a margin), "
+                                 "past this process's file size limit of " + std::to_string(rl.rlim_cur) +
+                                 " bytes (ulimit -f)");
+  }
+
+  // Rank 0 reserves the file's blocks. A file system without fallocate (NFS
+  // v3) is written without a reserve.
+  void reserve_space(std::uint64_t bytes) const {
     const int fd = ::open(tmp.c_str(), O_WRONLY | O_CLOEXEC);
     if (fd < 0) throw Error(ErrorKind::Io, path + ": cannot open " + tmp + ": " + std::strerror(errno));
     int rc;
@@ -333,9 +351,8 @@ struct VtkHdfWriter::Impl {
     const int err = rc == 0 ? 0 : errno;
     ::close(fd);
     if (err != 0 && err != EOPNOTSUPP && err != ENOSYS)
-      throw Error(ErrorKind::Io, path + ": cannot reserve " + std::to_string((bytes + (1 << 20) - 1) >> 20) +
-                                     " MiB for the export (its uncompressed size and a margin): " +
-                                     std::strerror(err));
+      throw Error(ErrorKind::Io, path + ": cannot reserve " + mib(bytes) +
+                                     " for the export (its uncompressed size and a margin): " + std::strerror(err));
   }
 
   // Gives back the reserved blocks past the end of the closed file.

@@ -12,6 +12,12 @@ bool launched_by_mpirun() {
   return false;
 }
 
+int launched_rank() {
+  for (const char* v : {"OMPI_COMM_WORLD_RANK", "PMIX_RANK", "PMI_RANK"})
+    if (const char* r = std::getenv(v); r != nullptr && *r != '\0') return std::atoi(r);
+  return 0;
+}
+
 Session::Session(int& argc, char**& argv) {
   if (!launched_by_mpirun()) return;
   int provided = 0;
@@ -45,6 +51,10 @@ int kind_of(std::exception_ptr e) {
 }
 }  // namespace
 
+namespace {
+int (*g_signal_probe)() = nullptr;
+}  // namespace
+
 void checkpoint(MPI_Comm comm, std::exception_ptr local) {
   int rank = 0, size = 1;
   MPI_Comm_rank(comm, &rank);
@@ -53,12 +63,14 @@ void checkpoint(MPI_Comm comm, std::exception_ptr local) {
   int lowest = size;
   MPI_Allreduce(&mine, &lowest, 1, MPI_INT, MPI_MIN, comm);
   if (lowest == size) return;
-  int kind = rank == lowest ? kind_of(local) : 0;
-  MPI_Bcast(&kind, 1, MPI_INT, lowest, comm);
+  int sent[2] = {rank == lowest ? kind_of(local) : 0, rank == lowest && g_signal_probe ? g_signal_probe() : 0};
+  MPI_Bcast(sent, 2, MPI_INT, lowest, comm);
   g_agreed = true;
   if (rank == lowest) std::rethrow_exception(local);
-  throw PeerFailed(static_cast<ErrorKind>(kind), lowest);
+  throw PeerFailed(static_cast<ErrorKind>(sent[0]), lowest, sent[1]);
 }
+
+void set_signal_probe(int (*probe)()) { g_signal_probe = probe; }
 
 bool error_was_agreed() { return g_agreed; }
 

@@ -29,6 +29,10 @@ namespace dicer::mpi {
 // set the environment): the CLI then initialises MPI. Without it, dicer
 // never touches MPI.
 bool launched_by_mpirun();
+// This process's rank as the launcher's environment gives it, before MPI
+// starts (0 without a launcher): for output made before MPI_Init, such as
+// `dicer --help`, which one rank prints, not every one.
+int launched_rank();
 
 // MPI_Init_thread (funneled: only the calling thread talks MPI) and
 // MPI_Finalize, when launched by mpirun; otherwise a one-rank session that
@@ -52,15 +56,25 @@ class Session {
 // Another rank failed; `failed_rank` reported the error.
 class PeerFailed : public std::runtime_error {
  public:
-  PeerFailed(ErrorKind kind, int failed_rank)
-      : std::runtime_error("rank " + std::to_string(failed_rank) + " failed"), kind_(kind), rank_(failed_rank) {}
+  PeerFailed(ErrorKind kind, int failed_rank, int signal = 0)
+      : std::runtime_error("rank " + std::to_string(failed_rank) + " failed"), kind_(kind), rank_(failed_rank),
+        signal_(signal) {}
   ErrorKind kind() const { return kind_; }
   int failed_rank() const { return rank_; }
+  // The signal the failed rank received (set_signal_probe), 0 if none: a
+  // Cancelled rank's peers end with its exit code, 128 + that signal.
+  int signal() const { return signal_; }
 
  private:
   ErrorKind kind_;
   int rank_;
+  int signal_;
 };
+
+// Where checkpoint reads the signal a failing rank received, to send it
+// with the error's kind (the command's signal handler records it). Unset:
+// none is sent.
+void set_signal_probe(int (*probe)());
 
 // Collective: every rank passes what its local work threw (nullptr when it
 // succeeded). If any rank failed, every rank throws as described above.

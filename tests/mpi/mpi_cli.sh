@@ -127,6 +127,45 @@ PY
   [ "$code" = 8 ] || fail "damaged page: exit $code, expected 8: $out"
   [ "$(printf '%s\n' "$out" | grep -c 'error')" = 1 ] || fail "damaged page: not one message: $out"
 fi
+# One rank under a file size limit (ulimit -f 10 MB, the file ~30 MB): its
+# write failed inside a collective HDF5 call and every rank hung. Now each
+# rank checks its limit first: exit 5, one message, nothing left.
+if [ "$P" -gt 1 ]; then
+  "$dicer" dice "$data/cardinal_prism.exo" --interval 5 -o prism5.dice.h5 --quiet
+  printf '#!/bin/bash\n[ "$OMPI_COMM_WORLD_RANK" = 1 ] && ulimit -f 10000\nexec "%s" "$@"\n' "$dicer" > limited.sh
+  chmod +x limited.sh
+  mkdir -p lim
+  set +e
+  out=$(timeout 120 mpirun -q --oversubscribe -n "$P" ./limited.sh export prism5.dice.h5 -o lim/x.vtkhdf --quiet 2>&1)
+  code=$?
+  set -e
+  [ "$code" = 5 ] || fail "file size limit on rank 1: exit $code, expected 5: $out"
+  printf '%s\n' "$out" | grep -q 'ulimit -f' || fail "file size limit on rank 1: no reason: $out"
+  [ -z "$(ls -A lim)" ] || fail "file size limit on rank 1: left behind: $(ls -A lim)"
+fi
+
+# SIGTERM to one rank during a collective export: every rank ends with its
+# code, 143 (the others said 130, "interrupted": the signal was the failed
+# rank's alone), one message naming the signal, nothing left behind.
+if [ "$P" -gt 1 ]; then
+  mkdir -p sig
+  mpirun -q --oversubscribe -n "$P" "$dicer" export prism5.dice.h5 -o sig/x.vtkhdf --deflate 9 --quiet > sig.log 2>&1 &
+  mp=$!
+  sleep 0.8
+  victim=$(pgrep -P $mp -f 'dicer export' | sed -n 2p || true)
+  [ -n "$victim" ] && kill -TERM "$victim"
+  set +e
+  wait $mp
+  code=$?
+  set -e
+  if [ "$code" != 0 ]; then  # 0: the export finished before the signal
+    [ "$code" = 143 ] || fail "SIGTERM to rank 1: exit $code, expected 143: $(cat sig.log)"
+    [ "$(grep -c 'dicer export: error' sig.log)" -le 1 ] || fail "SIGTERM to rank 1: more than one message: $(cat sig.log)"
+    ! grep -q 'dicer export: error' sig.log || grep -q 'SIGTERM' sig.log || fail "SIGTERM to rank 1: $(cat sig.log)"
+    [ -z "$(ls -A sig)" ] || fail "SIGTERM to rank 1: left behind: $(ls -A sig)"
+  fi
+fi
+
 # A full disk. The collective VTKHDF writer hung in HDF5's flush on 3 ranks
 # (rank 0's metadata write failed before the barrier the others waited in);
 # now rank 0 reserves the file's blocks first. Exodus failed at exit in
