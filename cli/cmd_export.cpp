@@ -334,6 +334,8 @@ int cmd_export(const std::vector<std::string>& argv) {
     throw_if_cancelled(nothing_written);
     throw;
   }
+  if (box && written_elements == 0)  // a valid file, but rarely what was meant: said even under --quiet
+    std::fprintf(stderr, "dicer export: note: the box holds no fine element; %s holds none\n", out.c_str());
   if (!quiet) {
     const Id n = static_cast<Id>(ranges.size());
     std::printf("exported %s: %lld fine elements, %lld nodes%s in %lld %s to %s\n", path.c_str(),

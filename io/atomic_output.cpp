@@ -92,6 +92,15 @@ AtomicOutput::AtomicOutput(const std::string& final_path) : final_(final_path) {
   dir_ = p.has_parent_path() ? p.parent_path().string() : std::string(".");
   dir_fd_ = ::open(dir_.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
   if (dir_fd_ < 0) throw Error(ErrorKind::Io, final_path + ": cannot open the output folder " + dir_ + ": " + errno_text());
+  // Said here, in these words, rather than by whichever library then fails
+  // to create the temporary (netCDF blamed netCDF-4 support, MPI-IO said
+  // MPI_ERR_OTHER): permissions, a read-only file system, an immutable folder.
+  if (::faccessat(dir_fd_, ".", W_OK, AT_EACCESS) != 0) {
+    const std::string why = errno_text();
+    ::close(dir_fd_);
+    dir_fd_ = -1;
+    throw Error(ErrorKind::Io, final_path + ": cannot write in the output folder " + dir_ + ": " + why);
+  }
   remove_stale(dir_fd_, name_);
   temp_name_ = temp_name_for(name_, static_cast<long>(::getpid()));
   temp_ = (fs::path(dir_) / temp_name_).string();

@@ -17,7 +17,8 @@
 //     exceptions, cancellation), and remove_uncommitted() does the same from
 //     a signal handler (async-signal-safe).
 // Refuses (Error{Usage}) an output that is an existing directory, and
-// (Error{Io}, naming the folder and the reason) a folder it cannot open.
+// (Error{Io}, naming the folder and the reason) a folder it cannot open or
+// write in (permissions, a read-only file system, an immutable folder).
 // Not copyable or movable; one per output file.
 #include <string>
 

@@ -204,6 +204,21 @@ TEST(FileFaults, CreateFailureNamesTheOutputAndTheReason) {
   EXPECT_EQ(r.err.rfind("dicer dice: error: " + out + ": ", 0), 0u) << r.err;
   EXPECT_NE(r.err.find("Permission denied"), std::string::npos) << r.err;
   EXPECT_TRUE(entries(d.dir().string()).empty()) << joined(entries(d.dir().string()));
+  // Every writer says it in the same words, before its library tries
+  // (netCDF blamed "netcdf-4 support" and showed a /proc/self/fd path).
+  const std::string store = test::diced_store("cardinal_sphere.e", 2);
+  fs::permissions(store, fs::perms::others_read, fs::perm_options::add);
+  fs::permissions(fs::path(store).parent_path(), fs::perms::others_exec, fs::perm_options::add);
+  for (const std::string name : {"out.e", "out.vtkhdf", "out.msh"}) {
+    SCOPED_TRACE(name);
+    const auto e = run_as_nobody({"export", store, "-o", d.path(name), "--quiet"});
+    EXPECT_EQ(e.exit_code, 5) << e.err;
+    EXPECT_EQ(lines(e.err), 1) << e.err;
+    EXPECT_NE(e.err.find(d.path(name) + ": cannot write in the output folder"), std::string::npos) << e.err;
+    EXPECT_NE(e.err.find("Permission denied"), std::string::npos) << e.err;
+    EXPECT_EQ(e.err.find("/proc/self/fd"), std::string::npos) << e.err;
+  }
+  EXPECT_TRUE(entries(d.dir().string()).empty()) << joined(entries(d.dir().string()));
 }
 
 // ---- locks -----------------------------------------------------------------------

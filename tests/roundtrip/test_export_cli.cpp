@@ -85,6 +85,22 @@ TEST(ExportCli, NodeSetsNotWrittenToMshAreSaid) {
   EXPECT_EQ(r.err, "");
 }
 
+// A box that holds no element writes a valid empty file (a script may want
+// it), and says so, --quiet or not: it is rarely what was meant.
+TEST(ExportCli, AnEmptyBoxIsSaid) {
+  test::TempDir tmp;
+  const std::string store = test::diced_store("cardinal_prism.exo", 1);
+  for (const std::string name : {"e.vtkhdf", "e.msh", "e.e"}) {
+    SCOPED_TRACE(name);
+    const auto r = test::run_cli({"export", store, "--box", "100,100,100,101,101,101", "-o", tmp.path(name), "--quiet"});
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NE(r.err.find("note: the box holds no fine element"), std::string::npos) << r.err;
+    EXPECT_TRUE(std::filesystem::exists(tmp.path(name)));
+  }
+  const auto r = test::run_cli({"export", store, "--box", "-100,-100,-100,100,100,100", "-o", tmp.path("f.msh"), "--quiet"});
+  EXPECT_EQ(r.err, "");
+}
+
 // Without --format the extension of OUT names it: the same file, byte for
 // byte (exports are reproducible), as with the format given; the format
 // given wins over the extension.
