@@ -75,7 +75,7 @@ int cmd_info(const std::vector<std::string>& argv) {
                 {"blocks", blocks}});
   } else {
     std::printf("store      %s (%s, format version %d)\n", path.c_str(), human_bytes(s.file_bytes).c_str(), s.format_version);
-    std::printf("source     %s%s\nmode       %s\n", c.source.c_str(),
+    std::printf("source     %s%s\nmode       %s\n", printable(c.source).c_str(),
                 c.source_order == 2 ? " (second order: HEX20/27 or QUAD8/9)" : "", mode_name(m.mode()));
     std::printf("coarse     %lld vertices, %lld edges, %lld faces, %lld %s\n", ll(c.coarse_vertices), ll(c.coarse_edges),
                 ll(c.coarse_faces), ll(c.coarse_elements), m.mode() == Mode::Volume ? "hexes" : "quads");
@@ -85,7 +85,7 @@ int cmd_info(const std::vector<std::string>& argv) {
                 ll(m.num_elements()), human_count(m.num_elements()).c_str());
     std::printf("blocks     %8s %-20s %12s %16s\n", "id", "name", "coarse", "fine");
     for (size_t b = 0; b < c.blocks.size(); ++b)
-      std::printf("           %8lld %-20s %12lld %16lld\n", ll(c.blocks[b].id), c.blocks[b].name.c_str(),
+      std::printf("           %8lld %-20s %12lld %16lld\n", ll(c.blocks[b].id), printable(c.blocks[b].name).c_str(),
                   ll(coarse_per_block[b]), ll(fine_per_block[b]));
   }
   store.report(m);
