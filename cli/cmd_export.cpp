@@ -160,7 +160,10 @@ int export_ranks(const std::string& path, const std::string& out, const std::str
     throw_if_cancelled(nothing_written);
     throw;
   }
-  if (pending) agree([&] { pending->commit(); });
+  if (pending) {
+    agree([&] { pending->flush(); });  // every rank's before the first rename
+    agree([&] { pending->commit(); });
+  }
   MPI_Reduce(counts, totals, 2, MPI_LONG_LONG, MPI_SUM, 0, mpi.comm());
   if (r == 0 && !quiet)
     std::printf("exported %s: %lld fine elements, %lld nodes (shared ones once per rank) from %d %s to %s%s\n",
@@ -300,6 +303,7 @@ int cmd_export(const std::vector<std::string>& argv) {
         write_exodus(c, nemesis_path(out, r.count, r.index), &info, &files[static_cast<size_t>(r.index)]);
         finished(r, c);
       }
+      for (auto& f : files) f->flush();  // all flushed before the first rename (AtomicOutput::flush)
       for (auto& f : files) f->commit();
     } else if (format == "vtkhdf") {
       VtkHdfWriter w(out, static_cast<Id>(ranges.size()), deflate);

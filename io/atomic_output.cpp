@@ -95,7 +95,9 @@ AtomicOutput::AtomicOutput(const std::string& final_path) : final_(final_path) {
   // Said here, in these words, rather than by whichever library then fails
   // to create the temporary (netCDF blamed netCDF-4 support, MPI-IO said
   // MPI_ERR_OTHER): permissions, a read-only file system, an immutable folder.
-  if (::faccessat(dir_fd_, ".", W_OK, AT_EACCESS) != 0) {
+  // (Real ids, flags 0: glibc then calls faccessat, not faccessat2, which
+  // older container seccomp profiles refuse with EPERM.)
+  if (::faccessat(dir_fd_, ".", W_OK, 0) != 0) {
     const std::string why = errno_text();
     ::close(dir_fd_);
     dir_fd_ = -1;
@@ -127,29 +129,49 @@ void AtomicOutput::park() {
   short_.clear();
 }
 
-void AtomicOutput::commit() {
-  if (committed_) return;
-  if (dir_fd_ < 0) {  // parked
-    dir_fd_ = ::open(dir_.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-    if (dir_fd_ < 0) throw Error(ErrorKind::Io, final_ + ": cannot open the output folder " + dir_ + ": " + errno_text());
-  }
-  const int fd = ::openat(dir_fd_, temp_name_.c_str(), O_RDONLY | O_CLOEXEC);
+void AtomicOutput::flush() {
+  if (committed_ || flushed_) return;
+  // The folder by name, for a parked output, only for this call: a set of
+  // thousands committed in a row must not hold a descriptor each.
+  const int dir = dir_fd_ >= 0 ? dir_fd_ : ::open(dir_.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (dir < 0) throw Error(ErrorKind::Io, final_ + ": cannot open the output folder " + dir_ + ": " + errno_text());
+  struct Close {
+    int fd;
+    bool own;
+    ~Close() {
+      if (own) ::close(fd);
+    }
+  } close_dir{dir, dir != dir_fd_};
+  const int fd = ::openat(dir, temp_name_.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) throw Error(ErrorKind::Io, temp_ + ": the written file is gone: " + errno_text());
   const int rc = ::fsync(fd);
   const int err = errno;
   ::close(fd);
   if (rc != 0) throw Error(ErrorKind::Io, temp_ + ": cannot flush to disk: " + std::strerror(err));
   struct stat st;
-  if (::fstatat(dir_fd_, name_.c_str(), &st, 0) == 0 && S_ISDIR(st.st_mode))
+  if (::fstatat(dir, name_.c_str(), &st, 0) == 0 && S_ISDIR(st.st_mode))
     throw Error(ErrorKind::Usage, final_ + ": is a directory; give a file name to write");
-  if (::renameat(dir_fd_, temp_name_.c_str(), dir_fd_, name_.c_str()) != 0)
-    throw Error(ErrorKind::Io, final_ + ": cannot move the finished file into place: " + errno_text());
+  flushed_ = true;
+}
+
+void AtomicOutput::commit() {
+  if (committed_) return;
+  flush();
+  const int dir = dir_fd_ >= 0 ? dir_fd_ : ::open(dir_.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (dir < 0) throw Error(ErrorKind::Io, final_ + ": cannot open the output folder " + dir_ + ": " + errno_text());
+  const bool own = dir != dir_fd_;
+  if (::renameat(dir, temp_name_.c_str(), dir, name_.c_str()) != 0) {
+    const std::string why = errno_text();
+    if (own) ::close(dir);
+    throw Error(ErrorKind::Io, final_ + ": cannot move the finished file into place: " + why);
+  }
   committed_ = true;
   release_slot(slot_);
   slot_ = -1;
   // The rename itself is durable only once the folder is flushed; the file
   // is complete either way, so a failure here is not worth an error.
-  ::fsync(dir_fd_);
+  ::fsync(dir);
+  if (own) ::close(dir);
 }
 
 void AtomicOutput::remove_uncommitted() noexcept {

@@ -36,10 +36,16 @@ class AtomicOutput {
   const std::string& short_path() const { return short_; }  // /proc/self/fd/N/NAME: the same file, short
   // Durably replaces final_path() with the temporary. Throws Error{Io}.
   void commit();
+  // commit()'s part that can fail for reasons other than the rename: fsync
+  // of the temporary, and a directory now at the final name. A set of
+  // files calls it for every file before the first commit(), so a failure
+  // leaves every old file in place; only a rename failing half way (an
+  // immutable old file) can leave a mix. Idempotent.
+  void flush();
   // For a writer that holds many finished temporaries until all are
   // written (a Nemesis set, committed together): lets go of the folder's
-  // handle (one file descriptor each) until commit(), which opens the
-  // folder again by name. short_path() is invalid after park().
+  // handle (one file descriptor each): flush() and commit() open the folder
+  // again by name for their call. short_path() is invalid after park().
   void park();
   bool committed() const { return committed_; }
 
@@ -53,6 +59,7 @@ class AtomicOutput {
   int dir_fd_ = -1;
   int slot_ = -1;  // index in the process-wide registry of live temporaries
   bool committed_ = false;
+  bool flushed_ = false;
 };
 
 }  // namespace dicer

@@ -144,7 +144,9 @@ TEST(AtomicOutput, ParkedOutputsHoldNoDescriptorAndStillCommitOrVanish) {
     outs.back()->park();
   }
   EXPECT_LE(open_fds(), fds + 2);
+  for (int i = 0; i < kFiles; i += 2) outs[static_cast<size_t>(i)]->flush();
   for (int i = 0; i < kFiles; i += 2) outs[static_cast<size_t>(i)]->commit();
+  EXPECT_LE(open_fds(), fds + 2);  // committing opened the folder for its call only
   outs[1].reset();  // destroyed parked: removed
   AtomicOutput::remove_uncommitted();  // every other odd one, as a signal handler would
   // Only the committed files are left: no temporary, not even past slot 64.
