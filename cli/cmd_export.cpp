@@ -296,15 +296,15 @@ int cmd_export(const std::vector<std::string>& argv) {
       // Committed together once all are written (PendingFile).
       const auto sharing = in_process_sharing(m, ranges);
       const SetCounts counts = global_set_counts(m, sets);
-      std::vector<PendingFile> files(ranges.size());
+      std::vector<PendingFile> pieces(ranges.size());
       for (const auto& r : ranges) {
         const ChunkStream c(m, r, sets, progress_of(r), cancel_requested);
         const NemesisInfo info = nemesis_info(c, r.count, r.index, sharing[static_cast<size_t>(r.index)], counts);
-        write_exodus(c, nemesis_path(out, r.count, r.index), &info, &files[static_cast<size_t>(r.index)]);
+        write_exodus(c, nemesis_path(out, r.count, r.index), &info, &pieces[static_cast<size_t>(r.index)]);
         finished(r, c);
       }
-      for (auto& f : files) f->flush();  // all flushed before the first rename (AtomicOutput::flush)
-      for (auto& f : files) f->commit();
+      for (auto& f : pieces) f->flush();  // all flushed before the first rename (AtomicOutput::flush)
+      for (auto& f : pieces) f->commit();
     } else if (format == "vtkhdf") {
       VtkHdfWriter w(out, static_cast<Id>(ranges.size()), deflate);
       for (const auto& r : ranges) {
