@@ -100,7 +100,6 @@ Examples:
 int main(int argc, char** argv) {
   using namespace dicer::cli;
   using dicer::ErrorKind;
-  dicer::h5::no_cleanup_at_exit();  // see there: an Exodus export on a full disk crashed at exit
   std::vector<std::string> args(argv + 1, argv + argc);
   // What is answered before MPI starts is printed by one rank under mpirun.
   const bool speaks = dicer::mpi::launched_rank() == 0;
@@ -124,6 +123,7 @@ int main(int argc, char** argv) {
                    names.c_str());
     return exit_code(ErrorKind::Usage, 0);
   }
+  dicer::h5::no_cleanup_at_exit();  // before MPI starts; see there: an Exodus export on a full disk crashed at exit
   // Commands that need the CAD re-execute dicer-cad before MPI starts
   // (dicer-cad starts its own session).
   try {

@@ -108,12 +108,7 @@ class TempExodus {
     exoid_ = -1;
     exodus::clear_error();
     check(ex_close(id), "ex_close");
-    if (pending) {
-      out_->park();
-      *pending = std::move(out_);
-    } else {
-      out_->commit();
-    }
+    commit_or_pend(out_, pending);
   }
 
  private:

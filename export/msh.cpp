@@ -558,6 +558,12 @@ void write_body(const ChunkSource& c, Out& o) {
 
 }  // namespace
 
+void commit_or_pend(PendingFile& file, PendingFile* pending) {
+  if (!pending) return file->commit();
+  file->park();
+  *pending = std::move(file);
+}
+
 bool msh_writes_side(Mode mode, int side) {
   return mode == Mode::Volume ? side >= 0 && side <= 5 : side >= 2 && side <= 5;
 }
@@ -577,12 +583,7 @@ void write_msh(const ChunkSource& chunk, const std::string& path, bool binary, P
     Out o(fd, path, binary);
     write_body(chunk, o);
     o.close();
-    if (pending) {
-      out->park();
-      *pending = std::move(out);
-    } else {
-      out->commit();
-    }
+    commit_or_pend(out, pending);
   } catch (const Error&) {
     throw;
   } catch (const std::exception& e) {

@@ -129,27 +129,42 @@ void AtomicOutput::park() {
   short_.clear();
 }
 
+namespace {
+
+// The output's folder for one call: its own descriptor, or for a parked
+// output the folder opened again by name and closed after the call (a set
+// of thousands committed in a row must not hold a descriptor each).
+class Folder {
+ public:
+  Folder(int kept, const std::string& dir, const std::string& final_path)
+      : fd_(kept >= 0 ? kept : ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC)), own_(kept < 0) {
+    if (fd_ < 0) throw Error(ErrorKind::Io, final_path + ": cannot open the output folder " + dir + ": " + errno_text());
+  }
+  ~Folder() {
+    if (own_) ::close(fd_);
+  }
+  Folder(const Folder&) = delete;
+  Folder& operator=(const Folder&) = delete;
+  int fd() const { return fd_; }
+
+ private:
+  int fd_;
+  bool own_;
+};
+
+}  // namespace
+
 void AtomicOutput::flush() {
   if (committed_ || flushed_) return;
-  // The folder by name, for a parked output, only for this call: a set of
-  // thousands committed in a row must not hold a descriptor each.
-  const int dir = dir_fd_ >= 0 ? dir_fd_ : ::open(dir_.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (dir < 0) throw Error(ErrorKind::Io, final_ + ": cannot open the output folder " + dir_ + ": " + errno_text());
-  struct Close {
-    int fd;
-    bool own;
-    ~Close() {
-      if (own) ::close(fd);
-    }
-  } close_dir{dir, dir != dir_fd_};
-  const int fd = ::openat(dir, temp_name_.c_str(), O_RDONLY | O_CLOEXEC);
+  const Folder dir(dir_fd_, dir_, final_);
+  const int fd = ::openat(dir.fd(), temp_name_.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) throw Error(ErrorKind::Io, temp_ + ": the written file is gone: " + errno_text());
   const int rc = ::fsync(fd);
   const int err = errno;
   ::close(fd);
   if (rc != 0) throw Error(ErrorKind::Io, temp_ + ": cannot flush to disk: " + std::strerror(err));
   struct stat st;
-  if (::fstatat(dir, name_.c_str(), &st, 0) == 0 && S_ISDIR(st.st_mode))
+  if (::fstatat(dir.fd(), name_.c_str(), &st, 0) == 0 && S_ISDIR(st.st_mode))
     throw Error(ErrorKind::Usage, final_ + ": is a directory; give a file name to write");
   flushed_ = true;
 }
@@ -157,21 +172,15 @@ void AtomicOutput::flush() {
 void AtomicOutput::commit() {
   if (committed_) return;
   flush();
-  const int dir = dir_fd_ >= 0 ? dir_fd_ : ::open(dir_.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (dir < 0) throw Error(ErrorKind::Io, final_ + ": cannot open the output folder " + dir_ + ": " + errno_text());
-  const bool own = dir != dir_fd_;
-  if (::renameat(dir, temp_name_.c_str(), dir, name_.c_str()) != 0) {
-    const std::string why = errno_text();
-    if (own) ::close(dir);
-    throw Error(ErrorKind::Io, final_ + ": cannot move the finished file into place: " + why);
-  }
+  const Folder dir(dir_fd_, dir_, final_);
+  if (::renameat(dir.fd(), temp_name_.c_str(), dir.fd(), name_.c_str()) != 0)
+    throw Error(ErrorKind::Io, final_ + ": cannot move the finished file into place: " + errno_text());
   committed_ = true;
   release_slot(slot_);
   slot_ = -1;
   // The rename itself is durable only once the folder is flushed; the file
   // is complete either way, so a failure here is not worth an error.
-  ::fsync(dir);
-  if (own) ::close(dir);
+  ::fsync(dir.fd());
 }
 
 void AtomicOutput::remove_uncommitted() noexcept {

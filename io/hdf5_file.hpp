@@ -79,7 +79,7 @@ hid_t create_file_id(const std::string& path, int* first_errno = nullptr, hid_t 
 // at MPI_Finalize. A write that fails inside netCDF (an Exodus export on a
 // full disk) goes through HDF5's own POSIX driver, not create_file_id's,
 // and leaves the freed file's id behind, on which that cleanup crashes.
-// Call first thing in main, before MPI_Init: HDF5 is initialised here, and
+// Call in main before MPI_Init and any other HDF5 call: HDF5 starts here, and
 // parallel HDF5 hooks its cleanup to MPI_Finalize only when it starts
 // inside MPI. Not for libraries: other users' files in the process would
 // go unflushed at exit.

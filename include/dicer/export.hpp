@@ -381,6 +381,8 @@ class VtkHdfWriter {
 // one, then committed together: a failure or a signal while any is being
 // written leaves every old file as it was.
 using PendingFile = std::unique_ptr<AtomicOutput>;
+// A writer's last step: commits `file`, or with `pending` parks it there.
+void commit_or_pend(PendingFile& file, PendingFile* pending);
 
 // Gmsh MSH 4.1, ASCII or binary: one volume (surface) entity and physical
 // group per block, boundary elements per side set as surface (curve)
