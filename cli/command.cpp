@@ -232,7 +232,8 @@ StoreFlags::StoreFlags(Command& cmd)
            "and bytes read, bytes decompressed, hits, misses, "
            "evictions, peak resident bytes; the time spent loading pages, "
            "the part the threads that missed paid themselves (the rest "
-           "was read ahead), and the time spent waiting for pages in flight",
+           "was read ahead), and the time spent waiting for pages in flight; "
+           "under mpirun each rank prints its own, labelled \"(rank R of P)\"",
            group);
 }
 

@@ -183,9 +183,13 @@ void throw_if_cancelled(const std::string& outcome) {
     throw Error(ErrorKind::Cancelled, std::string("interrupted by ") + signal_name(sig) + "; " + outcome);
 }
 
-void print_cache_stats(const FineMesh& mesh, const std::string& command) {
+void print_cache_stats(const FineMesh& mesh, const std::string& name) {
   const auto cache = store_cache(mesh);
   if (!cache) return;
+  // Under mpirun every rank prints its own cache's lines: say whose.
+  std::string command = name;
+  if (g_session && g_session->active() && g_session->size() > 1)
+    command += " (rank " + std::to_string(g_session->rank()) + " of " + std::to_string(g_session->size()) + ")";
   const CacheStats st = cache->stats();
   const double amplification =
       st.distinct_pages_read ? static_cast<double>(st.pages_read) / static_cast<double>(st.distinct_pages_read) : 0.0;

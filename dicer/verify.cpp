@@ -55,7 +55,7 @@ VerifyPart verify_part(const FineMesh& mesh, Id first, Id end, const std::functi
   // What the part sees of each coarse face (two sides at most) and edge,
   // kept only for the entities its elements use.
   std::unordered_map<Id, std::array<FaceSide, 2>> side;
-  std::unordered_map<Id, std::uint64_t> edge_hash;
+  std::unordered_map<Id, std::array<std::uint64_t, 2>> edge_hash;  // edge -> (first hash, uses disagreed)
   std::unordered_map<Id, std::array<std::int64_t, 2>> edge_use;  // surface: quads, direction sum
 
   FineBlock b;
@@ -244,18 +244,17 @@ VerifyPart verify_part(const FineMesh& mesh, Id first, Id end, const std::functi
         hv = mix(mix(mix(mix(hv, static_cast<std::uint64_t>(b.node_id[g])), bits(b.x[g])), bits(b.y[g])),
                  bits(b.z[g]));
       }
-      const auto [it, fresh] = edge_hash.try_emplace(e, hv);
-      if (!fresh && it->second != hv) {
-        ++r.conformity_errors;
-        note(r, "coarse edge " + std::to_string(e) + ": neighbours disagree on its fine nodes");
-      }
+      // Counted once per edge by verify_finish, so the count is the same
+      // however the elements are split into parts.
+      const auto [it, fresh] = edge_hash.try_emplace(e, std::array<std::uint64_t, 2>{hv, 0});
+      if (!fresh && it->second[0] != hv) it->second[1] = 1;
     }
     if (progress) progress(h + 1 - first, nh);
   }
   for (const auto& [f, both] : side)
     for (const FaceSide& fs : both)
       if (fs.seen) part.face_sides.push_back({static_cast<std::uint64_t>(f), static_cast<std::uint64_t>(fs.count), fs.hash});
-  for (const auto& [e, hv] : edge_hash) part.edge_hashes.push_back({static_cast<std::uint64_t>(e), hv});
+  for (const auto& [e, hv] : edge_hash) part.edge_hashes.push_back({static_cast<std::uint64_t>(e), hv[0], hv[1]});
   for (const auto& [e, u] : edge_use) part.edge_uses.push_back({e, u[0], u[1]});
   // Deterministic order (the maps' is not): the merge's "first seen" and its notes.
   std::sort(part.face_sides.begin(), part.face_sides.end());
@@ -378,7 +377,8 @@ VerifyReport verify_finish(const FineMesh& mesh, const std::vector<VerifyPart>& 
   // Coarse faces and edges as all parts together saw them.
   std::vector<FaceSide> side(static_cast<size_t>(t.faces.rows()) * 2);
   std::vector<std::uint64_t> edge_hash(static_cast<size_t>(t.edges.rows()), 0);
-  std::vector<std::uint8_t> edge_seen(static_cast<size_t>(t.edges.rows()), 0);
+  std::vector<std::uint8_t> edge_seen(static_cast<size_t>(t.edges.rows()), 0),
+      edge_bad(static_cast<size_t>(t.edges.rows()), 0);
   std::vector<std::int64_t> edge_uses, edge_dir;
   if (!vol) edge_uses.assign(static_cast<size_t>(t.edges.rows()), 0), edge_dir.assign(edge_uses.size(), 0);
   auto face_id = [&](std::uint64_t f) {
@@ -397,20 +397,22 @@ VerifyReport verify_finish(const FineMesh& mesh, const std::vector<VerifyPart>& 
       }
       *fs = FaceSide{hash, static_cast<Id>(count), true};
     }
-    for (const auto& [eu, hv] : p.edge_hashes) {
+    for (const auto& [eu, hv, bad] : p.edge_hashes) {
       if (eu >= edge_seen.size()) throw Error(ErrorKind::Usage, "verify_finish: edge id out of range");
-      if (!edge_seen[eu]) {
-        edge_seen[eu] = 1;
-        edge_hash[eu] = hv;
-      } else if (edge_hash[eu] != hv) {
-        ++r.conformity_errors;
-        note(r, "coarse edge " + std::to_string(eu) + ": neighbours disagree on its fine nodes");
-      }
+      if (!edge_seen[eu]) edge_seen[eu] = 1, edge_hash[eu] = hv;
+      edge_bad[eu] |= bad != 0 || edge_hash[eu] != hv;
     }
     for (const auto& [e, uses, dir] : p.edge_uses)
       if (!vol && e >= 0 && e < t.edges.rows()) edge_uses[e] += uses, edge_dir[e] += dir;
   }
 
+  // One finding per coarse edge, in edge order: the same count and notes
+  // from one process and from any number of ranks.
+  for (size_t e = 0; e < edge_bad.size(); ++e)
+    if (edge_bad[e]) {
+      ++r.conformity_errors;
+      note(r, "coarse edge " + std::to_string(e) + ": neighbours disagree on its fine nodes");
+    }
   if (vol) {
     for (Id f = 0; f < t.faces.rows(); ++f) {
       const FaceRow fr = R.face(f);

@@ -50,7 +50,7 @@ struct VerifyReport {
   Id near_coincident = 0;      // fine nodes within 1e-9 of the diagonal of another, not identical
   Id coincident_coarse_vertices = 0;  // coarse vertices sharing coordinates with another
   Id misoriented = 0;          // surface: coarse edges two quads traverse the same way
-  Id conformity_errors = 0;    // fine faces/edges that do not match up
+  Id conformity_errors = 0;    // fine faces shared wrongly; coarse faces and edges (one each) whose neighbours disagree
   Id inverted = 0;
   Id index_errors = 0;         // a node outside its element's bounds, an element outside its group's, a wrong neighbour
   double min_scaled_jacobian = 1.0;
@@ -75,7 +75,7 @@ VerifyReport verify(const FineMesh& mesh, const std::function<void(Id, Id)>& pro
 struct VerifyPart {
   VerifyReport report;                                       // per-element findings of the part
   std::vector<std::array<std::uint64_t, 3>> face_sides;      // (face, fine faces seen, hash) per side seen
-  std::vector<std::array<std::uint64_t, 2>> edge_hashes;     // (edge, hash of its fine nodes)
+  std::vector<std::array<std::uint64_t, 3>> edge_hashes;     // (edge, hash of its fine nodes, 1 if uses disagreed)
   std::vector<std::array<std::int64_t, 3>> edge_uses;        // surface: (edge, quads, direction sum)
 };
 VerifyPart verify_part(const FineMesh& mesh, Id first_coarse, Id end_coarse,

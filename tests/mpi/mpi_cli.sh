@@ -39,6 +39,14 @@ for s in prism shell; do
   cmp -s v1.json vP.json || fail "verify $s: reports differ: $(cat v1.json) vs $(cat vP.json)"
 done
 
+# export --stats: one set of cache lines per rank, each saying whose (P > 1).
+run export prism.dice.h5 -o stats.vtkhdf --quiet --stats 2> stats.txt
+for ((r = 0; r < P; r++)); do
+  want="dicer export: cache:"; [ "$P" = 1 ] || want="dicer export (rank $r of $P): cache:"
+  [ "$(grep -cF "$want" stats.txt)" = 1 ] || fail "export --stats: no single line \"$want\": $(cat stats.txt)"
+done
+[ "$(grep -c ': cache:' stats.txt)" = "$P" ] || fail "export --stats: not one cache line per rank: $(cat stats.txt)"
+
 a=$("$dicer" query prism.dice.h5 --box -10,-10,-1,10,10,0.5 --count)
 b=$(run query prism.dice.h5 --box -10,-10,-1,10,10,0.5 --count)
 [ "$a" = "$b" ] || fail "query --box --count: $a vs $b"

@@ -491,3 +491,58 @@ TEST(RandomMeshes, SurfaceVerifySeesTheBoundaryAndTheOrientation) {
     EXPECT_GT(flipped.misoriented, 0);
   }
 }
+
+// verify in parts (the MPI ranks) reports what one process reports: a
+// coarse edge whose users disagree on its fine nodes is one finding, however
+// its users are split among parts. The disagreement is forged in the parts'
+// hashes (a stored mesh cannot make two users of one edge row differ
+// without a row check failing first).
+TEST(RandomMeshes, VerifyInPartsCountsADisagreeingEdgeOnceHoweverItIsSplit) {
+  std::mt19937_64 rng(91);
+  test::BoxSpec spec;
+  spec.a = 2, spec.b = 2, spec.c = 1;
+  const CoarseMesh m = test::random_box(spec, rng);
+  IntervalRequest req;
+  req.global = 2;
+  const FineMesh f = FineMesh::dice(m, req);
+  const Id H = f.tables().elements.rows();
+  ASSERT_EQ(H, 4);
+  const VerifyReport whole = verify(f);
+  ASSERT_TRUE(whole.ok()) << (whole.problems.empty() ? "" : whole.problems[0]);
+  std::vector<VerifyPart> one_each;
+  for (Id h = 0; h < H; ++h) one_each.push_back(verify_part(f, h, h + 1));
+  EXPECT_EQ(verify_finish(f, one_each).conformity_errors, 0);
+  // The edge all four hexes use: the box's middle vertical edge.
+  std::map<std::uint64_t, int> users;
+  for (const VerifyPart& p : one_each)
+    for (const auto& e : p.edge_hashes) ++users[e[0]];
+  std::uint64_t mid = ~std::uint64_t{0};
+  for (const auto& [e, n] : users)
+    if (n == 4) mid = e;
+  ASSERT_NE(mid, ~std::uint64_t{0}) << "no edge of four hexes";
+  auto forge = [&](VerifyPart& p, std::uint64_t hash, std::uint64_t bad) {
+    for (auto& e : p.edge_hashes)
+      if (e[0] == mid) e[1] ^= hash, e[2] = bad;
+  };
+  auto finding = [&](const VerifyReport& r) {
+    int notes = 0;
+    for (const std::string& s : r.problems) notes += s.find("coarse edge " + std::to_string(mid) + ":") != std::string::npos;
+    return std::make_pair(r.conformity_errors, notes);
+  };
+  const std::pair<Id, int> once{1, 1};
+  {  // two of four users differ, each alone in its part (the old count: 2)
+    auto parts = one_each;
+    forge(parts[2], 1, 0), forge(parts[3], 1, 0);
+    EXPECT_EQ(finding(verify_finish(f, parts)), once);
+  }
+  {  // the same users as two parts of two: the second part agrees within itself
+    std::vector<VerifyPart> halves{verify_part(f, 0, 2), verify_part(f, 2, 4)};
+    forge(halves[1], 1, 0);
+    EXPECT_EQ(finding(verify_finish(f, halves)), once);
+  }
+  {  // one part whose own users disagreed: its flag alone is the finding
+    std::vector<VerifyPart> all{verify_part(f, 0, H)};
+    forge(all[0], 0, 1);
+    EXPECT_EQ(finding(verify_finish(f, all)), once);
+  }
+}
