@@ -347,13 +347,13 @@ void FineMesh::finish_moves() {
     Vec3 xyz[8];
     R.corner_xyz(h, xyz);
     ElementBounds box = corner_bounds(xyz, corners());
-    if (R.element(h).curved()) {
-      fill_block(h, b, true);
-      for (Id q = 0; q < b.num_points(); ++q) {
-        const double p[3] = {b.x[q], b.y[q], b.z[q]};
-        for (int d = 0; d < 3; ++d) box.lo[d] = std::min(box.lo[d], p[d]), box.hi[d] = std::max(box.hi[d], p[d]);
-      }
-    }
+    if (R.element(h).curved())
+      for_each_slab(h, b, false, [&](const FineBlock& s) {  // O(n^2) held, not the element
+        for (Id q = 0; q < s.num_points(); ++q) {
+          const double p[3] = {s.x[q], s.y[q], s.z[q]};
+          for (int d = 0; d < 3; ++d) box.lo[d] = std::min(box.lo[d], p[d]), box.hi[d] = std::max(box.hi[d], p[d]);
+        }
+      });
     write_bounds(tables_, h, box);
   }
   tables_.group_bounds = group_bounds(tables_);

@@ -414,4 +414,17 @@ void slab_lines(const FineBlock::Scratch::Boundary& B, Id cell_node, Id k0, Id k
 
 void FineMesh::fill_block(Id hid, FineBlock& b, bool nodes_only) const { fill_slab(hid, 0, -1, b, true, !nodes_only); }
 
+void FineMesh::for_each_slab(Id hid, FineBlock& b, bool conn, const std::function<void(const FineBlock&)>& fn) const {
+  if (mode() != Mode::Volume) {
+    fill_slab(hid, 0, 0, b, true, conn);
+    return fn(b);
+  }
+  const auto n = detail::Evaluator(tables_, b.cursor).R.element(hid).n;
+  const Id plane = (n[0] + 1) * (n[1] + 1), layers = std::max<Id>(1, kCursorSlabPoints / plane - 1);
+  for (Id k0 = 0; k0 < n[2]; k0 += layers) {
+    fill_slab(hid, k0, std::min(k0 + layers, n[2]), b, true, conn);
+    fn(b);
+  }
+}
+
 }  // namespace dicer

@@ -38,9 +38,10 @@ bool coarse_box_misses(const FineMesh& mesh, Id h, const Box& box, MeshCursor& c
   return !RowReader(t, cur).bounds(h).overlaps(box.lo, box.hi);
 }
 
+// Element e of the block or slab b (FineBlock: layers above plane0).
 void centroid(const FineBlock& b, Id e, int corners, double c[3]) {
   c[0] = c[1] = c[2] = 0;
-  const Id i = e % b.n[0], j = (e / b.n[0]) % b.n[1], k = e / (b.n[0] * b.n[1]);
+  const Id i = e % b.n[0], j = (e / b.n[0]) % b.n[1], k = b.plane0 + e / (b.n[0] * b.n[1]);
   for (int q = 0; q < corners; ++q) {
     const Id g = b.point_index(i + kHexCorner[q][0], j + kHexCorner[q][1], corners == 8 ? k + kHexCorner[q][2] : 0);
     c[0] += b.x[g], c[1] += b.y[g], c[2] += b.z[g];
@@ -153,14 +154,15 @@ Id for_each_in_box(const FineMesh& mesh, const Box& box, const std::function<voi
   if (end_coarse < 0) end_coarse = mesh.num_coarse_elements();
   for (Id h = std::max<Id>(first_coarse, 0); h < std::min(end_coarse, mesh.num_coarse_elements()); ++h) {
     if (coarse_box_misses(mesh, h, box, cur)) continue;
-    mesh.fill_block(h, b);
-    for (Id e = 0; e < b.num_elements(); ++e) {
-      double c[3];
-      centroid(b, e, nc, c);
-      if (!box.contains(c[0], c[1], c[2])) continue;
-      ++count;
-      if (fn) fn(b, e);
-    }
+    mesh.for_each_slab(h, b, static_cast<bool>(fn), [&](const FineBlock& slab) {
+      for (Id e = 0; e < slab.num_elements(); ++e) {
+        double c[3];
+        centroid(slab, e, nc, c);
+        if (!box.contains(c[0], c[1], c[2])) continue;
+        ++count;
+        if (fn) fn(slab, e);
+      }
+    });
   }
   return count;
 }
@@ -230,7 +232,8 @@ void ExportChunk::prepare(const MeshSets& sets, const std::function<void(Id, Id)
 
 // Box: the kept elements' nodes, sorted and deduplicated, then a second
 // pass for coordinates and connectivity. A kept element's centroid needs
-// all its corners, owned or not, so this reads whole blocks (fill_block).
+// all its corners, owned or not, so this reads every node of a coarse
+// element the box meets, a slab at a time (FineMesh::for_each_slab).
 void ExportChunk::prepare_box(const MeshSets& sets, const std::function<void(Id, Id)>& progress,
                               const std::function<bool()>& cancel) {
   const Mode mode = this->mode();
@@ -264,7 +267,7 @@ void ExportChunk::prepare_box(const MeshSets& sets, const std::function<void(Id,
         for (Id i = 0; i < n[0]; ++i) {
           const Id g0 = blk.point_index(i, j, k + blk.plane0);
           double c[3];  // the same centroid as for_each_in_box
-          centroid(blk, i + n[0] * (j + n[1] * k), nc, c);
+          centroid(blk, i + n[0] * (j + n[1] * k), nc, c);  // k: the slab's layer
           if (!box_->contains(c[0], c[1], c[2])) continue;
           on_element(ids::element(blk.first_element, n, i, j, k), g0, off);
         }
@@ -277,11 +280,12 @@ void ExportChunk::prepare_box(const MeshSets& sets, const std::function<void(Id,
       if (progress) progress(h - first + 1, 2 * span);
       continue;
     }
-    mesh_.fill_block(h, b);
     bool any = false;
-    elements_of(b, [&](Id, Id g0, const Id* off) {
-      any = true;
-      for (int q = 0; q < nc; ++q) node_global_.push_back(b.node_id[g0 + off[q]]);
+    mesh_.for_each_slab(h, b, false, [&](const FineBlock& slab) {
+      elements_of(slab, [&](Id, Id g0, const Id* off) {
+        any = true;
+        for (int q = 0; q < nc; ++q) node_global_.push_back(slab.node_id[g0 + off[q]]);
+      });
     });
     if (!any) kept_coarse[h - first] = 0;
     if (progress) progress(h - first + 1, 2 * span);
@@ -294,15 +298,18 @@ void ExportChunk::prepare_box(const MeshSets& sets, const std::function<void(Id,
   for (Id h = first; h < end; ++h) {
     check_cancel();
     if (kept_coarse[h - first]) {
-      mesh_.fill_block(h, b, true);
-      elements_of(b, [&](Id gid, Id g0, const Id* off) {
-        elem_global_.push_back(gid);
-        elem_block_.push_back(b.block);
-        for (int q = 0; q < nc; ++q) {
-          const Id g = g0 + off[q], l = local_of(b.node_id[g]);
-          x_[l] = b.x[g], y_[l] = b.y[g], z_[l] = b.z[g];
-          conn_.push_back(l);
-        }
+      Id element_first = -1;  // the coarse element's first fine element (its first slab's)
+      mesh_.for_each_slab(h, b, false, [&](const FineBlock& slab) {
+        if (slab.plane0 == 0) element_first = slab.first_element;
+        elements_of(slab, [&](Id gid, Id g0, const Id* off) {
+          elem_global_.push_back(gid);
+          elem_block_.push_back(slab.block);
+          for (int q = 0; q < nc; ++q) {
+            const Id g = g0 + off[q], l = local_of(slab.node_id[g]);
+            x_[l] = slab.x[g], y_[l] = slab.y[g], z_[l] = slab.z[g];
+            conn_.push_back(l);
+          }
+        });
       });
       if (!node_set_sorted.empty()) {
         const ElementRow row = R.element(h);
@@ -312,7 +319,7 @@ void ExportChunk::prepare_box(const MeshSets& sets, const std::function<void(Id,
       for (; next_side < refs.size() && refs[next_side].h < h; ++next_side) {
       }
       for (; next_side < refs.size() && refs[next_side].h == h; ++next_side)
-        detail::append_side(mode, b.first_element, b.n, refs[next_side].side, side_sets_[refs[next_side].set]);
+        detail::append_side(mode, element_first, b.n, refs[next_side].side, side_sets_[refs[next_side].set]);
     }
     if (progress) progress(span + h - first + 1, 2 * span);
   }

@@ -58,7 +58,11 @@ void check_box(const Box& box, const std::string& what);
 
 // Streams the fine elements whose centroid lies in `box`, in id order:
 // fn(block, local element index) with the block's coordinates and
-// connectivity filled. Coarse elements whose bounds (the store's spatial
+// connectivity filled; `block` is a slab of the coarse element's grid
+// (FineBlock's plane0 and layers; the global id is block.first_element +
+// index), so memory is O(n^2) per coarse element of interval n, however
+// large the element. Time is every fine element of each coarse element the
+// box meets. Coarse elements whose bounds (the store's spatial
 // index: rows.hpp ElementBounds, curved elements included) miss the box are
 // skipped without generating or reading anything else; whole groups of
 // kBoundsGroup elements are skipped without reading. Returns the number of

@@ -20,6 +20,7 @@
 // Thread safety: const member functions may be called concurrently; the
 // overloads taking a MeshCursor need one cursor per thread.
 #include <array>
+#include <functional>
 #include <memory>
 #include <span>
 #include <string>
@@ -201,6 +202,14 @@ class FineMesh {
   // and kept in `out` (O(n^2)), so consecutive slabs of one element cost
   // only their own planes: cursors use this to hold O(n^2), not O(n^3).
   void fill_slab(Id h, Id k0, Id k1, FineBlock& out, bool coords, bool conn) const;
+  // Coarse element h a slab at a time, for callers that visit every fine
+  // element of it: fill_slab (coordinates; connectivity when conn) over
+  // consecutive planes of about kCursorSlabPoints grid points, fn(out)
+  // after each; one slab when the element is small (up to ~40 intervals).
+  // Memory O(n^2) for interval n where fill_block holds O(n^3) (a box
+  // meeting one element of interval 400 held 6 GB). Element e of a slab is
+  // grid element (i, j, plane0 + layer): FineBlock's layout.
+  void for_each_slab(Id h, FineBlock& out, bool conn, const std::function<void(const FineBlock&)>& fn) const;
 
   // ---- Geometry-conforming dicing (geometry/conform.cpp drives these, and
   // dicer/quadratic.cpp the move_nodes of second-order input; they need the

@@ -8,6 +8,7 @@
 
 #include "dicer/error.hpp"
 #include "dicer/export.hpp"
+#include "dicer/quality.hpp"
 #include "random_mesh.hpp"
 #include "test_support.hpp"
 
@@ -143,4 +144,99 @@ TEST(Chunks, BoxSelectionMatchesBruteForce) {
   EXPECT_THROW(parse_box("0,0,0,1,1,x"), Error);
   EXPECT_THROW(parse_box("1,0,0,0,1,1"), Error);
   EXPECT_NO_THROW(parse_box("-1,-2e-3,0,1,1,1"));
+}
+
+// A box over coarse elements too large to hold whole (interval 45: each is
+// read in two slabs of grid planes, for_each_slab in export/chunk.cpp)
+// gives what the whole-chunk path and brute force give: ids, coordinates,
+// connectivity and the side and node sets that follow the slabs' element
+// ids.
+TEST(Chunks, BoxSelectionOfLargeElementsReadInSlabsMatchesTheWholeChunk) {
+  std::mt19937_64 rng(5);
+  test::BoxSpec spec;
+  spec.a = 2, spec.b = 1, spec.c = 1;
+  CoarseMesh cm = test::random_box(spec, rng);
+  for (std::int8_t s = 0; s < 6; ++s) cm.side_sets.push_back({10 + s, "side" + std::to_string(s), {s % 2}, {s}});
+  cm.node_sets.push_back({7, "corners", {0, 3, 5}});
+  IntervalRequest req;
+  req.global = 45;
+  const FineMesh m = FineMesh::dice(cm, req);
+  const MeshSets sets = sets_of(m);
+  ExportChunk whole(m, plan_chunks(m, 1)[0]);
+  whole.prepare(sets);
+  Box all;
+  for (int d = 0; d < 3; ++d) all.lo[d] = -10, all.hi[d] = 10;
+  ExportChunk boxed(m, plan_chunks(m, 1)[0], all);
+  boxed.prepare(sets);
+  ASSERT_EQ(boxed.num_elements(), m.num_elements());
+  auto eq = [](const auto& a, const auto& b) { return std::equal(a.begin(), a.end(), b.begin(), b.end()); };
+  EXPECT_TRUE(eq(boxed.element_global(), whole.element_global()));
+  EXPECT_TRUE(eq(boxed.node_global(), whole.node_global()));
+  EXPECT_TRUE(eq(boxed.connectivity(), whole.connectivity()));
+  EXPECT_TRUE(eq(boxed.x(), whole.x()) && eq(boxed.y(), whole.y()) && eq(boxed.z(), whole.z()));
+  ASSERT_EQ(boxed.side_sets().size(), 6u);
+  for (size_t s = 0; s < 6; ++s) {
+    EXPECT_EQ(boxed.side_sets()[s].element, whole.side_sets()[s].element) << s;
+    EXPECT_EQ(boxed.side_sets()[s].side, whole.side_sets()[s].side) << s;
+    EXPECT_EQ(boxed.side_sets()[s].element.size(), 45u * 45u) << s;
+  }
+  ASSERT_EQ(boxed.node_sets().size(), 1u);
+  EXPECT_EQ(boxed.node_sets()[0].node, whole.node_sets()[0].node);
+  // A box through the middle: brute force over every element's centroid.
+  Box mid;
+  mid.lo = {0.7, 0.2, 0.3}, mid.hi = {1.3, 0.6, 0.45};
+  std::vector<Id> brute;
+  for (Id e = 0; e < m.num_elements(); ++e) {
+    const FineElement el = m.element(e);
+    double c[3] = {0, 0, 0};
+    for (int q = 0; q < 8; ++q) {
+      const Vec3 p = m.node(el.nodes[q]);
+      c[0] += p.x, c[1] += p.y, c[2] += p.z;
+    }
+    for (double& v : c) v /= 8;
+    if (mid.contains(c[0], c[1], c[2])) brute.push_back(e);
+  }
+  ASSERT_GT(brute.size(), 1000u);
+  std::vector<Id> streamed;
+  EXPECT_EQ(for_each_in_box(m, mid, [&](const FineBlock& b, Id e) { streamed.push_back(b.first_element + e); }),
+            static_cast<Id>(brute.size()));
+  EXPECT_EQ(streamed, brute);
+  ExportChunk part(m, plan_chunks(m, 1)[0], mid);
+  part.prepare(sets);
+  EXPECT_TRUE(eq(part.element_global(), brute));
+  for (Id e = 0; e < part.num_elements(); e += 37) {
+    const FineElement el = m.element(part.element_global()[e]);
+    for (int q = 0; q < 8; ++q) {
+      const Id l = part.connectivity()[8 * e + q];
+      ASSERT_EQ(part.node_global()[l], el.nodes[q]);
+      ASSERT_TRUE((Vec3{part.x()[l], part.y()[l], part.z()[l]} == m.node(el.nodes[q])));
+    }
+  }
+}
+
+// check_quality reads large elements in slabs too (FineMesh::for_each_slab):
+// the worst element and the inverted count as brute force over element(id)
+// finds them.
+TEST(Chunks, QualityOfLargeElementsReadInSlabsMatchesBruteForce) {
+  std::mt19937_64 rng(6);
+  test::BoxSpec spec;
+  spec.a = 2, spec.b = 1, spec.c = 1, spec.perturb = 0.3;
+  IntervalRequest req;
+  req.global = 45;
+  const FineMesh m = FineMesh::dice(test::random_box(spec, rng), req);
+  double worst = 2;
+  Id worst_id = -1, inverted = 0;
+  for (Id e = 0; e < m.num_elements(); ++e) {
+    const FineElement el = m.element(e);
+    Vec3 p[8];
+    for (int q = 0; q < 8; ++q) p[q] = m.node(el.nodes[q]);
+    const double sj = hex_scaled_jacobian(p);
+    inverted += !(sj > 0);
+    if (sj < worst) worst = sj, worst_id = e;
+  }
+  const QualityReport r = check_quality(m);
+  EXPECT_EQ(r.elements_checked, m.num_elements());
+  EXPECT_EQ(r.inverted, inverted);
+  EXPECT_EQ(r.min_scaled_jacobian, worst);
+  EXPECT_EQ(r.worst_element, worst_id);
 }
