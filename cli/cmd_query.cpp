@@ -260,9 +260,6 @@ int query(const std::vector<std::string>& argv, long long* chunk_count = nullptr
   if (!(max_distance >= 0)) throw Error(ErrorKind::Usage, "--max-distance: must be 0 or more");
 
   const FineMesh m = read_store(path, store.options());
-  if (cmd.given(o_max_distance) && m.mode() == Mode::Volume)
-    throw Error(ErrorKind::Usage, "--max-distance is for surface stores; " + path +
-                                      " is a volume store, where --point finds the element that contains the point");
   // --node-elements / --element-neighbors: one id in, a list of ids out.
   auto print_list = [&](const char* what, const char* key, Id id, const char* list, const std::vector<Id>& ids) {
     if (json) {

@@ -626,6 +626,10 @@ struct Searcher {
 
 void require_index(const FineMesh& mesh, double max_distance) {
   if (!(max_distance >= 0)) throw Error(ErrorKind::Usage, "point location: the maximum distance must be 0 or more");
+  if (mesh.mode() == Mode::Volume && max_distance != INFINITY)  // as the command line refuses --max-distance
+    throw Error(ErrorKind::Usage, "point location: a maximum distance is for surface stores; " +
+                                      (mesh.tables().origin.empty() ? std::string("the mesh") : mesh.tables().origin) +
+                                      " is a volume store, where a point is in the element that contains it or in none");
   const size_t groups = static_cast<size_t>((mesh.num_coarse_elements() + kBoundsGroup - 1) / kBoundsGroup);
   if (mesh.tables().group_bounds.size() != groups * 6)
     throw Error(ErrorKind::Corrupt, "the spatial index does not have one box per group of coarse elements");

@@ -40,7 +40,8 @@
 // (4) grid nodes each). Pages come through the store's cache.
 // Thread-safe (a cursor per thread).
 //
-// Errors: Usage for a negative or NaN max_distance, coordinates not a
+// Errors: Usage for a negative or NaN max_distance (or a finite one on a
+// volume store), coordinates not a
 // multiple of 3 or not finite; Corrupt for an index or rows that break
 // their invariants.
 #pragma once
@@ -63,7 +64,8 @@ struct Located {
 };
 
 // One point (p: x, y, z). max_distance: surface stores only (points
-// farther from every element come back -1); volume stores ignore it.
+// farther from every element come back -1); a finite one on a volume store
+// is Usage (it would be ignored: a point is in an element or in none).
 Located locate_point(const FineMesh& mesh, const std::array<double, 3>& p, double max_distance = INFINITY);
 
 // Many points (n x 3, row-major) in `threads` threads; out[i] for point i.

@@ -531,14 +531,24 @@ std::unique_ptr<PartitionBox> make_partition(const Store& s, std::int64_t rank, 
 // The partition of this rank of an mpi4py communicator, sharing exchanged
 // over MPI (mpi::make_partition). Collective: every rank of comm calls it.
 std::unique_ptr<PartitionBox> make_partition_mpi(const Store& s, const py::object& comm) {
-  if (!py::hasattr(comm, "py2f"))
-    throw Error(ErrorKind::Usage, "partition(comm): comm must be an mpi4py communicator (or give rank, size)");
+  // An mpi4py.MPI.Comm, not anything with py2f (MPI.MAX and MPI.INFO_NULL
+  // have one, and their handles read as COMM_WORLD or COMM_SELF).
+  const py::object comm_type =
+      py::module_::import("sys").attr("modules").attr("get")("mpi4py.MPI", py::none());
+  if (comm_type.is_none() || !py::isinstance(comm, comm_type.attr("Comm")))
+    throw Error(ErrorKind::Usage, "partition(comm): comm must be an mpi4py communicator, an mpi4py.MPI.Comm "
+                                  "(or give rank, size)");
   int initialized = 0;
   MPI_Initialized(&initialized);
   if (!initialized) throw Error(ErrorKind::Usage, "partition(comm): MPI is not initialised (import mpi4py.MPI first)");
   // Through the Fortran handle: no mpi4py headers needed, and the same
   // Open MPI library on both sides (Debian's mpi4py links it too).
   const MPI_Comm c = MPI_Comm_f2c(comm.attr("py2f")().cast<MPI_Fint>());
+  if (c == MPI_COMM_NULL)
+    throw Error(ErrorKind::Usage, "partition(comm): comm is MPI.COMM_NULL (a rank that a Split left out has no partition)");
+  int inter = 0;
+  MPI_Comm_test_inter(c, &inter);
+  if (inter) throw Error(ErrorKind::Usage, "partition(comm): comm is an intercommunicator; give an intracommunicator");
   auto p = std::make_unique<PartitionBox>();
   const Store* store = &s;
   std::string path;
@@ -966,7 +976,8 @@ PYBIND11_MODULE(_core, m) {
            "as `dicer query --points`. Volume stores: (element ids, xi (n, 3)) of an (n, 3) array of points: "
            "the fine element containing each (-1: none; the lowest id on a shared face) and the local "
            "coordinates in it. Surface stores: (element ids, xi (n, 2), distances): the nearest fine quad "
-           "(-1: none within max_distance, distance inf), the nearest point's xi on it and its distance")
+           "(-1: none within max_distance, distance inf), the nearest point's xi on it and its distance; "
+           "max_distance on a volume store is a UsageError")
       .def("blocks", &make_blocks, py::arg("chunk") = py::none(), py::arg("connectivity") = true,
            "iterator of Batch, one per coarse element, over the mesh or over chunk (k, n)")
       .def("batches", &make_batches, py::arg("chunk") = py::none(), py::arg("slab_points") = kCursorSlabPoints,

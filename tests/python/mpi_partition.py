@@ -73,8 +73,23 @@ def test_an_error_on_one_rank_is_raised_on_every_rank(store_path):
 
 
 def test_not_a_communicator(store_path):
+    s = dicer.open(store_path)
     with pytest.raises(dicer.UsageError, match="mpi4py communicator"):
-        dicer.open(store_path).partition(object())
+        s.partition(object())
+    # Handles with py2f that are no communicator (they read as COMM_WORLD
+    # or COMM_SELF through the Fortran handle) and a rank left out of a
+    # split (MPI.COMM_NULL): refused on the rank, nothing collective started.
+    for other in (MPI.MAX, MPI.INFO_NULL, MPI.REQUEST_NULL, MPI.GROUP_EMPTY, comm.Get_group()):
+        with pytest.raises(dicer.UsageError, match="mpi4py communicator"):
+            s.partition(other)
+    part = comm.Split(0 if comm.rank == 0 else MPI.UNDEFINED, 0)
+    if comm.rank == 0:
+        assert s.partition(part).size == 1
+    else:
+        assert part == MPI.COMM_NULL
+        with pytest.raises(dicer.UsageError, match="COMM_NULL"):
+            s.partition(part)
+    assert comm.allreduce(1) == comm.size
 
 
 def test_poisson_under_mpirun_equals_one_process():

@@ -145,6 +145,12 @@ def test_locate_equals_query_points(cli, sphere_store, tmp_path):
     np.save(tmp_path / "bad.npy", pts[:, :2])
     code, msg = cli.error("query", sphere_store, "--points", str(tmp_path / "bad.npy"))
     assert code == 3 and "must have shape (n, 3)" in msg
+    # max_distance would be ignored on a volume store: refused, as the
+    # command line refuses --max-distance.
+    with pytest.raises(dicer.UsageError, match="is a volume store"):
+        s.locate(pts, max_distance=0.5)
+    code, msg = cli.error("query", sphere_store, "--points", str(f), "--max-distance", "0.5")
+    assert code == 2 and "is a volume store" in msg
 
 
 def test_locate_on_a_surface_is_the_nearest_quad(cli, shell_store, tmp_path):
