@@ -51,6 +51,12 @@ dicer query skin.dice.h5 --point 0.1,0.2,0.3 --max-distance 0.05 --json
 
 namespace {
 
+// A few ids are answered one by one (node(id), element(id): the same bits
+// as the cursors, O(1) memory); more stream through a cursor, which holds
+// a slab of a coarse element's grid, O(interval^2): at interval 10,000
+// that is gigabytes for one id.
+constexpr Id kFewIds = 4096;
+
 // Points for --point (one "x,y,z") or --points (a file or stdin, one
 // "x y z" per line, commas allowed, blank lines and # comments skipped; or
 // a NumPy .npy file of shape (n, 3), float64 or float32, C order).
@@ -333,22 +339,31 @@ int query(const std::vector<std::string>& argv, long long* chunk_count = nullptr
   if (cmd.given(o_node) || cmd.given(o_nodes)) {
     const auto [a, b] = cmd.given(o_node) ? parse_range("--node", node) : parse_range("--nodes", nodes);
     m.check_node_range(a, b);
-    NodeCursor cur(m, a, b);
-    Id id;
-    Vec3 p;
-    while (cur.next(id, p)) {
+    auto print = [&](Id id, const Vec3& p) {
       if (json) print_json({{"id", id}, {"xyz", {p.x, p.y, p.z}}});
       else std::printf("node %lld  %.17g %.17g %.17g\n", ll(id), p.x, p.y, p.z);
+    };
+    if (b - a <= kFewIds) {
+      MeshCursor mc;
+      for (Id id = a; id < b; ++id) print(id, m.node(id, mc));
+    } else {
+      NodeCursor cur(m, a, b);
+      Id id;
+      Vec3 p;
+      while (cur.next(id, p)) print(id, p);
     }
     store.report(m);
     return 0;
   }
   const auto [a, b] = cmd.given(o_element) ? parse_range("--element", element) : parse_range("--elements", elements);
   m.check_element_range(a, b);
-  ElementCursor cur(m, a, b);
+  std::unique_ptr<ElementCursor> cur;
+  if (b - a > kFewIds) cur = std::make_unique<ElementCursor>(m, a, b);
+  MeshCursor mc;
+  Id next = a;
   FineElement el;
   const bool vol = m.mode() == Mode::Volume;
-  while (cur.next(el)) {
+  while (cur ? cur->next(el) : next < b && (el = m.element(next++, mc), true)) {
     const Id block = m.info().blocks.at(static_cast<size_t>(el.block)).id;
     if (json) {
       Json nodes_json = Json::array(), ijk = Json::array();

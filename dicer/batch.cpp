@@ -5,6 +5,8 @@
 #include "dicer/batch.hpp"
 
 #include <algorithm>
+#include <cstdio>
+#include <new>
 
 #include "dicer/error.hpp"
 #include "evaluate.hpp"
@@ -40,10 +42,46 @@ void BatchCursor::enter() {
     k0_ = opt_.first_layer;
     opt_.first_layer = 0;  // the first element only
   }
+  // A huge element is refused before its slab is allocated: the kernel
+  // would grant the memory lazily and the machine would swap or kill.
+  if (slab_bytes() > double(1u << 28) && slab_bytes() > static_cast<double>(available_memory_bytes())) throw_too_big();
   entered_ = true;
 }
 
+// Memory is O(interval^2) per coarse element (a slab of whole grid planes
+// and the element's boundary): an element of interval 10,000 needs
+// gigabytes. A failed allocation says which element and why, not only
+// "out of memory".
 bool BatchCursor::next(FineBatch& out) {
+  try {
+    return next_batch(out);
+  } catch (const std::bad_alloc&) {
+    throw_too_big();
+  }
+}
+
+// About what a slab of the entered element holds: ids and coordinates of
+// its planes and of the element's boundary, connectivity of its layers.
+double BatchCursor::slab_bytes() const {
+  const double n0 = static_cast<double>(n_[0]), n1 = static_cast<double>(n_[1]), n2 = static_cast<double>(n_[2]);
+  const double plane = (n0 + 1) * (n1 + 1), boundary = 2 * (n0 * n1 + n1 * n2 + n0 * n2);
+  const double layers = static_cast<double>(step_);
+  return (plane * (layers + 1) + boundary) * 32 + (opt_.conn ? n0 * n1 * layers * 8 * mesh_.corners() : 0);
+}
+
+void BatchCursor::throw_too_big() const {
+  char need[64];
+  std::snprintf(need, sizeof need, "%.1f GiB", slab_bytes() / double(1ull << 30));
+  const std::string& origin = mesh_.tables().origin;
+  throw Error(ErrorKind::Usage, (origin.empty() ? std::string("the mesh") : origin) + ": coarse element " +
+                                    std::to_string(h_) + " (intervals " + std::to_string(n_[0]) + " x " +
+                                    std::to_string(n_[1]) + " x " + std::to_string(n_[2]) +
+                                    ") is read a slab of grid planes at a time with its boundary, about " + need +
+                                    ", more memory than this process can allocate; dice with smaller intervals "
+                                    "(more coarse elements), or run where more memory is free");
+}
+
+bool BatchCursor::next_batch(FineBatch& out) {
   if (h_ >= end_) return false;
   if (!entered_) enter();
   const bool vol = n2_ > 0;

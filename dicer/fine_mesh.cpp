@@ -3,7 +3,12 @@
 // dicing in compile.cpp.
 #include "dicer/fine_mesh.hpp"
 
+#include <sys/resource.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cstdlib>
+#include <fstream>
 
 #include "dicer/error.hpp"
 #include "dicer/orientation.hpp"
@@ -275,6 +280,31 @@ void FineMesh::elements(std::span<const Id> ids, std::span<FineElement> out, Mes
     el.coarse_element = hid;
     element_corners(E, row, mode(), el);
   }
+}
+
+namespace {
+std::uint64_t kib_field(const char* file, const std::string& key) {
+  std::ifstream in(file);
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind(key, 0) == 0) return std::strtoull(line.c_str() + key.size(), nullptr, 10) * 1024;
+  return UINT64_MAX;
+}
+}  // namespace
+
+std::uint64_t available_memory_bytes() {
+  std::uint64_t avail = kib_field("/proc/meminfo", "MemAvailable:");
+  if (avail == UINT64_MAX) {
+    const long pages = ::sysconf(_SC_AVPHYS_PAGES), size = ::sysconf(_SC_PAGESIZE);
+    if (pages > 0 && size > 0) avail = static_cast<std::uint64_t>(pages) * static_cast<std::uint64_t>(size);
+  }
+  struct rlimit rl {};
+  if (::getrlimit(RLIMIT_AS, &rl) == 0 && rl.rlim_cur != RLIM_INFINITY) {
+    const std::uint64_t mapped = kib_field("/proc/self/status", "VmSize:");
+    const std::uint64_t left = mapped == UINT64_MAX || mapped >= rl.rlim_cur ? 0 : rl.rlim_cur - mapped;
+    avail = std::min(avail, left);
+  }
+  return avail;
 }
 
 }  // namespace dicer

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <new>
 #include <unordered_map>
 
 #include "dicer/error.hpp"
@@ -63,7 +64,33 @@ VerifyPart verify_part(const FineMesh& mesh, Id first, Id end, const std::functi
   std::vector<std::array<double, 4>> coords;   // (x, y, z, id)
   std::vector<std::pair<std::array<Id, 4>, int>> faces;  // sorted ids, boundary side (-1 interior)
   const Id nh = end - first;
+  // verify checks a coarse element whole (its fine faces matched by a
+  // sort): about 100 bytes per point and 250 per fine element held. An
+  // element too large for that is refused by name, before (or when) its
+  // allocation fails, not killed by the OS.
+  std::array<Id, 3> n_now{};
+  Id h_now = first;
+  auto too_big = [&]() -> Error {
+    const auto& n = n_now;
+    const double pts = double(n[0] + 1) * double(n[1] + 1) * double(vol ? n[2] + 1 : 1),
+                 els = double(n[0]) * double(n[1]) * double(vol ? n[2] : 1), need = 100 * pts + 250 * els;
+    char gib[32];
+    std::snprintf(gib, sizeof gib, "%.1f GiB", need / double(1ull << 30));
+    return Error(ErrorKind::Usage, (t.origin.empty() ? std::string("in memory") : t.origin) + ": coarse element " +
+                                       std::to_string(h_now) + " (intervals " + std::to_string(n[0]) + " x " +
+                                       std::to_string(n[1]) + " x " + std::to_string(n[2]) +
+                                       "): verify checks a coarse element whole, about " + gib +
+                                       ", more memory than this process can allocate");
+  };
+  try {
   for (Id h = first; h < end; ++h) {
+    h_now = h, n_now = R.element(h).n;
+    {
+      const auto& n = n_now;
+      const double need = 100 * double(n[0] + 1) * double(n[1] + 1) * double(vol ? n[2] + 1 : 1) +
+                          250 * double(n[0]) * double(n[1]) * double(vol ? n[2] : 1);
+      if (need > double(1u << 28) && need > static_cast<double>(available_memory_bytes())) throw too_big();
+    }
     mesh.fill_block(h, b);
     const auto n = b.n;
     const Id ni = n[0] + 1, nj = n[1] + 1, nk = vol ? n[2] + 1 : 1;
@@ -251,6 +278,9 @@ VerifyPart verify_part(const FineMesh& mesh, Id first, Id end, const std::functi
     }
     if (progress) progress(h + 1 - first, nh);
   }
+  } catch (const std::bad_alloc&) {
+    throw too_big();
+  }
   for (const auto& [f, both] : side)
     for (const FaceSide& fs : both)
       if (fs.seen) part.face_sides.push_back({static_cast<std::uint64_t>(f), static_cast<std::uint64_t>(fs.count), fs.hash});
@@ -287,6 +317,8 @@ VerifyReport verify_finish(const FineMesh& mesh, const std::vector<VerifyPart>& 
   {
     __int128 nodes = info.coarse_vertices, elems = 0;
     for (Id e = 0; e < t.edges.rows(); ++e) nodes += R.edge(e).n - 1;
+    std::vector<__int128> block_elems(info.blocks.size(), 0);
+    std::vector<Id> block_coarse(info.blocks.size(), 0);
     // Gradings agree too: opposite sides of every face (face_grading is
     // Corrupt otherwise) and every element's axes with its edges' rows (a
     // straight element's fill reads only its own row), and so does every
@@ -313,6 +345,8 @@ VerifyReport verify_finish(const FineMesh& mesh, const std::vector<VerifyPart>& 
       const __int128 n0 = R.edge(row.edge[0]).n, n1 = R.edge(row.edge[vol ? 4 : 2]).n, n2 = vol ? R.edge(row.edge[8]).n : 1;
       if (vol) nodes += (n0 - 1) * (n1 - 1) * (n2 - 1);
       elems += n0 * n1 * n2;
+      if (row.block >= 0 && static_cast<size_t>(row.block) < block_elems.size())
+        block_elems[row.block] += n0 * n1 * n2, ++block_coarse[row.block];
     }
     auto clamp = [](__int128 v) { return v > INT64_MAX ? INT64_MAX : static_cast<Id>(v); };
     r.nodes_formula = clamp(nodes);
@@ -321,6 +355,17 @@ VerifyReport verify_finish(const FineMesh& mesh, const std::vector<VerifyPart>& 
     r.elements = mesh.num_elements();
     __int128 by_block = 0;
     for (Id c : info.block_fine_elements) by_block += c;
+    // Each block's count as its elements give it (info prints these; the
+    // sum alone let two blocks trade elements).
+    for (size_t b = 0; b < block_elems.size() && b < info.block_fine_elements.size() && b < info.block_coarse_elements.size();
+         ++b)
+      if (block_elems[b] != info.block_fine_elements[b] || block_coarse[b] != info.block_coarse_elements[b]) {
+        r.id_errors += 1;
+        note(r, "block " + std::to_string(info.blocks[b].id) + ": coarse/block_coarse_elements and block_fine_elements say " +
+                    std::to_string(info.block_coarse_elements[b]) + " and " + std::to_string(info.block_fine_elements[b]) +
+                    ", its elements are " + std::to_string(block_coarse[b]) + " holding " +
+                    std::to_string(static_cast<Id>(block_elems[b])));
+      }
     if (!r.counts_ok() || by_block != elems) {
       r.id_errors += 1;
       note(r, "counts differ from the closed formula: nodes " + std::to_string(r.nodes) + " vs " +

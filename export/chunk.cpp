@@ -522,32 +522,6 @@ std::uint64_t estimate_chunk_bytes(const FineMesh& mesh, const ChunkRange& range
 
 namespace {
 
-std::uint64_t kib_field(const char* file, const std::string& key) {
-  std::ifstream in(file);
-  std::string line;
-  while (std::getline(in, line))
-    if (line.rfind(key, 0) == 0) return std::strtoull(line.c_str() + key.size(), nullptr, 10) * 1024;
-  return UINT64_MAX;
-}
-
-// What this process can still allocate: the memory the kernel says is
-// available, and under an address-space limit (RLIMIT_AS) what is not
-// mapped yet.
-std::uint64_t available_memory_bytes() {
-  std::uint64_t avail = kib_field("/proc/meminfo", "MemAvailable:");
-  if (avail == UINT64_MAX) {
-    const long pages = ::sysconf(_SC_AVPHYS_PAGES), size = ::sysconf(_SC_PAGESIZE);
-    if (pages > 0 && size > 0) avail = static_cast<std::uint64_t>(pages) * static_cast<std::uint64_t>(size);
-  }
-  struct rlimit rl {};
-  if (::getrlimit(RLIMIT_AS, &rl) == 0 && rl.rlim_cur != RLIM_INFINITY) {
-    const std::uint64_t mapped = kib_field("/proc/self/status", "VmSize:");
-    const std::uint64_t left = mapped == UINT64_MAX || mapped >= rl.rlim_cur ? 0 : rl.rlim_cur - mapped;
-    avail = std::min(avail, left);
-  }
-  return avail;
-}
-
 std::string gib(std::uint64_t bytes) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.1f GiB", static_cast<double>(bytes) / double(1ull << 30));
@@ -569,8 +543,14 @@ void refuse_if_too_big(const FineMesh& mesh, const ChunkRange& range) {
   std::ostringstream msg;
   msg << "export: chunk " << range.index << " of " << range.count << " (coarse elements " << range.first_coarse << ".."
       << range.end_coarse << ") needs about " << gib(need) << " of memory, more than the " << gib(avail)
-      << " available; export it in pieces: --chunks N (VTKHDF, Nemesis) or --chunk K/N for K = 0..N-1, with N >= "
-      << static_cast<unsigned long long>(std::min<long double>(n, 1e18L));
+      << " available; ";
+  const Id H = mesh.num_coarse_elements();
+  if (n > static_cast<long double>(H))  // a chunk holds whole coarse elements: no N helps
+    msg << "a chunk holds whole coarse elements, and even " << H << " chunks (one per coarse element) would not fit: "
+        << "stream it instead (dicer export; Python: Store.batches()), or run where more memory is free";
+  else
+    msg << "take it in pieces: N chunks (--chunks N, --chunk K/N for K = 0..N-1; Python: chunk(k, N)) with N >= "
+        << static_cast<unsigned long long>(n);
   throw Error(ErrorKind::Usage, msg.str());
 }
 

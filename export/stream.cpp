@@ -431,8 +431,10 @@ void ChunkStream::nodes(const NodePass& pass, const std::function<void(const Nod
     if (!pass.coords) {
       for (Id e = i; e < j; ++e) {
         const Id a = node_first_[static_cast<size_t>(e)], b = node_first_[static_cast<size_t>(e) + 1];
-        for (Id p = a; p < b; p += kSpanNodes)
+        for (Id p = a; p < b; p += kSpanNodes) {
           out.range(p, std::min(b, p + kSpanNodes), block_[static_cast<size_t>(e)], nullptr, nullptr, nullptr);
+          if (b - a > kSpanNodes) poll();  // one element can own 10^12 nodes: a signal must not wait for it
+        }
         if ((e & 1023) == 0) poll();
       }
     } else {

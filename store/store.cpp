@@ -646,6 +646,12 @@ FineMesh read_store(const std::string& path, const StoreOptions& options) {
     if (name_off[b] > name_off[b + 1]) throw Error(ErrorKind::Corrupt, path + ": coarse/block_name_offset is not increasing");
     info.blocks.push_back({block_id[b], std::string(chars.begin() + name_off[b], chars.begin() + name_off[b + 1])});
   }
+  {  // Ids name blocks (exporters write them as Exodus block ids, MSH physical tags): one each.
+    std::vector<std::int64_t> ids(block_id.begin(), block_id.end());
+    std::sort(ids.begin(), ids.end());
+    if (const auto d = std::adjacent_find(ids.begin(), ids.end()); d != ids.end())
+      throw Error(ErrorKind::Corrupt, path + ": coarse/block_id: block id " + std::to_string(*d) + " appears twice");
+  }
   // The counts the tables determine: the last element ends the node and
   // element ids, the blocks add up to the elements (one page read).
   {

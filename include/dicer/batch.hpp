@@ -84,6 +84,9 @@ class BatchCursor {
   // Coarse elements [first, end); end = -1: to the last.
   BatchCursor(const FineMesh& mesh, Id first = 0, Id end = -1, BatchOptions options = {});
   // The next batch (valid until the next call); false at the end.
+  // Memory: a slab of whole grid planes and the element's boundary,
+  // O(interval^2) per coarse element; Error{Usage} naming the element when
+  // that cannot be allocated.
   bool next(FineBatch& out);
   // Starts over at coarse elements [first, end) (end = -1: to the last)
   // from layer 0 (BatchOptions::first_layer applies to the first pass only),
@@ -92,6 +95,9 @@ class BatchCursor {
   void reset(Id first, Id end = -1);
 
  private:
+  bool next_batch(FineBatch& out);
+  double slab_bytes() const;
+  [[noreturn]] void throw_too_big() const;
   void enter();
   const FineMesh& mesh_;
   Id h_, end_;

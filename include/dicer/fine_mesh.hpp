@@ -262,6 +262,12 @@ class FineMesh {
   void require_memory(const char* what) const;
 };
 
+// What this process can still allocate, in bytes: the memory the kernel
+// says is available (MemAvailable) and, under an address-space limit
+// (RLIMIT_AS), what is not mapped yet. Reads /proc: for a check before a
+// large allocation, not per block.
+std::uint64_t available_memory_bytes();
+
 // Grid points a cursor's slab holds (rounded to whole planes, at least
 // one): 2^16 points are ~2 MiB of ids and coordinates at any interval.
 inline constexpr Id kCursorSlabPoints = Id{1} << 16;

@@ -416,3 +416,41 @@ TEST(CraftedRows, AnInconsistentGradingDirectionIsCorrupt) {
   EXPECT_NE(r.err.find("grad"), std::string::npos) << r.err;
   EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
 }
+
+// The per-block tables, forged with valid checksums: two blocks given one
+// id (the Exodus export then failed as an I/O error blaming its output) is
+// Corrupt on opening; two blocks trading fine elements (the sum kept, so
+// info printed wrong counts and verify passed) is a defect verify names.
+TEST(CraftedRows, PerBlockTablesThatDisagreeWithTheElementsAreCaught) {
+  test::TempDir tmp;
+  const std::string good = tmp.path("g.dice.h5");
+  auto r = test::run_cli({"dice", test::data_path("cardinal_pincell.e"), "--interval", "1", "-o", good});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  auto forged = [&](const std::string& name, const std::string& ds, auto&& edit) {
+    const std::string bad = tmp.path(name);
+    fs::copy_file(good, bad);
+    hid_t f = H5Fopen(bad.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+    test::forge_page(f, ds, 0, [&](std::vector<std::uint8_t>& page) {
+      std::int64_t v[2];
+      ASSERT_GE(page.size(), sizeof v);
+      std::memcpy(v, page.data(), sizeof v);
+      edit(v);
+      std::memcpy(page.data(), v, sizeof v);
+    }, true);
+    H5Fclose(f);
+    return bad;
+  };
+  const std::string dup = forged("dup.dice.h5", "coarse/block_id", [](std::int64_t* v) { v[1] = v[0]; });
+  for (const std::string cmd : {"info", "verify", "sweep"}) {
+    r = test::run_cli({cmd, dup});
+    EXPECT_EQ(r.exit_code, 8) << cmd << ": " << r.err;
+    EXPECT_NE(r.err.find("coarse/block_id: block id 1 appears twice"), std::string::npos) << cmd << ": " << r.err;
+  }
+  const std::string traded =
+      forged("traded.dice.h5", "coarse/block_fine_elements", [](std::int64_t* v) { ++v[0], --v[1]; });
+  ASSERT_EQ(test::run_cli({"info", traded}).exit_code, 0) << "the sum still holds: only verify can tell";
+  r = test::run_cli({"verify", traded});
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE((r.out + r.err).find("block 1: coarse/block_coarse_elements and block_fine_elements say"), std::string::npos)
+      << r.out << r.err;
+}
