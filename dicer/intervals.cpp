@@ -263,8 +263,17 @@ IntervalPlan resolve_intervals(const CoarseMesh& mesh, const Topology& topo, con
   auto find_block = [&](const std::string& key) {
     for (size_t b = 0; b < mesh.blocks.size(); ++b)
       if (std::to_string(mesh.blocks[b].id) == key) return static_cast<int>(b);
+    // A name two blocks share (Exodus allows it) is not guessed at.
+    int named = -1;
     for (size_t b = 0; b < mesh.blocks.size(); ++b)
-      if (!mesh.blocks[b].name.empty() && mesh.blocks[b].name == key) return static_cast<int>(b);
+      if (!mesh.blocks[b].name.empty() && mesh.blocks[b].name == key) {
+        if (named >= 0)
+          throw Error(ErrorKind::Usage, mesh.source + ": \"" + key + "\" names more than one block (" +
+                                            block_label(named) + ", " + block_label(static_cast<std::int32_t>(b)) +
+                                            "); give the block's id");
+        named = static_cast<int>(b);
+      }
+    if (named >= 0) return named;
     std::string known;
     for (const auto& b : mesh.blocks)
       known += (known.empty() ? "" : ", ") + std::to_string(b.id) + (b.name.empty() ? "" : " (" + b.name + ")");

@@ -405,6 +405,33 @@ CoarseMesh read_exodus_here(const std::string& path, std::int64_t file_size) {
     exodus::clear_error();
     check(ex_get_coord(exoid, mesh.x.data(), mesh.y.data(), init.num_dim >= 3 ? mesh.z.data() : nullptr), path,
           "reading node coordinates");
+    // The Exodus library (5.14) skips a coordinate variable whose netCDF id
+    // is 0 (the file's first variable: legal, if unusual) and reports
+    // success, leaving that axis at 0: a flattened mesh, silently. Such a
+    // variable is read through netCDF itself (the exoid is the netCDF id).
+    double* axis[3] = {mesh.x.data(), mesh.y.data(), mesh.z.data()};
+    for (int d = 0; d < std::min<int>(static_cast<int>(init.num_dim), 3); ++d) {
+      const char* name[3] = {"coordx", "coordy", "coordz"};
+      int id = -1, ndims = 0, dim = -1;
+      std::size_t len = 0;
+      if (nc_inq_varid(exoid, name[d], &id) != NC_NOERR || id != 0) continue;
+      if (nc_inq_varndims(exoid, id, &ndims) != NC_NOERR || ndims != 1 || nc_inq_vardimid(exoid, id, &dim) != NC_NOERR ||
+          nc_inq_dimlen(exoid, dim, &len) != NC_NOERR || len != num_nodes)
+        throw Error(ErrorKind::BadInput, path + ": variable '" + name[d] + "' is not one value per node");
+      if (const int st = nc_get_var_double(exoid, id, axis[d]); st != NC_NOERR)
+        throw Error(ErrorKind::BadInput, path + ": reading node coordinates (" + name[d] + "): " + nc_strerror(st));
+    }
+    {
+      int id = -1;  // the older single array coord[num_dim][num_nodes], first in the file: the same gap
+      if (nc_inq_varid(exoid, "coord", &id) == NC_NOERR && id == 0) {
+        const int dims = std::min<int>(static_cast<int>(init.num_dim), 3);
+        for (int d = 0; d < dims; ++d) {
+          const std::size_t start[2] = {static_cast<std::size_t>(d), 0}, count[2] = {1, num_nodes};
+          if (const int st = nc_get_vara_double(exoid, id, start, count, axis[d]); st != NC_NOERR)
+            throw Error(ErrorKind::BadInput, path + ": reading node coordinates (coord): " + nc_strerror(st));
+        }
+      }
+    }
   }
   bool all_zero = true;
   for (std::size_t v = 0; v < num_nodes; ++v) {

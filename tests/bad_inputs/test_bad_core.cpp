@@ -128,6 +128,23 @@ TEST(BadCore, BadIntervalRequestsAreRefused) {
   noblock.blocks = {{"inlet", 2}};
   EXPECT_NE(error_of([&] { dice(noblock); }, ErrorKind::Usage).find("no block with id or name \"inlet\""),
             std::string::npos);
+  {  // Two blocks named alike (Exodus allows it): the name is refused, not
+     // taken for the first; each id still works.
+    CoarseMesh two = unit_cubes(2);
+    two.blocks = {{1, "right"}, {2, "right"}};
+    two.element_block = {0, 1};
+    validate_coarse_mesh(two);
+    IntervalRequest by_name;
+    by_name.blocks = {{"right", 3}};
+    const std::string what = error_of([&] { FineMesh::dice(two, by_name); }, ErrorKind::Usage);
+    EXPECT_NE(what.find("\"right\" names more than one block (block 1 (right), block 2 (right)); give the block's id"),
+              std::string::npos) << what;
+    IntervalRequest by_id;
+    by_id.blocks = {{"2", 3}};
+    // Block 2's three sheets get 3; its y and z sheets run through block 1
+    // too, whose own x sheet keeps 1: 27 + 9 fine hexes.
+    EXPECT_EQ(FineMesh::dice(two, by_id).num_elements(), 27 + 9);
+  }
   IntervalRequest size;
   size.size = -1;
   EXPECT_NE(error_of([&] { dice(size); }, ErrorKind::Usage).find("--size"), std::string::npos);

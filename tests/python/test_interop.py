@@ -93,3 +93,45 @@ def test_meshio_reads_cli_exodus_export_like_to_meshio(cli, prism_store, tmp_pat
     c = s.chunk(0, 1)
     assert np.array_equal(bits(ex.points), bits(c.points))
     assert sum(len(b.data) for b in ex.cells) == c.num_elements
+
+
+@pytest.mark.parametrize("first", ["coordx", "coordy"])
+def test_exodus_with_a_coordinate_as_its_first_netcdf_variable(cli, tmp_path, first):
+    """netCDF does not order variables; the Exodus library (5.14) reads no
+    coordinate from a variable of id 0 and says nothing, so this file (2 x 2
+    quads in the plane x = y + 5, written by netCDF4) was diced flat, x = 0
+    everywhere. Every node must lie on the plane."""
+    netCDF4 = pytest.importorskip("netCDF4")
+    p = tmp_path / f"{first}_first.e"
+    ys, zs = np.meshgrid([0, 0.5, 1], [0, 0.5, 1])
+    y, z = ys.ravel(), zs.ravel()
+    xyz = {"coordx": y + 5.0, "coordy": y, "coordz": z}
+    d = netCDF4.Dataset(p, "w", format="NETCDF3_64BIT_OFFSET")
+    for k, v in {"len_string": 33, "four": 4, "num_dim": 3, "num_nodes": 9, "num_elem": 4, "num_el_blk": 1,
+                 "num_el_in_blk1": 4, "num_nod_per_el1": 4, "time_step": None}.items():
+        d.createDimension(k, v)
+    for name in [first] + [n for n in ("coordx", "coordy", "coordz") if n != first]:
+        d.createVariable(name, "f8", ("num_nodes",))[:] = xyz[name]
+    d.createVariable("eb_status", "i4", ("num_el_blk",))[:] = [1]
+    v = d.createVariable("eb_prop1", "i4", ("num_el_blk",))
+    v.setncattr("name", "ID")
+    v[:] = [1]
+    v = d.createVariable("connect1", "i4", ("num_el_in_blk1", "num_nod_per_el1"))
+    v.elem_type = "SHELL4"
+    v[:] = np.array([[i + 3 * j + 1, i + 3 * j + 2, i + 3 * j + 5, i + 3 * j + 4] for j in range(2) for i in range(2)])
+    d.createVariable("time_whole", "f8", ("time_step",))
+    d.api_version = np.float32(8.1)
+    d.version = np.float32(8.1)
+    d.floating_point_word_size = np.int32(8)
+    d.file_size = np.int32(1)
+    d.title = "quads"
+    d.close()
+    with netCDF4.Dataset(p) as f:
+        assert list(f.variables)[0] == first
+    store = tmp_path / "q.dice.h5"
+    cli.run("dice", p, "--interval", "2", "-o", store, "--quiet")
+    nodes = cli.json_lines("query", store, "--nodes", "0:25")
+    assert len(nodes) == 25
+    for n in nodes:
+        x, yy, zz = n["xyz"]
+        assert x == pytest.approx(yy + 5.0, abs=1e-12) and 0 <= yy <= 1 and 0 <= zz <= 1, n
