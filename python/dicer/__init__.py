@@ -79,6 +79,13 @@ def _file_kind(mode):
     return "a special file"
 
 
+def _path(p):
+    # str, bytes or os.PathLike, as os.fsdecode reads them: a name that is
+    # not UTF-8 (legal on Linux) comes as a str with surrogate escapes, and
+    # goes to the library as os.fsencode's bytes, the file's own name.
+    return _os.fsdecode(_os.fspath(p))
+
+
 def _check_input(path, role):
     # stat, never open: opening a FIFO without a writer blocks for ever.
     try:
@@ -222,11 +229,11 @@ def open(path, cache_mb=64, read_ahead=4, keep_tables=True):  # noqa: A001  (dic
     or more stay resident once read (counted in cache_stats()["kept_bytes"]),
     so random queries read their rows without a pin; False lets every page
     be evicted (the CLI's --no-keep-tables)."""
-    path = _os.fspath(path)
+    path = _path(path)
     _check_input(path, "STORE")
     if not isinstance(keep_tables, bool):
         raise UsageError("--no-keep-tables: keep_tables must be True or False, not %r" % (keep_tables,))
-    return _core._open(path, _whole("--cache-mb", cache_mb), _whole("--read-ahead", read_ahead), keep_tables)
+    return _core._open(_os.fsencode(path), _whole("--cache-mb", cache_mb), _whole("--read-ahead", read_ahead), keep_tables)
 
 
 def dice(mesh, out, interval=None, sheet_intervals=None, block_intervals=None, size=None,
@@ -252,15 +259,15 @@ def dice(mesh, out, interval=None, sheet_intervals=None, block_intervals=None, s
     this runs `dicer-cad dice ...` (beside the dicer command, or $DICER_CAD)
     and opens what it wrote: the same bits as the command line.
     """
-    mesh, out = _os.fspath(mesh), _os.fspath(out)
+    mesh, out = _path(mesh), _path(out)
     inputs = [(mesh, "MESH")]
     _check_input(mesh, "MESH")
     if intervals_file is not None:
-        intervals_file = _os.fspath(intervals_file)
+        intervals_file = _path(intervals_file)
         _check_input(intervals_file, "--intervals-file")
         inputs.append((intervals_file, "--intervals-file"))
     if geometry is not None:
-        geometry = _os.fspath(geometry)
+        geometry = _path(geometry)
         _check_input(geometry, "--geometry")
         inputs.append((geometry, "--geometry"))
     _check_output(out, "-o", inputs)
@@ -274,7 +281,8 @@ def dice(mesh, out, interval=None, sheet_intervals=None, block_intervals=None, s
     _core._check_open_options(cache_mb, 4)  # before the work, not after it
 
     if geometry is None:
-        r = _core._dice(mesh, out, interval, size, blocks, sheets, intervals_file)
+        r = _core._dice(_os.fsencode(mesh), _os.fsencode(out), interval, size, blocks, sheets,
+                        None if intervals_file is None else _os.fsencode(intervals_file))
         warns, notes = [f"{mesh}: {w}" for w in r["warnings"]], r["notes"]
     else:
         args = ["dice", mesh, "-o", out, "--quiet", "--geometry", geometry]
@@ -303,7 +311,7 @@ def mesh_coarse(cad, out, size, surface=False, subdivide=False):
     """CAD (STEP/BREP) -> coarse all-hex (surface=True: all-quad) MSH 4.1 mesh,
     as `dicer mesh-coarse CAD --size H -o OUT`: run in dicer-cad (Gmsh).
     Returns the path written."""
-    cad, out = _os.fspath(cad), _os.fspath(out)
+    cad, out = _path(cad), _path(out)
     _check_input(cad, "CAD")
     _check_output(out, "-o", [(cad, "CAD")])
     args = ["mesh-coarse", cad, "--size", repr(_finite("--size", size)), "-o", out, "--quiet"]

@@ -33,6 +33,18 @@ void set_class_attr(PyObject* cls, const char* name, py::object value) {
 
 }  // namespace
 
+py::str text(const std::string& s) {
+  PyObject* o = PyUnicode_DecodeUTF8(s.data(), static_cast<Py_ssize_t>(s.size()), "replace");
+  if (!o) throw py::error_already_set();
+  return py::reinterpret_steal<py::str>(o);
+}
+
+py::str path_text(const std::string& s) {
+  PyObject* o = PyUnicode_DecodeFSDefaultAndSize(s.data(), static_cast<Py_ssize_t>(s.size()));
+  if (!o) throw py::error_already_set();
+  return py::reinterpret_steal<py::str>(o);
+}
+
 void register_errors(py::module_& m) {
   // Builtins mixed in where the kind is one: `except ValueError` catches a
   // bad argument and `except OverflowError` an id overflow. The overflow
@@ -80,16 +92,19 @@ void register_errors(py::module_& m) {
   m.add_object("InternalError", py::handle(g_internal));
 
   py::register_exception_translator([](std::exception_ptr p) {
+    // PyErr_SetString decodes strictly: a message with a non-UTF-8 path
+    // came out empty.
+    auto raise = [](PyObject* type, const char* what) { PyErr_SetObject(type, text(what).ptr()); };
     try {
       if (p) std::rethrow_exception(p);
     } catch (const Error& e) {
-      PyErr_SetString(class_for(e.kind()), e.what());
+      raise(class_for(e.kind()), e.what());
     } catch (const InternalError& e) {
-      PyErr_SetString(g_internal, e.what());
+      raise(g_internal, e.what());
     } catch (const mpi::PeerFailed& e) {
       // Another rank failed in a collective call: the same class as its
       // error, so every rank raises alike ("rank 1 failed").
-      PyErr_SetString(class_for(e.kind()), e.what());
+      raise(class_for(e.kind()), e.what());
     }
   });
 }

@@ -8,6 +8,14 @@ namespace dicer::py_module {
 
 namespace py = pybind11;
 
+// Names and messages are bytes from files and paths, not always UTF-8
+// (pybind11's str would raise UnicodeDecodeError, and an exception's
+// message would come out empty): text() decodes with U+FFFD for bad bytes,
+// as the command line's JSON does; path_text() as os.fsdecode does
+// (surrogateescape), so the str opens the same file again.
+py::str text(const std::string& s);
+py::str path_text(const std::string& s);
+
 // Creates dicer.Error and one subclass per ErrorKind in module m and
 // registers the translator (message = what(), the CLI's one line).
 void register_errors(py::module_& m);

@@ -111,14 +111,14 @@ py::dict info_dict(const Store& s) {
   for (size_t b = 0; b < c.blocks.size(); ++b) {
     py::dict d;
     d["id"] = c.blocks[b].id;
-    d["name"] = c.blocks[b].name;
+    d["name"] = text(c.blocks[b].name);
     d["coarse_elements"] = c.block_coarse_elements[b];
     d["fine_elements"] = c.block_fine_elements[b];
     blocks.append(d);
   }
   py::dict d;
   d["mode"] = mode_name(m->mode());
-  d["source"] = c.source;
+  d["source"] = path_text(c.source);
   d["source_order"] = c.source_order;
   d["format_version"] = sum.format_version;
   d["store_bytes"] = sum.file_bytes;
@@ -496,7 +496,7 @@ py::list set_list(const std::vector<Set>& sets, Fill fill) {
   for (const Set& s : sets) {
     py::dict d;
     d["id"] = s.id;
-    d["name"] = s.name;
+    d["name"] = text(s.name);
     fill(d, s);
     out.append(d);
   }
@@ -751,8 +751,11 @@ py::dict dice_to_store(const std::string& mesh_path, const std::string& out, std
     coarse = fine.num_coarse_elements(), nodes = fine.num_nodes(), elements = fine.num_elements();
   });
   py::dict d;
-  d["warnings"] = warnings;
-  d["notes"] = notes;
+  py::list w, n;
+  for (const auto& x : warnings) w.append(text(x));
+  for (const auto& x : notes) n.append(text(x));
+  d["warnings"] = w;
+  d["notes"] = n;
   d["coarse_elements"] = coarse;
   d["nodes"] = nodes;
   d["elements"] = elements;
@@ -870,7 +873,7 @@ PYBIND11_MODULE(_core, m) {
                              "per element: index into Store.info['blocks']")
       .def_property_readonly("block_names", [](const Chunk& c) {
         py::dict d;
-        for (const auto& b : c.mesh->info().blocks) d[py::int_(b.id)] = b.name;
+        for (const auto& b : c.mesh->info().blocks) d[py::int_(b.id)] = text(b.name);
         return d;
       }, "dict: block id -> name, for every block of the mesh")
       .def_property_readonly("side_sets", [](const Chunk& c) {
@@ -944,7 +947,7 @@ PYBIND11_MODULE(_core, m) {
       });
 
   py::class_<Store>(m, "Store", "A fine mesh kept in a dicer store (open with dicer.open or dicer.dice).")
-      .def_readonly("path", &Store::path, "the path the store was opened by, as given")
+      .def_property_readonly("path", [](const Store& s) { return path_text(s.path); }, "the path the store was opened by, as given")
       .def_readonly("warnings", &Store::warnings, "what the mesh reader accepted with a warning (from dice)")
       .def_readonly("notes", &Store::notes, "how interval conflicts were resolved (from dice)")
       .def_property_readonly("info", &info_dict, "the keys and values of `dicer info --json`")
@@ -1009,12 +1012,13 @@ PYBIND11_MODULE(_core, m) {
         s.warnings = std::move(warnings);
         s.notes = std::move(notes);
       })
-      .def("close", [](Store& s) { s.mesh.reset(); }, "release the file and the cache (chunks keep their own reference)")
+      .def("close", [](Store& s) { s.mesh.reset(); }, "release the store's hold on the file and the cache; what was made from it (chunks, partitions, "
+           "transfers, live blocks()/batches() iterators) keeps its own reference, and the file stays open until those go")
       .def("__enter__", [](Store& s) -> Store& { return s; })
       .def("__exit__", [](Store& s, py::args) { s.mesh.reset(); })
       .def("__repr__", [](const Store& s) {
-        if (!s.mesh) return "<dicer.Store " + s.path + " (closed)>";
-        return "<dicer.Store " + s.path + ": " + std::string(mode_name(s.mesh->mode())) + ", " +
-               std::to_string(s.mesh->num_nodes()) + " nodes, " + std::to_string(s.mesh->num_elements()) + " elements>";
+        if (!s.mesh) return text("<dicer.Store " + s.path + " (closed)>");
+        return text("<dicer.Store " + s.path + ": " + std::string(mode_name(s.mesh->mode())) + ", " +
+               std::to_string(s.mesh->num_nodes()) + " nodes, " + std::to_string(s.mesh->num_elements()) + " elements>");
       });
 }

@@ -8,6 +8,7 @@ import os
 import signal
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -167,3 +168,34 @@ def test_ctrl_c_interrupts_a_long_chunk(tmp_path):
     finally:
         timer.cancel()
     assert interrupted < 0.6 * whole, (interrupted, whole)
+
+
+def test_names_and_paths_that_are_not_utf8(cli, tmp_path):
+    """Linux names are bytes. A store whose name, source path or block name
+    is not UTF-8 opens and reports (info raised UnicodeDecodeError; a str
+    path from os.listdir was a TypeError), block names read as the
+    command's JSON gives them (U+FFFD), paths as os.fsdecode gives them, and
+    an error naming such a path keeps its message (it came out empty)."""
+    box = write_box_msh(tmp_path / "box.msh", 1, 1, 1)
+    raw = Path(box).read_text().replace("$Nodes", '$PhysicalNames\n1\n3 1 "blNAMEk"\n$EndPhysicalNames\n$Nodes', 1)
+    mesh = os.path.join(os.fsencode(tmp_path), b"m\xff.msh")
+    with open(mesh, "wb") as f:
+        f.write(raw.encode().replace(b"NAME", b"\xfe"))
+    out = os.path.join(os.fsencode(tmp_path), b"s\xff.dice.h5")
+    s = dicer.dice(os.fsdecode(mesh), os.fsdecode(out), interval=2)  # str with surrogate escapes
+    assert s.path == os.fsdecode(out)
+    assert repr(s).startswith("<dicer.Store ")
+    info = s.info
+    assert info["blocks"][0]["name"] == "bl\ufffdk"
+    assert info["source"] == os.fsdecode(mesh)
+    assert cli.json("info", os.fsdecode(out))["blocks"][0]["name"] == "bl\ufffdk"
+    s.close()
+    b = dicer.open(out)  # bytes
+    assert b.path == os.fsdecode(out) and b.num_elements == 8
+    assert b.chunk(0, 1).block_names == {1: "bl\ufffdk"}
+    bad = os.path.join(os.fsencode(tmp_path), b"not\xffa.dice.h5")
+    with open(bad, "wb") as f:
+        f.write(b"not a store" * 100)
+    with pytest.raises(dicer.BadInputError) as e:
+        dicer.open(bad)
+    assert "not\ufffda.dice.h5" in str(e.value), str(e.value)
