@@ -121,7 +121,8 @@ int cmd_dice(const std::vector<std::string>& argv) {
       copt.tolerance = parse_double("--geometry-tol", tolerance);
       CoarseMesh mesh = read_coarse_mesh(in);
       if (lead)
-        for (const auto& w : mesh.warnings) std::fprintf(stderr, "dicer dice: warning: %s: %s\n", in.c_str(), w.c_str());
+        for (const auto& w : mesh.warnings)
+          std::fprintf(stderr, "dicer dice: warning: %s: %s\n", printable(in).c_str(), printable(w).c_str());
       // Intervals by entity name the CAD's entities when a CAD is given.
       if (with_cad && (!req.entities.empty() || !req.entity_bias.empty())) classify_on_geometry(mesh, cad, copt);
       std::vector<std::string> notes;

@@ -126,18 +126,21 @@ class PointReader {
   // Three finite numbers separated by spaces, tabs or commas. `bad`: Usage
   // for --point's value, BadInput for a line of a file.
   static void parse(const std::string& text, const std::string& where, ErrorKind bad, std::vector<double>& out) {
+    // The message quotes the start of a long line (a binary file's "line"
+    // runs to 4 KiB); main shows what is not text as escapes.
+    const std::string quoted = text.size() > 60 ? text.substr(0, 60) + "..." : text;
     const char* p = text.c_str();
     for (int k = 0; k < 3; ++k) {
       while (*p == ' ' || *p == '\t' || *p == ',' || *p == '\r') ++p;
       char* end = nullptr;
       const double v = std::strtod(p, &end);
       if (end == p || !std::isfinite(v))
-        throw Error(bad, where + ": \"" + text + "\" is not three finite numbers x y z");
+        throw Error(bad, where + ": \"" + quoted + "\" is not three finite numbers x y z");
       out.push_back(v);
       p = end;
     }
     while (*p == ' ' || *p == '\t' || *p == '\r') ++p;
-    if (*p != '\0') throw Error(bad, where + ": \"" + text + "\" has more than three numbers");
+    if (*p != '\0') throw Error(bad, where + ": \"" + quoted + "\" has more than three numbers");
   }
 
   // NumPy format 1.0-3.0: magic, version, header length, a Python dict

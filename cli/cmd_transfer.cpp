@@ -115,7 +115,8 @@ int cmd_transfer(const std::vector<std::string>& argv) {
     return n.nested && n.moved_nodes_differ == 0 ? kExitSuccess : kExitDefect;
   }
   const Prolongation p(coarse, fine);
-  if (n.moved_nodes_differ > 0) std::fprintf(stderr, "dicer transfer: warning: %s\n", n.message.c_str());
+  if (n.moved_nodes_differ > 0)
+    std::fprintf(stderr, "dicer transfer: warning: %s\n", printable(n.message).c_str());
   CancelOnSignals signals;
   Progress bar("transfer", p.rows(), quiet || json);
   auto progress = [&](Id done, Id) {

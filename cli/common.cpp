@@ -237,16 +237,43 @@ std::int64_t parse_threads(const std::string& text) {
 
 std::string printable(const std::string& name) {
   std::string out;
-  for (const char ch : name) {
-    const auto c = static_cast<unsigned char>(ch);
-    if (c == '\n') out += "\\n";
-    else if (c == '\t') out += "\\t";
-    else if (c < 0x20 || c == 0x7f) {
-      char hex[5];
-      std::snprintf(hex, sizeof hex, "\\x%02x", c);
-      out += hex;
+  auto hex = [&](const char* form, unsigned v) {
+    char buf[8];
+    std::snprintf(buf, sizeof buf, form, v);
+    out += buf;
+  };
+  const auto* s = reinterpret_cast<const unsigned char*>(name.data());
+  const size_t n = name.size();
+  for (size_t i = 0; i < n;) {
+    const unsigned c = s[i];
+    if (c < 0x80) {
+      if (c == '\n') out += "\\n";
+      else if (c == '\t') out += "\\t";
+      else if (c < 0x20 || c == 0x7f) hex("\\x%02x", c);
+      else out += static_cast<char>(c);
+      ++i;
+      continue;
+    }
+    // A well-formed UTF-8 sequence (RFC 3629: no overlong forms, no
+    // surrogates, nothing past U+10FFFF) is kept, a C1 control excepted;
+    // any other byte is shown as \xHH, so no byte reaches the terminal
+    // that it could take for an escape sequence.
+    const int len = c >= 0xc2 && c <= 0xdf ? 2 : c >= 0xe0 && c <= 0xef ? 3 : c >= 0xf0 && c <= 0xf4 ? 4 : 0;
+    bool ok = len > 0 && i + static_cast<size_t>(len) <= n;
+    for (int k = 1; ok && k < len; ++k) ok = (s[i + k] & 0xc0) == 0x80;
+    if (ok && len >= 3) {
+      const unsigned b = s[i + 1];
+      ok = !(c == 0xe0 && b < 0xa0) && !(c == 0xed && b > 0x9f) && !(c == 0xf0 && b < 0x90) && !(c == 0xf4 && b > 0x8f);
+    }
+    if (!ok) {
+      hex("\\x%02x", c);
+      ++i;
+    } else if (c == 0xc2 && s[i + 1] < 0xa0) {
+      hex("\\u%04x", s[i + 1]);
+      i += 2;
     } else {
-      out += ch;
+      out.append(name, i, static_cast<size_t>(len));
+      i += static_cast<size_t>(len);
     }
   }
   return out;

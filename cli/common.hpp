@@ -77,8 +77,11 @@ void throw_if_cancelled(const std::string& outcome);
 void print_cache_stats(const FineMesh& mesh, const std::string& command);
 
 std::string human_bytes(std::uint64_t bytes);
-// A name from a file for a text table: control characters (a line break in
-// a block name) as \n, \t or \xHH, so one record stays on one line.
+// Text from a file or an argument for a terminal (a name in a table, an
+// error message): control characters (a line break in a block name, ESC)
+// as \n, \t, \xHH or \u00HH (C1), bytes that are not well-formed UTF-8
+// as \xHH, so one record stays on one line and no escape sequence from a
+// hostile file reaches the terminal. Well-formed UTF-8 is kept.
 std::string printable(const std::string& name);
 std::string human_count(std::int64_t n);
 std::string human_duration(std::uint64_t ns);  // "850 ns", "37.5 us", "6.9 ms", "1.23 s"

@@ -119,7 +119,7 @@ int main(int argc, char** argv) {
   }
   if (!command) {
     if (speaks)
-      std::fprintf(stderr, "dicer: error: unknown command \"%s\" (commands: %s; see dicer --help)\n", args[0].c_str(),
+      std::fprintf(stderr, "dicer: error: unknown command \"%s\" (commands: %s; see dicer --help)\n", printable(args[0]).c_str(),
                    names.c_str());
     return exit_code(ErrorKind::Usage, 0);
   }
@@ -129,7 +129,7 @@ int main(int argc, char** argv) {
   try {
     hand_over_if_cad(argv, args);
   } catch (const dicer::Error& e) {
-    std::fprintf(stderr, "dicer %s: error: %s\n", command->name, e.what());
+    std::fprintf(stderr, "dicer %s: error: %s\n", command->name, printable(e.what()).c_str());
     return exit_code(e.kind(), received_signal());
   }
   // Under mpirun every rank runs the command; errors are agreed between
@@ -149,13 +149,13 @@ int main(int argc, char** argv) {
     const int k = static_cast<int>(e.kind());
     return k < 0 ? kExitInternal : exit_code(e.kind(), e.signal() ? e.signal() : received_signal());
   } catch (const dicer::Error& e) {
-    std::fprintf(stderr, "dicer %s: error: %s\n", command->name, e.what());
+    std::fprintf(stderr, "dicer %s: error: %s\n", command->name, printable(e.what()).c_str());
     code = exit_code(e.kind(), received_signal()), caught = true;
   } catch (const std::bad_alloc&) {
     std::fprintf(stderr, "dicer %s: error: out of memory\n", command->name);
     code = kExitInternal, caught = true;
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "dicer %s: internal error: %s\n", command->name, e.what());
+    std::fprintf(stderr, "dicer %s: internal error: %s\n", command->name, printable(e.what()).c_str());
     code = kExitInternal, caught = true;
   }
   if (caught && mpi.active() && !dicer::mpi::error_was_agreed()) {

@@ -264,6 +264,52 @@ TEST(Cli, RefusalsHaveDocumentedExitCodesAndLeaveNoOutput) {
   EXPECT_EQ(files, 0u);
 }
 
+// A message quotes file names and file content: control bytes (a line
+// break, an ESC that starts a terminal escape sequence) and bytes that are
+// not UTF-8 reach the terminal as escapes, so the message stays one line
+// and a hostile file cannot drive the terminal; UTF-8 names stay readable.
+TEST(Cli, MessagesShowControlAndNonUtf8BytesAsEscapes) {
+  test::TempDir tmp;
+  const std::string store = test::diced_store("cardinal_brick.e", 1);
+  // Every byte the terminal sees is printable ASCII, the line's end aside.
+  auto plain = [](const std::string& err) {
+    for (size_t i = 0; i + 1 < err.size(); ++i)
+      if (static_cast<unsigned char>(err[i]) < 0x20 || static_cast<unsigned char>(err[i]) >= 0x7f) return false;
+    return !err.empty() && err.back() == '\n';
+  };
+  const std::string pts = tmp.path("points.txt");
+  test::write_file(pts, "1 2 3\n\x1b[31mRED 1 2\n");
+  auto r = run_cli({"query", store, "--points", pts});
+  EXPECT_EQ(r.exit_code, 3) << r.err;
+  EXPECT_NE(r.err.find("points.txt:2: \"\\x1b[31mRED 1 2\" is not three finite numbers"), std::string::npos) << r.err;
+  EXPECT_TRUE(plain(r.err)) << r.err;
+  // A binary "line": bytes 0x80..0xff in order form no UTF-8 sequence
+  // (each lead byte meets another lead byte); the quote stops at 60 bytes.
+  std::string binary;
+  for (int c = 0x80; c <= 0xff; ++c) binary.push_back(static_cast<char>(c));
+  test::write_file(pts, binary + "\n");
+  r = run_cli({"query", store, "--points", pts});
+  EXPECT_EQ(r.exit_code, 3) << r.err;
+  EXPECT_NE(r.err.find("points.txt:1: \"\\x80\\x81\\x82"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("\\xba\\xbb...\" is not three"), std::string::npos) << r.err;
+  EXPECT_TRUE(plain(r.err)) << r.err;
+  // A file name with a line break and an escape sequence, and a command.
+  const std::string odd = tmp.path("bad\nname\x1b[2J.e");
+  test::write_file(odd, "not an exodus file");
+  r = run_cli({"dice", odd, "-o", tmp.path("x.dice.h5")});
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.err.find("bad\\nname\\x1b[2J.e: "), std::string::npos) << r.err;
+  EXPECT_TRUE(plain(r.err)) << r.err;
+  r = run_cli({"\x1b]0;owned\x07"});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("unknown command \"\\x1b]0;owned\\x07\""), std::string::npos) << r.err;
+  // C1 controls (U+0080..U+009F; U+009B is a one-byte CSI to some
+  // terminals) are escaped; other UTF-8 is kept.
+  r = run_cli({"info", tmp.path("maillage-\xc3\xa9t\xc3\xa9\xc2\x9b.dice.h5")});
+  EXPECT_EQ(r.exit_code, 5) << r.err;
+  EXPECT_NE(r.err.find("maillage-\xc3\xa9t\xc3\xa9\\u009b.dice.h5"), std::string::npos) << r.err;
+}
+
 TEST(Cli, BadStoresAreRefusedClearly) {
   test::TempDir tmp;
   const std::string good = tmp.path("good.dice.h5");
