@@ -23,7 +23,11 @@ proportional to the coarse mesh), and checks:
     boundary one by one; neighbours agree on shared coarse faces and edges;
     fine boundary faces cover the coarse boundary exactly once;
   - no two distinct node ids have the same coordinates;
-  - minimum scaled Jacobian; number of inverted fine elements.
+  - minimum scaled Jacobian; number of inverted fine elements;
+  - the tables the elements do not read: each edge's interval and grading
+    are its sheet's, side and node sets name elements, sides and vertices
+    of the mesh and no set id twice (a failure here is exit 8, naming the
+    table and row).
 With --geometry CAD (the STEP/BREP file the store was diced against), also:
   - the largest distance from a fine node on a CAD curve or surface (as the
     store records its owner) to that entity; it must be at most
@@ -69,7 +73,10 @@ int cmd_verify(const std::vector<std::string>& argv) {
   bool run = true;
   agree([&] {
     run = cmd.parse(argv);
-    if (run) mesh.emplace(read_store(path, store.options()));
+    if (run) {
+      mesh.emplace(read_store(path, store.options()));
+      read_store_sets(*mesh, path);  // checks every member (Corrupt); exporters read them
+    }
   });
   if (!run) return 0;
   const FineMesh& m = *mesh;
@@ -128,7 +135,7 @@ int report(const std::string& path, bool with_cad, const std::string& cad, bool 
     print_json(j);
   } else {
     auto mark = [](bool ok) { return ok ? "ok  " : "FAIL"; };
-    std::printf("verify %s\n", path.c_str());
+    std::printf("verify %s\n", printable(path).c_str());
     std::printf("  %s counts         %lld nodes, %lld elements (formula: %lld, %lld)\n", mark(r.counts_ok()), ll(r.nodes),
                 ll(r.elements), ll(r.nodes_formula), ll(r.elements_formula));
     std::printf("  %s numbering      %lld id errors, %lld bit-identity errors\n", mark(r.id_errors + r.bit_identity_errors == 0),
@@ -158,8 +165,8 @@ int report(const std::string& path, bool with_cad, const std::string& cad, bool 
       std::printf("    %lld boundary coarse faces are on no CAD surface in the store (diced without --geometry): "
                   "their nodes measured against the nearest surface%s\n",
                   ll(g.unplaced_faces), geo_ok ? "" : "; dice with --geometry to put them on it");
-    for (const auto& p : r.problems) std::printf("    %s\n", p.c_str());
-    for (const auto& w : r.warnings) std::printf("    warning: %s\n", w.c_str());
+    for (const auto& p : r.problems) std::printf("    %s\n", printable(p).c_str());
+    for (const auto& w : r.warnings) std::printf("    warning: %s\n", printable(w).c_str());
     std::printf("%s\n", ok ? "all checks passed" : "VERIFY FAILED");
   }
   store.report(m);

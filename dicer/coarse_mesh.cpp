@@ -274,6 +274,19 @@ void validate_coarse_mesh(CoarseMesh& m) {
       m.warnings.push_back("dropped " + std::to_string(dropped) + " node(s) used by no " +
                            (m.mode == Mode::Volume ? "hexahedron" : "quadrilateral"));
   }
+  // A set's id names it in every output (Exodus set id, MSH physical tag):
+  // two sets of one id would merge in MSH and make the Exodus library fail.
+  auto once = [&](const char* what, std::vector<Id> ids) {
+    std::sort(ids.begin(), ids.end());
+    if (const auto d = std::adjacent_find(ids.begin(), ids.end()); d != ids.end())
+      throw Error(ErrorKind::BadInput, f + ": two " + what + "s have id " + std::to_string(*d));
+  };
+  std::vector<Id> ids;
+  for (const auto& ss : m.side_sets) ids.push_back(ss.id);
+  once("side set", ids);
+  ids.clear();
+  for (const auto& ns : m.node_sets) ids.push_back(ns.id);
+  once("node set", std::move(ids));
   for (auto& ss : m.side_sets) {
     if (ss.element.size() != ss.side.size())
       throw Error(ErrorKind::BadInput, f + ": side set " + std::to_string(ss.id) + ": element and side lists differ");

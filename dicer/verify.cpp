@@ -374,6 +374,45 @@ VerifyReport verify_finish(const FineMesh& mesh, const std::vector<VerifyPart>& 
     }
   }
 
+  // The sheets (info prints them, transfer matches levels by them): every
+  // edge's interval and grading are its sheet's, the parallel edges of an
+  // element lie in one sheet, every sheet holds an edge. A mesh built
+  // without its sheet table (sheet_intervals() empty) has none to check.
+  if (const auto& si = mesh.sheet_intervals(); !si.empty()) {
+    const auto& sg = mesh.sheet_gradings();
+    const std::string store = t.origin.empty() ? std::string("in memory") : t.origin;
+    if (static_cast<Id>(si.size()) != info.sheets || (!sg.empty() && sg.size() != si.size()))
+      throw Error(ErrorKind::Corrupt, store + ": sheets/sheet_interval: not one row per sheet");
+    std::vector<std::uint8_t> used(si.size(), 0);
+    for (Id e = 0; e < t.edges.rows(); ++e) {
+      const EdgeRow er = R.edge(e);  // its sheet is in range (the row's check)
+      const auto s = static_cast<size_t>(er.sheet);
+      used[s] = 1;
+      if (er.n != si[s])
+        R.corrupt(RowTable::Edges, e, "interval " + std::to_string(er.n) + ", its sheet " + std::to_string(s) +
+                                          "'s (sheets/sheet_interval) " + std::to_string(si[s]));
+      if (!sg.empty()) {
+        const tfi::Grading& g = sg[s].grading;
+        if (er.grading.kind != g.kind || (g.kind != tfi::Spacing::Equal && er.grading.ratio != g.ratio))
+          R.corrupt(RowTable::Edges, e, "grading disagrees with its sheet " + std::to_string(s) + "'s (sheets/sheet_grading)");
+      }
+    }
+    for (size_t s = 0; s < used.size(); ++s)
+      if (!used[s])
+        throw Error(ErrorKind::Corrupt, store + ": sheets/sheet_interval row " + std::to_string(s) + ": no edge lies in the sheet");
+    const int per_axis = vol ? 4 : 2;
+    for (Id h = 0; h < t.elements.rows(); ++h) {
+      const ElementRow row = R.element(h);
+      for (int k = 0; k < R.edges(); ++k) {
+        const Id first = row.edge[k - k % per_axis], s0 = R.edge(first).sheet, s = R.edge(row.edge[k]).sheet;
+        if (s != s0)
+          R.corrupt(RowTable::Edges, row.edge[k], "sheet " + std::to_string(s) + ", but edge " + std::to_string(first) +
+                                                     ", parallel to it in element " + std::to_string(h) + ", is in sheet " +
+                                                     std::to_string(s0));
+      }
+    }
+  }
+
   // The page index of a store (the searches for ids rely on it): the first
   // row of every page of the elements, as the index says.
   if (!t.node_index.empty() || !t.element_index.empty()) {

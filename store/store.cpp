@@ -728,9 +728,16 @@ StoreSets read_store_sets(const FineMesh& mesh, const std::string& path) {
     for (size_t i = 1; i < off.size(); ++i)
       if (off[i] < off[i - 1]) throw Error(ErrorKind::Corrupt, path + ": " + name + " offsets are not increasing");
   };
+  // Ids name sets (Exodus set ids, MSH physical tags): one each.
+  auto unique = [&](std::vector<std::int64_t> ids, const std::string& name) {
+    std::sort(ids.begin(), ids.end());
+    if (const auto d = std::adjacent_find(ids.begin(), ids.end()); d != ids.end())
+      throw Error(ErrorKind::Corrupt, path + ": " + name + ": set id " + std::to_string(*d) + " appears twice");
+  };
   StoreSets out;
   const std::int64_t nss = rows_of("sets/side_set_id"), nns = rows_of("sets/node_set_id");
   const auto ss_id = read_small<std::int64_t>(*s, cache, "sets/side_set_id", nss);
+  unique(ss_id, "sets/side_set_id");
   const auto ss_off = read_small<std::int64_t>(*s, cache, "sets/side_set_offset", nss + 1);
   const auto ss_names = strings("sets/side_set_name", nss);
   const std::int64_t nsm = rows_of("sets/side_set_member");
@@ -752,6 +759,7 @@ StoreSets read_store_sets(const FineMesh& mesh, const std::string& path) {
     out.side_sets.push_back(std::move(set));
   }
   const auto ns_id = read_small<std::int64_t>(*s, cache, "sets/node_set_id", nns);
+  unique(ns_id, "sets/node_set_id");
   const auto ns_off = read_small<std::int64_t>(*s, cache, "sets/node_set_offset", nns + 1);
   const auto ns_names = strings("sets/node_set_name", nns);
   const std::int64_t nnv = rows_of("sets/node_set_vertex");

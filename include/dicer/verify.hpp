@@ -26,6 +26,11 @@
 //    others (a non-conforming coarse mesh: hanging vertices) a failure;
 //    nodes closer than 1e-9 of the diagonal but not identical, apart;
 //  - node and element counts equal the closed formula of invariant 3;
+//  - the sheet table (sheet_intervals, sheet_gradings) agrees with the
+//    edges: each edge's interval and grading are its sheet's, an element's
+//    parallel edges lie in one sheet, every sheet holds an edge (Corrupt,
+//    naming the edge row, otherwise); the CLI also reads the store's sets
+//    (read_store_sets checks them);
 //  - minimum scaled Jacobian and the number of inverted fine elements
 //    (scaled Jacobian <= 0 at some corner).
 #include <array>

@@ -103,6 +103,17 @@ TEST(BadCore, RepeatedNodeDuplicateElementAndNaNAreRefused) {
     EXPECT_NE(error_of([&] { validate_coarse_mesh(m); }, ErrorKind::BadInput).find("duplicates element 1"),
               std::string::npos);
   }
+  {  // Two sets of one id: MSH would merge them, the Exodus library refuse them.
+    CoarseMesh m = unit_cubes(2);
+    m.side_sets = {{4, "inlet", {0}, {3}}, {4, "outlet", {1}, {1}}};
+    EXPECT_NE(error_of([&] { validate_coarse_mesh(m); }, ErrorKind::BadInput).find("row.exo: two side sets have id 4"),
+              std::string::npos);
+    CoarseMesh n = unit_cubes(2);
+    n.side_sets = {{4, "inlet", {0}, {3}}};
+    n.node_sets = {{4, "a", {0}}, {7, "b", {1}}, {7, "c", {2}}};  // a side set and a node set may share one
+    EXPECT_NE(error_of([&] { validate_coarse_mesh(n); }, ErrorKind::BadInput).find("two node sets have id 7"),
+              std::string::npos);
+  }
   {
     CoarseMesh m = unit_cubes(1);
     m.z[3] = std::nan("");

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cstring>
 #include <filesystem>
 #include <random>
@@ -453,4 +454,67 @@ TEST(CraftedRows, PerBlockTablesThatDisagreeWithTheElementsAreCaught) {
   EXPECT_EQ(r.exit_code, 1) << r.err;
   EXPECT_NE((r.out + r.err).find("block 1: coarse/block_coarse_elements and block_fine_elements say"), std::string::npos)
       << r.out << r.err;
+}
+
+// Tables no element reads, forged with valid checksums: the sheets (info
+// printed a forged interval or grading, and verify passed) and the sets
+// (verify passed; only an export then failed). verify checks each against
+// the edges or the mesh: Corrupt (exit 8), one line naming the table.
+TEST(CraftedRows, SheetAndSetTablesThatTheMeshDoesNotBearOutAreCorruptForVerify) {
+  test::TempDir tmp;
+  const std::string good = tmp.path("g.dice.h5");
+  // PROVENANCE.md: 7 side sets (ids 1..7), 3 node sets; interval 2 everywhere.
+  auto r = test::run_cli({"dice", test::data_path("vtkdata_disk_out_ref.ex2"), "--interval", "2", "-o", good});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  ASSERT_EQ(test::run_cli({"verify", good}).exit_code, 0);
+  struct Case {
+    const char* name;
+    std::string dataset;
+    std::size_t byte;   // of the first page
+    std::int64_t value;
+    std::vector<std::string> said;
+  };
+  std::int64_t edge_sheet = -1;  // edge row 1's sheet, for a valid other one
+  {
+    const FineMesh m = read_store(good);
+    MeshCursor cur;
+    edge_sheet = RowReader(m.tables(), cur).edge(1).sheet;
+    ASSERT_GT(m.info().sheets, 1);
+  }
+  const std::int64_t dual = 2;  // FORMAT.md: sheet_grading kind 2, a ratio, start -1
+  const std::vector<Case> cases = {
+      // Sheet 0 at interval 3, its edges at 2: every column in range.
+      {"interval", "sheets/sheet_interval", 0, 3, {"topology/edges row ", "sheets/sheet_interval"}},
+      {"grading", "sheets/sheet_grading", 0, dual, {"topology/edges row ", "sheets/sheet_grading"}},
+      // Edge 1 moved to another sheet of the same interval: only the
+      // element's parallel edges tell.
+      {"edge sheet", "topology/edges", 1 * 11 * 8 + 4 * 8, edge_sheet == 0 ? 1 : 0, {"topology/edges row ", "parallel"}},
+      {"side set member", "sets/side_set_member", 0, 1 << 30, {"side set ", "entry out of range"}},
+      {"node set vertex", "sets/node_set_vertex", 0, -1, {"node set ", "vertex out of range"}},
+      {"side set id", "sets/side_set_id", 8, 0, {"sets/side_set_id: set id ", " appears twice"}},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    const std::string bad = tmp.path(std::string(c.name) + ".dice.h5");
+    fs::copy_file(good, bad);
+    hid_t f = H5Fopen(bad.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+    test::forge_page(f, c.dataset, 0, [&](std::vector<std::uint8_t>& page) {
+      ASSERT_GE(page.size(), c.byte + 8);
+      if (c.dataset == "sheets/sheet_grading") {  // a dual grading of ratio 1.5: a valid row
+        const std::int64_t row[3] = {dual, std::bit_cast<std::int64_t>(1.5), -1};
+        std::memcpy(page.data(), row, sizeof row);
+        return;
+      }
+      if (c.dataset == "sets/side_set_id") {  // the second set given the first one's id
+        std::memcpy(page.data() + 8, page.data(), 8);
+        return;
+      }
+      std::memcpy(page.data() + c.byte, &c.value, 8);
+    }, true);
+    H5Fclose(f);
+    r = test::run_cli({"verify", bad});
+    EXPECT_EQ(r.exit_code, 8) << r.out << r.err;
+    for (const auto& s : c.said) EXPECT_NE(r.err.find(s), std::string::npos) << s << ": " << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  }
 }
