@@ -86,14 +86,21 @@ def _path(p):
     return _os.fsdecode(_os.fspath(p))
 
 
+def _shown(text):
+    # A str for messages: surrogate escapes (a path that is not UTF-8) as
+    # U+FFFD, as the library's messages show such bytes; they cannot be
+    # encoded for the library, and print badly.
+    return text.encode("utf-8", "surrogateescape").decode("utf-8", "replace")
+
+
 def _check_input(path, role):
     # stat, never open: opening a FIFO without a writer blocks for ever.
     try:
         st = _os.stat(path)
     except OSError as e:
-        raise IoError(f"{path}: cannot open: {_os.strerror(e.errno)}") from None
+        raise IoError(f"{_shown(path)}: cannot open: {_os.strerror(e.errno)}") from None
     if not _stat.S_ISREG(st.st_mode):
-        raise UsageError(f"{path}: {role} is {_file_kind(st.st_mode)}, not a regular file")
+        raise UsageError(f"{_shown(path)}: {role} is {_file_kind(st.st_mode)}, not a regular file")
 
 
 def _check_output(path, role, inputs):
@@ -102,9 +109,9 @@ def _check_output(path, role, inputs):
     except OSError:
         return  # a new file: nothing to protect
     if _stat.S_ISDIR(out.st_mode):
-        raise UsageError(f"{path}: {role} is a directory; give the name of the file to write")
+        raise UsageError(f"{_shown(path)}: {role} is a directory; give the name of the file to write")
     if not _stat.S_ISREG(out.st_mode):
-        raise UsageError(f"{path}: {role} is {_file_kind(out.st_mode)}; "
+        raise UsageError(f"{_shown(path)}: {role} is {_file_kind(out.st_mode)}; "
                          "dicer writes a temporary file and renames it over the output")
     for p, in_role in inputs:
         try:
@@ -112,7 +119,7 @@ def _check_output(path, role, inputs):
         except OSError:
             continue
         if (st.st_dev, st.st_ino) == (out.st_dev, out.st_ino):
-            raise UsageError(f"{path}: {role} is the same file as {in_role} ({p}); "
+            raise UsageError(f"{_shown(path)}: {role} is the same file as {in_role} ({_shown(p)}); "
                              "writing it would destroy the input")
 
 
@@ -283,7 +290,7 @@ def dice(mesh, out, interval=None, sheet_intervals=None, block_intervals=None, s
     if geometry is None:
         r = _core._dice(_os.fsencode(mesh), _os.fsencode(out), interval, size, blocks, sheets,
                         None if intervals_file is None else _os.fsencode(intervals_file))
-        warns, notes = [f"{mesh}: {w}" for w in r["warnings"]], r["notes"]
+        warns, notes = [f"{_shown(mesh)}: {w}" for w in r["warnings"]], r["notes"]
     else:
         args = ["dice", mesh, "-o", out, "--quiet", "--geometry", geometry]
         if geometry_tol is not None:

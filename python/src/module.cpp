@@ -647,7 +647,13 @@ struct BlockIterator {
 // Coarse elements [first, end) of chunk (k, n), or of the whole mesh (None).
 std::pair<Id, Id> coarse_range(const FineMesh& m, const py::object& chunk) {
   if (chunk.is_none()) return {0, m.num_coarse_elements()};
-  const auto kn = chunk.cast<std::pair<std::int64_t, std::int64_t>>();
+  // (k, n) as a tuple, list or array; anything else is the caller's error,
+  // said as such (pybind11's cast said "RuntimeError: Unable to cast").
+  if (!py::isinstance<py::sequence>(chunk) || py::isinstance<py::str>(chunk) || py::isinstance<py::bytes>(chunk) ||
+      py::len(chunk) != 2)
+    throw Error(ErrorKind::Usage, "chunk: \"" + std::string(py::str(chunk)) + "\" is not (k, n), two whole numbers");
+  const py::sequence seq = chunk.cast<py::sequence>();
+  const std::pair<Id, Id> kn{whole_id(seq[0], "chunk (k, n): k"), whole_id(seq[1], "chunk (k, n): n")};
   const ChunkRange r = checked_plan(m, kn.first, kn.second)[static_cast<size_t>(kn.first)];
   return {r.first_coarse, r.end_coarse};
 }
@@ -947,7 +953,7 @@ PYBIND11_MODULE(_core, m) {
       });
 
   py::class_<Store>(m, "Store", "A fine mesh kept in a dicer store (open with dicer.open or dicer.dice).")
-      .def_property_readonly("path", [](const Store& s) { return path_text(s.path); }, "the path the store was opened by, as given")
+      .def_property_readonly("path", [](const Store& s) { return path_text(s.path); }, "the path the store was opened by, as os.fsdecode gives it (a str; bytes that are not UTF-8 as surrogate escapes)")
       .def_readonly("warnings", &Store::warnings, "what the mesh reader accepted with a warning (from dice)")
       .def_readonly("notes", &Store::notes, "how interval conflicts were resolved (from dice)")
       .def_property_readonly("info", &info_dict, "the keys and values of `dicer info --json`")
@@ -966,14 +972,14 @@ PYBIND11_MODULE(_core, m) {
            "like elements(), with block (file id), coarse_element and ijk, as `dicer query --elements --json`")
       .def("elements_in_box", &elements_in_box, py::arg("lo"), py::arg("hi"),
            "ids of the fine elements whose centroid lies in the box (`dicer query --box`)")
-      .def("element_neighbors", [](const Store& s, std::int64_t id) {
+      .def("element_neighbors", [](const Store& s, const py::object& id) {
         const Mesh m = s.get();
-        return owned(element_neighbors(*m, id));
+        return owned(element_neighbors(*m, whole_id(id, "element_neighbors(id)")));
       }, py::arg("id"), "the fine elements across each side of element id in Exodus side order, -1 on the boundary "
                         "(`dicer query --element-neighbors`)")
-      .def("node_elements", [](const Store& s, std::int64_t id) {
+      .def("node_elements", [](const Store& s, const py::object& id) {
         const Mesh m = s.get();
-        return owned(node_elements(*m, id));
+        return owned(node_elements(*m, whole_id(id, "node_elements(id)")));
       }, py::arg("id"), "the fine elements using node id, ascending (`dicer query --node-elements`)")
       .def("locate", &locate, py::arg("points"), py::arg("threads") = 1, py::arg("max_distance") = py::none(),
            "as `dicer query --points`. Volume stores: (element ids, xi (n, 3)) of an (n, 3) array of points: "

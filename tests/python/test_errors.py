@@ -109,6 +109,22 @@ def test_query_out_of_range(cli, sphere_store):
     same_error(cli, ["export", sphere_store, "--format", "msh", "--chunk", "0/1000", "-o", "x.msh"],
                lambda: s.chunk(0, 1000))
     same_error(cli, ["sweep", sphere_store, "--threads", 0], lambda: s.sweep(threads=0))
+    # Ids past 64 bits and a chunk that is not (k, n) are dicer's errors,
+    # named (they were a TypeError and a RuntimeError from pybind11).
+    for call in (s.element_neighbors, s.node_elements):
+        with pytest.raises(dicer.IdOverflowError, match=r"\(id\): \"9223372036854775808\" does not fit in 64 bits"):
+            call(2**63)
+        with pytest.raises(dicer.UsageError, match="is not a whole number"):
+            call(1.5)
+    assert np.array_equal(s.element_neighbors(np.int64(0)), s.element_neighbors(0))
+    for bad in (3, "0/2", (0,), (0, 1, 2)):
+        with pytest.raises(dicer.UsageError, match="is not \\(k, n\\), two whole numbers"):
+            next(iter(s.blocks(chunk=bad)))
+        with pytest.raises(dicer.UsageError, match="is not \\(k, n\\), two whole numbers"):
+            s.batches(chunk=bad)
+    with pytest.raises(dicer.UsageError, match="chunk \\(k, n\\): k: \"a\" is not a whole number"):
+        s.blocks(chunk=("a", 2))
+    assert [b.coarse_element for b in s.blocks(chunk=[1, 2])] == [b.coarse_element for b in s.blocks(chunk=(1, 2))]
     same_error(cli, ["info", sphere_store, "--cache-mb", 0], lambda: dicer.open(sphere_store, cache_mb=0))
 
 
@@ -178,11 +194,16 @@ def test_names_and_paths_that_are_not_utf8(cli, tmp_path):
     an error naming such a path keeps its message (it came out empty)."""
     box = write_box_msh(tmp_path / "box.msh", 1, 1, 1)
     raw = Path(box).read_text().replace("$Nodes", '$PhysicalNames\n1\n3 1 "blNAMEk"\n$EndPhysicalNames\n$Nodes', 1)
+    # A node no hex uses: the reader's warning names the file (a warning
+    # naming such a path raised TypeError after the store was written).
+    raw = raw.replace("$Nodes\n8\n", "$Nodes\n9\n", 1).replace("$EndNodes", "9 5 5 5\n$EndNodes", 1)
     mesh = os.path.join(os.fsencode(tmp_path), b"m\xff.msh")
     with open(mesh, "wb") as f:
         f.write(raw.encode().replace(b"NAME", b"\xfe"))
     out = os.path.join(os.fsencode(tmp_path), b"s\xff.dice.h5")
-    s = dicer.dice(os.fsdecode(mesh), os.fsdecode(out), interval=2)  # str with surrogate escapes
+    with pytest.warns(dicer.DicerWarning) as caught:
+        s = dicer.dice(os.fsdecode(mesh), os.fsdecode(out), interval=2)  # str with surrogate escapes
+    assert any("m\ufffd.msh: dropped 1 node" in str(w.message) for w in caught), [str(w.message) for w in caught]
     assert s.path == os.fsdecode(out)
     assert repr(s).startswith("<dicer.Store ")
     info = s.info
