@@ -294,6 +294,9 @@ int query(const std::vector<std::string>& argv, long long* chunk_count = nullptr
   if (cmd.given(o_point) || cmd.given(o_points)) {
     // Batches of 65536 points bound the memory of a long stream; answers
     // come in input order.
+    // The library's refusals (--max-distance on a volume store) before
+    // anything is read: an empty file, or a pipe's first 65536 points.
+    locate_points(m, {}, 1, max_distance);
     PointReader in(cmd.given(o_point) ? std::string() : points_file, point_text);
     std::vector<double> part;
     while (in.next(part, 65536)) {

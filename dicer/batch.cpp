@@ -13,6 +13,10 @@
 
 namespace dicer {
 
+namespace {
+const char* const kHow = "is read a slab of grid planes at a time with its boundary";
+}  // namespace
+
 BatchCursor::BatchCursor(const FineMesh& mesh, Id first, Id end, BatchOptions options) : mesh_(mesh), opt_(options) {
   const Id layer = opt_.first_layer;
   reset(first, end);
@@ -42,9 +46,11 @@ void BatchCursor::enter() {
     k0_ = opt_.first_layer;
     opt_.first_layer = 0;  // the first element only
   }
-  // A huge element is refused before its slab is allocated: the kernel
-  // would grant the memory lazily and the machine would swap or kill.
-  if (slab_bytes() > double(1u << 28) && slab_bytes() > static_cast<double>(available_memory_bytes())) throw_too_big();
+  // What the cursor holds from the last element is reused, not added (an
+  // element as large as the last one that fitted fits).
+  double held = static_cast<double>(block_.held_bytes() + lines_.capacity() * sizeof(Id));
+  for (const auto& a : xyz_) held += static_cast<double>(a.capacity() * sizeof(double));
+  check_element_memory(mesh_, h_, n_, kHow, slab_bytes(), held);
   entered_ = true;
 }
 
@@ -60,26 +66,18 @@ bool BatchCursor::next(FineBatch& out) {
   }
 }
 
-// About what a slab of the entered element holds: ids and coordinates of
-// its planes and of the element's boundary, connectivity of its layers.
+// About what a slab of the entered element holds: ids (and coordinates,
+// when asked) of its planes and of the element's boundary, connectivity of
+// its layers. A surface element is one plane, its own boundary.
 double BatchCursor::slab_bytes() const {
+  const bool vol = n2_ > 0;
   const double n0 = static_cast<double>(n_[0]), n1 = static_cast<double>(n_[1]), n2 = static_cast<double>(n_[2]);
-  const double plane = (n0 + 1) * (n1 + 1), boundary = 2 * (n0 * n1 + n1 * n2 + n0 * n2);
-  const double layers = static_cast<double>(step_);
-  return (plane * (layers + 1) + boundary) * 32 + (opt_.conn ? n0 * n1 * layers * 8 * mesh_.corners() : 0);
+  const double plane = (n0 + 1) * (n1 + 1), boundary = vol ? 2 * (n0 * n1 + n1 * n2 + n0 * n2) : 0;
+  const double layers = vol ? static_cast<double>(step_) : 1, points = (vol ? plane * (layers + 1) : plane) + boundary;
+  return points * (opt_.coords ? 32 : 8) + (opt_.conn ? n0 * n1 * layers * 8 * mesh_.corners() : 0);
 }
 
-void BatchCursor::throw_too_big() const {
-  char need[64];
-  std::snprintf(need, sizeof need, "%.1f GiB", slab_bytes() / double(1ull << 30));
-  const std::string& origin = mesh_.tables().origin;
-  throw Error(ErrorKind::Usage, (origin.empty() ? std::string("the mesh") : origin) + ": coarse element " +
-                                    std::to_string(h_) + " (intervals " + std::to_string(n_[0]) + " x " +
-                                    std::to_string(n_[1]) + " x " + std::to_string(n_[2]) +
-                                    ") is read a slab of grid planes at a time with its boundary, about " + need +
-                                    ", more memory than this process can allocate; dice with smaller intervals "
-                                    "(more coarse elements), or run where more memory is free");
-}
+void BatchCursor::throw_too_big() const { throw element_too_big(mesh_, h_, n_, kHow, slab_bytes()); }
 
 bool BatchCursor::next_batch(FineBatch& out) {
   if (h_ >= end_) return false;

@@ -4,6 +4,7 @@
 // interior a plane at a time: a curved hex's by the hex TFI, a straight
 // one's by the trilinear blend of its corners (tfi.hpp, bilinear_patch).
 #include <algorithm>
+#include <new>
 #include <cstdint>
 #include <cstring>
 #if defined(__SSE2__)
@@ -415,14 +416,31 @@ void slab_lines(const FineBlock::Scratch::Boundary& B, Id cell_node, Id k0, Id k
 void FineMesh::fill_block(Id hid, FineBlock& b, bool nodes_only) const { fill_slab(hid, 0, -1, b, true, !nodes_only); }
 
 void FineMesh::for_each_slab(Id hid, FineBlock& b, bool conn, const std::function<void(const FineBlock&)>& fn) const {
-  if (mode() != Mode::Volume) {
-    fill_slab(hid, 0, 0, b, true, conn);
+  const auto n = detail::Evaluator(tables_, b.cursor).R.element(hid).n;
+  const bool vol = mode() == Mode::Volume;
+  const Id plane = (n[0] + 1) * (n[1] + 1), layers = vol ? std::max<Id>(1, kCursorSlabPoints / plane - 1) : 1;
+  // A slab's ids and coordinates (32 B a point) and connectivity, and the
+  // element's whole boundary twice (Held::All: its points, and each
+  // entity's in the scratch's canonical arrays), 56 B a point.
+  const double n0 = double(n[0]), n1 = double(n[1]), n2 = vol ? double(n[2]) : 0.0, p = double(plane);
+  const double boundary = vol ? 2 * (n0 * n1 + n1 * n2 + n0 * n2) + 2 : p;
+  const double slab = vol ? p * double(layers + 1) : p, cells = n0 * n1 * (vol ? double(layers) : 1.0);
+  const double bytes = slab * 32 + boundary * 56 + (conn ? cells * corners() * 8 : 0);
+  const char* const how = "is read a slab of grid planes at a time with its whole boundary";
+  check_element_memory(*this, hid, n, how, bytes, static_cast<double>(b.held_bytes()));
+  auto fill = [&](Id k0, Id k1) {
+    try {
+      fill_slab(hid, k0, k1, b, true, conn);
+    } catch (const std::bad_alloc&) {
+      throw element_too_big(*this, hid, n, how, bytes);
+    }
+  };
+  if (!vol) {
+    fill(0, 0);
     return fn(b);
   }
-  const auto n = detail::Evaluator(tables_, b.cursor).R.element(hid).n;
-  const Id plane = (n[0] + 1) * (n[1] + 1), layers = std::max<Id>(1, kCursorSlabPoints / plane - 1);
   for (Id k0 = 0; k0 < n[2]; k0 += layers) {
-    fill_slab(hid, k0, std::min(k0 + layers, n[2]), b, true, conn);
+    fill(k0, std::min(k0 + layers, n[2]));
     fn(b);
   }
 }

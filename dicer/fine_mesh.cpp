@@ -7,7 +7,9 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <cstdlib>
+#include <iterator>
 #include <fstream>
 
 #include "dicer/error.hpp"
@@ -298,6 +300,13 @@ std::uint64_t available_memory_bytes() {
     const long pages = ::sysconf(_SC_AVPHYS_PAGES), size = ::sysconf(_SC_PAGESIZE);
     if (pages > 0 && size > 0) avail = static_cast<std::uint64_t>(pages) * static_cast<std::uint64_t>(size);
   }
+  // A container's memory limit (Docker, Kubernetes, systemd slices): the
+  // kernel kills the group past it, whatever MemAvailable says.
+  {
+    std::ifstream in("/proc/self/cgroup");
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    avail = std::min(avail, detail::cgroup_memory_left(text, "/sys/fs/cgroup"));
+  }
   struct rlimit rl {};
   if (::getrlimit(RLIMIT_AS, &rl) == 0 && rl.rlim_cur != RLIM_INFINITY) {
     const std::uint64_t mapped = kib_field("/proc/self/status", "VmSize:");
@@ -305,6 +314,89 @@ std::uint64_t available_memory_bytes() {
     avail = std::min(avail, left);
   }
   return avail;
+}
+
+namespace detail {
+
+std::uint64_t cgroup_memory_left(const std::string& proc_cgroup, const std::string& root) {
+  // A file's first word as a byte count; "max" (v2) or a v1 "unlimited"
+  // (a page-rounded 2^63 - 1) or no file: no limit.
+  auto number = [](const std::string& file) -> std::uint64_t {
+    std::ifstream in(file);
+    std::string word;
+    if (!(in >> word) || word.empty() || word.find_first_not_of("0123456789") != std::string::npos) return UINT64_MAX;
+    const std::uint64_t v = std::strtoull(word.c_str(), nullptr, 10);
+    return v >= (std::uint64_t{1} << 62) ? UINT64_MAX : v;
+  };
+  std::uint64_t left = UINT64_MAX;
+  // Each group from the process's own up to the mount (a cgroup namespace
+  // shows its own group as the mount itself).
+  auto walk = [&](const std::string& base, std::string path, const char* limit, const char* usage) {
+    while (true) {
+      const std::string dir = base + path;
+      const std::uint64_t max = number(dir + "/" + limit), used = number(dir + "/" + usage);
+      if (max != UINT64_MAX) left = std::min(left, used == UINT64_MAX || used >= max ? max - std::min(max, used) : max - used);
+      if (path.empty() || path == "/") break;
+      path.erase(path.find_last_of('/'));
+    }
+  };
+  std::size_t at = 0;
+  while (at < proc_cgroup.size()) {
+    std::size_t eol = proc_cgroup.find('\n', at);
+    if (eol == std::string::npos) eol = proc_cgroup.size();
+    const std::string line = proc_cgroup.substr(at, eol - at);
+    at = eol + 1;
+    const std::size_t a = line.find(':'), b = a == std::string::npos ? a : line.find(':', a + 1);
+    if (b == std::string::npos) continue;
+    const std::string controllers = line.substr(a + 1, b - a - 1), path = line.substr(b + 1);
+    if (line.compare(0, a, "0") == 0 && controllers.empty()) {
+      walk(root, path, "memory.max", "memory.current");  // v2
+    } else {
+      std::size_t c = 0;  // v1: "memory" among the comma-separated controllers
+      bool memory = false;
+      while (c <= controllers.size()) {
+        const std::size_t e = std::min(controllers.find(',', c), controllers.size());
+        memory |= controllers.compare(c, e - c, "memory") == 0;
+        c = e + 1;
+      }
+      if (memory) walk(root + "/memory", path, "memory.limit_in_bytes", "memory.usage_in_bytes");
+    }
+  }
+  return left;
+}
+
+}  // namespace detail
+
+Error element_too_big(const FineMesh& mesh, Id h, const std::array<Id, 3>& n, const char* how, double bytes) {
+  char need[64];
+  std::snprintf(need, sizeof need, "%.1f GiB", bytes / double(1ull << 30));
+  const std::string& origin = mesh.tables().origin;
+  return Error(ErrorKind::Usage, (origin.empty() ? std::string("the mesh") : origin) + ": coarse element " +
+                                     std::to_string(h) + " (intervals " + std::to_string(n[0]) + " x " +
+                                     std::to_string(n[1]) + " x " + std::to_string(n[2]) + ") " + std::string(how) + ", about " +
+                                     need + ", more memory than this process can allocate; dice with smaller "
+                                     "intervals (more coarse elements), or run where more memory is free");
+}
+
+void check_element_memory(const FineMesh& mesh, Id h, const std::array<Id, 3>& n, const char* how,
+                          double bytes, double held) {
+  const double more = bytes - held;
+  if (more > double(1u << 28) && more > static_cast<double>(available_memory_bytes()))
+    throw element_too_big(mesh, h, n, how, bytes);
+}
+
+std::size_t FineBlock::held_bytes() const {
+  auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
+  std::size_t sum = bytes(node_id) + bytes(x) + bytes(y) + bytes(z) + bytes(conn) + bytes(scratch.boundary.id);
+  for (int d = 0; d < 3; ++d) {
+    for (int e = 0; e < 12; ++e) sum += bytes(scratch.edge[e][d]);
+    for (int f = 0; f < 6; ++f) sum += bytes(scratch.face[f][d]);
+    sum += bytes(scratch.bottom[d]) + bytes(scratch.top[d]) + bytes(scratch.left[d]) + bytes(scratch.right[d]) +
+           bytes(scratch.boundary.x[d]);
+  }
+  for (const auto* v : {&scratch.s, &scratch.t, &scratch.u, &scratch.v, &scratch.w, &scratch.P, &scratch.G, &scratch.patch})
+    sum += bytes(*v);
+  return sum;
 }
 
 }  // namespace dicer

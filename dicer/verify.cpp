@@ -70,27 +70,20 @@ VerifyPart verify_part(const FineMesh& mesh, Id first, Id end, const std::functi
   // allocation fails, not killed by the OS.
   std::array<Id, 3> n_now{};
   Id h_now = first;
-  auto too_big = [&]() -> Error {
+  const char* const how = "is checked whole by verify";
+  auto need = [&] {
     const auto& n = n_now;
-    const double pts = double(n[0] + 1) * double(n[1] + 1) * double(vol ? n[2] + 1 : 1),
-                 els = double(n[0]) * double(n[1]) * double(vol ? n[2] : 1), need = 100 * pts + 250 * els;
-    char gib[32];
-    std::snprintf(gib, sizeof gib, "%.1f GiB", need / double(1ull << 30));
-    return Error(ErrorKind::Usage, (t.origin.empty() ? std::string("in memory") : t.origin) + ": coarse element " +
-                                       std::to_string(h_now) + " (intervals " + std::to_string(n[0]) + " x " +
-                                       std::to_string(n[1]) + " x " + std::to_string(n[2]) +
-                                       "): verify checks a coarse element whole, about " + gib +
-                                       ", more memory than this process can allocate");
+    return 100 * double(n[0] + 1) * double(n[1] + 1) * double(vol ? n[2] + 1 : 1) +
+           250 * double(n[0]) * double(n[1]) * double(vol ? n[2] : 1);
   };
+  auto too_big = [&] { return element_too_big(mesh, h_now, n_now, how, need()); };
   try {
   for (Id h = first; h < end; ++h) {
     h_now = h, n_now = R.element(h).n;
-    {
-      const auto& n = n_now;
-      const double need = 100 * double(n[0] + 1) * double(n[1] + 1) * double(vol ? n[2] + 1 : 1) +
-                          250 * double(n[0]) * double(n[1]) * double(vol ? n[2] : 1);
-      if (need > double(1u << 28) && need > static_cast<double>(available_memory_bytes())) throw too_big();
-    }
+    // Less what the arrays hold from the last element (reused, not added).
+    check_element_memory(mesh, h, n_now, how, need(),
+                         static_cast<double>(b.held_bytes() + ids.capacity() * sizeof(ids[0]) +
+                                             coords.capacity() * sizeof(coords[0]) + faces.capacity() * sizeof(faces[0])));
     mesh.fill_block(h, b);
     const auto n = b.n;
     const Id ni = n[0] + 1, nj = n[1] + 1, nk = vol ? n[2] + 1 : 1;

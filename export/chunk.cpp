@@ -544,13 +544,27 @@ void refuse_if_too_big(const FineMesh& mesh, const ChunkRange& range) {
   msg << "export: chunk " << range.index << " of " << range.count << " (coarse elements " << range.first_coarse << ".."
       << range.end_coarse << ") needs about " << gib(need) << " of memory, more than the " << gib(avail)
       << " available; ";
+  // No chunk is smaller than its largest coarse element: when that one
+  // alone does not fit, no N helps.
   const Id H = mesh.num_coarse_elements();
-  if (n > static_cast<long double>(H))  // a chunk holds whole coarse elements: no N helps
-    msg << "a chunk holds whole coarse elements, and even " << H << " chunks (one per coarse element) would not fit: "
-        << "stream it instead (dicer export; Python: Store.batches()), or run where more memory is free";
+  MeshCursor cur;
+  const RowReader R(mesh.tables(), cur);
+  const bool vol = mesh.mode() == Mode::Volume;
+  long double largest = 0;
+  Id which = range.first_coarse;
+  for (Id h = range.first_coarse; h < range.end_coarse; ++h) {
+    const auto e = R.element(h).n;
+    const long double a = e[0], b = e[1], c = vol ? e[2] : 1;
+    const long double bytes = a * b * c * (12 + 8 * mesh.corners()) + (a + 1) * (b + 1) * (vol ? c + 1 : 1) * 40;
+    if (bytes > largest) largest = bytes, which = h;
+  }
+  if (largest > static_cast<long double>(avail))
+    msg << "a chunk holds whole coarse elements, and coarse element " << which << " alone needs about "
+        << gib(static_cast<std::uint64_t>(std::min<long double>(largest, static_cast<long double>(UINT64_MAX))))
+        << ": stream it instead (dicer export; Python: Store.batches()), or run where more memory is free";
   else
     msg << "take it in pieces: N chunks (--chunks N, --chunk K/N for K = 0..N-1; Python: chunk(k, N)) with N >= "
-        << static_cast<unsigned long long>(n);
+        << static_cast<unsigned long long>(std::min(n, static_cast<long double>(H)));
   throw Error(ErrorKind::Usage, msg.str());
 }
 

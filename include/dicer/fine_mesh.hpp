@@ -63,6 +63,9 @@ struct FineBlock {
   Id num_points() const { return static_cast<Id>(node_id.size()); }
   Id num_elements() const { return n[0] * n[1] * layers; }
   Id point_index(Id i, Id j, Id k) const { return i + (n[0] + 1) * (j + (n[1] + 1) * (k - plane0)); }
+  // Bytes its arrays hold (capacities, scratch included): what refilling
+  // it with an element no larger than the last needs no new memory for.
+  std::size_t held_bytes() const;
 
   // Work space of fill_block, kept here so a reused block allocates nothing.
   struct Scratch {
@@ -267,6 +270,26 @@ class FineMesh {
 // (RLIMIT_AS), what is not mapped yet. Reads /proc: for a check before a
 // large allocation, not per block.
 std::uint64_t available_memory_bytes();
+
+// The memory a coarse element takes to be read `how` (a slab of grid
+// planes, whole, ...) is O(interval^2) or more: an element too large for
+// this process is refused by name (a Usage error naming the store, the
+// element, its intervals, `how` and about `bytes`), before allocating when
+// the bytes beyond those the caller already holds (`held`, reused) exceed
+// 256 MiB and what available_memory_bytes() says is left, and on a failed
+// allocation (element_too_big). The kernel grants memory lazily: without
+// the check the machine would swap, or kill the process.
+Error element_too_big(const FineMesh& mesh, Id h, const std::array<Id, 3>& n, const char* how, double bytes);
+void check_element_memory(const FineMesh& mesh, Id h, const std::array<Id, 3>& n, const char* how,
+                          double bytes, double held);
+
+namespace detail {
+// What a memory cgroup (v2 memory.max - memory.current, v1
+// memory.limit_in_bytes - memory.usage_in_bytes, of the process's group
+// and its ancestors) leaves, in bytes; UINT64_MAX without a limit.
+// `proc_cgroup`: /proc/self/cgroup's text; `root`: the cgroup mount.
+std::uint64_t cgroup_memory_left(const std::string& proc_cgroup, const std::string& root);
+}  // namespace detail
 
 // Grid points a cursor's slab holds (rounded to whole planes, at least
 // one): 2^16 points are ~2 MiB of ids and coordinates at any interval.

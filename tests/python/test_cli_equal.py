@@ -151,6 +151,10 @@ def test_locate_equals_query_points(cli, sphere_store, tmp_path):
         s.locate(pts, max_distance=0.5)
     code, msg = cli.error("query", sphere_store, "--points", str(f), "--max-distance", "0.5")
     assert code == 2 and "is a volume store" in msg
+    # Before any point is read: an empty file too (it exited 0).
+    (tmp_path / "none.txt").write_text("")
+    code, msg = cli.error("query", sphere_store, "--points", str(tmp_path / "none.txt"), "--max-distance", "0.5")
+    assert code == 2 and "is a volume store" in msg
 
 
 def test_locate_on_a_surface_is_the_nearest_quad(cli, shell_store, tmp_path):
