@@ -129,7 +129,7 @@ int cmd_dice(const std::vector<std::string>& argv) {
       const bool second_order = mesh.second_order();
       diced.emplace(FineMesh::dice(std::move(mesh), req, &notes));
       if (lead)
-        for (const auto& n : notes) std::fprintf(stderr, "dicer dice: note: %s\n", n.c_str());
+        for (const auto& n : notes) std::fprintf(stderr, "dicer dice: note: %s\n", printable(n).c_str());
       throw_if_cancelled(nothing_written);
       if (second_order && with_cad) {
         if (lead)

@@ -55,7 +55,7 @@ int cmd_sheets(const std::vector<std::string>& argv) {
   const IntervalPlan plan = resolve_intervals(mesh, topo, sheets, intervals.request());
   for (const auto& w : mesh.warnings)
     std::fprintf(stderr, "dicer sheets: warning: %s: %s\n", printable(mesh.source).c_str(), printable(w).c_str());
-  for (const auto& n : plan.notes) std::fprintf(stderr, "dicer sheets: note: %s\n", n.c_str());
+  for (const auto& n : plan.notes) std::fprintf(stderr, "dicer sheets: note: %s\n", printable(n).c_str());
 
   std::vector<std::vector<Id>> sheet_edges;
   if (edges) {

@@ -110,7 +110,7 @@ int cmd_transfer(const std::vector<std::string>& argv) {
   };
   if (check) {
     if (json) report(Json::object());
-    else std::printf("%s\n", n.message.c_str());
+    else std::printf("%s\n", printable(n.message).c_str());
     store.report(fine);
     return n.nested && n.moved_nodes_differ == 0 ? kExitSuccess : kExitDefect;
   }

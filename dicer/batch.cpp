@@ -68,13 +68,17 @@ bool BatchCursor::next(FineBatch& out) {
 
 // About what a slab of the entered element holds: ids (and coordinates,
 // when asked) of its planes and of the element's boundary, connectivity of
-// its layers. A surface element is one plane, its own boundary.
+// its layers. A surface element is one plane, all boundary, which with
+// coordinates is held four times (the boundary scratch, its canonical
+// face, the block and the batch): 128 B a point (measured: 1.29 GB peak
+// for a quad of interval 3000).
 double BatchCursor::slab_bytes() const {
   const bool vol = n2_ > 0;
   const double n0 = static_cast<double>(n_[0]), n1 = static_cast<double>(n_[1]), n2 = static_cast<double>(n_[2]);
-  const double plane = (n0 + 1) * (n1 + 1), boundary = vol ? 2 * (n0 * n1 + n1 * n2 + n0 * n2) : 0;
-  const double layers = vol ? static_cast<double>(step_) : 1, points = (vol ? plane * (layers + 1) : plane) + boundary;
-  return points * (opt_.coords ? 32 : 8) + (opt_.conn ? n0 * n1 * layers * 8 * mesh_.corners() : 0);
+  const double plane = (n0 + 1) * (n1 + 1), conn = opt_.conn ? n0 * n1 * 8 * mesh_.corners() : 0;
+  if (!vol) return plane * (opt_.coords ? 128 : 16) + conn;
+  const double boundary = 2 * (n0 * n1 + n1 * n2 + n0 * n2), layers = static_cast<double>(step_);
+  return (plane * (layers + 1) + boundary) * (opt_.coords ? 32 : 8) + conn * layers;
 }
 
 void BatchCursor::throw_too_big() const { throw element_too_big(mesh_, h_, n_, kHow, slab_bytes()); }

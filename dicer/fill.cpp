@@ -432,6 +432,7 @@ void FineMesh::for_each_slab(Id hid, FineBlock& b, bool conn, const std::functio
     try {
       fill_slab(hid, k0, k1, b, true, conn);
     } catch (const std::bad_alloc&) {
+      if (bytes < double(1u << 28)) throw;  // a small element: memory ran out elsewhere
       throw element_too_big(*this, hid, n, how, bytes);
     }
   };

@@ -331,11 +331,25 @@ std::uint64_t cgroup_memory_left(const std::string& proc_cgroup, const std::stri
   std::uint64_t left = UINT64_MAX;
   // Each group from the process's own up to the mount (a cgroup namespace
   // shows its own group as the mount itself).
-  auto walk = [&](const std::string& base, std::string path, const char* limit, const char* usage) {
+  // Usage counts the page cache, which the kernel reclaims before it
+  // kills: inactive file pages are not spent (as `docker stats` counts).
+  auto inactive = [](const std::string& file, const std::string& key) -> std::uint64_t {
+    std::ifstream in(file);
+    std::string k;
+    std::uint64_t v = 0;
+    while (in >> k >> v)
+      if (k == key) return v;
+    return 0;
+  };
+  auto walk = [&](const std::string& base, std::string path, const char* limit, const char* usage, const char* stat_key) {
     while (true) {
       const std::string dir = base + path;
-      const std::uint64_t max = number(dir + "/" + limit), used = number(dir + "/" + usage);
-      if (max != UINT64_MAX) left = std::min(left, used == UINT64_MAX || used >= max ? max - std::min(max, used) : max - used);
+      const std::uint64_t max = number(dir + "/" + limit);
+      if (max != UINT64_MAX) {
+        std::uint64_t used = number(dir + "/" + usage);  // unreadable: unknown, not full
+        used = used == UINT64_MAX ? 0 : used - std::min(used, inactive(dir + "/memory.stat", stat_key));
+        left = std::min(left, max - std::min(max, used));
+      }
       if (path.empty() || path == "/") break;
       path.erase(path.find_last_of('/'));
     }
@@ -350,7 +364,7 @@ std::uint64_t cgroup_memory_left(const std::string& proc_cgroup, const std::stri
     if (b == std::string::npos) continue;
     const std::string controllers = line.substr(a + 1, b - a - 1), path = line.substr(b + 1);
     if (line.compare(0, a, "0") == 0 && controllers.empty()) {
-      walk(root, path, "memory.max", "memory.current");  // v2
+      walk(root, path, "memory.max", "memory.current", "inactive_file");  // v2
     } else {
       std::size_t c = 0;  // v1: "memory" among the comma-separated controllers
       bool memory = false;
@@ -359,7 +373,7 @@ std::uint64_t cgroup_memory_left(const std::string& proc_cgroup, const std::stri
         memory |= controllers.compare(c, e - c, "memory") == 0;
         c = e + 1;
       }
-      if (memory) walk(root + "/memory", path, "memory.limit_in_bytes", "memory.usage_in_bytes");
+      if (memory) walk(root + "/memory", path, "memory.limit_in_bytes", "memory.usage_in_bytes", "total_inactive_file");
     }
   }
   return left;

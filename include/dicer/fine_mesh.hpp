@@ -286,7 +286,8 @@ void check_element_memory(const FineMesh& mesh, Id h, const std::array<Id, 3>& n
 namespace detail {
 // What a memory cgroup (v2 memory.max - memory.current, v1
 // memory.limit_in_bytes - memory.usage_in_bytes, of the process's group
-// and its ancestors) leaves, in bytes; UINT64_MAX without a limit.
+// and its ancestors; usage less the reclaimable inactive file pages of
+// memory.stat) leaves, in bytes; UINT64_MAX without a limit.
 // `proc_cgroup`: /proc/self/cgroup's text; `root`: the cgroup mount.
 std::uint64_t cgroup_memory_left(const std::string& proc_cgroup, const std::string& root);
 }  // namespace detail

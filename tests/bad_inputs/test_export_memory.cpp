@@ -200,11 +200,12 @@ TEST(ExportMemory, BoxQueryOfOneHugeElementHoldsSlabsNotTheElement) {
   }
 }
 
-// Two quads at interval 1000: each is checked by verify whole (~0.35 GB)
-// and swept a slab at a time. What the command holds from the first is
+// Two quads: each is checked by verify whole (~0.35 GB at interval 1000)
+// and swept a plane at a time. What the command holds from the first is
 // reused for the second; the check counted it as spent, and refused the
-// second element as if it needed memory anew (sweep at interval 2000
-// under 900 MiB, verify here under 700 MiB: the first element had fitted).
+// second element as if it needed memory anew (verify under 700 MiB; a
+// sweep at interval 3000, ~1.2 GB an element, under 1.9 GB: the first
+// element had fitted).
 TEST(ExportMemory, AnElementAsLargeAsTheLastReusesItsMemory) {
 #ifdef DICER_SANITIZER_BUILD
   GTEST_SKIP() << "sanitizer builds shadow every allocation and take no address-space limit (the Release suite runs this)";
@@ -216,7 +217,7 @@ TEST(ExportMemory, AnElementAsLargeAsTheLastReusesItsMemory) {
                         "5 1 1 0\n6 2 1 0\n$EndNodes\n$Elements\n2\n1 3 2 1 1 1 2 5 4\n2 3 2 1 1 2 3 6 5\n"
                         "$EndElements\n");
   for (const auto& [interval, limit, cmd] :
-       {std::tuple<int, const char*, const char*>{1000, "734003200", "verify"}, {2000, "943718400", "sweep"}}) {
+       {std::tuple<int, const char*, const char*>{1000, "734003200", "verify"}, {3000, "1900000000", "sweep"}}) {
     const std::string store = d.path("two" + std::to_string(interval) + ".dice.h5");
     ASSERT_EQ(test::run_cli({"dice", msh, "--interval", std::to_string(interval), "-o", store}).exit_code, 0);
     std::vector<std::string> argv{"/usr/bin/prlimit", std::string("--as=") + limit, "--", DICER_CLI, cmd, store, "--quiet"};

@@ -38,6 +38,10 @@ TEST(MemoryLimits, CgroupV2GroupAndAncestors) {
   // Past its limit (usage can exceed it briefly): nothing left.
   put(root + "/user.slice/job/memory.current", "2500\n");
   EXPECT_EQ(cgroup_memory_left("0::/user.slice/job\n", root), 0u);
+  // The page cache counts in memory.current but is reclaimed before the
+  // kernel kills: inactive file pages are not spent (2000 - (2500 - 1200)).
+  put(root + "/user.slice/job/memory.stat", "anon 1000\nfile 1500\nactive_file 300\ninactive_file 1200\n");
+  EXPECT_EQ(cgroup_memory_left("0::/user.slice/job\n", root), 700u);
   // A namespace shows the group as the mount itself ("0::/").
   put(root + "/memory.max", "8000\n");
   put(root + "/memory.current", "500\n");
@@ -57,6 +61,8 @@ TEST(MemoryLimits, CgroupV1MemoryController) {
   put(root + "/memory/docker/memory.usage_in_bytes", "1096\n");
   const std::string self = "12:pids:/docker/abc\n4:cpu,memory:/docker/abc\n1:name=systemd:/docker/abc\n0::/\n";
   EXPECT_EQ(cgroup_memory_left(self, root), 3000u);
+  put(root + "/memory/docker/memory.stat", "cache 900\ninactive_file 800\ntotal_inactive_file 1000\n");
+  EXPECT_EQ(cgroup_memory_left(self, root), 4000u);  // v1's hierarchical total_ key, not the group's own
   // The memory controller alone decides: other controllers' limits are no
   // memory limits.
   EXPECT_EQ(cgroup_memory_left("4:cpu:/docker/abc\n", root), UINT64_MAX);
