@@ -329,8 +329,6 @@ std::uint64_t cgroup_memory_left(const std::string& proc_cgroup, const std::stri
     return v >= (std::uint64_t{1} << 62) ? UINT64_MAX : v;
   };
   std::uint64_t left = UINT64_MAX;
-  // Each group from the process's own up to the mount (a cgroup namespace
-  // shows its own group as the mount itself).
   // Usage counts the page cache, which the kernel reclaims before it
   // kills: inactive file pages are not spent (as `docker stats` counts).
   auto inactive = [](const std::string& file, const std::string& key) -> std::uint64_t {
@@ -341,6 +339,8 @@ std::uint64_t cgroup_memory_left(const std::string& proc_cgroup, const std::stri
       if (k == key) return v;
     return 0;
   };
+  // Each group from the process's own up to the mount (a cgroup namespace
+  // shows its own group as the mount itself).
   auto walk = [&](const std::string& base, std::string path, const char* limit, const char* usage, const char* stat_key) {
     while (true) {
       const std::string dir = base + path;
@@ -350,8 +350,9 @@ std::uint64_t cgroup_memory_left(const std::string& proc_cgroup, const std::stri
         used = used == UINT64_MAX ? 0 : used - std::min(used, inactive(dir + "/memory.stat", stat_key));
         left = std::min(left, max - std::min(max, used));
       }
-      if (path.empty() || path == "/") break;
-      path.erase(path.find_last_of('/'));
+      const std::size_t up = path.find_last_of('/');
+      if (path.empty() || path == "/" || up == std::string::npos) break;  // paths start with '/'
+      path.erase(up);
     }
   };
   std::size_t at = 0;

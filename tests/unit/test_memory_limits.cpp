@@ -49,6 +49,7 @@ TEST(MemoryLimits, CgroupV2GroupAndAncestors) {
   // No limit anywhere, or no such group: none.
   EXPECT_EQ(cgroup_memory_left("0::/elsewhere\n", d.path("empty")), UINT64_MAX);
   EXPECT_EQ(cgroup_memory_left("", root), UINT64_MAX);
+  EXPECT_EQ(cgroup_memory_left("0::relative\nnot a line\n::\n", root), UINT64_MAX);  // odd lines: no throw
 }
 
 TEST(MemoryLimits, CgroupV1MemoryController) {
