@@ -500,6 +500,17 @@ SetCounts global_set_counts(const FineMesh& mesh, const MeshSets& sets) {
 
 // ---- memory estimate ---------------------------------------------------------
 
+namespace {
+
+// What prepare() keeps (ExportChunk's members): per element its global id,
+// block index and connectivity; per node its global id, x, y, z, owner,
+// using blocks. estimate_chunk_bytes and refuse_if_too_big's largest-element
+// bound both use these rates.
+constexpr unsigned chunk_bytes_per_element(int corners) { return 8 + 4 + 8 * static_cast<unsigned>(corners); }
+constexpr unsigned kChunkBytesPerNode = 8 + 24 + 4 + 4;
+
+}  // namespace
+
 std::uint64_t estimate_chunk_bytes(const FineMesh& mesh, const ChunkRange& range) {
   MeshCursor cur;
   const RowReader R(mesh.tables(), cur);
@@ -510,11 +521,8 @@ std::uint64_t estimate_chunk_bytes(const FineMesh& mesh, const ChunkRange& range
   // The chunk's own nodes; those it shares with lower chunks lie on one
   // boundary surface, small beside them, and are not counted.
   const Id nodes = own[1] - own[0];
-  // What prepare() keeps (ExportChunk's members): per element its global id,
-  // block index and connectivity; per node its global id, x, y, z, owner,
-  // using blocks.
-  const unsigned __int128 per_element = 8 + 4 + 8 * static_cast<unsigned>(mesh.corners());
-  const unsigned __int128 per_node = 8 + 24 + 4 + 4;
+  const unsigned __int128 per_element = chunk_bytes_per_element(mesh.corners());
+  const unsigned __int128 per_node = kChunkBytesPerNode;
   const unsigned __int128 bytes = per_element * static_cast<std::uint64_t>(std::max<Id>(elements, 0)) +
                                   per_node * static_cast<std::uint64_t>(std::max<Id>(nodes, 0));
   return bytes > UINT64_MAX ? UINT64_MAX : static_cast<std::uint64_t>(bytes);
@@ -555,7 +563,8 @@ void refuse_if_too_big(const FineMesh& mesh, const ChunkRange& range) {
   for (Id h = range.first_coarse; h < range.end_coarse; ++h) {
     const auto e = R.element(h).n;
     const long double a = e[0], b = e[1], c = vol ? e[2] : 1;
-    const long double bytes = a * b * c * (12 + 8 * mesh.corners()) + (a + 1) * (b + 1) * (vol ? c + 1 : 1) * 40;
+    const long double bytes = a * b * c * chunk_bytes_per_element(mesh.corners()) +
+                              (a + 1) * (b + 1) * (vol ? c + 1 : 1) * kChunkBytesPerNode;
     if (bytes > largest) largest = bytes, which = h;
   }
   if (largest > static_cast<long double>(avail))
