@@ -25,8 +25,30 @@ rm -rf "$work"; mkdir -p "$work"; cd "$work"
 
 "$dicer" dice "$data/cardinal_prism.exo" --interval 3 -o prism.dice.h5 --quiet
 "$dicer" dice "$data/libmesh_cylinder_shell.exo" --interval 3 -o shell.dice.h5 --quiet
+# A row of four hexes split at x = 2 (the layer of vertices there written
+# twice): verify's report then carries coincident-node warnings and counts
+# that the parts must merge as one process finds them, wherever P cuts.
+$py - > split.msh <<'PY'
+nodes, elems = [], []
+nid = lambda i, j, k, dup: 1 + i + 5 * (j + 2 * k) + (100 if dup else 0)
+for dup in (0, 1):
+    for k in range(2):
+        for j in range(2):
+            for i in range(5):
+                if not dup or i == 2:
+                    nodes.append("%d %d %d %d" % (nid(i, j, k, dup), i, j, k))
+for e in range(4):
+    c = lambda i, j, k: nid(i, j, k, i == 2 and e >= 2)
+    corners = [c(e, 0, 0), c(e + 1, 0, 0), c(e + 1, 1, 0), c(e, 1, 0), c(e, 0, 1), c(e + 1, 0, 1), c(e + 1, 1, 1), c(e, 1, 1)]
+    elems.append("%d 5 2 %d 1 %s" % (e + 1, 1 + e // 2, " ".join(map(str, corners))))
+print("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n%d\n%s\n$EndNodes" % (len(nodes), "\n".join(nodes)))
+print("$Elements\n%d\n%s\n$EndElements" % (len(elems), "\n".join(elems)))
+PY
+"$dicer" dice split.msh --interval 3 -o split.dice.h5 --quiet 2> /dev/null
+# The split face at interval 3 holds 4 x 4 fine nodes, each twice: 32.
+"$dicer" verify split.dice.h5 --json | grep -q '"coincident_interface":32,' || fail "split: verify does not find the 32 interface nodes"
 
-for s in prism shell; do
+for s in prism shell split; do
   one=$("$dicer" sweep $s.dice.h5 --json --threads 1)
   many=$(run sweep $s.dice.h5 --json --threads 1)
   field() { $py -c "import json,sys; print(json.loads(sys.argv[1])[sys.argv[2]])" "$1" "$2"; }
