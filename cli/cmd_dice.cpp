@@ -167,21 +167,21 @@ int cmd_dice(const std::vector<std::string>& argv) {
     });
     if (!lead) return 0;
     if (!quiet)
-      std::printf("diced %s: %lld coarse %s -> %s fine nodes, %s fine elements (%lld sheets); wrote %s\n", in.c_str(),
+      std::printf("diced %s: %lld coarse %s -> %s fine nodes, %s fine elements (%lld sheets); wrote %s\n", printable(in).c_str(),
                   static_cast<long long>(fine.num_coarse_elements()), fine.mode() == Mode::Volume ? "hexes" : "quads",
                   human_count(fine.num_nodes()).c_str(), human_count(fine.num_elements()).c_str(),
-                  static_cast<long long>(fine.info().sheets), out.c_str());
+                  static_cast<long long>(fine.info().sheets), printable(out).c_str());
     if (quad.second_order && !quiet)
       std::printf("second order %s: %lld edges and %lld faces curved = %s bounding nodes; min scaled Jacobian %.4f over "
                   "%s elements checked\n",
-                  in.c_str(), static_cast<long long>(quad.edges_curved), static_cast<long long>(quad.faces_curved),
+                  printable(in).c_str(), static_cast<long long>(quad.edges_curved), static_cast<long long>(quad.faces_curved),
                   human_count(quad.bounding_nodes).c_str(), quad.min_scaled_jacobian,
                   human_count(quad.elements_checked).c_str());
     if (with_cad && !quiet)
       std::printf("geometry %s: %lld vertices on the CAD (largest snap %.3g), %lld edges on curves, %lld on surfaces, "
                   "%lld faces on surfaces; moved %lld edges + %lld faces = %s bounding nodes (%lld by closest point); "
                   "min scaled Jacobian %.4f over %s elements checked\n",
-                  cad.c_str(), static_cast<long long>(geo.vertices_on_cad), geo.max_vertex_snap,
+                  printable(cad).c_str(), static_cast<long long>(geo.vertices_on_cad), geo.max_vertex_snap,
                   static_cast<long long>(geo.edges_on_curves), static_cast<long long>(geo.edges_on_surfaces),
                   static_cast<long long>(geo.faces_on_surfaces), static_cast<long long>(geo.edges_moved),
                   static_cast<long long>(geo.faces_moved), human_count(geo.bounding_nodes).c_str(),

@@ -167,8 +167,8 @@ int export_ranks(const std::string& path, const std::string& out, const std::str
   MPI_Reduce(counts, totals, 2, MPI_LONG_LONG, MPI_SUM, 0, mpi.comm());
   if (r == 0 && !quiet)
     std::printf("exported %s: %lld fine elements, %lld nodes (shared ones once per rank) from %d %s to %s%s\n",
-                path.c_str(), totals[0], totals[1], P, P == 1 ? "rank" : "ranks", out.c_str(),
-                format == "vtkhdf" ? "" : (" (" + nemesis_path(out, P, 0) + " ...)").c_str());
+                printable(path).c_str(), totals[0], totals[1], P, P == 1 ? "rank" : "ranks", printable(out).c_str(),
+                format == "vtkhdf" ? "" : (" (" + printable(nemesis_path(out, P, 0)) + " ...)").c_str());
   store.report(m);
   return 0;
 }
@@ -342,11 +342,11 @@ int cmd_export(const std::vector<std::string>& argv) {
     std::fprintf(stderr, "dicer export: note: the box holds no fine element; %s holds none\n", out.c_str());
   if (!quiet) {
     const Id n = static_cast<Id>(ranges.size());
-    std::printf("exported %s: %lld fine elements, %lld nodes%s in %lld %s to %s\n", path.c_str(),
+    std::printf("exported %s: %lld fine elements, %lld nodes%s in %lld %s to %s\n", printable(path).c_str(),
                 static_cast<long long>(written_elements), static_cast<long long>(written_nodes),
                 n > 1 ? " (shared ones once per chunk)" : "", static_cast<long long>(n), n == 1 ? "chunk" : "chunks",
-                nemesis ? (nemesis_path(out, n, 0) + (n > 1 ? " ... " + nemesis_path(out, n, n - 1) : "")).c_str()
-                        : out.c_str());
+                printable(nemesis ? nemesis_path(out, n, 0) + (n > 1 ? " ... " + nemesis_path(out, n, n - 1) : "") : out)
+                    .c_str());
   }
   store.report(m);
   return 0;

@@ -70,7 +70,7 @@ int cmd_footprint(const std::vector<std::string>& argv) {
     return 0;
   }
   const double ne = static_cast<double>(m.num_elements());
-  std::printf("footprint of %s (%s fine nodes, %s fine elements)\n", path.c_str(), human_count(m.num_nodes()).c_str(),
+  std::printf("footprint of %s (%s fine nodes, %s fine elements)\n", printable(path).c_str(), human_count(m.num_nodes()).c_str(),
               human_count(m.num_elements()).c_str());
   std::printf("  %-22s %12s %14s\n", "", "bytes", "per fine elem");
   auto row = [&](const char* what, std::uint64_t b) {

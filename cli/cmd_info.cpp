@@ -74,7 +74,7 @@ int cmd_info(const std::vector<std::string>& argv) {
                 {"fine_elements", m.num_elements()},
                 {"blocks", blocks}});
   } else {
-    std::printf("store      %s (%s, format version %d)\n", path.c_str(), human_bytes(s.file_bytes).c_str(), s.format_version);
+    std::printf("store      %s (%s, format version %d)\n", printable(path).c_str(), human_bytes(s.file_bytes).c_str(), s.format_version);
     std::printf("source     %s%s\nmode       %s\n", printable(c.source).c_str(),
                 c.source_order == 2 ? " (second order: HEX20/27 or QUAD8/9)" : "", mode_name(m.mode()));
     std::printf("coarse     %lld vertices, %lld edges, %lld faces, %lld %s\n", ll(c.coarse_vertices), ll(c.coarse_edges),

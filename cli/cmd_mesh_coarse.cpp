@@ -61,10 +61,10 @@ int cmd_mesh_coarse(const std::vector<std::string>& argv) {
   opt.subdivide = subdivide;
   const CoarseMeshReport r = mesh_coarse(cad, out, opt);
   if (!quiet)
-    std::printf("meshed %s (%lld volumes, %lld surfaces) by %s: %lld coarse %s, %lld vertices; wrote %s\n", cad.c_str(),
+    std::printf("meshed %s (%lld volumes, %lld surfaces) by %s: %lld coarse %s, %lld vertices; wrote %s\n", printable(cad).c_str(),
                 static_cast<long long>(r.volumes), static_cast<long long>(r.surfaces), r.method.c_str(),
                 static_cast<long long>(r.elements), opt.surface ? "quads" : "hexes", static_cast<long long>(r.vertices),
-                out.c_str());
+                printable(out).c_str());
   return 0;
 }
 

@@ -90,7 +90,7 @@ int cmd_sheets(const std::vector<std::string>& argv) {
     return 0;
   }
   std::printf("%lld sheets in %s\n%8s %8s %8s %16s  %s\n", static_cast<long long>(sheets.num_sheets()),
-              mesh.source.c_str(), "sheet", "edges", "interval", "bias", "blocks");
+              printable(mesh.source).c_str(), "sheet", "edges", "interval", "bias", "blocks");
   for (Id s = 0; s < sheets.num_sheets(); ++s) {
     std::string blocks;
     for (Id b : blocks_of(s)) blocks += (blocks.empty() ? "" : " ") + std::to_string(b);

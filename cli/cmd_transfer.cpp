@@ -131,7 +131,7 @@ int cmd_transfer(const std::vector<std::string>& argv) {
   if (json) {
     report({{"output", out}, {"format", format}, {"nonzeros", p.nonzeros()}, {"bytes", bytes}, {"seconds", secs}});
   } else {
-    std::printf("wrote %s: P is %s x %s with %s non-zeros (%s, %.2f bytes per non-zero) in %.2f s\n", out.c_str(),
+    std::printf("wrote %s: P is %s x %s with %s non-zeros (%s, %.2f bytes per non-zero) in %.2f s\n", printable(out).c_str(),
                 human_count(p.rows()).c_str(), human_count(p.cols()).c_str(), human_count(p.nonzeros()).c_str(),
                 human_bytes(bytes).c_str(), p.nonzeros() ? static_cast<double>(bytes) / static_cast<double>(p.nonzeros()) : 0.0,
                 secs);

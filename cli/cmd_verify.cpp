@@ -160,7 +160,7 @@ int report(const std::string& path, bool with_cad, const std::string& cad, bool 
                   g.tolerance, g.diagonal > 0 ? g.max_distance / g.diagonal : 0.0, ll(g.nodes_checked));
     if (with_cad && g.nodes_checked == 0)
       std::printf("    no node of the store was measured: none is on a CAD curve or surface%s (dice with --geometry %s)\n",
-                  g.unplaced_faces > 0 ? ", and its unplaced boundary faces have no interior nodes" : "", cad.c_str());
+                  g.unplaced_faces > 0 ? ", and its unplaced boundary faces have no interior nodes" : "", printable(cad).c_str());
     else if (with_cad && g.unplaced_faces > 0)
       std::printf("    %lld boundary coarse faces are on no CAD surface in the store (diced without --geometry): "
                   "their nodes measured against the nearest surface%s\n",

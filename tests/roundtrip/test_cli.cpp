@@ -308,6 +308,27 @@ TEST(Cli, MessagesShowControlAndNonUtf8BytesAsEscapes) {
   r = run_cli({"info", tmp.path("maillage-\xc3\xa9t\xc3\xa9\xc2\x9b.dice.h5")});
   EXPECT_EQ(r.exit_code, 5) << r.err;
   EXPECT_NE(r.err.find("maillage-\xc3\xa9t\xc3\xa9\\u009b.dice.h5"), std::string::npos) << r.err;
+  // Success lines echo the paths they were given the same way.
+  auto all_plain = [](const std::string& out) {
+    for (char c : out)
+      if (c != '\n' && (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) >= 0x7f)) return false;
+    return !out.empty();
+  };
+  const std::string odd_store = tmp.path("out\n\x1b[2J\xff.dice.h5");
+  const std::string shown = tmp.path("out\\n\\x1b[2J\\xff.dice.h5");
+  r = run_cli({"dice", test::data_path("cardinal_brick.e"), "--interval", "1", "-o", odd_store});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("wrote " + shown + "\n"), std::string::npos) << r.out;
+  EXPECT_TRUE(all_plain(r.out)) << r.out;
+  const std::string odd_vtk = tmp.path("x\x1b[2J.vtkhdf");
+  for (const std::vector<std::string>& args :
+       {std::vector<std::string>{"info", odd_store}, {"footprint", odd_store}, {"verify", odd_store},
+        {"export", odd_store, "-o", odd_vtk}, {"export", odd_store, "-o", tmp.path("x\x1b[2J.e"), "--chunks", "2", "--format", "exodus", "--nemesis"}}) {
+    r = run_cli(args);
+    EXPECT_EQ(r.exit_code, 0) << args[0] << ": " << r.err;
+    EXPECT_NE(r.out.find(shown), std::string::npos) << args[0] << ": " << r.out;
+    EXPECT_TRUE(all_plain(r.out)) << args[0] << ": " << r.out;
+  }
 }
 
 TEST(Cli, BadStoresAreRefusedClearly) {
