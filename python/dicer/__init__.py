@@ -123,6 +123,25 @@ def _check_output(path, role, inputs):
                              "writing it would destroy the input")
 
 
+def _text(value):
+    # A value as a message shows it, at most 60 characters; None where str()
+    # raises: an int past Python's digit limit (4300), a user's __str__.
+    try:
+        text = str(value)
+    except Exception:
+        return None
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _quoted(value):
+    text = _text(value)
+    if text is not None:
+        return f'"{text}"'
+    if isinstance(value, int):
+        return f"an integer of {value.bit_length()} bits"
+    return f"a {type(value).__name__}"
+
+
 def _whole(what, value):
     # bool is an int in Python; an interval of True is a mistake, not 1.
     if isinstance(value, bool) or not isinstance(value, int):
@@ -132,9 +151,9 @@ def _whole(what, value):
                 return int(value)
         except ImportError:
             pass
-        raise UsageError(f'{what}: "{value}" is not a whole number')
+        raise UsageError(f"{what}: {_quoted(value)} is not a whole number")
     if not -(1 << 63) <= value < (1 << 63):
-        raise IdOverflowError(f'{what}: "{value}" does not fit in 64 bits')
+        raise IdOverflowError(f"{what}: {_quoted(value)} does not fit in 64 bits")
     return value
 
 
@@ -142,13 +161,13 @@ def _finite(what, value):
     # float("0.5") would take a string: a number is asked for, as --size's
     # value is one on the command line only because argv is text.
     if isinstance(value, (str, bytes)):
-        raise UsageError(f'{what}: "{value}" is not a finite number (a number, not a string)')
+        raise UsageError(f"{what}: {_quoted(value)} is not a finite number (a number, not a string)")
     try:
         v = float(value)
-    except (TypeError, ValueError):
-        raise UsageError(f'{what}: "{value}" is not a finite number') from None
+    except (TypeError, ValueError, OverflowError):
+        raise UsageError(f"{what}: {_quoted(value)} is not a finite number") from None
     if v != v or v in (float("inf"), float("-inf")) or isinstance(value, bool):
-        raise UsageError(f'{what}: "{value}" is not a finite number')
+        raise UsageError(f"{what}: {_quoted(value)} is not a finite number")
     return v
 
 
@@ -157,8 +176,10 @@ def _pairs(what, mapping, key):
         return []
     items = mapping.items() if hasattr(mapping, "items") else mapping
     out = []
+    label = lambda v: _text(v) or f"<{_quoted(v)}>"
     for k, n in items:
-        out.append((key(f"{what} {k}={n}", k), _whole(f"{what} {k}={n}", n)))
+        shown = f"{what} {label(k)}={label(n)}"
+        out.append((key(shown, k), _whole(shown, n)))
     return out
 
 

@@ -177,15 +177,49 @@ struct IdSelection {
   size_t size() const { return range ? static_cast<size_t>(b - a) : ids.size(); }
 };
 
+// A value as a message quotes it, at most 60 characters (dicer._quoted):
+// str() of an int past Python's digit limit (4300) raises, and so may a
+// user's __str__.
+std::string quoted(const py::handle& v) {
+  try {
+    std::string text = py::str(v);
+    if (text.size() > 60) text = text.substr(0, 57) + "...";
+    return "\"" + text + "\"";
+  } catch (const py::error_already_set&) {
+  }
+  try {
+    if (PyLong_Check(v.ptr())) return "an integer of " + std::string(py::str(v.attr("bit_length")())) + " bits";
+    return "a " + std::string(py::str(py::type::handle_of(v).attr("__name__")));
+  } catch (const py::error_already_set&) {
+    return "a value";
+  }
+}
+
+// Python's bool and numpy's (numpy.bool_, numpy.bool in numpy 2): both
+// have __index__, and an id of True is a mistake, not 1.
+bool is_bool(const py::handle& v) {
+  if (PyBool_Check(v.ptr())) return true;
+  const py::handle t = py::type::handle_of(v);
+  if (!py::hasattr(t, "__module__") || std::string(py::str(t.attr("__module__"))) != "numpy") return false;
+  const std::string name = py::str(t.attr("__name__"));
+  return name == "bool_" || name == "bool";
+}
+
 // A Python int or numpy integer (anything with __index__ but a bool, as
 // dicer._whole): an id. Beyond 64 bits: IdOverflowError, as _whole.
 Id whole_id(const py::object& v, const std::string& what) {
-  if (PyBool_Check(v.ptr()) || !py::hasattr(v, "__index__"))
-    throw Error(ErrorKind::Usage, what + ": \"" + std::string(py::str(v)) + "\" is not a whole number");
-  const py::object i = v.attr("__index__")();
+  const auto not_whole = [&] { return Error(ErrorKind::Usage, what + ": " + quoted(v) + " is not a whole number"); };
+  if (is_bool(v) || !py::hasattr(v, "__index__")) throw not_whole();
+  py::object i;
+  try {
+    i = v.attr("__index__")();
+  } catch (const py::error_already_set&) {
+    throw not_whole();
+  }
+  if (!PyLong_Check(i.ptr())) throw not_whole();
   int overflow = 0;
   const long long out = PyLong_AsLongLongAndOverflow(i.ptr(), &overflow);
-  if (overflow != 0) throw Error(ErrorKind::Overflow, what + ": \"" + std::string(py::str(v)) + "\" does not fit in 64 bits");
+  if (overflow != 0) throw Error(ErrorKind::Overflow, what + ": " + quoted(v) + " does not fit in 64 bits");
   if (out == -1 && PyErr_Occurred()) throw py::error_already_set();
   return out;
 }
@@ -651,7 +685,7 @@ std::pair<Id, Id> coarse_range(const FineMesh& m, const py::object& chunk) {
   // said as such (pybind11's cast said "RuntimeError: Unable to cast").
   if (!py::isinstance<py::sequence>(chunk) || py::isinstance<py::str>(chunk) || py::isinstance<py::bytes>(chunk) ||
       py::len(chunk) != 2)
-    throw Error(ErrorKind::Usage, "chunk: \"" + std::string(py::str(chunk)) + "\" is not (k, n), two whole numbers");
+    throw Error(ErrorKind::Usage, "chunk: " + quoted(chunk) + " is not (k, n), two whole numbers");
   const py::sequence seq = chunk.cast<py::sequence>();
   const std::pair<Id, Id> kn{whole_id(seq[0], "chunk (k, n): k"), whole_id(seq[1], "chunk (k, n): n")};
   const ChunkRange r = checked_plan(m, kn.first, kn.second)[static_cast<size_t>(kn.first)];

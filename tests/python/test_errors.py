@@ -85,6 +85,11 @@ def test_bad_intervals(cli, tmp_path):
         dicer.dice(s, o, interval=2.5)  # not a whole number: refused, never rounded
     with pytest.raises(dicer.UsageError):
         dicer.dice(s, o, interval=True)
+    # Past Python's 4300-digit str() limit: named by size, not a ValueError.
+    with pytest.raises(dicer.IdOverflowError, match="--interval: an integer of 16610 bits does not fit in 64 bits"):
+        dicer.dice(s, o, interval=10**5000)
+    with pytest.raises(dicer.IdOverflowError, match="--sheet-interval 0=<an integer of 16610 bits>: an integer of"):
+        dicer.dice(s, o, sheet_intervals={0: 10**5000})
     assert not o.exists()
 
 
@@ -116,6 +121,19 @@ def test_query_out_of_range(cli, sphere_store):
             call(2**63)
         with pytest.raises(dicer.UsageError, match="is not a whole number"):
             call(1.5)
+        # numpy's bool has __index__ (True would be id 1), as Python's has.
+        for flag in (True, np.bool_(True)):
+            with pytest.raises(dicer.UsageError, match=r"\(id\): \"True\" is not a whole number"):
+                call(flag)
+        # str() of an int past 4300 digits raises ValueError: the message
+        # names its size instead (10**5000 needs 16610 bits).
+        with pytest.raises(dicer.IdOverflowError, match=r"\(id\): an integer of 16610 bits does not fit in 64 bits"):
+            call(10**5000)
+    with pytest.raises(dicer.IdOverflowError, match="an integer of 16610 bits does not fit"):
+        s.nodes(10**5000, 10**5000 + 1)
+    # A long value is quoted in 60 characters.
+    with pytest.raises(dicer.UsageError, match=r'chunk: "\[0, 0, 0, 0, .{44}\.\.\." is not \(k, n\)'):
+        s.batches(chunk=[0] * 100)
     assert np.array_equal(s.element_neighbors(np.int64(0)), s.element_neighbors(0))
     for bad in (3, "0/2", (0,), (0, 1, 2)):
         with pytest.raises(dicer.UsageError, match="is not \\(k, n\\), two whole numbers"):
