@@ -102,4 +102,38 @@ std::vector<std::string> allgather_bytes(MPI_Comm comm, const std::string& mine)
   return out;
 }
 
+std::vector<std::string> gather_bytes(MPI_Comm comm, std::string mine, std::int64_t piece) {
+  int rank = 0, P = 1;
+  MPI_Comm_rank(comm, &rank);
+  MPI_Comm_size(comm, &P);
+  if (piece < 1 || piece > std::numeric_limits<int>::max())
+    throw Error(ErrorKind::Usage, "gather_bytes: a piece of " + std::to_string(piece) + " bytes");
+  const std::int64_t size = static_cast<std::int64_t>(mine.size());
+  std::vector<std::int64_t> sizes(static_cast<size_t>(P));
+  if (MPI_Gather(&size, 1, MPI_INT64_T, sizes.data(), 1, MPI_INT64_T, 0, comm) != MPI_SUCCESS)
+    throw Error(ErrorKind::Io, "MPI_Gather failed");
+  std::vector<std::string> out;
+  collectively(comm, [&] {
+    if (rank != 0) return;
+    out.resize(static_cast<size_t>(P));
+    for (int q = 1; q < P; ++q) out[q].resize(static_cast<size_t>(sizes[q]));
+    out[0] = std::move(mine);
+  });
+  constexpr int kTag = 7101;  // this exchange's messages, apart from any other point-to-point traffic
+  auto pieces = [&](std::int64_t total, auto&& move) {
+    for (std::int64_t at = 0; at < total; at += piece)
+      if (move(at, static_cast<int>(std::min(piece, total - at))) != MPI_SUCCESS)
+        throw Error(ErrorKind::Io, "gather_bytes: a point-to-point transfer failed");
+  };
+  if (rank == 0) {
+    for (int q = 1; q < P; ++q)
+      pieces(sizes[q], [&](std::int64_t at, int n) {
+        return MPI_Recv(out[q].data() + at, n, MPI_BYTE, q, kTag, comm, MPI_STATUS_IGNORE);
+      });
+  } else {
+    pieces(size, [&](std::int64_t at, int n) { return MPI_Send(mine.data() + at, n, MPI_BYTE, 0, kTag, comm); });
+  }
+  return out;
+}
+
 }  // namespace dicer::mpi

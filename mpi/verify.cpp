@@ -9,8 +9,8 @@ namespace dicer::mpi {
 namespace {
 
 // A part as bytes: counters, then the three entity lists, then the notes.
-std::vector<char> pack(const VerifyPart& p) {
-  std::vector<char> out;
+std::string pack(const VerifyPart& p) {
+  std::string out;
   auto put = [&](const void* d, size_t n) {
     if (n == 0) return;
     const size_t at = out.size();
@@ -85,26 +85,19 @@ VerifyReport verify_distributed(MPI_Comm comm, const FineMesh& mesh, const std::
   int rank = 0, size = 1;
   MPI_Comm_rank(comm, &rank);
   MPI_Comm_size(comm, &size);
-  std::vector<char> mine;
+  std::string mine;
   collectively(comm, [&] {
     const ChunkRange c = plan_chunks(mesh, size)[static_cast<size_t>(rank)];
     mine = pack(verify_part(mesh, c.first_coarse, c.end_coarse, progress));
   });
-  const int n = static_cast<int>(mine.size());
-  std::vector<int> sizes(static_cast<size_t>(size)), displs(static_cast<size_t>(size));
-  MPI_Gather(&n, 1, MPI_INT, sizes.data(), 1, MPI_INT, 0, comm);
-  std::vector<char> all;
-  if (rank == 0) {
-    int total = 0;
-    for (int q = 0; q < size; ++q) displs[q] = total, total += sizes[q];
-    all.resize(static_cast<size_t>(total));
-  }
-  MPI_Gatherv(mine.data(), n, MPI_CHAR, all.data(), sizes.data(), displs.data(), MPI_CHAR, 0, comm);
+  // Rank 0's parts total some 220 bytes a coarse hex: past MPI's 2 GiB of
+  // one collective near 10^7 of them, so they come in pieces.
+  const std::vector<std::string> all = gather_bytes(comm, std::move(mine));
   VerifyReport report;
   collectively(comm, [&] {
     if (rank != 0) return;
     std::vector<VerifyPart> parts;
-    for (int q = 0; q < size; ++q) parts.push_back(unpack(all.data() + displs[q], static_cast<size_t>(sizes[q])));
+    for (const std::string& part : all) parts.push_back(unpack(part.data(), part.size()));
     report = verify_finish(mesh, parts);
   });
   return report;

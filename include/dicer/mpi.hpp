@@ -13,6 +13,7 @@
 // only one prints a message.
 #include <mpi.h>
 
+#include <cstdint>
 #include <exception>
 #include <string>
 #include <vector>
@@ -103,6 +104,14 @@ void collectively(MPI_Comm comm, Fn&& fn) {
 // Error{Overflow} on every rank, after the sizes are exchanged (no rank is
 // left waiting). Collective; what ConformOptions::share needs.
 std::vector<std::string> allgather_bytes(MPI_Comm comm, const std::string& mine);
+
+// Every rank's bytes, in rank order, on rank 0 (empty elsewhere): parts of
+// any size, sent point to point in pieces of at most `piece` bytes (MPI's
+// counts are int; rank 0's total passes 2 GiB where verify's parts of a
+// mesh near 10^7 coarse hexes meet). Rank 0 sizes its buffers before any
+// piece travels, collectively: a failed allocation there is every rank's
+// Error, not a sender blocked forever. Collective.
+std::vector<std::string> gather_bytes(MPI_Comm comm, std::string mine, std::int64_t piece = std::int64_t{1} << 30);
 
 // The sharing runs of this rank's chunk (partition.hpp), exchanged with the
 // owners of its ghost runs: two all-to-all rounds, messages proportional to

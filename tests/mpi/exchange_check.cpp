@@ -3,7 +3,8 @@
 // on the stores named on the command line, every rank's
 // exchange_sharing() equals in_process_sharing()[rank], and the shared
 // node lists of make_partition() name the same global ids, in the same
-// order, on both sides of every neighbour pair (checked by sending them).
+// order, on both sides of every neighbour pair (checked by sending them);
+// gather_bytes brings every rank's bytes to rank 0 whatever the piece size.
 // Exit 0 when every rank agrees, 1 otherwise.
 #include <mpi.h>
 
@@ -62,6 +63,34 @@ int check(const FineMesh& mesh, const std::string& what, int rank, int size) {
   return bad;
 }
 
+// gather_bytes in pieces of 1 byte, 7 bytes and 1 GiB: rank q's part is
+// 37q + 11 bytes of a pattern derived from q alone (rank 1's is empty in
+// the first round), so rank 0 knows what each part must be.
+int check_gather(int rank, int size) {
+  int bad = 0;
+  auto part = [](int q, int which) {
+    std::string s(static_cast<size_t>(which == 0 && q == 1 ? 0 : 37 * q + 11), '\0');
+    for (size_t i = 0; i < s.size(); ++i) s[i] = static_cast<char>((q * 131 + static_cast<int>(i) * 7) & 0xff);
+    return s;
+  };
+  int which = 0;
+  for (std::int64_t piece : {std::int64_t{1}, std::int64_t{7}, std::int64_t{1} << 30}) {
+    const auto all = mpi::gather_bytes(MPI_COMM_WORLD, part(rank, which), piece);
+    if (rank == 0) {
+      for (int q = 0; q < size; ++q)
+        if (static_cast<int>(all.size()) != size || all[static_cast<size_t>(q)] != part(q, which)) {
+          std::fprintf(stderr, "gather_bytes (pieces of %lld): rank %d's part differs\n", static_cast<long long>(piece), q);
+          bad = 1;
+        }
+    } else if (!all.empty()) {
+      std::fprintf(stderr, "gather_bytes: rank %d got %zu parts, not none\n", rank, all.size());
+      bad = 1;
+    }
+    ++which;
+  }
+  return bad;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -70,6 +99,7 @@ int main(int argc, char** argv) {
   MPI_Comm_rank(MPI_COMM_WORLD, &rank);
   MPI_Comm_size(MPI_COMM_WORLD, &size);
   try {
+    bad |= check_gather(rank, size);
     std::mt19937_64 rng(77);  // the same stream on every rank: the same meshes
     for (int trial = 0; trial < 4; ++trial) {
       test::BoxSpec spec;
