@@ -528,16 +528,6 @@ std::uint64_t estimate_chunk_bytes(const FineMesh& mesh, const ChunkRange& range
   return bytes > UINT64_MAX ? UINT64_MAX : static_cast<std::uint64_t>(bytes);
 }
 
-namespace {
-
-std::string gib(std::uint64_t bytes) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.1f GiB", static_cast<double>(bytes) / double(1ull << 30));
-  return buf;
-}
-
-}  // namespace
-
 // A held chunk lives in memory whole: one that cannot fit is refused before
 // it is built (it would run for minutes and die out of memory). The CLI's
 // exports stream and need no such check.
@@ -550,7 +540,7 @@ void refuse_if_too_big(const FineMesh& mesh, const ChunkRange& range) {
   const long double n = std::ceil(2 * whole / std::max<long double>(static_cast<long double>(avail), 1));
   std::ostringstream msg;
   msg << "export: chunk " << range.index << " of " << range.count << " (coarse elements " << range.first_coarse << ".."
-      << range.end_coarse << ") needs about " << gib(need) << " of memory, more than the " << gib(avail)
+      << range.end_coarse << ") needs about " << detail::gib(need) << " of memory, more than the " << detail::gib(avail)
       << " available; ";
   // No chunk is smaller than its largest coarse element: when that one
   // alone does not fit, no N helps.
@@ -569,7 +559,7 @@ void refuse_if_too_big(const FineMesh& mesh, const ChunkRange& range) {
   }
   if (largest > static_cast<long double>(avail))
     msg << "a chunk holds whole coarse elements, and coarse element " << which << " alone needs about "
-        << gib(static_cast<std::uint64_t>(std::min<long double>(largest, static_cast<long double>(UINT64_MAX))))
+        << detail::gib(static_cast<std::uint64_t>(std::min<long double>(largest, static_cast<long double>(UINT64_MAX))))
         << ": stream it instead (dicer export; Python: Store.batches()), or run where more memory is free";
   else
     msg << "take it in pieces: N chunks (--chunks N, --chunk K/N for K = 0..N-1; Python: chunk(k, N)) with N >= "

@@ -3,6 +3,7 @@
 // sources (ChunkStream, ExportChunk with a box). Private to export/.
 #include <array>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "dicer/export.hpp"
@@ -28,12 +29,20 @@ struct SideRef {
 // (sides outside 0..5 dropped).
 std::vector<SideRef> side_refs(const MeshSets& sets, Id first, Id end);
 
+// How many fine elements lie on Exodus side `side` of a coarse element of
+// intervals n (what append_side appends), as a long double: no overflow.
+long double side_faces(Mode mode, const std::array<Id, 3>& n, std::int8_t side);
+
 // Appends the fine elements on Exodus side `side` of a coarse element
 // (its first fine id and intervals) to m, as (global element id, side).
+// O(its fine faces).
 void append_side(Mode mode, Id element_first, const std::array<Id, 3>& n, std::int8_t side, SideMembers& m);
 
 // Sorts m's members by element, then side, and drops repeats.
 void sort_members(SideMembers& m);
+
+// Bytes as a message says them: "1.5 GiB".
+std::string gib(long double bytes);
 
 // Sorted, disjoint ranges from any list of ranges (merging those that
 // overlap or touch).

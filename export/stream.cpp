@@ -8,6 +8,7 @@
 // every other node is used by its owning element's block alone: a pass
 // needs no per-node lookup beyond the batch it is handed.
 #include <algorithm>
+#include <cstdio>
 #include <map>
 #include <numeric>
 
@@ -61,16 +62,45 @@ std::vector<SideRef> side_refs(const MeshSets& sets, Id first, Id end) {
   return out;
 }
 
-void append_side(Mode mode, Id element_first, const std::array<Id, 3>& n, std::int8_t side, SideMembers& m) {
+namespace {
+
+// The cells of coarse element n on Exodus side `side`: [lo, hi) per axis.
+// A side's plane alone, O(n^2) of the element's n^3 cells (visiting them
+// all took minutes for a side at interval 8000).
+void side_cells(Mode mode, const std::array<Id, 3>& n, std::int8_t side, Id lo[3], Id hi[3]) {
   const SidePlane plane = exodus_side_plane(mode, side);
-  for (Id k = 0; k < n[2]; ++k)
-    for (Id j = 0; j < n[1]; ++j)
-      for (Id i = 0; i < n[0]; ++i) {
-        const Id p[3] = {i, j, k};
-        if (plane.axis >= 0 && p[plane.axis] != (plane.high ? n[plane.axis] - 1 : 0)) continue;
+  for (int a = 0; a < 3; ++a) lo[a] = 0, hi[a] = n[a];
+  if (plane.axis >= 0) {
+    lo[plane.axis] = plane.high ? n[plane.axis] - 1 : 0;
+    hi[plane.axis] = lo[plane.axis] + 1;
+  }
+}
+
+}  // namespace
+
+long double side_faces(Mode mode, const std::array<Id, 3>& n, std::int8_t side) {
+  Id lo[3], hi[3];
+  side_cells(mode, n, side, lo, hi);
+  long double count = 1;
+  for (int a = 0; a < 3; ++a) count *= static_cast<long double>(std::max<Id>(hi[a] - lo[a], 0));
+  return count;
+}
+
+void append_side(Mode mode, Id element_first, const std::array<Id, 3>& n, std::int8_t side, SideMembers& m) {
+  Id lo[3], hi[3];
+  side_cells(mode, n, side, lo, hi);
+  for (Id k = lo[2]; k < hi[2]; ++k)
+    for (Id j = lo[1]; j < hi[1]; ++j)
+      for (Id i = lo[0]; i < hi[0]; ++i) {
         m.element.push_back(ids::element(element_first, n, i, j, k));
         m.side.push_back(side);
       }
+}
+
+std::string gib(long double bytes) {
+  char buf[48];
+  std::snprintf(buf, sizeof buf, "%.1Lf GiB", bytes / static_cast<long double>(1ull << 30));
+  return buf;
 }
 
 void sort_members(SideMembers& m) {
@@ -178,6 +208,25 @@ ChunkStream::ChunkStream(const FineMesh& mesh, ChunkRange range, const MeshSets&
   std::vector<Use> ghost_uses, shared_uses;
   const std::vector<detail::SideRef> refs = detail::side_refs(sets, first, end);
   size_t next_ref = 0;
+  {
+    // The chunk's side faces are held until the writer has them (MSH and
+    // Exodus write the sets after the elements): 9 bytes each, 25 while
+    // they are sorted. More than is free is refused here, by name, not
+    // minutes later by the kernel.
+    long double faces = 0;
+    for (const auto& ref : refs) faces += detail::side_faces(mode, R.element(ref.h).n, ref.side);
+    const long double need = 25 * faces, avail = static_cast<long double>(available_memory_bytes());
+    if (need > avail) {
+      char count[32];
+      std::snprintf(count, sizeof count, "%.3Lg", faces);
+      throw Error(ErrorKind::Usage,
+                  where() + ": the side sets of coarse elements " + std::to_string(first) + ".." + std::to_string(end) +
+                      " hold " + count + " fine faces, kept while written: about " + detail::gib(need) +
+                      ", more than the " + detail::gib(avail) +
+                      " available; export it in more chunks (--chunks N), to VTKHDF (which writes no sets), "
+                      "or where more memory is free");
+    }
+  }
   for (const auto& ss : sets.side_sets) side_sets_.push_back({ss.id, ss.name, {}, {}});
   std::vector<std::vector<Id>> ns_vertices;
   std::vector<std::vector<std::array<Id, 2>>> ns_ranges(sets.node_sets.size());
@@ -218,7 +267,7 @@ ChunkStream::ChunkStream(const FineMesh& mesh, ChunkRange range, const MeshSets&
       use(row.face_node[k], ids::face_nodes(nu, nv));
     }
     for (size_t s = 0; s < ns_vertices.size(); ++s) detail::node_set_ranges(row, mode, ns_vertices[s], ns_ranges[s]);
-    for (; next_ref < refs.size() && refs[next_ref].h == h; ++next_ref)
+    for (; next_ref < refs.size() && refs[next_ref].h == h; ++next_ref, poll())
       detail::append_side(mode, row.element_first, row.n, refs[next_ref].side, side_sets_[refs[next_ref].set]);
   }
   node_first_[static_cast<size_t>(span)] = own[1];

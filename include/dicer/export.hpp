@@ -181,7 +181,9 @@ class ChunkSource {
 // element ids and its block (20 B), the ghost nodes with coordinates
 // (node(id), bit-identical; O(chunk boundary)), the runs of nodes on a
 // boundary between blocks with the blocks using them (O(that boundary)),
-// and the sets' members (O(set sizes)). A pass holds one slab of the batch
+// and the sets' members (O(set sizes): 9 B per side-set face, 25 B while
+// sorted; more than available_memory_bytes() is Error{Usage} naming them,
+// before any is gathered). A pass holds one slab of the batch
 // API (kCursorSlabPoints grid points, ~2 MiB) and one element's boundary.
 // So memory is the cache budget plus O(coarse elements + boundaries), not
 // the chunk's fine size.

@@ -71,6 +71,30 @@ std::pair<int, double> run_measured(const std::vector<std::string>& argv) {
   return {WIFEXITED(status) ? WEXITSTATUS(status) : 128, static_cast<double>(ru.ru_maxrss) * 1024};
 }
 
+// Starts the CLI, sends SIGTERM 1.5 s later: it must end with 143 within
+// a minute (a hang check, not a timing) and leave no `out`.
+void expect_sigterm_ends(const std::vector<std::string>& args, const std::string& out) {
+  const auto inherited = std::signal(SIGTERM, SIG_DFL);
+  const pid_t pid = test::spawn_cli(args);
+  std::signal(SIGTERM, inherited);
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  ::kill(pid, SIGTERM);
+  int status = 0;
+  bool ended = false;
+  for (int t = 0; t < 600 && !ended; ++t) {
+    ended = ::waitpid(pid, &status, WNOHANG) == pid;
+    if (!ended) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  if (!ended) {
+    ::kill(pid, SIGKILL);
+    ::waitpid(pid, &status, 0);
+    FAIL() << args[0] << " ignored SIGTERM for a minute";
+  }
+  ASSERT_TRUE(WIFEXITED(status)) << "killed by signal " << WTERMSIG(status);
+  EXPECT_EQ(WEXITSTATUS(status), 143);
+  EXPECT_FALSE(fs::exists(out));
+}
+
 }  // namespace
 
 // The estimate counts what ExportChunk keeps: 8 B id + 4 B block +
@@ -279,25 +303,52 @@ TEST(ExportMemory, AHugeCoarseElementIsAnsweredOrRefusedByName) {
   // The MSH export's first pass (ids only) runs through the element for
   // hours; SIGTERM ended it only at the next element.
   const std::string out = d.path("x.msh");
-  const auto inherited = std::signal(SIGTERM, SIG_DFL);
-  const pid_t pid = test::spawn_cli({"export", store, "--format", "msh", "-o", out});
-  std::signal(SIGTERM, inherited);
-  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
-  ::kill(pid, SIGTERM);
-  int status = 0;
-  bool ended = false;
-  for (int t = 0; t < 600 && !ended; ++t) {  // a minute: not a timing, a hang check
-    ended = ::waitpid(pid, &status, WNOHANG) == pid;
-    if (!ended) std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  }
-  if (!ended) {
-    ::kill(pid, SIGKILL);
-    ::waitpid(pid, &status, 0);
-    FAIL() << "the export ignored SIGTERM for a minute";
-  }
-  ASSERT_TRUE(WIFEXITED(status)) << "killed by signal " << WTERMSIG(status);
-  EXPECT_EQ(WEXITSTATUS(status), 143);
-  EXPECT_FALSE(fs::exists(out));
+  expect_sigterm_ends({"export", store, "--format", "msh", "-o", out}, out);
   for (const auto& e : fs::directory_iterator(d.dir()))
     EXPECT_EQ(e.path().filename().string().find(".tmp-"), std::string::npos) << "left behind: " << e.path();
+}
+
+// A side set on a huge coarse element: its fine faces are held while an
+// MSH or Exodus export writes them (9-25 bytes each). One face at interval
+// 8000 is 8000^2 = 6.4e7 fine faces, about 1.5 GiB: under a 1 GiB address
+// space the export is refused at once, naming them; VTKHDF gathers no sets
+// (it reaches the element's own refusal). At interval 4000 the side's
+// faces are found in O(n^2), not by visiting the element's n^3 cells
+// (which took minutes without answering SIGTERM).
+TEST(ExportMemory, SideSetsOfAHugeElementAreCountedAndRefusedByName) {
+#ifdef DICER_SANITIZER_BUILD
+  GTEST_SKIP() << "sanitizer builds shadow every allocation and take no address-space limit (the Release suite runs this)";
+#endif
+  if (!fs::exists("/usr/bin/prlimit")) GTEST_SKIP() << "needs prlimit (util-linux)";
+  test::TempDir d;
+  const std::string msh = d.path("side.msh");
+  // One unit hex and the quad of its face z = 0 in physical group 7.
+  test::write_file(msh, "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n8\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 1 1 0\n"
+                        "5 0 0 1\n6 1 0 1\n7 0 1 1\n8 1 1 1\n$EndNodes\n$Elements\n2\n1 5 2 1 1 1 2 4 3 5 6 8 7\n"
+                        "2 3 2 7 2 1 2 4 3\n$EndElements\n");
+  const std::string big = d.path("side8000.dice.h5"), mid = d.path("side4000.dice.h5");
+  ASSERT_EQ(test::run_cli({"dice", msh, "--interval", "8000", "-o", big}).exit_code, 0);
+  ASSERT_EQ(test::run_cli({"dice", msh, "--interval", "4000", "-o", mid}).exit_code, 0);
+  auto limited = [&](std::vector<std::string> args) {
+    std::vector<std::string> argv{"/usr/bin/prlimit", "--as=1073741824", "--", DICER_CLI};
+    argv.insert(argv.end(), args.begin(), args.end());
+    return test::run_process(argv);
+  };
+  for (const char* format : {"exodus", "msh"}) {
+    const auto r = limited({"export", big, "--format", format, "-o", d.path("x.out")});
+    EXPECT_EQ(r.exit_code, 2) << format << ": " << r.err;
+    EXPECT_NE(r.err.find("side8000.dice.h5: the side sets of coarse elements 0..1 hold 6.4e+07 fine faces"),
+              std::string::npos)
+        << format << ": " << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  }
+  auto r = limited({"export", big, "-o", d.path("x.vtkhdf")});
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_EQ(r.err.find("side sets"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("coarse element 0 (intervals 8000 x 8000 x 8000)"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(d.path("x.out")));
+  EXPECT_FALSE(fs::exists(d.path("x.vtkhdf")));
+  // SIGTERM answered while the MSH export of the interval-4000 store runs.
+  const std::string out = d.path("mid.msh");
+  expect_sigterm_ends({"export", mid, "--format", "msh", "-o", out}, out);
 }
