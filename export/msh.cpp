@@ -7,6 +7,8 @@
 //    the chunk (dim 2, or 1 in surface mode) named as the set or
 //    "sideset <id>". Names are cut to the format's 127 characters; a '"' in
 //    a name becomes '\'' and a line break a space (the format cannot quote).
+//    Physical group 0 (a block or set of id 0) is not named: Gmsh 4.8's
+//    reader puts a name given to tag 0 on group 1.
 //  - $Entities: one volume (surface) per block with elements in the chunk,
 //    tag = the block's index in the mesh + 1; one surface (curve) per side
 //    set with members in the chunk, tag = the set's index + 1. The tags are
@@ -32,8 +34,9 @@
 //    E + 1 + 6 * (set_index * E + global_element) + side, E = fine elements
 //    of the mesh (sparse tags are allowed by the format).
 // Node sets are not written (MSH has none; `dicer export` says so).
-// Physical tags: the block (side set) id when it is a positive int that no
+// Physical tags: the block (side set) id when it is an int >= 0 that no
 // earlier block (set) took, else the next free tag above the largest one.
+// 0 is a group in MSH 4.1 (Gmsh reads it so; deal.ii's default boundary id).
 //
 // Streaming: the sections need counts and boxes before their records, so
 // the writer makes passes over the source (export.hpp): nodes without
@@ -229,17 +232,17 @@ struct Entity {
   BBox box;
 };
 
-// Physical tags: the id when positive, fitting an int and not taken yet;
+// Physical tags: the id when >= 0, fitting an int and not taken yet;
 // otherwise the next free tag above the largest one.
 std::vector<int> physical_tags(const std::vector<std::int64_t>& ids) {
-  std::vector<int> out(ids.size(), 0);
+  std::vector<int> out(ids.size(), -1);
   std::set<std::int64_t> used;
   for (std::size_t i = 0; i < ids.size(); ++i)
-    if (ids[i] > 0 && ids[i] <= std::numeric_limits<std::int32_t>::max() && used.insert(ids[i]).second)
+    if (ids[i] >= 0 && ids[i] <= std::numeric_limits<std::int32_t>::max() && used.insert(ids[i]).second)
       out[i] = static_cast<int>(ids[i]);
   std::int64_t next = used.empty() ? 1 : *used.rbegin() + 1;
   for (auto& t : out)
-    if (t == 0) {
+    if (t < 0) {
       while (used.count(next)) ++next;
       if (next > std::numeric_limits<std::int32_t>::max())
         throw Error(ErrorKind::Overflow, "MSH physical tags do not fit an int");
@@ -402,15 +405,19 @@ void write_body(const ChunkSource& c, Out& o) {
   o.text("$EndMeshFormat\n");
 
   // $PhysicalNames (ASCII in both modes).
+  // Group 0 goes unnamed (see the top).
   o.text("$PhysicalNames\n");
-  o.num(blocks.size() + sets.size());
+  o.num(std::count_if(block_phys.begin(), block_phys.end(), [](int t) { return t != 0; }) +
+        std::count_if(set_phys.begin(), set_phys.end(), [](int t) { return t != 0; }));
   o.text("\n");
   for (std::size_t b = 0; b < blocks.size(); ++b) {
+    if (block_phys[b] == 0) continue;
     o.num(dim), o.text(" "), o.num(block_phys[b]), o.text(" \"");
     o.text(msh_name(blocks[b].name.empty() ? "block " + std::to_string(blocks[b].id) : blocks[b].name));
     o.text("\"\n");
   }
   for (std::size_t s = 0; s < sets.size(); ++s) {
+    if (set_phys[s] == 0) continue;
     o.num(dim - 1), o.text(" "), o.num(set_phys[s]), o.text(" \"");
     o.text(msh_name(sets[s].name.empty() ? "sideset " + std::to_string(sets[s].id) : sets[s].name));
     o.text("\"\n");

@@ -14,7 +14,8 @@
 //    a physical group, blocks are the elementary entities (id = entity tag,
 //    name "entity <tag>"). Otherwise elements without a physical group go to a
 //    block per entity, numbered above the largest physical tag (warning).
-//    Physical tag 0 means "none" in both versions.
+//    MSH2's physical tag 0 means "none"; MSH4 lists an entity's groups, and
+//    a listed 0 is group 0 (as Gmsh reads it).
 //  - side sets: physical groups of dimension dim-1 (quads of a volume mesh,
 //    lines of a surface mesh), matched to element sides through a sorted
 //    key table; a boundary element on an interior face goes to the matching
@@ -66,10 +67,11 @@ int mesh_dimension(const std::string& path, const MshSections& sec, std::vector<
   // Skipped: other types of lower dimension, and lines in physical groups of
   // a volume mesh (dicer has no edge sets). Counted by physical group, or by
   // entity where there is none.
-  std::map<std::tuple<Id, Id, int, Id>, std::size_t> skipped;  // (type, physical, entity dim, entity)
+  // (type, in a physical group, physical, entity dim, entity)
+  std::map<std::tuple<Id, bool, Id, int, Id>, std::size_t> skipped;
   auto count = [&](Id type, std::span<const int> physical, int entity_dim, Id entity, std::size_t n) {
-    if (physical.empty()) skipped[{type, 0, entity_dim, entity}] += n;
-    else skipped[{type, physical[0], type_dim(type), 0}] += n;
+    if (physical.empty()) skipped[{type, false, 0, entity_dim, entity}] += n;
+    else skipped[{type, true, physical[0], type_dim(type), 0}] += n;
   };
   for (const auto& [key, n] : sec.others) {
     const auto& [type, entity_dim, entity, physical] = key;
@@ -89,10 +91,10 @@ int mesh_dimension(const std::string& path, const MshSections& sec, std::vector<
   if (!skipped.empty()) {
     std::string list;
     for (const auto& [key, n] : skipped) {
-      const auto& [type, physical, entity_dim, entity] = key;
+      const auto& [type, grouped, physical, entity_dim, entity] = key;
       list += (list.empty() ? "" : ", ") + std::to_string(n) + " " + type_name(static_cast<int>(type)) + " (type " +
               std::to_string(type) + ") in ";
-      if (physical != 0) {
+      if (grouped) {
         list += "physical group " + std::to_string(physical);
         auto it = sec.physical_names.find({entity_dim, physical});
         if (it != sec.physical_names.end() && !it->second.empty()) list += " \"" + it->second + "\"";

@@ -226,7 +226,9 @@ void SectionReader::read_entities() {
             bounding.push_back(static_cast<int>(lex_.integer("bounding entity", kInt32Min, kInt32Max)));
         }
       }
-      std::erase(phys, 0);
+      // Tag 0 is a group here (Gmsh's own reader keeps it; deal.ii writes
+      // its default boundary id 0 so): "none" is a count of 0. Only MSH2's
+      // element tag 0 means none.
       s_.entity_physicals[{d, tag}] = std::move(phys);
       if (d > 0) {
         // Signs give the orientation of the boundary: dicer needs only which.
