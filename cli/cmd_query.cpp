@@ -225,7 +225,7 @@ int query(const std::vector<std::string>& argv, long long* chunk_count = nullptr
                             "the distance; the lowest id among quads as near");
   auto* o_points = cmd.value("--points", points_file, "FILE",
                              "as --point for every line \"x y z\" of FILE (- reads "
-                             "standard input; blank lines and # comments are "
+                             "standard input, a FIFO streams; blank lines and # comments are "
                              "skipped) or every row of an (n, 3) .npy array, "
                              "one answer per point in input order");
   auto* o_threads = cmd.value("--threads", threads_text, "N", "with --points: threads searching (1 to 1024)");

@@ -33,7 +33,8 @@ owners must all agree (a reordered copy of the same mesh is refused, exit 3).
 
 --check says whether the two are nested (exit 0) or names the first sheet
 that is not (exit 1); for stores diced onto a CAD it also compares every
-moved COARSE node with its FINE twin (exit 1 when one differs).
+moved COARSE node with its FINE twin (exit 1 when one differs). -o FILE of
+two stores that are not nested has no P to write: exit 3, naming the sheet.
 
 -o FILE writes P, streaming the rows in id order (memory stays bounded
 whatever the size): --format hdf5 (default) is CSR in HDF5, datasets indptr,
@@ -72,8 +73,8 @@ int cmd_transfer(const std::vector<std::string>& argv) {
   cmd.input("FINE", fine_path, "the fine level: a store of the same coarse mesh");
   auto* o_check = cmd.flag("--check", check, "only say whether FINE is nested in COARSE (exit 0) or not (exit 1)");
   auto* o_out = cmd.output(out, "FILE", "write the prolongation P to FILE", false);
-  cmd.value("--format", format, "FMT", "hdf5 (CSR: indptr, indices, data, shape) or petsc (MatLoad binary)");
-  cmd.value("--petsc-int", petsc_int, "BITS",
+  auto* o_format = cmd.value("--format", format, "FMT", "hdf5 (CSR: indptr, indices, data, shape) or petsc (MatLoad binary)");
+  auto* o_petsc_int = cmd.value("--petsc-int", petsc_int, "BITS",
             "index width of the PETSc file: 32 (PETSc's default build) or 64 (--with-64-bit-indices)");
   cmd.flag("--json", json,
            "one JSON object: nested, sheets, sheet, coarse_interval, fine_interval, "
@@ -87,6 +88,12 @@ int cmd_transfer(const std::vector<std::string>& argv) {
   if (format != "hdf5" && format != "petsc")
     throw Error(ErrorKind::Usage, "--format: \"" + format + "\" is neither hdf5 nor petsc");
   if (petsc_int != "32" && petsc_int != "64") throw Error(ErrorKind::Usage, "--petsc-int: 32 or 64, not " + petsc_int);
+  // An option that would change nothing is a mistake said, not ignored.
+  if (check && (cmd.given(o_format) || cmd.given(o_petsc_int)))
+    throw Error(ErrorKind::Usage, std::string(cmd.given(o_format) ? "--format" : "--petsc-int") +
+                                      " is for -o FILE; --check writes nothing");
+  if (cmd.given(o_petsc_int) && format != "petsc")
+    throw Error(ErrorKind::Usage, "--petsc-int is for --format petsc (the hdf5 format stores 64-bit indices)");
 
   const FineMesh coarse = open_level(coarse_path, store.options());
   const FineMesh fine = read_store(fine_path, store.options());

@@ -128,6 +128,12 @@ void Command::usage_error(const std::string& message) const {
 bool Command::parse(const std::vector<std::string>& argv) {
   std::vector<std::string> args;
   for (const auto& a : argv) {
+    // "--json=0" would be false and "--json=1" true (CLI11): a flag takes
+    // no value, said so.
+    if (const auto eq = a.find('='); a.rfind("--", 0) == 0 && eq != std::string::npos) {
+      const CLI::Option* o = app_.get_option_no_throw(a.substr(0, eq));
+      if (o && o->get_items_expected_max() == 0) usage_error(a.substr(0, eq) + " takes no value (got \"" + a.substr(eq + 1) + "\")");
+    }
     // "-o=FILE" means "-o FILE" (CLI11 would keep the "=" in the value).
     if (a.size() > 2 && a[0] == '-' && a[1] != '-' && a[2] == '=' && app_.get_option_no_throw(a.substr(0, 2))) {
       args.push_back(a.substr(0, 2)), args.push_back(a.substr(3));

@@ -49,7 +49,7 @@ std::string usage() {
   std::string s = R"(dicer - refine coarse all-hex (or all-quad) meshes into huge conforming
 fine meshes that are stored implicitly: coarse mesh + intervals + recipe.
 
-Usage: dicer <command> [options]      dicer <command> --help for details
+Usage: dicer <command> [options]      dicer help <command> for details
 
 Commands (in the order you use them):
 )";
@@ -103,6 +103,7 @@ int main(int argc, char** argv) {
   std::vector<std::string> args(argv + 1, argv + argc);
   // What is answered before MPI starts is printed by one rank under mpirun.
   const bool speaks = dicer::mpi::launched_rank() == 0;
+  if (args.size() >= 2 && args[0] == "help") args = {args[1], "--help"};  // dicer help export
   if (args.empty() || args[0] == "--help" || args[0] == "-h" || args[0] == "help") {
     if (speaks) std::fputs(usage().c_str(), args.empty() ? stderr : stdout);
     return args.empty() ? exit_code(ErrorKind::Usage, 0) : kExitSuccess;

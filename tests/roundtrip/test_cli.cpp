@@ -472,3 +472,33 @@ TEST(Cli, TheBinaryLoadsOneHdf5AndOneNetcdf) {
     EXPECT_NE(r.out.find("libnetcdf_mpi"), std::string::npos) << bin;
   }
 }
+
+// A flag given a value (--json=0 read as false, --json=1 as true), options
+// that would change nothing (transfer --check --format petsc), and
+// `dicer help CMD` (which printed the global help).
+TEST(Cli, FlagsTakeNoValueAndIdleOptionsAreRefused) {
+  test::TempDir tmp;
+  const std::string store = test::diced_store("cardinal_brick.e", 1);
+  for (const char* v : {"--json=1", "--json=0", "--json="}) {
+    const auto r = run_cli({"info", store, v});
+    EXPECT_EQ(r.exit_code, 2) << v << ": " << r.err;
+    EXPECT_NE(r.err.find("--json takes no value"), std::string::npos) << r.err;
+    EXPECT_TRUE(r.out.empty()) << r.out;
+  }
+  EXPECT_EQ(run_cli({"sweep", store, "--threads=1", "--quiet"}).exit_code, 0);  // a value option keeps its '='
+  const std::vector<std::pair<std::vector<std::string>, const char*>> idle = {
+      {{"transfer", store, store, "--check", "--format", "petsc"}, "--format is for -o FILE"},
+      {{"transfer", store, store, "--check", "--petsc-int", "64"}, "--petsc-int is for -o FILE"},
+      {{"transfer", store, store, "-o", tmp.path("P.h5"), "--petsc-int", "64"}, "--petsc-int is for --format petsc"}};
+  for (const auto& [args, text] : idle) {
+    const auto r = run_cli(args);
+    EXPECT_EQ(r.exit_code, 2) << r.err;
+    EXPECT_NE(r.err.find(text), std::string::npos) << r.err;
+  }
+  EXPECT_FALSE(std::filesystem::exists(tmp.path("P.h5")));
+  const auto help = run_cli({"help", "export"}), direct = run_cli({"export", "--help"});
+  EXPECT_EQ(help.exit_code, 0);
+  EXPECT_EQ(help.out, direct.out);
+  EXPECT_EQ(help.out.rfind("Usage: dicer export STORE", 0), 0u) << help.out;
+  EXPECT_EQ(run_cli({"help", "frobnicate"}).exit_code, 2);
+}
