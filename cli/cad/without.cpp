@@ -4,6 +4,7 @@
 // OpenCASCADE bring ~100 shared libraries into every start of the tool
 // (~50 MiB and ~0.1 s for `dicer info` or `dicer query`), for the few
 // commands that use them.
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -50,7 +51,19 @@ void hand_over_if_cad(char** argv, const std::vector<std::string>& args) {
     throw Error(ErrorKind::Io, exe + ": " + std::strerror(errno) + ": `dicer " + what +
                                    "` needs dicer-cad (the commands built with Gmsh), installed beside dicer; "
                                    "set DICER_CAD to its path");
+  // DICER_CAD naming dicer (this one, or another copy that hands over in
+  // turn) would exec itself for ever: the mark below, set for the program
+  // we start, says the command came back.
+  constexpr const char* kMark = "DICER_CAD_HANDED_OVER";
+  struct stat self {}, target {};
+  const bool same = ::stat("/proc/self/exe", &self) == 0 && ::stat(exe.c_str(), &target) == 0 &&
+                    self.st_dev == target.st_dev && self.st_ino == target.st_ino;
+  if (same || std::getenv(kMark) != nullptr)
+    throw Error(ErrorKind::Io, exe + ": is not dicer-cad (it handed `dicer " + what +
+                                   "` back to dicer): set DICER_CAD to dicer-cad, the commands built with Gmsh");
+  ::setenv(kMark, "1", 1);
   ::execv(exe.c_str(), argv);
+  ::unsetenv(kMark);
   throw Error(ErrorKind::Io, exe + ": cannot run: " + std::strerror(errno));
 }
 

@@ -502,3 +502,24 @@ TEST(Cli, FlagsTakeNoValueAndIdleOptionsAreRefused) {
   EXPECT_EQ(help.out.rfind("Usage: dicer export STORE", 0), 0u) << help.out;
   EXPECT_EQ(run_cli({"help", "frobnicate"}).exit_code, 2);
 }
+
+// DICER_CAD naming dicer itself (or a copy of it) made `dice --geometry`
+// exec itself for ever: it is refused, exit 5, naming the variable.
+TEST(Cli, DicerCadNamingDicerIsRefusedNotLooped) {
+  test::TempDir tmp;
+  const std::string copy = tmp.path("dicer-copy");
+  std::filesystem::copy_file(DICER_CLI, copy);
+  std::filesystem::permissions(copy, std::filesystem::perms::owner_all);
+  const char* old = std::getenv("DICER_CAD");
+  const std::string kept = old ? old : "";
+  for (const std::string& cad : {std::string(DICER_CLI), copy}) {
+    ::setenv("DICER_CAD", cad.c_str(), 1);
+    const auto r = run_cli({"dice", test::data_path("cardinal_brick.e"), "-o", tmp.path("g.dice.h5"), "--geometry",
+                            test::data_path("cardinal_brick.e")});
+    EXPECT_EQ(r.exit_code, 5) << cad << ": " << r.err;
+    EXPECT_NE(r.err.find("is not dicer-cad"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("set DICER_CAD"), std::string::npos) << r.err;
+  }
+  old ? ::setenv("DICER_CAD", kept.c_str(), 1) : ::unsetenv("DICER_CAD");
+  EXPECT_FALSE(std::filesystem::exists(tmp.path("g.dice.h5")));
+}
