@@ -93,7 +93,17 @@ def _shown(text):
     return text.encode("utf-8", "surrogateescape").decode("utf-8", "replace")
 
 
+def _check_name(path, role):
+    # The command's words for an empty name (cli/common.cpp); a NUL byte
+    # cannot be in a file name (os.stat would raise ValueError).
+    if path == "":
+        raise UsageError(f"{role}: the file name is empty")
+    if "\0" in path:
+        raise UsageError(f"{role}: a file name cannot hold a NUL byte ({_shown(path)!r})")
+
+
 def _check_input(path, role):
+    _check_name(path, role)
     # stat, never open: opening a FIFO without a writer blocks for ever.
     try:
         st = _os.stat(path)
@@ -104,6 +114,7 @@ def _check_input(path, role):
 
 
 def _check_output(path, role, inputs):
+    _check_name(path, role)
     try:
         out = _os.stat(path)
     except OSError:
@@ -174,20 +185,31 @@ def _finite(what, value):
 def _pairs(what, mapping, key):
     if mapping is None:
         return []
-    items = mapping.items() if hasattr(mapping, "items") else mapping
+    try:
+        items = list(mapping.items() if hasattr(mapping, "items") else mapping)
+    except TypeError:
+        raise UsageError(f"{what}: {_quoted(mapping)} is not a mapping of KEY to interval") from None
     out = []
     label = lambda v: _text(v) or f"<{_quoted(v)}>"
-    for k, n in items:
+    for item in items:
+        try:
+            k, n = item
+        except (TypeError, ValueError):
+            raise UsageError(f"{what}: {_quoted(item)} is not a (KEY, interval) pair") from None
         shown = f"{what} {label(k)}={label(n)}"
         out.append((key(shown, k), _whole(shown, n)))
     return out
 
 
 def _block_key(what, k):
-    # A block is named by its id or its name, as on the command line.
-    if isinstance(k, bool) or not isinstance(k, (int, str)):
-        raise UsageError(f"{what}: a block is an id or a name")
-    return str(k)
+    # A block is named by its id (any whole number, numpy's too) or its
+    # name, as on the command line.
+    if isinstance(k, str):
+        return k
+    try:
+        return str(_whole(what, k))
+    except UsageError:
+        raise UsageError(f"{what}: a block is an id or a name") from None
 
 
 def _sheet_key(what, k):
@@ -224,10 +246,20 @@ def _child_env():
     return {k: v for k, v in _os.environ.items() if not k.startswith(_MPI_LAUNCH_PREFIXES)}
 
 
+def _arg(path):
+    # A relative name that starts with '-' would be read as an option.
+    return "./" + path if path.startswith("-") else path
+
+
 def _run_dicer_cad(args):
     """Runs `dicer-cad ARGS`; its failure becomes the dicer.Error its exit status names."""
-    proc = _subprocess.run([_dicer_cad()] + args, stdin=_subprocess.DEVNULL, stdout=_subprocess.PIPE,
-                           stderr=_subprocess.PIPE, text=True, errors="replace", env=_child_env())
+    exe = _dicer_cad()
+    try:
+        proc = _subprocess.run([exe] + args, stdin=_subprocess.DEVNULL, stdout=_subprocess.PIPE,
+                               stderr=_subprocess.PIPE, text=True, errors="replace", env=_child_env())
+    except OSError as e:
+        raise IoError(f"{_shown(exe)}: cannot run: {_os.strerror(e.errno) if e.errno else e}; "
+                      "set DICER_CAD to dicer-cad (the dicer command built with Gmsh)") from None
     lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
     report = {"warning": [], "note": []}
     for ln in lines:
@@ -274,7 +306,9 @@ def dice(mesh, out, interval=None, sheet_intervals=None, block_intervals=None, s
     name: n} (a sheet touching several takes the largest); sheet_intervals:
     {sheet id: n}; intervals_file: the JSON file of `dicer dice
     --intervals-file` (the arguments win over it). Precedence: sheet >
-    block > size > interval > 1; conflicts are reported as DicerWarning and
+    block and entity (the largest) > size > interval > 1; entity intervals
+    and grading (the command's --entity-interval and bias options) come
+    only through intervals_file; conflicts are reported as DicerWarning and
     kept in Store.notes.
 
     A second-order mesh (HEX20, HEX27, QUAD8, QUAD9) is diced on its
@@ -313,7 +347,7 @@ def dice(mesh, out, interval=None, sheet_intervals=None, block_intervals=None, s
                         None if intervals_file is None else _os.fsencode(intervals_file))
         warns, notes = [f"{_shown(mesh)}: {w}" for w in r["warnings"]], r["notes"]
     else:
-        args = ["dice", mesh, "-o", out, "--quiet", "--geometry", geometry]
+        args = ["dice", _arg(mesh), "-o", _arg(out), "--quiet", "--geometry", _arg(geometry)]
         if geometry_tol is not None:
             args += ["--geometry-tol", repr(_finite("--geometry-tol", geometry_tol))]
         if interval is not None:
@@ -325,7 +359,7 @@ def dice(mesh, out, interval=None, sheet_intervals=None, block_intervals=None, s
         for s, n in sheets:
             args += ["--sheet-interval", f"{s}={n}"]
         if intervals_file is not None:
-            args += ["--intervals-file", intervals_file]
+            args += ["--intervals-file", _arg(intervals_file)]
         warns, notes = _run_dicer_cad(args)
     for text in warns + notes:
         _warnings.warn(text, DicerWarning, stacklevel=2)
@@ -342,7 +376,7 @@ def mesh_coarse(cad, out, size, surface=False, subdivide=False):
     cad, out = _path(cad), _path(out)
     _check_input(cad, "CAD")
     _check_output(out, "-o", [(cad, "CAD")])
-    args = ["mesh-coarse", cad, "--size", repr(_finite("--size", size)), "-o", out, "--quiet"]
+    args = ["mesh-coarse", _arg(cad), "--size", repr(_finite("--size", size)), "-o", _arg(out), "--quiet"]
     for flag, value in (("--surface", surface), ("--subdivide", subdivide)):
         if not isinstance(value, bool):
             raise UsageError("%s: %s must be True or False, not %r" % (flag, flag[2:], value))

@@ -91,7 +91,17 @@ Store open_store(const std::string& path, std::int64_t cache_mb, std::int64_t re
   s.options.read_ahead_pages = static_cast<unsigned>(read_ahead);
   s.options.keep_coarse_tables = keep_tables;
   ReleaseGil release;
-  s.mesh = std::make_shared<const FineMesh>(read_store(s.file, s.options));
+  // Read by the absolute name (a later os.chdir must not lose the file);
+  // messages name it as given, the words `dicer` prints.
+  try {
+    FineMesh m = read_store(s.file, s.options);
+    m.set_origin(path);
+    s.mesh = std::make_shared<const FineMesh>(std::move(m));
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    if (what.rfind(s.file, 0) != 0) throw;
+    throw Error(e.kind(), path + what.substr(s.file.size()));
+  }
   // The identity of the file read (a replacement in between is caught by
   // the sets' uuid check, read_store_sets).
   struct stat st {};
@@ -222,6 +232,27 @@ Id whole_id(const py::object& v, const std::string& what) {
   if (overflow != 0) throw Error(ErrorKind::Overflow, what + ": " + quoted(v) + " does not fit in 64 bits");
   if (out == -1 && PyErr_Occurred()) throw py::error_already_set();
   return out;
+}
+
+// True or False (Python's or numpy's bool) for a switch: connectivity=None
+// or "no" is the caller's mistake, not False.
+bool switch_value(const py::object& v, const std::string& what) {
+  if (!is_bool(v)) throw Error(ErrorKind::Usage, what + ": must be True or False, not " + quoted(v));
+  return PyObject_IsTrue(v.ptr()) == 1;
+}
+
+// A finite number (int or float, not a bool or a string), as the command
+// reads --max-distance.
+double finite_value(const py::object& v, const std::string& what) {
+  const auto bad = [&] { return Error(ErrorKind::Usage, what + ": " + quoted(v) + " is not a finite number"); };
+  if (is_bool(v) || py::isinstance<py::str>(v) || py::isinstance<py::bytes>(v)) throw bad();
+  const double d = PyFloat_AsDouble(v.ptr());
+  if (d == -1.0 && PyErr_Occurred()) {
+    PyErr_Clear();  // not a number, or an int past a double's range
+    throw bad();
+  }
+  if (!std::isfinite(d)) throw bad();
+  return d;
 }
 
 IdSelection select_ids(const char* what, const py::object& first, const py::object& stop, const FineMesh& mesh) {
@@ -849,7 +880,7 @@ PYBIND11_MODULE(_core, m) {
       .def("__iter__", [](const Batch& b) { return py::iter(py::make_tuple(b.node_ids, b.points, b.connectivity)); })
       .def("__repr__", [](const Batch& b) {
         return "<dicer.Batch coarse element " + std::to_string(b.coarse_element) + ": " +
-               std::to_string(b.node_ids.size()) + " points, " + std::to_string(b.connectivity.shape(0)) + " elements>";
+               std::to_string(b.node_ids.size()) + " points, " + std::to_string(b.num_elements) + " elements>";
       });
 
   py::class_<IdBatch>(m, "IdBatch",
@@ -977,9 +1008,13 @@ PYBIND11_MODULE(_core, m) {
       .def_property_readonly("nonzeros", [](const Transfer& t) { return t.p->nonzeros(); }, "stored entries of P")
       .def_property_readonly("nesting", [](const Transfer& t) { return nesting_dict(t.p->nesting()); },
                              "the keys of `dicer transfer --check --json`")
-      .def("apply", [](const Transfer& t, const Vector& x, std::int64_t threads) { return transfer_apply(t, x, threads, false); },
+      .def("apply", [](const Transfer& t, const Vector& x, const py::object& threads) {
+        return transfer_apply(t, x, whole_id(threads, "apply: threads"), false);
+      },
            py::arg("x"), py::arg("threads") = 1, "P x: coarse node values -> fine node values (float64)")
-      .def("apply_transpose", [](const Transfer& t, const Vector& y, std::int64_t threads) { return transfer_apply(t, y, threads, true); },
+      .def("apply_transpose", [](const Transfer& t, const Vector& y, const py::object& threads) {
+        return transfer_apply(t, y, whole_id(threads, "apply_transpose: threads"), true);
+      },
            py::arg("y"), py::arg("threads") = 1, "P^T y: fine node values -> coarse node values, the same bits for any thread count")
       .def("__repr__", [](const Transfer& t) {
         return "<dicer.Transfer " + std::to_string(t.p->rows()) + " x " + std::to_string(t.p->cols()) + ", " +
@@ -1015,26 +1050,39 @@ PYBIND11_MODULE(_core, m) {
         const Mesh m = s.get();
         return owned(node_elements(*m, whole_id(id, "node_elements(id)")));
       }, py::arg("id"), "the fine elements using node id, ascending (`dicer query --node-elements`)")
-      .def("locate", &locate, py::arg("points"), py::arg("threads") = 1, py::arg("max_distance") = py::none(),
+      .def("locate", [](const Store& s, const py::array_t<double, py::array::c_style | py::array::forcecast>& points,
+                        const py::object& threads, const py::object& max_distance) {
+        return locate(s, points, whole_id(threads, "locate: threads"),
+                      max_distance.is_none() ? std::optional<double>()
+                                             : std::optional<double>(finite_value(max_distance, "--max-distance")));
+      }, py::arg("points"), py::arg("threads") = 1, py::arg("max_distance") = py::none(),
            "as `dicer query --points`. Volume stores: (element ids, xi (n, 3)) of an (n, 3) array of points: "
            "the fine element containing each (-1: none; the lowest id on a shared face) and the local "
            "coordinates in it. Surface stores: (element ids, xi (n, 2), distances): the nearest fine quad "
            "(-1: none within max_distance, distance inf), the nearest point's xi on it and its distance; "
            "max_distance on a volume store is a UsageError")
-      .def("blocks", &make_blocks, py::arg("chunk") = py::none(), py::arg("connectivity") = true,
+      .def("blocks", [](const Store& s, const py::object& chunk, const py::object& connectivity) {
+        return make_blocks(s, chunk, switch_value(connectivity, "blocks: connectivity"));
+      }, py::arg("chunk") = py::none(), py::arg("connectivity") = true,
            "iterator of Batch, one per coarse element, over the mesh or over chunk (k, n)")
-      .def("batches", &make_batches, py::arg("chunk") = py::none(), py::arg("slab_points") = kCursorSlabPoints,
+      .def("batches", [](const Store& s, const py::object& chunk, const py::object& slab_points) {
+        return make_batches(s, chunk, whole_id(slab_points, "batches: slab_points"));
+      }, py::arg("chunk") = py::none(), py::arg("slab_points") = kCursorSlabPoints,
            "iterator of IdBatch over the mesh (or chunk (k, n)) in id order, a slab of a coarse element at a "
            "time: the nodes node_begin..node_end-1 (points, (n, 3)) and elements element_begin..element_end-1 "
            "(connectivity, (e, 8|4), global node ids); every node and element exactly once, consecutive ids")
-      .def("chunk_ranges", [](const Store& s, std::int64_t n) {
+      .def("chunk_ranges", [](const Store& s, const py::object& n) {
         const Mesh m = s.get();
         py::list out;
-        for (const auto& r : checked_plan(*m, 0, n)) out.append(range_dict(r));
+        for (const auto& r : checked_plan(*m, 0, whole_id(n, "chunk_ranges(n): n"))) out.append(range_dict(r));
         return out;
       }, py::arg("n"), "the plan of n chunks: coarse element and owned node ranges")
-      .def("chunk", &make_chunk, py::arg("k"), py::arg("n"), "chunk k of n (as `dicer export --chunk k/n`)")
-      .def("partition", &make_partition, py::arg("rank"), py::arg("size"),
+      .def("chunk", [](const Store& s, const py::object& k, const py::object& n) {
+        return make_chunk(s, whole_id(k, "chunk(k, n): k"), whole_id(n, "chunk(k, n): n"));
+      }, py::arg("k"), py::arg("n"), "chunk k of n (as `dicer export --chunk k/n`)")
+      .def("partition", [](const Store& s, const py::object& rank, const py::object& size) {
+        return make_partition(s, whole_id(rank, "partition(rank, size): rank"), whole_id(size, "partition(rank, size): size"));
+      }, py::arg("rank"), py::arg("size"),
            "the partition of rank `rank` of `size`, sharing computed in this process")
       .def("partition", &make_partition_mpi, py::arg("comm"),
            "this rank's partition of an mpi4py communicator (collective), sharing exchanged over MPI")
@@ -1047,7 +1095,8 @@ PYBIND11_MODULE(_core, m) {
       }, py::arg("fine"), "whether `fine` is nested in this store (`dicer transfer --check --json`)")
       .def("transfer", &make_transfer, py::arg("fine"),
            "the prolongation from this store to `fine`, a nested dicing of the same coarse mesh (BadInputError if not)")
-      .def("sweep", &sweep_dict, py::arg("threads") = 2, "as `dicer sweep --json`: counts, time, checksum")
+      .def("sweep", [](const Store& s, const py::object& threads) { return sweep_dict(s, whole_id(threads, "sweep: threads")); },
+           py::arg("threads") = 2, "as `dicer sweep --json`: counts, time, checksum")
       .def("_set_report", [](Store& s, std::vector<std::string> warnings, std::vector<std::string> notes) {
         s.warnings = std::move(warnings);
         s.notes = std::move(notes);

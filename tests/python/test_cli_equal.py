@@ -6,6 +6,8 @@ ids must agree bit for bit. `query --json` writes the shortest decimal that
 reads back to the same double, so json.loads gives the exact bits.
 """
 import json
+import os
+import shutil
 
 import numpy as np
 import pytest
@@ -275,7 +277,7 @@ def test_dice_reports_interval_conflicts(tmp_path):
     assert s.notes, "two blocks asked for different intervals on a shared sheet"
 
 
-def test_dice_with_geometry_equals_cli(cli, tmp_path):
+def test_dice_with_geometry_equals_cli(cli, tmp_path, monkeypatch):
     """geometry= runs dicer-cad, as `dicer dice --geometry` does: identical nodes."""
     cyl = EXAMPLES / "cylinder.brep"
     coarse = tmp_path / "cyl.msh"
@@ -288,6 +290,14 @@ def test_dice_with_geometry_equals_cli(cli, tmp_path):
     flat = dicer.dice(coarse, tmp_path / "flat.dice.h5", interval=2)
     assert not np.array_equal(bits(flat.nodes(0, flat.num_nodes)), bits(py.nodes(0, py.num_nodes))), \
         "geometry must move the boundary nodes onto the cylinder"
+    # Relative names starting with '-' reach dicer-cad as names, not options
+    # (dice("-c.msh", ...) worked without geometry= and failed with it).
+    monkeypatch.chdir(tmp_path)
+    shutil.copy(coarse, "-c.msh")
+    shutil.copy(cyl, "-cyl.brep")
+    dashed = dicer.dice("-c.msh", "-out.dice.h5", interval=2, geometry="-cyl.brep")
+    assert np.array_equal(bits(dashed.nodes(0, dashed.num_nodes)), bits(py.nodes(0, py.num_nodes)))
+    assert dicer.mesh_coarse("-cyl.brep", "-m.msh", size=0.8) == "-m.msh" and os.path.isfile("-m.msh")
 
 
 @pytest.mark.parametrize("fixture", ["prism_store", "shell_store"])

@@ -4,6 +4,7 @@ Each case runs the same bad input through the dicer command and through the
 module: the class must be the one the command's exit status names, and
 str(error) the line the command prints after "error: ".
 """
+import json
 import os
 import signal
 import threading
@@ -144,6 +145,87 @@ def test_query_out_of_range(cli, sphere_store):
         s.blocks(chunk=("a", 2))
     assert [b.coarse_element for b in s.blocks(chunk=[1, 2])] == [b.coarse_element for b in s.blocks(chunk=(1, 2))]
     same_error(cli, ["info", sphere_store, "--cache-mb", 0], lambda: dicer.open(sphere_store, cache_mb=0))
+
+
+def test_scalar_arguments_are_dicer_errors(sphere_store, tmp_path):
+    # Each was pybind11's TypeError ("incompatible function arguments"), or
+    # True taken as 1 and None as False; now the CLI's words, as for ids.
+    s = dicer.open(sphere_store)
+    for call in (lambda: s.chunk(0.0, 4), lambda: s.partition(0.5, 2), lambda: s.chunk_ranges(2.0),
+                 lambda: s.sweep(threads=2.0), lambda: s.locate([[0, 0, 0]], threads=1.5),
+                 lambda: s.batches(slab_points=1.0), lambda: s.chunk(True, 4), lambda: s.sweep(threads=True)):
+        with pytest.raises(dicer.UsageError, match="is not a whole number"):
+            call()
+    with pytest.raises(dicer.IdOverflowError, match="does not fit in 64 bits"):
+        s.chunk(0, 2**64)
+    for bad in ("no", None, 1):
+        with pytest.raises(dicer.UsageError, match="connectivity: must be True or False"):
+            s.blocks(connectivity=bad)
+    assert repr(s.chunk(np.int64(0), np.int32(2))) == repr(s.chunk(0, 2))
+    b = next(s.blocks(connectivity=np.bool_(False)))
+    assert f"{len(b.element_ids)} elements>" in repr(b)  # the repr counted connectivity rows: 0
+    P = s.transfer(dicer.open(sphere_store))  # a store is nested in itself
+    for call in (P.apply, P.apply_transpose):
+        with pytest.raises(dicer.UsageError, match="threads: \"2.0\" is not a whole number"):
+            call(np.zeros(s.num_nodes), threads=2.0)
+
+
+def test_max_distance_is_read_as_the_command_reads_it(cli, tmp_path):
+    skin = tmp_path / "skin.dice.h5"
+    dicer.dice(DATA / "libmesh_cylinder_shell.exo", skin, interval=2)
+    s = dicer.open(skin)
+    for bad in (float("inf"), float("nan"), True, 10**400, "1"):
+        with pytest.raises(dicer.UsageError, match="--max-distance: .* is not a finite number"):
+            s.locate([[0, 0, 0]], max_distance=bad)
+    same_error(cli, ["query", skin, "--point", "0,0,0", "--max-distance", "inf"],
+               lambda: s.locate([[0, 0, 0]], max_distance=float("inf")))
+
+
+def test_mapping_arguments_and_file_names(sphere_store, tmp_path):
+    mesh, out = DATA / "cardinal_sphere.e", tmp_path / "x.dice.h5"
+    with pytest.raises(dicer.UsageError, match='--sheet-interval: "0" is not a \\(KEY, interval\\) pair'):
+        dicer.dice(mesh, out, sheet_intervals=[0, 2])
+    with pytest.raises(dicer.UsageError, match='--sheet-interval: "5" is not a mapping'):
+        dicer.dice(mesh, out, sheet_intervals=5)
+    with pytest.raises(dicer.UsageError, match="-o: the file name is empty"):
+        dicer.dice(mesh, "")
+    with pytest.raises(dicer.UsageError, match="-o: a file name cannot hold a NUL byte"):
+        dicer.dice(mesh, str(tmp_path / "a\0b.dice.h5"))
+    with pytest.raises(dicer.UsageError, match="MESH: the file name is empty"):
+        dicer.dice("", out)
+    assert not out.exists()
+    # A DICER_CAD that cannot run is dicer's IoError (was FileNotFoundError
+    # or PermissionError from subprocess).
+    for bad in (str(tmp_path / "nowhere"), str(tmp_path)):
+        os.environ["DICER_CAD"] = bad
+        try:
+            with pytest.raises(dicer.IoError, match="cannot run: .*set DICER_CAD"):
+                dicer.dice(mesh, out, geometry=EXAMPLES / "cylinder.brep")
+        finally:
+            del os.environ["DICER_CAD"]
+    assert not out.exists()
+    # A numpy block id is an id, as interval=np.int64(2) is an interval.
+    a = dicer.dice(mesh, tmp_path / "a.dice.h5", block_intervals={np.int64(1): 2})
+    b = dicer.dice(mesh, tmp_path / "b.dice.h5", block_intervals={1: 2})
+    assert a.num_elements == b.num_elements
+
+
+def test_relative_names_in_messages_are_the_names_given(cli, sphere_store, tmp_path, monkeypatch):
+    # The store is read by its absolute name (an os.chdir must not lose it);
+    # messages said that name where `dicer` says the one given.
+    monkeypatch.chdir(tmp_path)
+    data = Path(sphere_store).read_bytes()
+    Path("cut.dice.h5").write_bytes(data[: len(data) // 2])
+    e = same_error(cli, ["info", "cut.dice.h5"], lambda: dicer.open("cut.dice.h5"))
+    assert str(e).startswith("cut.dice.h5: "), str(e)
+    Path("sphere.dice.h5").write_bytes(data)
+    cli.run("dice", DATA / "cardinal_sphere.e", "--interval", 2, "-o", "two.dice.h5", "--quiet")
+    fine, coarse = dicer.open("sphere.dice.h5"), dicer.open("two.dice.h5")  # 3 is no multiple of 2
+    proc = cli.run("transfer", "two.dice.h5", "sphere.dice.h5", "--check", "--json", check=False)
+    assert proc.returncode == 1, proc.stderr
+    message = json.loads(proc.stdout)["message"]
+    assert coarse.nesting(fine)["message"] == message
+    assert "sphere.dice.h5" in message and str(tmp_path) not in message, message
 
 
 def test_closed_store(sphere_store):
