@@ -241,18 +241,32 @@ bool switch_value(const py::object& v, const std::string& what) {
   return PyObject_IsTrue(v.ptr()) == 1;
 }
 
-// A finite number (int or float, not a bool or a string), as the command
+// A number (int or float, not a bool or a string); finite: as the command
 // reads --max-distance.
-double finite_value(const py::object& v, const std::string& what) {
-  const auto bad = [&] { return Error(ErrorKind::Usage, what + ": " + quoted(v) + " is not a finite number"); };
+double number_value(const py::handle& v, const std::string& what, bool finite) {
+  const auto bad = [&] {
+    return Error(ErrorKind::Usage, what + ": " + quoted(v) + (finite ? " is not a finite number" : " is not a number"));
+  };
   if (is_bool(v) || py::isinstance<py::str>(v) || py::isinstance<py::bytes>(v)) throw bad();
   const double d = PyFloat_AsDouble(v.ptr());
   if (d == -1.0 && PyErr_Occurred()) {
     PyErr_Clear();  // not a number, or an int past a double's range
     throw bad();
   }
-  if (!std::isfinite(d)) throw bad();
+  if (finite && !std::isfinite(d)) throw bad();
   return d;
+}
+
+double finite_value(const py::object& v, const std::string& what) { return number_value(v, what, true); }
+
+// Three numbers (a sequence or array of 3), for a box corner.
+std::array<double, 3> three_numbers(const py::object& v, const std::string& what) {
+  if (py::isinstance<py::str>(v) || py::isinstance<py::bytes>(v) || !py::hasattr(v, "__len__") ||
+      !py::hasattr(v, "__getitem__") || py::len(v) != 3)
+    throw Error(ErrorKind::Usage, what + ": " + quoted(v) + " is not 3 numbers");
+  std::array<double, 3> out{};
+  for (size_t a = 0; a < 3; ++a) out[a] = number_value(v[py::int_(a)], what, false);
+  return out;
 }
 
 IdSelection select_ids(const char* what, const py::object& first, const py::object& stop, const FineMesh& mesh) {
@@ -383,12 +397,12 @@ py::dict element_info(const Store& s, const py::object& first, const py::object&
   return d;
 }
 
-py::array elements_in_box(const Store& s, const std::vector<double>& lo, const std::vector<double>& hi) {
+py::array elements_in_box(const Store& s, const py::object& lo, const py::object& hi) {
   const Mesh m = s.get();
-  if (lo.size() != 3 || hi.size() != 3) throw Error(ErrorKind::Usage, "elements_in_box: lo and hi need 3 numbers each");
   Box box;
-  std::copy(lo.begin(), lo.end(), box.lo.begin());
-  std::copy(hi.begin(), hi.end(), box.hi.begin());
+  const auto a = three_numbers(lo, "elements_in_box: lo"), b = three_numbers(hi, "elements_in_box: hi");
+  std::copy(a.begin(), a.end(), box.lo.begin());
+  std::copy(b.begin(), b.end(), box.hi.begin());
   check_box(box, "elements_in_box");
   std::vector<Id> ids;
   {
@@ -1050,9 +1064,15 @@ PYBIND11_MODULE(_core, m) {
         const Mesh m = s.get();
         return owned(node_elements(*m, whole_id(id, "node_elements(id)")));
       }, py::arg("id"), "the fine elements using node id, ascending (`dicer query --node-elements`)")
-      .def("locate", [](const Store& s, const py::array_t<double, py::array::c_style | py::array::forcecast>& points,
-                        const py::object& threads, const py::object& max_distance) {
-        return locate(s, points, whole_id(threads, "locate: threads"),
+      .def("locate", [](const Store& s, const py::object& points, const py::object& threads, const py::object& max_distance) {
+        using Points = py::array_t<double, py::array::c_style | py::array::forcecast>;
+        const auto refuse = [&] {
+          return Error(ErrorKind::Usage, "locate: points must be an (n, 3) array of numbers, not " + quoted(points));
+        };
+        if (py::isinstance<py::str>(points) || py::isinstance<py::bytes>(points)) throw refuse();
+        const Points xyz = Points::ensure(points);
+        if (!xyz) throw refuse();
+        return locate(s, xyz, whole_id(threads, "locate: threads"),
                       max_distance.is_none() ? std::optional<double>()
                                              : std::optional<double>(finite_value(max_distance, "--max-distance")));
       }, py::arg("points"), py::arg("threads") = 1, py::arg("max_distance") = py::none(),

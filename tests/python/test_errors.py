@@ -158,6 +158,13 @@ def test_scalar_arguments_are_dicer_errors(sphere_store, tmp_path):
             call()
     with pytest.raises(dicer.IdOverflowError, match="does not fit in 64 bits"):
         s.chunk(0, 2**64)
+    for lo, text in (("abc", "is not 3 numbers"), ([0, 0], "is not 3 numbers"), ([0, 0, True], "is not a number")):
+        with pytest.raises(dicer.UsageError, match="elements_in_box: lo: .* " + text):
+            s.elements_in_box(lo, [1, 1, 1])
+    for pts in ([["a", "b", "c"]], "abc"):
+        with pytest.raises(dicer.UsageError, match="locate: points must be an \\(n, 3\\) array of numbers"):
+            s.locate(pts)
+    assert np.array_equal(s.elements_in_box(np.zeros(3), (1, 1, 1)), s.elements_in_box([0, 0, 0], [1, 1, 1]))
     for bad in ("no", None, 1):
         with pytest.raises(dicer.UsageError, match="connectivity: must be True or False"):
             s.blocks(connectivity=bad)
