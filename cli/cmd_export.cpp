@@ -109,6 +109,17 @@ void note_what_msh_leaves_out(const FineMesh& m, const MeshSets& sets) {
   if (!ids.empty())
     std::fprintf(stderr, "dicer export: note: node sets %s are not written to MSH, which has no node sets; Exodus "
                          "keeps them\n", ids.c_str());
+  // Group 0 is written unnamed (export/msh.cpp: Gmsh would put its name on group 1).
+  auto unnamed = [](const char* what, const std::string& name) {
+    if (!name.empty())
+      std::fprintf(stderr, "dicer export: note: the name of %s 0 (\"%s\") is not written to MSH, where Gmsh would "
+                           "give it to group 1; the group is written as physical group 0; Exodus keeps the name\n",
+                   what, printable(name).c_str());
+  };
+  for (const auto& b : m.info().blocks)
+    if (b.id == 0) unnamed("block", b.name);
+  for (const auto& set : sets.side_sets)
+    if (set.id == 0) unnamed("side set", set.name);
 }
 
 // Under mpirun -n P: rank r exports chunk r of P. Exodus: the Nemesis file

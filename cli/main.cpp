@@ -103,7 +103,7 @@ int main(int argc, char** argv) {
   std::vector<std::string> args(argv + 1, argv + argc);
   // What is answered before MPI starts is printed by one rank under mpirun.
   const bool speaks = dicer::mpi::launched_rank() == 0;
-  if (args.size() >= 2 && args[0] == "help") args = {args[1], "--help"};  // dicer help export
+  if (args.size() >= 2 && args[0] == "help" && args[1].rfind("-", 0) != 0) args = {args[1], "--help"};  // dicer help export
   if (args.empty() || args[0] == "--help" || args[0] == "-h" || args[0] == "help") {
     if (speaks) std::fputs(usage().c_str(), args.empty() ? stderr : stdout);
     return args.empty() ? exit_code(ErrorKind::Usage, 0) : kExitSuccess;

@@ -23,6 +23,9 @@ namespace {
 
 bool needs_cad(const std::vector<std::string>& args) {
   if (args.empty()) return false;
+  // Help is dicer's own table (dicer help mesh-coarse works without dicer-cad).
+  for (const auto& a : args)
+    if (a == "--help" || a == "-h") return false;
   if (args[0] == "mesh-coarse") return true;
   if (args[0] != "dice" && args[0] != "verify") return false;
   for (size_t i = 1; i < args.size(); ++i)

@@ -153,9 +153,15 @@ def _quoted(value):
     return f"a {type(value).__name__}"
 
 
+def _is_bool(value):
+    # Python's bool and numpy's (numpy.bool_; numpy.bool in numpy 2).
+    t = type(value)
+    return isinstance(value, bool) or (t.__module__ == "numpy" and t.__name__ in ("bool_", "bool"))
+
+
 def _whole(what, value):
     # bool is an int in Python; an interval of True is a mistake, not 1.
-    if isinstance(value, bool) or not isinstance(value, int):
+    if _is_bool(value) or not isinstance(value, int):
         try:
             import numpy
             if isinstance(value, numpy.integer):
@@ -177,7 +183,7 @@ def _finite(what, value):
         v = float(value)
     except (TypeError, ValueError, OverflowError):
         raise UsageError(f"{what}: {_quoted(value)} is not a finite number") from None
-    if v != v or v in (float("inf"), float("-inf")) or isinstance(value, bool):
+    if v != v or v in (float("inf"), float("-inf")) or _is_bool(value):
         raise UsageError(f"{what}: {_quoted(value)} is not a finite number")
     return v
 
@@ -291,9 +297,9 @@ def open(path, cache_mb=64, read_ahead=4, keep_tables=True):  # noqa: A001  (dic
     be evicted (the CLI's --no-keep-tables)."""
     path = _path(path)
     _check_input(path, "STORE")
-    if not isinstance(keep_tables, bool):
+    if not _is_bool(keep_tables):
         raise UsageError("--no-keep-tables: keep_tables must be True or False, not %r" % (keep_tables,))
-    return _core._open(_os.fsencode(path), _whole("--cache-mb", cache_mb), _whole("--read-ahead", read_ahead), keep_tables)
+    return _core._open(_os.fsencode(path), _whole("--cache-mb", cache_mb), _whole("--read-ahead", read_ahead), bool(keep_tables))
 
 
 def dice(mesh, out, interval=None, sheet_intervals=None, block_intervals=None, size=None,
@@ -378,7 +384,7 @@ def mesh_coarse(cad, out, size, surface=False, subdivide=False):
     _check_output(out, "-o", [(cad, "CAD")])
     args = ["mesh-coarse", _arg(cad), "--size", repr(_finite("--size", size)), "-o", _arg(out), "--quiet"]
     for flag, value in (("--surface", surface), ("--subdivide", subdivide)):
-        if not isinstance(value, bool):
+        if not _is_bool(value):
             raise UsageError("%s: %s must be True or False, not %r" % (flag, flag[2:], value))
         if value:
             args.append(flag)

@@ -193,7 +193,15 @@ struct IdSelection {
 std::string quoted(const py::handle& v) {
   try {
     std::string text = py::str(v);
-    if (text.size() > 60) text = text.substr(0, 57) + "...";
+    // Counted in characters, as _quoted: a UTF-8 sequence is never split.
+    const auto after = [&](size_t chars) {
+      size_t at = 0;
+      for (size_t c = 0; c < chars && at < text.size(); ++c)
+        do ++at;
+        while (at < text.size() && (static_cast<unsigned char>(text[at]) & 0xC0) == 0x80);
+      return at;
+    };
+    if (after(61) < text.size()) text = text.substr(0, after(57)) + "...";
     return "\"" + text + "\"";
   } catch (const py::error_already_set&) {
   }

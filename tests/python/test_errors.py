@@ -86,6 +86,9 @@ def test_bad_intervals(cli, tmp_path):
         dicer.dice(s, o, interval=2.5)  # not a whole number: refused, never rounded
     with pytest.raises(dicer.UsageError):
         dicer.dice(s, o, interval=True)
+    for flag in (True, np.bool_(True)):  # numpy's bool as Python's
+        with pytest.raises(dicer.UsageError, match="--size: .* is not a finite number"):
+            dicer.dice(s, o, size=flag)
     # Past Python's 4300-digit str() limit: named by size, not a ValueError.
     with pytest.raises(dicer.IdOverflowError, match="--interval: an integer of 16610 bits does not fit in 64 bits"):
         dicer.dice(s, o, interval=10**5000)
@@ -132,6 +135,14 @@ def test_query_out_of_range(cli, sphere_store):
             call(10**5000)
     with pytest.raises(dicer.IdOverflowError, match="an integer of 16610 bits does not fit"):
         s.nodes(10**5000, 10**5000 + 1)
+    # A long value is quoted in 57 characters and "...", never splitting one
+    # (C++ and Python cut alike).
+    with pytest.raises(dicer.UsageError) as e:
+        s.chunk("\u00e9" * 70, 1)
+    assert '"' + "\u00e9" * 57 + '..."' in str(e.value) and "\ufffd" not in str(e.value), str(e.value)
+    with pytest.raises(dicer.UsageError) as e:
+        dicer.dice(DATA / "cardinal_sphere.e", "x.dice.h5", interval="\u00e9" * 70)
+    assert '"' + "\u00e9" * 57 + '..."' in str(e.value), str(e.value)
     # A long value is quoted in 60 characters.
     with pytest.raises(dicer.UsageError, match=r'chunk: "\[0, 0, 0, 0, .{44}\.\.\." is not \(k, n\)'):
         s.batches(chunk=[0] * 100)
