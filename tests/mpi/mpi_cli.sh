@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The same dicer binary under `mpirun -n P` against the single process, on
-# real meshes (run by ctest for P = 1..4; --oversubscribe beyond the cores):
+# real meshes (run by ctest for P = 1..4, sanitizer builds 1, 2, 4; --oversubscribe beyond the cores):
 #   sweep        the same checksum and counts
 #   query        --box --count the same number
 #   verify       the same JSON report
