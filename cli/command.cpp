@@ -126,8 +126,13 @@ void Command::usage_error(const std::string& message) const {
 }
 
 bool Command::parse(const std::vector<std::string>& argv) {
+  // "--" ends the options: what follows is an argument even where it
+  // starts with '-' (a file named -x.e). CLI11 takes the rest as
+  // positionals and leaves the mark itself in remaining().
+  const auto mark = std::find(argv.begin(), argv.end(), std::string("--"));
   std::vector<std::string> args;
-  for (const auto& a : argv) {
+  for (auto it = argv.begin(); it != mark; ++it) {
+    const std::string& a = *it;
     // "--json=0" would be false and "--json=1" true (CLI11): a flag takes
     // no value, said so.
     if (const auto eq = a.find('='); a.rfind("--", 0) == 0 && eq != std::string::npos) {
@@ -141,12 +146,13 @@ bool Command::parse(const std::vector<std::string>& argv) {
       args.push_back(a);
     }
   }
-  // A value option that ends the command line: say so by its name (CLI11's
+  // A value option that ends the options: say so by its name (CLI11's
   // own words would be "1 required N missing").
   if (!args.empty()) {
     const CLI::Option* last = looks_like_option(args.back()) ? app_.get_option_no_throw(args.back()) : nullptr;
     if (last && last->get_items_expected_max() > 0) usage_error(args.back() + " needs a value");
   }
+  args.insert(args.end(), mark, argv.end());
   std::reverse(args.begin(), args.end());  // CLI11 takes them last first
   try {
     app_.parse(args);
@@ -156,9 +162,11 @@ bool Command::parse(const std::vector<std::string>& argv) {
   } catch (const CLI::ParseError& e) {
     usage_error(e.what());
   }
-  const std::vector<std::string> extra = app_.remaining();
-  for (const auto& a : extra)
-    if (looks_like_option(a)) usage_error("unknown option " + a.substr(0, a.find('=')));
+  std::vector<std::string> extra = app_.remaining();
+  const auto extra_mark = std::find(extra.begin(), extra.end(), std::string("--"));
+  for (auto it = extra.begin(); it != extra_mark; ++it)
+    if (looks_like_option(*it)) usage_error("unknown option " + it->substr(0, it->find('=')));
+  if (extra_mark != extra.end()) extra.erase(extra_mark);
   if (!extra.empty()) usage_error("unexpected argument \"" + extra.front() + "\"");
   for (const CLI::Option* in : inputs_)
     if (in->get_positional() && !given(in)) usage_error("missing " + display_name(in));

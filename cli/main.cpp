@@ -75,7 +75,8 @@ rather than taken as standard output (./- names a file called -).
 
 Options are written --name VALUE or --name=VALUE; when an option that
 takes one value is given twice, the last one counts. Options marked
-"repeatable" keep every value.
+"repeatable" keep every value. `--` ends the options: an argument after
+it is a file name even when it starts with '-' (dicer info -- -a.dice.h5).
 
 JSON (--json): one line per document, UTF-8. Bytes of a string that are
 not valid UTF-8 (a file or block name) become U+FFFD; a number that is not

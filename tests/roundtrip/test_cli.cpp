@@ -503,6 +503,38 @@ TEST(Cli, FlagsTakeNoValueAndIdleOptionsAreRefused) {
   EXPECT_EQ(run_cli({"help", "frobnicate"}).exit_code, 2);
 }
 
+// "--" ends the options (it was an unknown option): a file whose name
+// starts with '-' is read after it, options after it are file names, and
+// an argument too many after it is refused as one.
+TEST(Cli, DoubleDashEndsTheOptions) {
+  test::TempDir tmp;
+  const std::string dashed = tmp.path("-b.e");
+  std::filesystem::copy_file(test::data_path("cardinal_brick.e"), dashed);
+  const auto plain = run_cli({"sheets", test::data_path("cardinal_brick.e"), "--json"});
+  ASSERT_EQ(plain.exit_code, 0) << plain.err;
+  // Run from the directory, so that the name itself starts with '-'.
+  auto in_tmp = [&](std::vector<std::string> args) {
+    args.insert(args.begin(), DICER_CLI);
+    args.insert(args.begin(), {"/usr/bin/env", "-C", tmp.path("")});
+    return test::run_process(args);
+  };
+  const auto dashed_run = in_tmp({"sheets", "--json", "--", "-b.e"});
+  ASSERT_EQ(dashed_run.exit_code, 0) << dashed_run.err;
+  // The same sheets; only the file name in the document differs.
+  const auto sheets_of = [](const std::string& json) { return json.substr(json.find("\"sheets\"")); };
+  EXPECT_EQ(sheets_of(dashed_run.out), sheets_of(plain.out));
+  EXPECT_EQ(in_tmp({"sheets", "-b.e"}).exit_code, 2);  // without "--" it is an option
+  auto r = in_tmp({"sheets", "--", "-b.e", "--json"});
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("unexpected argument \"--json\""), std::string::npos) << r.err;
+  r = in_tmp({"sheets", "--", "--json"});  // a file named --json, which does not exist
+  EXPECT_EQ(r.exit_code, 5) << r.err;
+  EXPECT_NE(r.err.find("--json"), std::string::npos) << r.err;
+  r = run_cli({"sheets", test::data_path("cardinal_brick.e"), "--bogus", "--", "x"});
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("unknown option --bogus"), std::string::npos) << r.err;
+}
+
 // DICER_CAD naming dicer itself (or a copy of it) made `dice --geometry`
 // exec itself for ever: it is refused, exit 5, naming the variable.
 TEST(Cli, DicerCadNamingDicerIsRefusedNotLooped) {
