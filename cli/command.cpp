@@ -275,20 +275,20 @@ IntervalFlags::IntervalFlags(Command& cmd) {
             "its edges no longer than H (a graded sheet: under its "
             "grading)",
             group);
-  cmd.values("--block-interval", blocks_, "B=N",
+  cmd.values("--block-interval", text_.block_interval, "B=N",
              "sheets touching block B (id or name) get N; a sheet "
              "touching several such blocks gets the LARGEST, and the "
              "conflict is reported",
              group);
-  cmd.values("--sheet-interval", sheets_, "S=N", "sheet S gets N, whatever its blocks ask", group);
-  cmd.values("--entity-interval", entities_, "DIM:TAG=N",
+  cmd.values("--sheet-interval", text_.sheet_interval, "S=N", "sheet S gets N, whatever its blocks ask", group);
+  cmd.values("--entity-interval", text_.entity_interval, "DIM:TAG=N",
              "sheets with an edge on curve (DIM 1), surface (2) or "
              "volume (3) TAG get N, ranked like block requests (the "
              "LARGEST wins, reported); TAG: the mesh's MSH entity, or "
              "the CAD's when dice is given one",
              group);
   const std::string grading = "Grading options (fine nodes closer together at one or both ends of a sheet's edges)";
-  cmd.values("--sheet-bias", sheet_bias_, "S=R[@V]",
+  cmd.values("--sheet-bias", text_.sheet_bias, "S=R[@V]",
              "sheet S's fine edges grow by R from node V (a node id of "
              "the input file on the sheet; default: the lower node id "
              "of its first edge, as `dicer sheets` lists them) across "
@@ -298,15 +298,15 @@ IntervalFlags::IntervalFlags(Command& cmd) {
              "R follows from the interval (with --size: the smallest "
              "interval whose cells all fit in the size)",
              grading);
-  cmd.values("--sheet-dual-bias", sheet_dual_, "S=R",
+  cmd.values("--sheet-dual-bias", text_.sheet_dual_bias, "S=R",
              "symmetric: the cells grow by R from both ends to the "
              "middle (R > 1: fine at both ends; first:h: end cells h)",
              grading);
-  cmd.values("--block-bias", block_bias_, "B=R[@V]",
+  cmd.values("--block-bias", text_.block_bias, "B=R[@V]",
              "every sheet touching block B gets that bias (below "
              "--sheet-bias; the first block's wins, reported)",
              grading);
-  cmd.values("--entity-bias", entity_bias_, "DIM:TAG=R[@V]",
+  cmd.values("--entity-bias", text_.entity_bias, "DIM:TAG=R[@V]",
              "every sheet with an edge on that entity gets that bias, "
              "ranked like --block-bias",
              grading);
@@ -325,55 +325,9 @@ IntervalFlags::IntervalFlags(Command& cmd) {
 IntervalRequest IntervalFlags::request() const {
   IntervalRequest file;
   if (file_opt_->count()) file = read_interval_file(file_);
-  IntervalRequest flags;
+  IntervalRequest flags = parse_interval_options(text_);
   if (interval_opt_->count()) flags.global = parse_int("--interval", interval_);
   if (size_opt_->count()) flags.size = parse_double("--size", size_);
-  for (const auto& kv : blocks_) {
-    const auto eq = kv.rfind('=');
-    if (eq == std::string::npos || eq == 0)
-      throw Error(ErrorKind::Usage, "--block-interval: \"" + kv + "\" is not BLOCK=N");
-    flags.blocks.emplace_back(kv.substr(0, eq), parse_int("--block-interval " + kv, kv.substr(eq + 1)));
-  }
-  for (const auto& kv : sheets_) {
-    const auto eq = kv.find('=');
-    if (eq == std::string::npos) throw Error(ErrorKind::Usage, "--sheet-interval: \"" + kv + "\" is not SHEET=N");
-    flags.sheets.emplace_back(parse_int("--sheet-interval " + kv, kv.substr(0, eq)),
-                              parse_int("--sheet-interval " + kv, kv.substr(eq + 1)));
-  }
-  // KEY=VALUE at the first '=' (a block name may not hold one: --block-bias
-  // splits at the last, like --block-interval; a bias holds none).
-  auto split = [](const std::string& flag, const std::string& kv, const char* shape, bool last) {
-    const auto eq = last ? kv.rfind('=') : kv.find('=');
-    if (eq == std::string::npos || eq == 0 || eq + 1 == kv.size())
-      throw Error(ErrorKind::Usage, flag + ": \"" + kv + "\" is not " + shape);
-    return std::pair{kv.substr(0, eq), kv.substr(eq + 1)};
-  };
-  for (const auto& kv : entities_) {
-    const auto [k, v] = split("--entity-interval", kv, "DIM:TAG=N", false);
-    flags.entities.emplace_back(parse_entity("--entity-interval " + kv, k), parse_int("--entity-interval " + kv, v));
-  }
-  for (const auto& kv : sheet_bias_) {
-    const auto [k, v] = split("--sheet-bias", kv, "S=R[@V]", false);
-    flags.sheet_bias.emplace_back(parse_int("--sheet-bias " + kv, k),
-                                  parse_bias("--sheet-bias " + kv, v, tfi::Spacing::Geometric));
-  }
-  for (const auto& kv : sheet_dual_) {
-    const auto [k, v] = split("--sheet-dual-bias", kv, "S=R", false);
-    const Id s = parse_int("--sheet-dual-bias " + kv, k);
-    for (const auto& [other, b] : flags.sheet_bias)
-      if (other == s && b.kind == tfi::Spacing::Geometric)
-        throw Error(ErrorKind::Usage, "--sheet-dual-bias " + kv + ": sheet " + k + " also has a --sheet-bias; give one");
-    flags.sheet_bias.emplace_back(s, parse_bias("--sheet-dual-bias " + kv, v, tfi::Spacing::Dual));
-  }
-  for (const auto& kv : block_bias_) {
-    const auto [k, v] = split("--block-bias", kv, "B=R[@V]", true);
-    flags.block_bias.emplace_back(k, parse_bias("--block-bias " + kv, v, tfi::Spacing::Geometric));
-  }
-  for (const auto& kv : entity_bias_) {
-    const auto [k, v] = split("--entity-bias", kv, "DIM:TAG=R[@V]", false);
-    flags.entity_bias.emplace_back(parse_entity("--entity-bias " + kv, k),
-                                   parse_bias("--entity-bias " + kv, v, tfi::Spacing::Geometric));
-  }
   return merge(file, flags);
 }
 

@@ -98,7 +98,7 @@ class IntervalFlags {
 
  private:
   std::string interval_, size_, file_;
-  std::vector<std::string> blocks_, sheets_, entities_, block_bias_, sheet_bias_, sheet_dual_, entity_bias_;
+  IntervalOptionText text_;
   const CLI::Option *interval_opt_ = nullptr, *size_opt_ = nullptr, *file_opt_ = nullptr;
 };
 

@@ -1,6 +1,7 @@
 #include "dicer/intervals.hpp"
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -62,6 +63,16 @@ double parse_real(const std::string& what, const std::string& text) {
   return v;
 }
 
+std::int64_t parse_whole(const std::string& what, const std::string& text) {
+  errno = 0;
+  char* end = nullptr;
+  const long long v = std::strtoll(text.c_str(), &end, 10);
+  if (text.empty() || *end != '\0') throw Error(ErrorKind::Usage, what + ": \"" + text + "\" is not a whole number");
+  // A bad value (2), like any other: exit 6 is for counts the mesh would overflow.
+  if (errno == ERANGE) throw Error(ErrorKind::Usage, what + ": \"" + text + "\" does not fit in 64 bits");
+  return v;
+}
+
 BiasRequest parse_bias(const std::string& what, const std::string& text, tfi::Spacing kind) {
   BiasRequest b;
   b.kind = kind;
@@ -93,6 +104,53 @@ EntityTag parse_entity(const std::string& what, const std::string& text) {
   if (dim < 1 || dim > 3 || tag.empty() || *tend != '\0' || t < -2147483647LL || t > 2147483647LL)
     throw Error(ErrorKind::Usage, what + ": \"" + text + "\" is not DIM:TAG (DIM 1 curve, 2 surface, 3 volume)");
   return {static_cast<int>(dim), static_cast<int>(t)};
+}
+
+IntervalRequest parse_interval_options(const IntervalOptionText& text) {
+  IntervalRequest r;
+  // KEY=VALUE at the first '=' (a block name may hold one: block options
+  // split at the last; a value holds none).
+  auto split = [](const std::string& flag, const std::string& kv, const char* shape, bool last) {
+    const auto eq = last ? kv.rfind('=') : kv.find('=');
+    if (eq == std::string::npos || eq == 0 || eq + 1 == kv.size())
+      throw Error(ErrorKind::Usage, flag + ": \"" + kv + "\" is not " + shape);
+    return std::pair{kv.substr(0, eq), kv.substr(eq + 1)};
+  };
+  for (const auto& kv : text.block_interval) {
+    const auto [k, v] = split("--block-interval", kv, "BLOCK=N", true);
+    r.blocks.emplace_back(k, parse_whole("--block-interval " + kv, v));
+  }
+  for (const auto& kv : text.sheet_interval) {
+    const auto [k, v] = split("--sheet-interval", kv, "SHEET=N", false);
+    r.sheets.emplace_back(parse_whole("--sheet-interval " + kv, k), parse_whole("--sheet-interval " + kv, v));
+  }
+  for (const auto& kv : text.entity_interval) {
+    const auto [k, v] = split("--entity-interval", kv, "DIM:TAG=N", false);
+    r.entities.emplace_back(parse_entity("--entity-interval " + kv, k), parse_whole("--entity-interval " + kv, v));
+  }
+  for (const auto& kv : text.sheet_bias) {
+    const auto [k, v] = split("--sheet-bias", kv, "S=R[@V]", false);
+    r.sheet_bias.emplace_back(parse_whole("--sheet-bias " + kv, k),
+                              parse_bias("--sheet-bias " + kv, v, tfi::Spacing::Geometric));
+  }
+  for (const auto& kv : text.sheet_dual_bias) {
+    const auto [k, v] = split("--sheet-dual-bias", kv, "S=R", false);
+    const Id s = parse_whole("--sheet-dual-bias " + kv, k);
+    for (const auto& [other, b] : r.sheet_bias)
+      if (other == s && b.kind == tfi::Spacing::Geometric)
+        throw Error(ErrorKind::Usage, "--sheet-dual-bias " + kv + ": sheet " + k + " also has a --sheet-bias; give one");
+    r.sheet_bias.emplace_back(s, parse_bias("--sheet-dual-bias " + kv, v, tfi::Spacing::Dual));
+  }
+  for (const auto& kv : text.block_bias) {
+    const auto [k, v] = split("--block-bias", kv, "B=R[@V]", true);
+    r.block_bias.emplace_back(k, parse_bias("--block-bias " + kv, v, tfi::Spacing::Geometric));
+  }
+  for (const auto& kv : text.entity_bias) {
+    const auto [k, v] = split("--entity-bias", kv, "DIM:TAG=R[@V]", false);
+    r.entity_bias.emplace_back(parse_entity("--entity-bias " + kv, k),
+                               parse_bias("--entity-bias " + kv, v, tfi::Spacing::Geometric));
+  }
+  return r;
 }
 
 std::string bias_text(const BiasRequest& b) {

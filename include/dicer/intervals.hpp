@@ -68,6 +68,9 @@ BiasRequest parse_bias(const std::string& what, const std::string& text, tfi::Sp
 // A finite number, the whole of `text`, else Error{Usage} naming `what`
 // (bias requests here and every numeric option of the command line).
 double parse_real(const std::string& what, const std::string& text);
+// A whole number in 64 bits, the whole of `text`, else Error{Usage} naming
+// `what` (every whole-number option of the command line).
+std::int64_t parse_whole(const std::string& what, const std::string& text);
 // Its checks (ratio range, positive finite cells), Error{Usage} naming `what`.
 void check_bias(const std::string& what, const BiasRequest& b);
 // "1.2 from node 345", "dual 1.1", "first cell 0.01": for notes and `sheets`.
@@ -89,6 +92,21 @@ struct IntervalRequest {
   std::vector<std::pair<Id, BiasRequest>> sheet_bias;
   std::vector<std::pair<EntityTag, BiasRequest>> entity_bias;
 };
+
+// The repeatable interval and grading options as the command line writes
+// them, one string per occurrence: "B=N" (split at the last '=', so a block
+// name may hold one), "S=N", "DIM:TAG=N", "S=R[@V]", "S=R" (dual), "B=R[@V]",
+// "DIM:TAG=R[@V]", where R may be first:h or last:h. `dicer dice` and the
+// Python package (which writes its keyword arguments so) both read them
+// through parse_interval_options: one reading, one wording of its errors.
+struct IntervalOptionText {
+  std::vector<std::string> block_interval, sheet_interval, entity_interval;
+  std::vector<std::string> sheet_bias, sheet_dual_bias, block_bias, entity_bias;
+};
+// Error{Usage} naming the option and the text ("--sheet-bias 3=x: ..."); a
+// sheet with both a geometric and a dual bias is refused. Intervals are
+// only parsed here: resolve_intervals checks their range.
+IntervalRequest parse_interval_options(const IntervalOptionText& text);
 
 // Parses the JSON intervals file {"global":4,"size":0.05,"blocks":{"2":6},
 // "sheets":{"17":12},"entities":{"2:5":8}}; a block, sheet or entity value

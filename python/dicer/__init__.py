@@ -188,23 +188,45 @@ def _finite(what, value):
     return v
 
 
-def _pairs(what, mapping, key):
+def _pairs(what, mapping, key, value=None, noun="interval"):
     if mapping is None:
         return []
     try:
         items = list(mapping.items() if hasattr(mapping, "items") else mapping)
     except TypeError:
-        raise UsageError(f"{what}: {_quoted(mapping)} is not a mapping of KEY to interval") from None
+        raise UsageError(f"{what}: {_quoted(mapping)} is not a mapping of KEY to {noun}") from None
     out = []
     label = lambda v: _text(v) or f"<{_quoted(v)}>"
     for item in items:
         try:
             k, n = item
         except (TypeError, ValueError):
-            raise UsageError(f"{what}: {_quoted(item)} is not a (KEY, interval) pair") from None
+            raise UsageError(f"{what}: {_quoted(item)} is not a (KEY, {noun}) pair") from None
         shown = f"{what} {label(k)}={label(n)}"
-        out.append((key(shown, k), _whole(shown, n)))
+        out.append((key(shown, k), (value or _whole)(shown, n)))
     return out
+
+
+def _entity_key(what, k):
+    # "DIM:TAG" as on the command line, or (DIM, TAG).
+    if isinstance(k, str):
+        return k
+    if isinstance(k, (tuple, list)) and len(k) == 2:
+        return f"{_whole(what, k[0])}:{_whole(what, k[1])}"
+    raise UsageError(f"{what}: an entity is \"DIM:TAG\" or (DIM, TAG)")
+
+
+def _bias(what, value):
+    # A ratio, or the command line's text: "1.2@17", "first:0.01", "last:0.5@17".
+    if isinstance(value, str):
+        return value
+    return repr(_finite(what, value))
+
+
+def _option_text(what, pairs):
+    # The command line's KEY=VALUE words, read by the library's one parser
+    # (parse_interval_options) with or without dicer-cad.
+    return [f"{k}={v}" for k, v in pairs]
 
 
 def _block_key(what, k):
@@ -303,19 +325,26 @@ def open(path, cache_mb=64, read_ahead=4, keep_tables=True):  # noqa: A001  (dic
 
 
 def dice(mesh, out, interval=None, sheet_intervals=None, block_intervals=None, size=None,
-         intervals_file=None, geometry=None, geometry_tol=None, cache_mb=64):
+         intervals_file=None, geometry=None, geometry_tol=None, cache_mb=64, entity_intervals=None,
+         sheet_bias=None, sheet_dual_bias=None, block_bias=None, entity_bias=None):
     """Dices a coarse mesh (Exodus II or Gmsh MSH) into the store `out` and
     opens it, like `dicer dice MESH -o OUT ...`.
 
     interval: every sheet gets it; size: each sheet the smallest interval
     making its edges no longer than size; block_intervals: {block id or
     name: n} (a sheet touching several takes the largest); sheet_intervals:
-    {sheet id: n}; intervals_file: the JSON file of `dicer dice
-    --intervals-file` (the arguments win over it). Precedence: sheet >
-    block and entity (the largest) > size > interval > 1; entity intervals
-    and grading (the command's --entity-interval and bias options) come
-    only through intervals_file; conflicts are reported as DicerWarning and
-    kept in Store.notes.
+    {sheet id: n}; entity_intervals: {"DIM:TAG" or (DIM, TAG): n}, the
+    sheets with an edge on that curve (1), surface (2) or volume (3) of
+    the MSH classification or the CAD; intervals_file: the JSON file of
+    `dicer dice --intervals-file` (the arguments win over it). Precedence:
+    sheet > block and entity (the largest) > size > interval > 1.
+
+    Grading, as the command's bias options: sheet_bias {sheet: R},
+    block_bias {block: R}, entity_bias {entity: R}, sheet_dual_bias
+    {sheet: R}, where R is a ratio or the command line's text: "1.2@17"
+    (from node 17 of the mesh file), "first:0.01", "last:0.5@17". So
+    sheet_bias={3: "1.2@17"} is --sheet-bias 3=1.2@17. Conflicts are
+    reported as DicerWarning and kept in Store.notes.
 
     A second-order mesh (HEX20, HEX27, QUAD8, QUAD9) is diced on its
     quadratic edges and faces, as the command does (info["source_order"]
@@ -341,15 +370,26 @@ def dice(mesh, out, interval=None, sheet_intervals=None, block_intervals=None, s
     _check_output(out, "-o", inputs)
     interval = None if interval is None else _whole("--interval", interval)
     size = None if size is None else _finite("--size", size)
-    blocks = _pairs("--block-interval", block_intervals, _block_key)
-    sheets = _pairs("--sheet-interval", sheet_intervals, _sheet_key)
+    grading = "bias (a ratio or text)"
+    options = {
+        "block_interval": _option_text("--block-interval", _pairs("--block-interval", block_intervals, _block_key)),
+        "sheet_interval": _option_text("--sheet-interval", _pairs("--sheet-interval", sheet_intervals, _sheet_key)),
+        "entity_interval": _option_text("--entity-interval",
+                                        _pairs("--entity-interval", entity_intervals, _entity_key)),
+        "sheet_bias": _option_text("--sheet-bias", _pairs("--sheet-bias", sheet_bias, _sheet_key, _bias, grading)),
+        "sheet_dual_bias": _option_text("--sheet-dual-bias", _pairs("--sheet-dual-bias", sheet_dual_bias,
+                                                                    _sheet_key, _bias, grading)),
+        "block_bias": _option_text("--block-bias", _pairs("--block-bias", block_bias, _block_key, _bias, grading)),
+        "entity_bias": _option_text("--entity-bias", _pairs("--entity-bias", entity_bias, _entity_key, _bias,
+                                                            grading)),
+    }
     if geometry_tol is not None and geometry is None:
         raise UsageError("--geometry-tol needs --geometry CAD")
     cache_mb = _whole("--cache-mb", cache_mb)
     _core._check_open_options(cache_mb, 4)  # before the work, not after it
 
     if geometry is None:
-        r = _core._dice(_os.fsencode(mesh), _os.fsencode(out), interval, size, blocks, sheets,
+        r = _core._dice(_os.fsencode(mesh), _os.fsencode(out), interval, size, options,
                         None if intervals_file is None else _os.fsencode(intervals_file))
         warns, notes = [f"{_shown(mesh)}: {w}" for w in r["warnings"]], r["notes"]
     else:
@@ -360,10 +400,9 @@ def dice(mesh, out, interval=None, sheet_intervals=None, block_intervals=None, s
             args += ["--interval", str(interval)]
         if size is not None:
             args += ["--size", repr(size)]  # repr: the shortest text that reads back to the same double
-        for b, n in blocks:
-            args += ["--block-interval", f"{b}={n}"]
-        for s, n in sheets:
-            args += ["--sheet-interval", f"{s}={n}"]
+        for name, words in options.items():
+            for w in words:
+                args += ["--" + name.replace("_", "-"), w]
         if intervals_file is not None:
             args += ["--intervals-file", _arg(intervals_file)]
         warns, notes = _run_dicer_cad(args)

@@ -12,6 +12,7 @@
 #include <sys/stat.h>
 
 #include <algorithm>
+#include <map>
 #include <cstdio>
 #include <filesystem>
 #include <limits>
@@ -816,9 +817,21 @@ BatchIterator make_batches(const Store& s, const py::object& chunk, std::int64_t
 // ---- dice (without CAD: the package runs dicer-cad for --geometry)
 
 py::dict dice_to_store(const std::string& mesh_path, const std::string& out, std::optional<std::int64_t> interval,
-                       std::optional<double> size, const std::vector<std::pair<std::string, std::int64_t>>& blocks,
-                       const std::vector<std::pair<std::int64_t, std::int64_t>>& sheets,
+                       std::optional<double> size, const std::map<std::string, std::vector<std::string>>& options,
                        std::optional<std::string> intervals_file) {
+  // The command line's words (python/dicer/__init__.py writes them), read
+  // by the CLI's own parser.
+  IntervalOptionText option_text;
+  const std::pair<const char*, std::vector<std::string>*> fields[] = {
+      {"block_interval", &option_text.block_interval}, {"sheet_interval", &option_text.sheet_interval},
+      {"entity_interval", &option_text.entity_interval}, {"sheet_bias", &option_text.sheet_bias},
+      {"sheet_dual_bias", &option_text.sheet_dual_bias}, {"block_bias", &option_text.block_bias},
+      {"entity_bias", &option_text.entity_bias}};
+  for (const auto& [name, words] : options) {
+    const auto f = std::find_if(std::begin(fields), std::end(fields), [&](const auto& x) { return name == x.first; });
+    if (f == std::end(fields)) throw Error(ErrorKind::Usage, "_dice: unknown option " + name);
+    *f->second = words;
+  }
   std::vector<std::string> warnings, notes;
   Id coarse = 0, nodes = 0, elements = 0;
   SignalPoll poll;
@@ -826,11 +839,9 @@ py::dict dice_to_store(const std::string& mesh_path, const std::string& out, std
     // The CLI's order: the file first, flags over it (cli/command.cpp).
     IntervalRequest file;
     if (intervals_file) file = read_interval_file(*intervals_file);
-    IntervalRequest flags;
+    IntervalRequest flags = parse_interval_options(option_text);
     flags.global = interval;
     flags.size = size;
-    flags.blocks = blocks;
-    flags.sheets = sheets;
     const IntervalRequest request = merge(file, flags);
     CoarseMesh mesh = read_coarse_mesh(mesh_path);
     warnings = mesh.warnings;
@@ -874,7 +885,7 @@ PYBIND11_MODULE(_core, m) {
   (void)py::array_t<double>(0);
 
   m.def("_dice", &dice_to_store, py::arg("mesh"), py::arg("out"), py::arg("interval"), py::arg("size"),
-        py::arg("block_intervals"), py::arg("sheet_intervals"), py::arg("intervals_file"));
+        py::arg("options"), py::arg("intervals_file"));
   m.def("_open", &open_store, py::arg("path"), py::arg("cache_mb"), py::arg("read_ahead"), py::arg("keep_tables"));
   m.def("_check_open_options", &check_open_options, py::arg("cache_mb"), py::arg("read_ahead"));
 

@@ -237,6 +237,68 @@ def test_dice_from_python_equals_cli_dice(cli, tmp_path):
     assert by_size.info["sheet_intervals"] == cli.json("info", tmp_path / "size_cli.dice.h5")["sheet_intervals"]
 
 
+def test_dice_grading_and_entities_from_python_equal_cli(cli, tmp_path):
+    """sheet_bias, sheet_dual_bias, block_bias, entity_bias and entity_intervals
+    are the command's options (they came only through intervals_file)."""
+    mesh = DATA / "cardinal_sphere.e"
+    kw = dict(interval=4, sheet_bias={0: 1.4, 2: "first:0.05"}, sheet_dual_bias={1: 1.3}, block_bias={1: "0.8"})
+    with pytest.warns(dicer.DicerWarning, match="sheet"):  # block 1's bias loses to the sheet biases, said
+        py = dicer.dice(mesh, tmp_path / "py.dice.h5", **kw)
+    cli.run("dice", mesh, "-o", tmp_path / "cli.dice.h5", "--quiet", "--interval", 4, "--sheet-bias", "0=1.4",
+            "--sheet-bias", "2=first:0.05", "--sheet-dual-bias", "1=1.3", "--block-bias", "1=0.8")
+    c = dicer.open(tmp_path / "cli.dice.h5")
+    assert py.info == c.info
+    g = py.info["sheet_gradings"]
+    assert g[0]["ratio"] == 1.4 and g[1] == {"kind": "dual", "ratio": 1.3} and g[3]["ratio"] == 0.8
+    assert py.sweep()["checksum"] == c.sweep()["checksum"]
+    # Entities: the MSH file's classification, keyed "DIM:TAG" or (DIM, TAG).
+    msh = DATA / "firedrake_cube_hex.msh"
+    a = dicer.dice(msh, tmp_path / "e1.dice.h5", entity_intervals={(2, 1): 3}, entity_bias={"2:1": 1.2})
+    cli.run("dice", msh, "-o", tmp_path / "e2.dice.h5", "--quiet", "--entity-interval", "2:1=3",
+            "--entity-bias", "2:1=1.2")
+    b = dicer.open(tmp_path / "e2.dice.h5")
+    assert a.info == b.info and a.num_elements > 768  # some sheets of the 768 hexes got 3
+    assert a.sweep()["checksum"] == b.sweep()["checksum"]
+    # Errors in the command's words.
+    with pytest.raises(dicer.UsageError, match=r'--sheet-bias 0=x: "x" is not a finite number'):
+        dicer.dice(mesh, tmp_path / "bad.dice.h5", sheet_bias={0: "x"})
+    with pytest.raises(dicer.UsageError, match="sheet 0 also has a --sheet-bias"):
+        dicer.dice(mesh, tmp_path / "bad.dice.h5", sheet_bias={0: 1.2}, sheet_dual_bias={0: 1.2})
+    with pytest.raises(dicer.UsageError, match=r"an entity is \"DIM:TAG\" or \(DIM, TAG\)"):
+        dicer.dice(mesh, tmp_path / "bad.dice.h5", entity_intervals={2: 3})
+    with pytest.raises(dicer.UsageError, match="is not DIM:TAG"):
+        dicer.dice(msh, tmp_path / "bad.dice.h5", entity_bias={"4:1": 1.2})
+    with pytest.raises(dicer.UsageError, match="is not a finite number"):
+        dicer.dice(mesh, tmp_path / "bad.dice.h5", block_bias={1: True})
+    assert not (tmp_path / "bad.dice.h5").exists()
+
+
+def test_dice_bias_spaces_the_fine_nodes_by_the_series(tmp_path):
+    """One unit hex at interval 3 or 4: the graded axis holds the series'
+    partial sums (1:2:4 for R = 2; first:0.1 solves 0.1 (1 + R + R^2) = 1;
+    dual 2 at interval 4 makes cells 1:2:2:1), the other axes stay even."""
+    from conftest import write_box_msh
+    box = write_box_msh(tmp_path / "one.msh", 1, 1, 1)
+    r = (-1 + 37 ** 0.5) / 2
+    cases = [(3, dict(sheet_bias={0: 2.0}), [0, 1 / 7, 3 / 7, 1]),
+             (3, dict(sheet_bias={0: "first:0.1"}), [0, 0.1, 0.1 + 0.1 * r, 1]),
+             (4, dict(sheet_dual_bias={1: 2}), [0, 1 / 6, 1 / 2, 5 / 6, 1])]
+    for k, (n, kw, want) in enumerate(cases):
+        s = dicer.dice(box, tmp_path / f"b{k}.dice.h5", interval=n, **kw)
+        pts = s.nodes(0, s.num_nodes)
+        even = np.linspace(0, 1, n + 1)
+        graded = 0
+        for axis in range(3):
+            got = np.unique(np.round(pts[:, axis], 12))
+            assert len(got) == n + 1, (kw, axis, got)
+            if np.allclose(got, even):
+                continue
+            mirrored = np.sort(1 - np.array(want))
+            assert np.allclose(got, want) or np.allclose(got, mirrored), (kw, axis, got)
+            graded += 1
+        assert graded == 1, kw
+
+
 def hex27_msh(path, bend):
     """One HEX27 (MSH type 12) on the unit cube, nodes in Gmsh's order, its
     top bulging by `bend` (second-order nodes only: the corners stay)."""
@@ -282,8 +344,11 @@ def test_dice_with_geometry_equals_cli(cli, tmp_path, monkeypatch):
     cyl = EXAMPLES / "cylinder.brep"
     coarse = tmp_path / "cyl.msh"
     cli.run("mesh-coarse", cyl, "--size", "0.8", "-o", coarse)
-    py = dicer.dice(coarse, tmp_path / "py.dice.h5", interval=2, geometry=cyl)
-    cli.run("dice", coarse, "--geometry", cyl, "--interval", 2, "-o", tmp_path / "cli.dice.h5", "--quiet")
+    # A grading option too: dicer-cad gets it as the command's words.
+    py = dicer.dice(coarse, tmp_path / "py.dice.h5", interval=2, geometry=cyl, sheet_bias={0: 1.5})
+    cli.run("dice", coarse, "--geometry", cyl, "--interval", 2, "--sheet-bias", "0=1.5", "-o",
+            tmp_path / "cli.dice.h5", "--quiet")
+    assert py.info["sheet_gradings"][0]["ratio"] == 1.5
     c = dicer.open(tmp_path / "cli.dice.h5")
     assert np.array_equal(bits(py.nodes(0, py.num_nodes)), bits(c.nodes(0, c.num_nodes)))
     assert py.sweep()["checksum"] == c.sweep()["checksum"]
@@ -295,7 +360,7 @@ def test_dice_with_geometry_equals_cli(cli, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     shutil.copy(coarse, "-c.msh")
     shutil.copy(cyl, "-cyl.brep")
-    dashed = dicer.dice("-c.msh", "-out.dice.h5", interval=2, geometry="-cyl.brep")
+    dashed = dicer.dice("-c.msh", "-out.dice.h5", interval=2, geometry="-cyl.brep", sheet_bias={0: 1.5})
     assert np.array_equal(bits(dashed.nodes(0, dashed.num_nodes)), bits(py.nodes(0, py.num_nodes)))
     assert dicer.mesh_coarse("-cyl.brep", "-m.msh", size=0.8) == "-m.msh" and os.path.isfile("-m.msh")
 
