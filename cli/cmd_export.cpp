@@ -138,6 +138,7 @@ int export_ranks(const std::string& path, const std::string& out, const std::str
     sets = sets_of(*mesh, path);
     plan = plan_chunks(*mesh, P);
   });
+  check_same_store(path, mesh->info().uuid);
   const FineMesh& m = *mesh;
   if (r == 0 && format != "vtkhdf" && format != "exodus") note_what_msh_leaves_out(m, sets);
   const CancelOnSignals cancel_on_signals;

@@ -128,7 +128,11 @@ class PointReader {
   static void parse(const std::string& text, const std::string& where, ErrorKind bad, std::vector<double>& out) {
     // The message quotes the start of a long line (a binary file's "line"
     // runs to 4 KiB); main shows what is not text as escapes.
-    const std::string quoted = text.size() > 60 ? text.substr(0, 60) + "..." : text;
+    std::string quoted = text.size() > 60 ? text.substr(0, 60) + "..." : text;
+    // A message is a C string: a NUL would end it (printable() escapes the rest).
+    for (size_t at; (at = quoted.find('\0')) != std::string::npos;) quoted.replace(at, 1, "\\x00");
+    // strtod stops at a NUL: the rest of the line was dropped, silently.
+    if (text.find('\0') != std::string::npos) throw Error(bad, where + ": \"" + quoted + "\" holds a NUL byte");
     const char* p = text.c_str();
     for (int k = 0; k < 3; ++k) {
       while (*p == ' ' || *p == '\t' || *p == ',' || *p == '\r') ++p;
@@ -140,7 +144,12 @@ class PointReader {
       p = end;
     }
     while (*p == ' ' || *p == '\t' || *p == '\r') ++p;
-    if (*p != '\0') throw Error(bad, where + ": \"" + quoted + "\" has more than three numbers");
+    if (*p == '\0') return;
+    char* end = nullptr;
+    (void)std::strtod(*p == ',' ? p + 1 : p, &end);
+    if (end != (*p == ',' ? p + 1 : p)) throw Error(bad, where + ": \"" + quoted + "\" has more than three numbers");
+    const std::string rest(p, std::min<size_t>(std::strlen(p), 20));
+    throw Error(bad, where + ": \"" + quoted + "\" is not three finite numbers x y z (\"" + rest + "\" after the third)");
   }
 
   // NumPy format 1.0-3.0: magic, version, header length, a Python dict
@@ -195,8 +204,10 @@ class PointReader {
 };
 
 // `chunk_count`: under mpirun with --box --count, this rank's count in its
-// chunk is stored there and nothing is printed (the caller sums).
-int query(const std::vector<std::string>& argv, long long* chunk_count = nullptr, bool* as_json = nullptr) {
+// chunk is stored there and nothing is printed (the caller sums); `opened`
+// receives the store's path and uuid (check_same_store).
+int query(const std::vector<std::string>& argv, long long* chunk_count = nullptr, bool* as_json = nullptr,
+          std::pair<std::string, std::string>* opened = nullptr) {
   Command cmd(kDoc);
   std::string path, node, nodes, element, elements, box_text, point_text, points_file, neighbors_of, elements_of;
   std::string threads_text = "1", max_distance_text;
@@ -325,6 +336,7 @@ int query(const std::vector<std::string>& argv, long long* chunk_count = nullptr
       const ChunkRange r = plan_chunks(m, mpi.size())[static_cast<size_t>(mpi.rank())];
       *chunk_count = for_each_in_box(m, box, {}, r.first_coarse, r.end_coarse);
       if (as_json) *as_json = json;
+      if (opened) *opened = {path, m.info().uuid};
       store.report(m);
       return 0;
     }
@@ -401,7 +413,9 @@ int cmd_query(const std::vector<std::string>& argv) {
   if (!mpi.active() || !(has_box && has_count)) return on_rank0([&] { return query(argv); });
   long long mine = 0, sum = 0;
   bool json = false;
-  agree([&] { query(argv, &mine, &json); });
+  std::pair<std::string, std::string> opened;
+  agree([&] { query(argv, &mine, &json, &opened); });
+  check_same_store(opened.first, opened.second);
   MPI_Reduce(&mine, &sum, 1, MPI_LONG_LONG, MPI_SUM, 0, mpi.comm());
   if (mpi.rank() == 0) {
     if (json) print_json({{"count", sum}});

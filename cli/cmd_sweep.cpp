@@ -122,6 +122,7 @@ int cmd_sweep(const std::vector<std::string>& argv) {
     else range = ChunkRange{0, 1, 0, mesh->num_coarse_elements(), mesh->num_elements()};
   });
   if (!run) return 0;
+  check_same_store(path, mesh->info().uuid);
   const FineMesh& m = *mesh;
   SweepResult r;
   agree([&] {

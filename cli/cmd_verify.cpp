@@ -43,7 +43,7 @@ dicer verify part.dice.h5 --geometry part.step --json
 
 namespace {
 int report(const std::string& path, bool with_cad, const std::string& cad, bool json, bool quiet, const FineMesh& m,
-           const VerifyReport& r, const StoreFlags& store);
+           const VerifyReport& r);
 }  // namespace
 
 int cmd_verify(const std::vector<std::string>& argv) {
@@ -79,6 +79,7 @@ int cmd_verify(const std::vector<std::string>& argv) {
     }
   });
   if (!run) return 0;
+  check_same_store(path, mesh->info().uuid);
   const FineMesh& m = *mesh;
   VerifyReport r;
   if (mpi.active()) {
@@ -89,15 +90,16 @@ int cmd_verify(const std::vector<std::string>& argv) {
     r = verify(m, [&](Id done, Id) { bar.update(done); });
   }
   int code = 0;
-  agree([&] { code = mpi.rank() == 0 ? report(path, cmd.given(o_cad), cad, json, quiet, m, r, store) : 0; });
+  agree([&] { code = mpi.rank() == 0 ? report(path, cmd.given(o_cad), cad, json, quiet, m, r) : 0; });
   if (mpi.active()) MPI_Bcast(&code, 1, MPI_INT, 0, mpi.comm());
+  store.report(m);  // every rank its own counters, as --stats says
   return code;
 }
 
 namespace {
 
 int report(const std::string& path, bool with_cad, const std::string& cad, bool json, bool quiet, const FineMesh& m,
-           const VerifyReport& r, const StoreFlags& store) {
+           const VerifyReport& r) {
   GeometryCheck g;
   bool geo_ok = true;
   if (with_cad) {
@@ -169,7 +171,6 @@ int report(const std::string& path, bool with_cad, const std::string& cad, bool 
     for (const auto& w : r.warnings) std::printf("    warning: %s\n", printable(w).c_str());
     std::printf("%s\n", ok ? "all checks passed" : "VERIFY FAILED");
   }
-  store.report(m);
   (void)quiet;
   return ok ? 0 : kExitDefect;
 }

@@ -49,15 +49,21 @@ int on_rank0(const std::function<int()>& fn) {
   return code;
 }
 
-std::int64_t parse_int(const std::string& what, const std::string& text) {
-  errno = 0;
-  char* end = nullptr;
-  const long long v = std::strtoll(text.c_str(), &end, 10);
-  if (text.empty() || *end != '\0') throw Error(ErrorKind::Usage, what + ": \"" + text + "\" is not a whole number");
-  // A bad value (2), like any other: exit 6 is for counts the mesh would overflow.
-  if (errno == ERANGE) throw Error(ErrorKind::Usage, what + ": \"" + text + "\" does not fit in 64 bits");
-  return v;
+void check_same_store(const std::string& path, const std::string& uuid) {
+  dicer::mpi::Session& s = session();
+  if (!s.active()) return;
+  std::string first;
+  const int q = dicer::mpi::first_rank_differing(s.comm(), uuid, &first);
+  dicer::mpi::collectively(s.comm(), [&] {
+    if (s.rank() == q)
+      throw Error(ErrorKind::BadInput, path + ": rank " + std::to_string(q) + " read another store than rank 0 (uuid " +
+                                           uuid + ", rank 0's " + first +
+                                           "): every rank must read the same file (copies local to each node that "
+                                           "differ?)");
+  });
 }
+
+std::int64_t parse_int(const std::string& what, const std::string& text) { return parse_whole(what, text); }
 
 double parse_double(const std::string& what, const std::string& text) { return parse_real(what, text); }
 

@@ -31,6 +31,13 @@ void agree(const std::function<void()>& fn);
 // `dicer-cad`: does nothing (cli/cad/with.cpp).
 void hand_over_if_cad(char** argv, const std::vector<std::string>& args);
 
+// Under mpirun, after an agree() in which every rank read `m` from `path`:
+// every rank must have read the same store (node-local copies that differ
+// gave silent wrong answers). Collective; the first rank whose store's uuid
+// differs from rank 0's throws Error{BadInput}, the others PeerFailed. Does
+// nothing without MPI.
+void check_same_store(const std::string& path, const std::string& uuid);
+
 std::int64_t parse_int(const std::string& what, const std::string& text);
 // A --threads value: 1 to 1024 (Error{Usage} otherwise).
 std::int64_t parse_threads(const std::string& text);

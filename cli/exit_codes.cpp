@@ -26,7 +26,7 @@ constexpr Row kTable[] = {
     {6, ErrorKind::Overflow, 0, "counts would overflow 64-bit ids"},
     {7, ErrorKind::Geometry, 0, "mesh and CAD do not fit, or an element would invert"},
     {8, ErrorKind::Corrupt, 0, "corrupt store (a checksum fails, tables disagree)"},
-    {kExitInternal, std::nullopt, 0, "internal error"},
+    {kExitInternal, std::nullopt, 0, "internal error, or out of memory"},
     {128 + SIGHUP, ErrorKind::Cancelled, SIGHUP, "hung up (SIGHUP)"},
     {128 + SIGINT, ErrorKind::Cancelled, SIGINT, "interrupted (Ctrl-C, SIGINT)"},
     {128 + SIGTERM, ErrorKind::Cancelled, SIGTERM, "terminated (SIGTERM)"},

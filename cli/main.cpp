@@ -1,6 +1,8 @@
 // dicer: the command-line tool. One file per subcommand; this one dispatches
 // and turns dicer::Error into a one-line message and an exit code (the one
 // mapping is exit_code(), cli/exit_codes.cpp).
+#include <sys/resource.h>
+
 #include <cstdio>
 #include <exception>
 #include <new>
@@ -144,6 +146,27 @@ int main(int argc, char** argv) {
   int code = kExitSuccess;
   bool caught = false;
   try {
+    // Every rank must run the same command line: ranks given others
+    // (mpirun -np 2 dicer sweep S : -np 1 dicer verify S) waited for each
+    // other for ever in different collectives.
+    if (mpi.active()) {
+      auto line = [](const std::string& nul_separated) {
+        std::string s = "dicer";
+        for (size_t at = 0; at < nul_separated.size();) {
+          const size_t end = nul_separated.find('\0', at);
+          s += " " + nul_separated.substr(at, end - at), at = end + 1;
+        }
+        return s.size() > 200 ? s.substr(0, 197) + "..." : s;
+      };
+      std::string mine, first;
+      for (const auto& a : args) mine += a + '\0';
+      const int q = dicer::mpi::first_rank_differing(mpi.comm(), mine, &first);
+      agree([&] {
+        if (mpi.rank() == q)
+          throw dicer::Error(ErrorKind::Usage, "rank " + std::to_string(q) + " runs `" + line(mine) + "`, rank 0 `" +
+                                                   line(first) + "`: every rank must run the same command line");
+      });
+    }
     bool help = false;
     for (const auto& a : rest) help = help || a == "--help" || a == "-h";
     code = command->distributed && !help ? command->run(rest) : on_rank0([&] { return command->run(rest); });
@@ -154,7 +177,14 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "dicer %s: error: %s\n", command->name, printable(e.what()).c_str());
     code = exit_code(e.kind(), received_signal()), caught = true;
   } catch (const std::bad_alloc&) {
-    std::fprintf(stderr, "dicer %s: error: out of memory\n", command->name);
+    // Say which limit: a user's ulimit -v (batch systems set one) or the machine.
+    struct rlimit as {};
+    std::string limit = "the machine's free memory";
+    if (::getrlimit(RLIMIT_AS, &as) == 0 && as.rlim_cur != RLIM_INFINITY)
+      limit = "this process's address-space limit, " + human_bytes(static_cast<std::uint64_t>(as.rlim_cur)) +
+              " (ulimit -v)";
+    std::fprintf(stderr, "dicer %s: error: out of memory: the command needs more than %s allows\n", command->name,
+                 limit.c_str());
     code = kExitInternal, caught = true;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "dicer %s: internal error: %s\n", command->name, printable(e.what()).c_str());

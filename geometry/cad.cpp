@@ -147,7 +147,7 @@ Cad::Cad(const std::string& path) : path_(path), lock_(gmsh_mutex()) {
         ents_[d].push_back(std::move(e));
       }
     }
-    if (ents_[1].empty() && ents_[2].empty()) throw Error(ErrorKind::Geometry, path + ": the CAD file holds no curve or surface");
+    if (ents_[1].empty() && ents_[2].empty()) throw Error(ErrorKind::BadInput, path + ": the CAD file holds no curve or surface (not a model, or an empty one)");
     diag_ = std::sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) + (hi[2] - lo[2]) * (hi[2] - lo[2]));
   });
   // Degenerate curves (a sphere's poles as a STEP file writes them) have no

@@ -102,6 +102,14 @@ std::vector<std::string> allgather_bytes(MPI_Comm comm, const std::string& mine)
   return out;
 }
 
+int first_rank_differing(MPI_Comm comm, const std::string& mine, std::string* rank0) {
+  const std::vector<std::string> all = allgather_bytes(comm, mine);
+  if (rank0) *rank0 = all.front();
+  for (size_t q = 1; q < all.size(); ++q)
+    if (all[q] != all.front()) return static_cast<int>(q);
+  return -1;
+}
+
 std::vector<std::string> gather_bytes(MPI_Comm comm, std::string mine, std::int64_t piece) {
   int rank = 0, P = 1;
   MPI_Comm_rank(comm, &rank);

@@ -144,7 +144,7 @@ std::uint64_t child_budget(std::int64_t file_size) {
   } catch (const std::bad_alloc&) {
     error(ErrorKind::BadInput, "needs more memory than the reader allows (" +
                                    std::to_string(child_budget(file_size) >> 20) +
-                                   " MiB; DICER_READER_MEMORY_MB raises it): damaged or hostile sizes");
+                                   " MiB; DICER_READER_MEMORY_MB raises it): sizes that large are damaged, hostile or a mesh too big for that limit");
   } catch (const std::exception& e) {
     error(ErrorKind::BadInput, std::string("the reader failed: ") + e.what());
   }

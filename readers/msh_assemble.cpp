@@ -136,8 +136,10 @@ void assign_blocks(const MshSections& sec, int dim, CoarseMesh& mesh) {
   }
   const bool by_physical = max_physical != std::numeric_limits<Id>::min();
   std::size_t orphans = 0;
+  std::map<std::vector<int>, std::size_t> several;  // an MSH4 entity's groups -> its cells
   for (std::size_t i = 0; i < num_cells; ++i) {
     std::span<const int> p = sec.physicals(dim, i);
+    if (p.size() > 1) ++several[std::vector<int>(p.begin(), p.end())];
     if (!p.empty()) {
       cell_block_id[i] = p[0];
       auto it = sec.physical_names.find({dim, p[0]});
@@ -162,6 +164,27 @@ void assign_blocks(const MshSections& sec, int dim, CoarseMesh& mesh) {
                             " are in no physical group; they were put in blocks named 'entity <tag>' with ids from " +
                             std::to_string(max_physical + 1));
   }
+  // An element has one block: the first group wins, said (MSH 2's repeated
+  // elements are counted in assemble).
+  std::size_t told = 0, untold = 0;
+  for (const auto& [groups, n] : several) {
+    if (++told > 5) {
+      untold += n;
+      continue;
+    }
+    std::string list;
+    for (const int g : groups) {
+      list += (list.empty() ? "" : ", ") + std::to_string(g);
+      auto it = sec.physical_names.find({dim, g});
+      if (it != sec.physical_names.end() && !it->second.empty()) list += " \"" + it->second + "\"";
+    }
+    mesh.warnings.push_back(std::to_string(n) + " " + (dim == 3 ? "hexahedra" : "quadrangles") +
+                            " are in physical groups " + list + ": each was put in the block of the first, " +
+                            std::to_string(groups.front()) + " (an element has one block)");
+  }
+  if (untold > 0)
+    mesh.warnings.push_back(std::to_string(untold) + " more " + (dim == 3 ? "hexahedra" : "quadrangles") +
+                            " are in several physical groups; each was put in the block of its first");
   std::map<Id, std::int32_t> block_index;
   for (const auto& [id, name] : block_names) {
     block_index.emplace(id, static_cast<std::int32_t>(mesh.blocks.size()));
@@ -270,6 +293,9 @@ CoarseMesh assemble(const std::string& path, MshSections sec) {
   mesh.mode = dim == 3 ? Mode::Volume : Mode::Surface;
   if (!sec.msh4) classify_from_elements(sec);
   assign_blocks(sec, dim, mesh);
+  if (sec.periodic)
+    mesh.warnings.push_back("its $Periodic section is not applied: sheets of the paired boundaries get their intervals "
+                            "independently, so the fine mesh need not match across them (give them one interval)");
   if (sec.repeated > 0)
     mesh.warnings.push_back(std::to_string(sec.repeated) +
                             " element(s) are listed again, same tag and nodes, for a further physical group (Gmsh's "

@@ -174,6 +174,7 @@ struct MshSections {
   // (type, entity dimension, entity tag, MSH 1/2 physical tag or 0).
   std::map<std::tuple<Id, int, Id, Id>, std::size_t> others;
   std::size_t repeated = 0;                  // MSH2 elements written once per physical group
+  bool periodic = false;                     // a $Periodic section (not applied)
   std::map<std::pair<int, int>, std::vector<int>> entity_physicals;  // MSH4 (dim, tag)
   std::map<std::pair<int, Id>, std::string> physical_names;          // (dim, tag)
   std::vector<GeoEntity> entities;  // MSH4: curves, surfaces, volumes and what bounds them

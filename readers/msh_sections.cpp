@@ -589,6 +589,7 @@ MshSections SectionReader::read() {
       if (s_.msh4) read_elements_msh41();
       else read_elements_msh2();
     } else {
+      s_.periodic = s_.periodic || name == "Periodic";
       lex_.skip_to_end_line(name);
     }
   }

@@ -317,6 +317,14 @@ CoarseMesh read_exodus_here(const std::string& path, std::int64_t file_size) {
   // ---- element blocks: types first, to decide the mode ----
   const std::vector<std::int64_t> block_ids =
       read_ids(exoid, EX_ELEM_BLOCK, init.num_elem_blk, path, "element block");
+  {
+    // The library finds a block by id: a repeated id reads the first block
+    // twice (a "duplicated element" or a count that contradicts the header).
+    std::vector<std::int64_t> sorted = block_ids;
+    std::sort(sorted.begin(), sorted.end());
+    if (const auto d = std::adjacent_find(sorted.begin(), sorted.end()); d != sorted.end())
+      throw Error(ErrorKind::BadInput, path + ": two element blocks have id " + std::to_string(*d));
+  }
   const std::vector<std::string> block_names =
       read_names(exoid, EX_ELEM_BLOCK, init.num_elem_blk, name_buf, path, "element block");
   std::vector<BlockInfo> blocks(block_ids.size());
@@ -408,9 +416,12 @@ CoarseMesh read_exodus_here(const std::string& path, std::int64_t file_size) {
     // The Exodus library (5.14) skips a coordinate variable whose netCDF id
     // is 0 (the file's first variable: legal, if unusual) and reports
     // success, leaving that axis at 0: a flattened mesh, silently. Such a
-    // variable is read through netCDF itself (the exoid is the netCDF id).
+    // variable is read through netCDF itself (the exoid is the netCDF id),
+    // from the layout the library read (a file holding both coord and
+    // coordx/y/z had the wrong one put over the right one).
     double* axis[3] = {mesh.x.data(), mesh.y.data(), mesh.z.data()};
-    for (int d = 0; d < std::min<int>(static_cast<int>(init.num_dim), 3); ++d) {
+    const bool split_axes = ex_large_model(exoid) != 0;  // coordx/y/z, else coord
+    for (int d = 0; split_axes && d < std::min<int>(static_cast<int>(init.num_dim), 3); ++d) {
       const char* name[3] = {"coordx", "coordy", "coordz"};
       int id = -1, ndims = 0, dim = -1;
       std::size_t len = 0;
@@ -423,7 +434,7 @@ CoarseMesh read_exodus_here(const std::string& path, std::int64_t file_size) {
     }
     {
       int id = -1;  // the older single array coord[num_dim][num_nodes], first in the file: the same gap
-      if (nc_inq_varid(exoid, "coord", &id) == NC_NOERR && id == 0) {
+      if (!split_axes && nc_inq_varid(exoid, "coord", &id) == NC_NOERR && id == 0) {
         const int dims = std::min<int>(static_cast<int>(init.num_dim), 3);
         for (int d = 0; d < dims; ++d) {
           const std::size_t start[2] = {static_cast<std::size_t>(d), 0}, count[2] = {1, num_nodes};

@@ -1,8 +1,12 @@
 // The intervals file (JSON), parsed with nlohmann-json: a small, well-kept
 // parser is safer than our own for user-written JSON.
+#include <cerrno>
 #include <cmath>
 #include <cstdlib>
 #include <optional>
+#include <set>
+#include <string>
+#include <vector>
 #include <nlohmann/json.hpp>  // Debian's nlohmann-json3-dev
 
 #include "dicer/error.hpp"
@@ -14,8 +18,19 @@ namespace dicer {
 IntervalRequest read_interval_file(const std::string& path) {
   const std::string text = InputFile(path).read_all();
   nlohmann::json j;
+  // A key given twice in one object: nlohmann keeps the last, silently; the
+  // parser's callback sees each key as it comes, so the file is refused.
+  std::vector<std::set<std::string>> keys;
+  auto once = [&](int, nlohmann::json::parse_event_t event, nlohmann::json& parsed) {
+    using E = nlohmann::json::parse_event_t;
+    if (event == E::object_start) keys.emplace_back();
+    else if (event == E::object_end && !keys.empty()) keys.pop_back();
+    else if (event == E::key && !keys.empty() && !keys.back().insert(parsed.get<std::string>()).second)
+      throw Error(ErrorKind::Usage, path + ": key \"" + parsed.get<std::string>() + "\" appears twice in one object");
+    return true;
+  };
   try {
-    j = nlohmann::json::parse(text);
+    j = nlohmann::json::parse(text, once);
   } catch (const nlohmann::json::exception& e) {
     throw Error(ErrorKind::Usage, path + ": not valid JSON: " + e.what());
   }
@@ -82,10 +97,12 @@ IntervalRequest read_interval_file(const std::string& path) {
           if (n) r.entities.emplace_back(e, *n);
           if (bias) r.entity_bias.emplace_back(e, *bias);
         } else {
-          char* end = nullptr;
-          const long long s = std::strtoll(b.key().c_str(), &end, 10);
-          if (b.key().empty() || *end != '\0' || s < 0)
-            throw Error(ErrorKind::Usage, path + ": sheets: \"" + b.key() + "\" is not a sheet id");
+          // Digits only: strtoll would take " 2" and "+2" as 2 and saturate past 2^63.
+          const std::string& key = b.key();
+          errno = 0;
+          const long long s = std::strtoll(key.c_str(), nullptr, 10);
+          if (key.empty() || key.find_first_not_of("0123456789") != std::string::npos || errno == ERANGE)
+            throw Error(ErrorKind::Usage, path + ": sheets: \"" + key + "\" is not a sheet id");
           if (n) r.sheets.emplace_back(s, *n);
           if (bias) r.sheet_bias.emplace_back(s, *bias);
         }

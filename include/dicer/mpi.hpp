@@ -105,6 +105,11 @@ void collectively(MPI_Comm comm, Fn&& fn) {
 // left waiting). Collective; what ConformOptions::share needs.
 std::vector<std::string> allgather_bytes(MPI_Comm comm, const std::string& mine);
 
+// The lowest rank whose `mine` differs from rank 0's, -1 when all agree;
+// `rank0` (if given) receives rank 0's value. Collective (allgather_bytes):
+// how the CLI refuses ranks given other command lines or other stores.
+int first_rank_differing(MPI_Comm comm, const std::string& mine, std::string* rank0 = nullptr);
+
 // Every rank's bytes, in rank order, on rank 0 (empty elsewhere): parts of
 // any size, sent point to point in pieces of at most `piece` bytes (MPI's
 // counts are int; rank 0's total passes 2 GiB where verify's parts of a

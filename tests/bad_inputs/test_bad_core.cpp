@@ -198,6 +198,20 @@ TEST(BadCore, IntervalFileErrors) {
   EXPECT_NE(error_of([&] { read_interval_file(p); }, ErrorKind::Usage).find("not valid JSON"), std::string::npos);
   test::write_file(p, "{\"blocks\": {\"2\": 2.5}}");
   EXPECT_NE(error_of([&] { read_interval_file(p); }, ErrorKind::Usage).find("whole number"), std::string::npos);
+  // A key twice (nlohmann keeps the last, silently), in the file or in a
+  // nested object; sheet ids that strtoll would bend (" 2", "+2", past 2^63).
+  for (const char* twice : {"{\"global\": 4, \"global\": 7}", "{\"sheets\": {\"2\": 3, \"2\": 5}}",
+                            "{\"blocks\": {\"1\": {\"interval\": 2, \"interval\": 3}}}"}) {
+    test::write_file(p, twice);
+    EXPECT_NE(error_of([&] { read_interval_file(p); }, ErrorKind::Usage).find("appears twice in one object"),
+              std::string::npos)
+        << twice;
+  }
+  for (const char* bent : {" 2", "+2", "99999999999999999999", "2 "}) {
+    test::write_file(p, std::string("{\"sheets\": {\"") + bent + "\": 3}}");
+    EXPECT_NE(error_of([&] { read_interval_file(p); }, ErrorKind::Usage).find("is not a sheet id"), std::string::npos)
+        << bent;
+  }
   test::write_file(p, "{\"global\": 3, \"size\": 0.5, \"blocks\": {\"2\": 6, \"inlet\": 3}, \"sheets\": {\"17\": 12}}");
   const IntervalRequest r = read_interval_file(p);
   EXPECT_EQ(r.global, 3);

@@ -613,3 +613,106 @@ TEST(BadExodus, MoreSetsThanTheFileHasDimensionsIsRefused) {
   nc_check(nc_close(ncid), "nc_close");
   expect_refused_in_child(path, {"claims 1 element blocks, 5000 side sets and 0 node sets but defines only"});
 }
+
+// A 2 x 1 x 1 box of hexes written with netCDF alone, its coordinates as
+// `coord` (one array, the library's layout when the global attribute
+// file_size is 0) and/or coordx/y/z (file_size 1), `coord` first when
+// `coord_first` (netCDF variable id 0, the one the Exodus library skips).
+// `coord` holds `coord_scale` x the true coordinates.
+void write_box_with_coords(const std::string& path, int file_size, bool with_coord, bool with_axes,
+                           double coord_scale) {
+  const double x[12] = {0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 1, 2}, y[12] = {0, 0, 0, 1, 1, 1, 0, 0, 0, 1, 1, 1},
+               z[12] = {0, 0, 0, 0, 0, 0, 1, 1, 1, 1, 1, 1};
+  const int connect[16] = {1, 2, 5, 4, 7, 8, 11, 10, 2, 3, 6, 5, 8, 9, 12, 11};
+  int ncid = -1, d_dim = -1, d_nodes = -1, d_blk = -1, d_el = -1, d_per = -1, d = -1, v_coord = -1, v_ax[3] = {};
+  int v_status = -1, v_prop = -1, v_conn = -1;
+  nc_check(nc_create(path.c_str(), NC_CLOBBER | NC_64BIT_OFFSET, &ncid), "nc_create");
+  if (with_coord) {  // first: variable id 0
+    nc_check(nc_def_dim(ncid, "num_dim", 3, &d_dim), "dim");
+    nc_check(nc_def_dim(ncid, "num_nodes", 12, &d_nodes), "dim");
+    const int dims[2] = {d_dim, d_nodes};
+    nc_check(nc_def_var(ncid, "coord", NC_DOUBLE, 2, dims, &v_coord), "coord");
+  } else {
+    nc_check(nc_def_dim(ncid, "num_dim", 3, &d_dim), "dim");
+    nc_check(nc_def_dim(ncid, "num_nodes", 12, &d_nodes), "dim");
+  }
+  const float version = 8.0f;
+  const int word = 8;
+  nc_check(nc_put_att_float(ncid, NC_GLOBAL, "api_version", NC_FLOAT, 1, &version), "att");
+  nc_check(nc_put_att_float(ncid, NC_GLOBAL, "version", NC_FLOAT, 1, &version), "att");
+  nc_check(nc_put_att_int(ncid, NC_GLOBAL, "floating_point_word_size", NC_INT, 1, &word), "att");
+  nc_check(nc_put_att_int(ncid, NC_GLOBAL, "file_size", NC_INT, 1, &file_size), "att");
+  nc_check(nc_put_att_text(ncid, NC_GLOBAL, "title", 3, "box"), "att");
+  for (const auto& [name, len] : {std::pair{"len_string", 33}, {"len_name", 33}, {"len_line", 81}, {"four", 4}})
+    nc_check(nc_def_dim(ncid, name, static_cast<size_t>(len), &d), name);
+  nc_check(nc_def_dim(ncid, "time_step", NC_UNLIMITED, &d), "time_step");
+  nc_check(nc_def_dim(ncid, "num_elem", 2, &d), "num_elem");
+  nc_check(nc_def_dim(ncid, "num_el_blk", 1, &d_blk), "num_el_blk");
+  nc_check(nc_def_dim(ncid, "num_el_in_blk1", 2, &d_el), "num_el_in_blk1");
+  nc_check(nc_def_dim(ncid, "num_nod_per_el1", 8, &d_per), "num_nod_per_el1");
+  if (with_axes)
+    for (int a = 0; a < 3; ++a)
+      nc_check(nc_def_var(ncid, (std::string("coord") + "xyz"[a]).c_str(), NC_DOUBLE, 1, &d_nodes, &v_ax[a]), "axis");
+  nc_check(nc_def_var(ncid, "eb_status", NC_INT, 1, &d_blk, &v_status), "eb_status");
+  nc_check(nc_def_var(ncid, "eb_prop1", NC_INT, 1, &d_blk, &v_prop), "eb_prop1");
+  nc_check(nc_put_att_text(ncid, v_prop, "name", 2, "ID"), "ID");
+  const int cdims[2] = {d_el, d_per};
+  nc_check(nc_def_var(ncid, "connect1", NC_INT, 2, cdims, &v_conn), "connect1");
+  nc_check(nc_put_att_text(ncid, v_conn, "elem_type", 4, "HEX8"), "elem_type");
+  nc_check(nc_enddef(ncid), "enddef");
+  if (with_coord) {
+    double all[36];
+    for (int i = 0; i < 12; ++i) all[i] = coord_scale * x[i], all[12 + i] = coord_scale * y[i], all[24 + i] = coord_scale * z[i];
+    nc_check(nc_put_var_double(ncid, v_coord, all), "coord data");
+  }
+  if (with_axes)
+    for (int a = 0; a < 3; ++a) nc_check(nc_put_var_double(ncid, v_ax[a], a == 0 ? x : a == 1 ? y : z), "axis data");
+  const int one = 1;
+  nc_check(nc_put_var_int(ncid, v_status, &one), "eb_status data");
+  nc_check(nc_put_var_int(ncid, v_prop, &one), "eb_prop1 data");
+  nc_check(nc_put_var_int(ncid, v_conn, connect), "connect1 data");
+  nc_check(nc_close(ncid), "nc_close");
+}
+
+// The coordinates are those of the layout the Exodus library reads: a
+// stray `coord` (variable id 0) beside coordx/y/z in a file_size 1 file was
+// put over the true coordinates (exit 0, a mesh 10 times too big), while a
+// `coord` of id 0 that is the file's one layout must still be read.
+TEST(BadExodus, CoordinatesComeFromTheLayoutTheFileDeclares) {
+  TempDir tmp;
+  struct Case {
+    const char* name;
+    int file_size;
+    bool coord, axes;
+  };
+  for (const Case c : {Case{"both_large.e", 1, true, true}, Case{"coord_only.e", 0, true, false},
+                       Case{"axes_only.e", 1, false, true}}) {
+    const std::string path = tmp.path(c.name);
+    ASSERT_NO_THROW(write_box_with_coords(path, c.file_size, c.coord, c.axes, c.axes ? 10.0 : 1.0)) << c.name;
+    const dicer::CoarseMesh m = dicer::read_exodus(path);
+    ASSERT_EQ(m.x.size(), 12u) << c.name;
+    EXPECT_EQ(*std::max_element(m.x.begin(), m.x.end()), 2.0) << c.name;
+    EXPECT_EQ(*std::max_element(m.y.begin(), m.y.end()), 1.0) << c.name;
+    EXPECT_EQ(*std::max_element(m.z.begin(), m.z.end()), 1.0) << c.name;
+  }
+}
+
+// Two element blocks of one id: the library finds blocks by id, so the
+// first was read twice and the error spoke of duplicated elements.
+TEST(BadExodus, TwoElementBlocksOfOneIdAreNamed) {
+  TempDir tmp;
+  const std::string path = tmp.path("dup_block.e");
+  Fixture f = two_hexes();
+  FixtureBlock second = f.blocks[0];
+  f.blocks[0].conn.resize(8), second.conn.erase(second.conn.begin(), second.conn.begin() + 8);
+  f.blocks[0].id = 5, second.id = 6;
+  f.blocks.push_back(second);
+  write_exodus(path, f);
+  int ncid = -1, var = -1;
+  nc_check(nc_open(path.c_str(), NC_WRITE, &ncid), "nc_open");
+  nc_check(nc_inq_varid(ncid, "eb_prop1", &var), "eb_prop1");
+  const int ids[2] = {5, 5};
+  nc_check(nc_put_var_int(ncid, var, ids), "eb_prop1 data");
+  nc_check(nc_close(ncid), "nc_close");
+  expect_error(path, ErrorKind::BadInput, {"two element blocks have id 5"});
+}

@@ -352,3 +352,23 @@ TEST(ExportMemory, SideSetsOfAHugeElementAreCountedAndRefusedByName) {
   const std::string out = d.path("mid.msh");
   expect_sigterm_ends({"export", mid, "--format", "msh", "-o", out}, out);
 }
+
+// Out of memory is exit 70 with the limit met named ("out of memory" alone
+// left a user with a 4 GiB ulimit -v guessing): 64,000 coarse hexes do
+// not dice in a 160 MiB address space.
+TEST(ExportMemory, OutOfMemoryNamesTheLimit) {
+#ifdef DICER_SANITIZER_BUILD
+  GTEST_SKIP() << "sanitizer builds shadow every allocation and take no address-space limit (the Release suite runs this)";
+#endif
+  if (!fs::exists("/usr/bin/prlimit")) GTEST_SKIP() << "needs prlimit (util-linux)";
+  test::TempDir d;
+  const std::string store = d.path("b.dice.h5");
+  const auto r = test::run_process({"/usr/bin/prlimit", "--as=167772160", "--", DICER_CLI, "dice", box_msh(d, 40),
+                                    "-o", store, "--quiet"});
+  EXPECT_EQ(r.exit_code, 70) << r.err;
+  EXPECT_NE(r.err.find("out of memory: the command needs more than this process's address-space limit, 160.0 MiB "
+                       "(ulimit -v) allows"),
+            std::string::npos)
+      << r.err;
+  EXPECT_FALSE(fs::exists(store));
+}

@@ -455,6 +455,13 @@ TEST(Geometry, MismatchedCadIsRefusedNamingVertexAndDistance) {
     const auto j = test::run_cli({"dice", msh, "--geometry", junk, "--interval", "2", "-o", tmp.path("j.dice.h5"), "--quiet"});
     EXPECT_EQ(j.exit_code, 3) << j.err;
     EXPECT_EQ(j.out, "") << "stdout holds: " << j.out;
+    // Bytes that OpenCASCADE's BREP reader takes as an empty model: a bad
+    // input too (it was exit 7, "mesh and CAD do not fit").
+    const std::string empty = tmp.path("junk.brep");
+    std::ofstream(empty) << std::string(300, '\x17');
+    const auto b = test::run_cli({"dice", msh, "--geometry", empty, "--interval", "2", "-o", tmp.path("j.dice.h5"), "--quiet"});
+    EXPECT_EQ(b.exit_code, 3) << b.err;
+    EXPECT_NE(b.err.find("holds no curve or surface"), std::string::npos) << b.err;
   }
   // transfer from the mesh file to a store diced onto the CAD: not one
   // dicing (the file has no CAD placement), said in words, the file named.

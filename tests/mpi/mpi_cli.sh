@@ -11,7 +11,9 @@
 #   errors       a store damaged where only one rank reads: every rank ends
 #                with exit 8, one message, no hang; a full disk (a small
 #                tmpfs, as root) under every export format: exit 5, one
-#                message, no hang, the old file intact, nothing left
+#                message, no hang, the old file intact, nothing left; a rank
+#                reading another store of the same name: exit 3; ranks given
+#                other command lines: exit 2
 # usage: mpi_cli.sh DICER P WORKDIR DATA_DIR
 set -euo pipefail
 dicer=$1 P=$2 work=$3 data=$4
@@ -172,6 +174,33 @@ if [ "$P" -gt 1 ]; then
   [ "$code" = 5 ] || fail "file size limit on rank 1: exit $code, expected 5: $out"
   printf '%s\n' "$out" | grep -q 'ulimit -f' || fail "file size limit on rank 1: no reason: $out"
   [ -z "$(ls -A lim)" ] || fail "file size limit on rank 1: left behind: $(ls -A lim)"
+fi
+
+# Ranks that read different stores under one name (node-local copies that
+# differ): sweep and query gave a wrong answer with exit 0. Now exit 3, one
+# message naming rank 1. Ranks given other command lines waited for each
+# other for ever: exit 2, one message.
+if [ "$P" -gt 1 ]; then
+  mkdir -p other
+  "$dicer" dice "$data/cardinal_prism.exo" --interval 2 -o other/prism.dice.h5 --quiet
+  printf '#!/bin/bash\n[ "$OMPI_COMM_WORLD_RANK" = 1 ] && cd other\nexec "%s" "$@"\n' "$dicer" > elsewhere.sh
+  chmod +x elsewhere.sh
+  for args in "sweep prism.dice.h5 --quiet" "query prism.dice.h5 --box -9,-9,-9,9,9,9 --count" "verify prism.dice.h5 --quiet"; do
+    set +e
+    out=$(timeout 120 mpirun -q --oversubscribe -n "$P" ./elsewhere.sh $args 2>&1)
+    code=$?
+    set -e
+    [ "$code" = 3 ] || fail "$args, another store on rank 1: exit $code, expected 3: $out"
+    [ "$(printf '%s\n' "$out" | grep -c 'error')" = 1 ] || fail "$args, another store on rank 1: not one message: $out"
+    printf '%s\n' "$out" | grep -q 'rank 1 read another store than rank 0' || fail "$args: $out"
+  done
+  set +e
+  out=$(timeout 120 mpirun -q --oversubscribe -n 1 "$dicer" sweep prism.dice.h5 --quiet : -n $((P - 1)) "$dicer" verify prism.dice.h5 --quiet 2>&1)
+  code=$?
+  set -e
+  [ "$code" = 2 ] || fail "sweep on rank 0, verify on the others: exit $code, expected 2: $out"
+  [ "$(printf '%s\n' "$out" | grep -c 'error')" = 1 ] || fail "other command lines: not one message: $out"
+  printf '%s\n' "$out" | grep -q 'every rank must run the same command line' || fail "other command lines: $out"
 fi
 
 # SIGTERM to one rank during a collective export: every rank ends with its

@@ -108,6 +108,20 @@ TEST(Cli, DiceInfoQueryVerifyOnARealMesh) {
     EXPECT_NE(r.err.find("points.txt:5: \"1 2\" is not three finite numbers"), std::string::npos) << r.err;
     r = run_cli({"query", store, "--point", "1,2"});
     EXPECT_EQ(r.exit_code, 2) << "a bad value on the command line";
+    // A NUL ended the line for strtod (the rest was dropped, exit 0); what
+    // follows the third number is named, not counted as a fourth.
+    const std::vector<std::pair<std::string, std::string>> lines = {
+        {std::string("0.5 0.5 0.5\0 0.5\n", 17), "0.5 0.5 0.5\\x00 0.5\" holds a NUL byte"},
+        {"1,2,3,\n", "is not three finite numbers x y z (\",\" after the third)"},
+        {"0.5 0.5 -0.5e\n", "(\"e\" after the third)"},
+        {"1 2 3 4\n", "has more than three numbers"},
+        {"1,2,3,4\n", "has more than three numbers"}};
+    for (const auto& [line, says] : lines) {
+      test::write_file(pts, line);
+      r = run_cli({"query", store, "--points", pts});
+      EXPECT_EQ(r.exit_code, 3) << r.err;
+      EXPECT_NE(r.err.find(says), std::string::npos) << r.err;
+    }
     // Options that would be ignored are refused: --threads is for --points,
     // --max-distance for surface stores.
     r = run_cli({"query", store, "--point", "0,0,0", "--threads", "2"});

@@ -524,6 +524,34 @@ TEST(ReadMsh, Msh41AsciiSurfaceWithParametricNodesAndSkippedSections) {
   EXPECT_EQ(m.vertex_geo_tag, (std::vector<std::int32_t>{1, 1, 5, 5, 5, 5}));
 }
 
+// A surface entity in two physical groups (its quads go to the first's
+// block) and a $Periodic section (not applied): both said, neither silent.
+TEST(ReadMsh, Msh41ElementsInSeveralGroupsAndPeriodicSectionAreSaid) {
+  const std::string text =
+      "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n"
+      "$PhysicalNames\n2\n2 20 \"plate\"\n2 21 \"skin\"\n$EndPhysicalNames\n"
+      "$Entities\n0 0 1 0\n"
+      "5 0 0 0 2 1 0 2 20 21 0\n"
+      "$EndEntities\n"
+      "$Nodes\n1 6 1 6\n"
+      "2 5 0 6\n1\n2\n3\n4\n5\n6\n0 0 0\n1 0 0\n2 0 0\n2 1 0\n1 1 0\n0 1 0\n"
+      "$EndNodes\n"
+      "$Elements\n1 2 1 2\n"
+      "2 5 3 2\n1 1 2 5 6\n2 2 3 4 5\n"
+      "$EndElements\n"
+      "$Periodic\n1\n1 1 2\n0\n0\n$EndPeriodic\n";
+  const CoarseMesh m = read_text(text);
+  expect_consistent(m);
+  ASSERT_EQ(m.blocks.size(), 1u);
+  EXPECT_EQ(m.blocks[0].id, 20);
+  EXPECT_EQ(m.blocks[0].name, "plate");
+  std::string all;
+  for (const auto& w : m.warnings) all += w + "\n";
+  EXPECT_THAT(all, HasSubstr("2 quadrangles are in physical groups 20 \"plate\", 21 \"skin\": each was put in the block of the first, 20"));
+  EXPECT_THAT(all, HasSubstr("$Periodic section is not applied"));
+  EXPECT_EQ(m.warnings.size(), 2u) << all;
+}
+
 TEST(ReadMsh, TinyCoordinatesUnderflowToZero) {
   const std::string text = std::string("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n") +
                            "$Nodes\n4\n1 0 0 1e-400\n2 +1.0e+00 0 -1e-320\n3 1 1 0\n4 0 1 0\n$EndNodes\n"
