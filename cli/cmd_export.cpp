@@ -144,7 +144,7 @@ int export_ranks(const std::string& path, const std::string& out, const std::str
   const CancelOnSignals cancel_on_signals;
   long long counts[2] = {0, 0}, totals[2] = {0, 0};
   if (format != "vtkhdf")
-    agree([&] { check_output_file(nemesis_path(out, P, r), "--output", {{path, "STORE"}}); });
+    agree([&] { check_output_file(nemesis_path(out, P, r), "-o", {{path, "STORE"}}); });
   // The ranks' files appear together or not at all: each is written
   // uncommitted (PendingFile), and committed once every rank has written.
   PendingFile pending;
@@ -273,7 +273,7 @@ int cmd_export(const std::vector<std::string>& argv) {
     ranges = plan_chunks(m, n);
     // The files written are OUT.N.r, not OUT: each must not be an input.
     if (nemesis)
-      for (Id r = 0; r < n; ++r) check_output_file(nemesis_path(out, n, r), "--output", {{path, "STORE"}});
+      for (Id r = 0; r < n; ++r) check_output_file(nemesis_path(out, n, r), "-o", {{path, "STORE"}});
   } else {
     ranges.push_back(ChunkRange{0, 1, 0, m.num_coarse_elements(), m.num_elements()});
   }

@@ -221,7 +221,9 @@ std::vector<std::string> conformity_warnings(const CoarseMesh& mesh, const Coars
            (vol ? "face [" : "edge [") + corners + "] of element " + eid(h.element);
     }
     s += c.hanging_vertices > static_cast<Id>(c.hanging.size()) ? "; ...)" : ")";
-    s += ": the coarse mesh is non-conforming there, and so will be the fine mesh (dicer verify fails on it)";
+    // verify finds a T-junction, not elements that overlap (no face is shared): no promise here.
+    s += ": the coarse mesh is non-conforming there (a T-junction, or elements that overlap), and so will be the "
+         "fine mesh";
     w.push_back(s);
   }
   return w;

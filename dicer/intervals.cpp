@@ -524,7 +524,9 @@ IntervalPlan resolve_intervals(const CoarseMesh& mesh, const Topology& topo, con
       n = lo;
     } else if (req.size) {
       const long double q = std::ceil(static_cast<long double>(longest[s]) / *req.size);
-      n = checked_interval(sheet + " at --size", std::max<long double>(q, 1));
+      // The size may come from --size or an intervals file: name its value.
+      n = checked_interval(sheet + " at size " + num(*req.size) + " (its longest edge " + num(longest[s]) + ")",
+                           std::max<long double>(q, 1));
     } else if (req.global) {
       n = *req.global;
     } else {

@@ -159,6 +159,11 @@ TEST(BadCore, BadIntervalRequestsAreRefused) {
   IntervalRequest size;
   size.size = -1;
   EXPECT_NE(error_of([&] { dice(size); }, ErrorKind::Usage).find("--size"), std::string::npos);
+  // A size too small for 2^40 intervals, which may come from an intervals
+  // file: named by its value, not as "--size".
+  size.size = 1e-300;
+  const std::string tiny = error_of([&] { dice(size); }, ErrorKind::Overflow);
+  EXPECT_NE(tiny.find("at size 1e-300 (its longest edge "), std::string::npos) << tiny;
   // (2^40 + 1)^3 grid points in one hex: more than any reader takes
   // (rows.hpp, kMaxElementPoints), refused at dice time with the numbers.
   IntervalRequest huge;
