@@ -179,7 +179,15 @@ int export_ranks(const std::string& path, const std::string& out, const std::str
   }
   if (pending) {
     agree([&] { pending->flush(); });  // every rank's before the first rename
-    agree([&] { pending->commit(); });
+    agree([&] {
+      try {
+        pending->commit();
+      } catch (const Error& e) {
+        // The other ranks rename theirs meanwhile: say what the set holds.
+        throw Error(e.kind(), std::string(e.what()) + "; the other ranks' pieces of " + out + "." + std::to_string(P) +
+                                  ".* may be replaced already: the set may mix new and old pieces (export again)");
+      }
+    });
   }
   MPI_Reduce(counts, totals, 2, MPI_LONG_LONG, MPI_SUM, 0, mpi.comm());
   if (r == 0 && !quiet)
@@ -321,7 +329,17 @@ int cmd_export(const std::vector<std::string>& argv) {
         finished(r, c);
       }
       for (auto& f : pieces) f->flush();  // all flushed before the first rename (AtomicOutput::flush)
-      for (auto& f : pieces) f->commit();
+      for (size_t k = 0; k < pieces.size(); ++k) {
+        try {
+          pieces[k]->commit();
+        } catch (const Error& e) {
+          if (k == 0) throw;
+          // Only a rename fails here (everything else was flushed first).
+          throw Error(e.kind(), std::string(e.what()) + "; pieces " + nemesis_path(out, static_cast<Id>(pieces.size()), 0) +
+                                    " to " + nemesis_path(out, static_cast<Id>(pieces.size()), static_cast<Id>(k) - 1) +
+                                    " were replaced already: the set mixes new and old pieces (export again)");
+        }
+      }
     } else if (format == "vtkhdf") {
       // VTKHDF writes no sets: none are gathered (a side set holds 9 bytes a fine face).
       sets = MeshSets{};

@@ -14,6 +14,7 @@
 #include <fcntl.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <thread>
@@ -146,6 +147,30 @@ TEST(FileFaults, NemesisSetOnAFullDiskLeavesTheOldSet) {
   for (int k = 0; k < 3; ++k)
     EXPECT_EQ(test::read_file(out + ".3." + std::to_string(k)), before[static_cast<size_t>(k)]) << "file " << k;
   EXPECT_EQ(entries(disk.dir()).size(), 3u) << joined(entries(disk.dir()));
+}
+
+// Only a rename can fail once every piece is flushed; when one does (an
+// immutable old piece, chattr +i), the pieces renamed before it are new:
+// the message says the set now mixes new and old pieces.
+TEST(FileFaults, NemesisRenameFailingHalfWaySaysTheSetIsMixed) {
+  if (!is_root()) DICER_SKIP_OR_FAIL_IN_CI("chattr +i needs root");
+  test::TempDir tmp;
+  const std::string out = tmp.path("set.e"), piece = out + ".3.1";
+  auto run = [&](const std::string& store) {
+    return test::run_cli({"export", store, "--format", "exodus", "--chunks", "3", "--nemesis", "-o", out, "--quiet"});
+  };
+  ASSERT_EQ(run(test::diced_store("firedrake_cube_hex.msh", 1)).exit_code, 0);
+  if (std::system(("chattr +i " + piece + " 2>/dev/null").c_str()) != 0)
+    GTEST_SKIP() << "chattr +i is not supported here";
+  const auto r = run(test::diced_store("cardinal_prism.exo", 3));
+  const int undone = std::system(("chattr -i " + piece).c_str());
+  EXPECT_EQ(undone, 0);
+  EXPECT_EQ(r.exit_code, 5) << r.err;
+  EXPECT_EQ(lines(r.err), 1) << r.err;
+  EXPECT_NE(r.err.find(piece), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("pieces " + out + ".3.0 to " + out + ".3.0 were replaced already: the set mixes new and old"),
+            std::string::npos)
+      << r.err;
 }
 
 // Under a file size limit the kernel sends SIGXFSZ, whose default action

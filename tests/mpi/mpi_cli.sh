@@ -203,6 +203,22 @@ if [ "$P" -gt 1 ]; then
   printf '%s\n' "$out" | grep -q 'every rank must run the same command line' || fail "other command lines: $out"
 fi
 
+# A rename that fails on rank 1 (an immutable old piece) while the others
+# rename theirs: the message says the set may mix new and old pieces.
+if [ "$P" -gt 1 ] && [ "$(id -u)" = 0 ]; then
+  mkdir -p imm
+  run export prism.dice.h5 -o imm/a.e --quiet
+  if chattr +i imm/a.e.$P.1 2> /dev/null; then
+    set +e
+    out=$(run export shell.dice.h5 -o imm/a.e --quiet 2>&1)
+    code=$?
+    set -e
+    chattr -i imm/a.e.$P.1
+    [ "$code" = 5 ] || fail "immutable piece on rank 1: exit $code, expected 5: $out"
+    printf '%s\n' "$out" | grep -q 'may mix new and old pieces' || fail "immutable piece on rank 1: $out"
+  fi
+fi
+
 # SIGTERM to one rank during a collective export: every rank ends with its
 # code, 143 (the others said 130, "interrupted": the signal was the failed
 # rank's alone), one message naming the signal, nothing left behind.
