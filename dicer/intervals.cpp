@@ -320,7 +320,15 @@ IntervalPlan resolve_intervals(const CoarseMesh& mesh, const Topology& topo, con
   };
   auto find_block = [&](const std::string& key) {
     for (size_t b = 0; b < mesh.blocks.size(); ++b)
-      if (std::to_string(mesh.blocks[b].id) == key) return static_cast<int>(b);
+      if (std::to_string(mesh.blocks[b].id) == key) {
+        // An id wins over a name; a block that the key names too is said.
+        for (size_t o = 0; o < mesh.blocks.size(); ++o)
+          if (o != b && mesh.blocks[o].name == key)
+            plan.notes.push_back("\"" + key + "\" is the id of " + block_label(static_cast<std::int32_t>(b)) +
+                                 " and the name of " + block_label(static_cast<std::int32_t>(o)) + ": " +
+                                 block_label(static_cast<std::int32_t>(b)) + " was taken");
+        return static_cast<int>(b);
+      }
     // A name two blocks share (Exodus allows it) is not guessed at.
     int named = -1;
     for (size_t b = 0; b < mesh.blocks.size(); ++b)

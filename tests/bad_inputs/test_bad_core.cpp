@@ -155,6 +155,14 @@ TEST(BadCore, BadIntervalRequestsAreRefused) {
     // Block 2's three sheets get 3; its y and z sheets run through block 1
     // too, whose own x sheet keeps 1: 27 + 9 fine hexes.
     EXPECT_EQ(FineMesh::dice(two, by_id).num_elements(), 27 + 9);
+    // "2" is block 2's id and block 1's name: the id wins, said in a note.
+    two.blocks = {{1, "2"}, {2, "x"}};
+    std::vector<std::string> notes;
+    EXPECT_EQ(FineMesh::dice(two, by_id, &notes).num_elements(), 27 + 9);
+    std::string all;
+    for (const auto& n : notes) all += n + "\n";
+    EXPECT_NE(all.find("\"2\" is the id of block 2 (x) and the name of block 1 (2): block 2 (x) was taken"),
+              std::string::npos) << all;
   }
   IntervalRequest size;
   size.size = -1;
