@@ -1,6 +1,7 @@
 // Scaled Jacobians of fine elements, one coarse element's block at a time.
 #include "dicer/quality.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include "dicer/orientation.hpp"
@@ -13,6 +14,18 @@ Vec3 sub(const Vec3& a, const Vec3& b) { return {a.x - b.x, a.y - b.y, a.z - b.z
 Vec3 cross(const Vec3& a, const Vec3& b) { return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x}; }
 double dot(const Vec3& a, const Vec3& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
 double norm(const Vec3& a) { return std::sqrt(dot(a, a)); }
+// a / |a| without squaring a first (its squares under- or overflow at
+// scales such as 1e-110 or 1e160); zero for a zero vector.
+Vec3 unit(const Vec3& a) {
+  const double s = std::max({std::fabs(a.x), std::fabs(a.y), std::fabs(a.z)});
+  if (!(s > 0)) return {0, 0, 0};
+  const Vec3 b{a.x / s, a.y / s, a.z / s};
+  const double n = norm(b);
+  return {b.x / n, b.y / n, b.z / n};
+}
+// Where the plain products are safe: the lengths' product well inside the
+// range of doubles (the product of three lengths, or of two and a normal's).
+bool in_range(double l) { return l > 1e-250 && l < 1e250; }
 
 }  // namespace
 
@@ -23,7 +36,8 @@ double hex_scaled_jacobian(const Vec3 (&p)[8]) {
     const Vec3 e1 = sub(p[kHexCornerNbr[c][0]], p[c]), e2 = sub(p[kHexCornerNbr[c][1]], p[c]),
                e3 = sub(p[kHexCornerNbr[c][2]], p[c]);
     const double l = norm(e1) * norm(e2) * norm(e3);
-    const double j = l > 0 ? dot(cross(e1, e2), e3) / l : 0.0;  // a collapsed edge counts as degenerate
+    // A collapsed edge counts as degenerate (unit() gives it length 0).
+    const double j = in_range(l) ? dot(cross(e1, e2), e3) / l : dot(cross(unit(e1), unit(e2)), unit(e3));
     worst = std::min(worst, j);
   }
   return worst;
@@ -31,12 +45,14 @@ double hex_scaled_jacobian(const Vec3 (&p)[8]) {
 
 double quad_scaled_jacobian(const Vec3 (&p)[4], const Vec3& normal) {
   const double ln = norm(normal);
-  if (!(ln > 0)) return 0.0;
+  const Vec3 un = unit(normal);  // a normal too small to square is still one
+  if (un.x == 0 && un.y == 0 && un.z == 0) return 0.0;
   double worst = 1.0;
   for (int k = 0; k < 4; ++k) {
     const Vec3 e1 = sub(p[(k + 1) % 4], p[k]), e2 = sub(p[(k + 3) % 4], p[k]);
     const double l = norm(e1) * norm(e2) * ln;
-    worst = std::min(worst, l > 0 ? dot(cross(e1, e2), normal) / l : 0.0);
+    worst = std::min(worst, in_range(l) ? dot(cross(e1, e2), normal) / l
+                                        : dot(cross(unit(e1), unit(e2)), un));
   }
   return worst;
 }
@@ -46,9 +62,12 @@ double quad_scaled_jacobian(const Vec3 (&p)[4]) {
   for (int k = 0; k < 4; ++k) {
     const Vec3 e1 = sub(p[(k + 1) % 4], p[k]), e2 = sub(p[(k + 3) % 4], p[k]);
     const double l = norm(e1) * norm(e2);
-    if (l > 0) {
+    if (in_range(l)) {
       const Vec3 c = cross(e1, e2);
       n = {n.x + c.x / l, n.y + c.y / l, n.z + c.z / l};
+    } else {
+      const Vec3 c = cross(unit(e1), unit(e2));
+      n = {n.x + c.x, n.y + c.y, n.z + c.z};
     }
   }
   return quad_scaled_jacobian(p, n);

@@ -91,6 +91,23 @@ TEST(BadCore, TangledHexIsRefused) {
   EXPECT_NE(msg.find("element 1 is inverted or degenerate"), std::string::npos) << msg;
 }
 
+// Handedness at any scale: cubes of side 1e-110 have corner determinants
+// of 1e-330, which underflowed to 0 ("inverted or degenerate"); tangled
+// ones are still refused there.
+TEST(BadCore, HandednessHoldsAtTinyScales) {
+  CoarseMesh m = unit_cubes(2);
+  for (auto* a : {&m.x, &m.y, &m.z})
+    for (double& v : *a) v *= 1e-110;
+  CoarseMesh tangled = m;
+  EXPECT_NO_THROW(validate_coarse_mesh(m));
+  IntervalRequest two;
+  two.global = 2;
+  EXPECT_EQ(FineMesh::dice(m, two).num_elements(), 2 * 8);
+  tangled.x[tangled.conn[6]] = -0.5e-110, tangled.y[tangled.conn[6]] = -0.5e-110;
+  const std::string msg = error_of([&] { validate_coarse_mesh(tangled); }, ErrorKind::BadInput);
+  EXPECT_NE(msg.find("element 1 is inverted or degenerate"), std::string::npos) << msg;
+}
+
 TEST(BadCore, RepeatedNodeDuplicateElementAndNaNAreRefused) {
   {
     CoarseMesh m = unit_cubes(1);

@@ -2,6 +2,9 @@
 // dice --geometry under mpirun) merged back equals one check over all.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
+#include <cmath>
 #include <random>
 
 #include "dicer/quality.hpp"
@@ -49,3 +52,36 @@ TEST(QualityMerge, InterleavedPartsMergeToTheWholeCheck) {
 }
 
 }  // namespace
+
+// The scaled Jacobian does not depend on the unit: a box and a sheared
+// prism give the same values at scales whose squared lengths under- or
+// overflow (1e-110, 1e160); a tangled hex stays inverted there.
+TEST(QualityMerge, ScaledJacobianIsTheSameAtAnyScale) {
+  const Vec3 box[8] = {{0, 0, 0}, {2, 0, 0}, {2, 1, 0}, {0, 1, 0}, {0, 0, 3}, {2, 0, 3}, {2, 1, 3}, {0, 1, 3}};
+  Vec3 sheared[8], tangled[8];
+  for (int k = 0; k < 8; ++k) {
+    sheared[k] = {box[k].x + 0.5 * box[k].z, box[k].y, box[k].z};
+    tangled[k] = box[k];
+  }
+  tangled[6] = {-0.5, -0.5, 3};
+  const Vec3 quad[4] = {{0, 0, 0}, {2, 0, 0}, {2.5, 1, 0}, {0, 1, 0}};
+  const double want_box = hex_scaled_jacobian(box), want_sheared = hex_scaled_jacobian(sheared);
+  const double want_quad = quad_scaled_jacobian(quad);
+  EXPECT_DOUBLE_EQ(want_box, 1.0);
+  EXPECT_NEAR(want_sheared, 3 / std::sqrt(9 + 2.25), 1e-15);  // the slanted edge (1.5, 0, 3) against z
+  for (const double s : {1e-110, 1e-160, 1e160}) {
+    auto scaled = [s](const Vec3(&p)[8]) {
+      std::array<Vec3, 8> q;
+      for (int k = 0; k < 8; ++k) q[k] = {p[k].x * s, p[k].y * s, p[k].z * s};
+      return q;
+    };
+    const auto b = scaled(box), h = scaled(sheared), t = scaled(tangled);
+    Vec3 bb[8], hh[8], tt[8], qq[4];
+    std::copy(b.begin(), b.end(), bb), std::copy(h.begin(), h.end(), hh), std::copy(t.begin(), t.end(), tt);
+    for (int k = 0; k < 4; ++k) qq[k] = {quad[k].x * s, quad[k].y * s, quad[k].z * s};
+    EXPECT_NEAR(hex_scaled_jacobian(bb), want_box, 1e-15) << s;
+    EXPECT_NEAR(hex_scaled_jacobian(hh), want_sheared, 1e-15) << s;
+    EXPECT_LE(hex_scaled_jacobian(tt), 0.0) << s;
+    EXPECT_NEAR(quad_scaled_jacobian(qq), want_quad, 1e-15) << s;
+  }
+}
