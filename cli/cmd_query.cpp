@@ -174,16 +174,37 @@ class PointReader {
     std::string h(len, '\0');
     if (std::fread(h.data(), 1, len, f_) != len) throw Error(ErrorKind::BadInput, file_ + ": truncated .npy header");
     h.erase(std::remove(h.begin(), h.end(), ' '), h.end());
-    if (h.find("'fortran_order':False") == std::string::npos)
-      throw Error(ErrorKind::BadInput, file_ + ": a Fortran-order .npy array (save it with C order)");
-    if (h.find("'descr':'<f8'") != std::string::npos) npy_f4_ = false;
-    else if (h.find("'descr':'<f4'") != std::string::npos) npy_f4_ = true;
+    // Each key's own value (a substring search found '<f8' in any field).
+    auto value_of = [&](const char* key) -> std::string {
+      const std::string k = std::string("'") + key + "':";
+      const size_t at = h.find(k);
+      if (at == std::string::npos) throw Error(ErrorKind::BadInput, file_ + ": the .npy header has no '" + key + "'");
+      const size_t from = at + k.size();
+      const size_t to = h[from] == '(' ? h.find(')', from) + 1 : h[from] == '\'' ? h.find('\'', from + 1) + 1
+                                                                                : h.find_first_of(",}", from);
+      return h.substr(from, to == std::string::npos || to == 0 ? std::string::npos : to - from);
+    };
+    const std::string order = value_of("fortran_order"), descr = value_of("descr"), shape = value_of("shape");
+    if (order != "False") throw Error(ErrorKind::BadInput, file_ + ": a Fortran-order .npy array (save it with C order)");
+    if (descr == "'<f8'") npy_f4_ = false;
+    else if (descr == "'<f4'") npy_f4_ = true;
     else throw Error(ErrorKind::BadInput, file_ + ": .npy points must be little-endian float64 or float32 ('<f8', '<f4')");
-    const size_t at = h.find("'shape':(");
-    char* end = nullptr;
-    const unsigned long long n = at == std::string::npos ? 0 : std::strtoull(h.c_str() + at + 9, &end, 10);
-    if (at == std::string::npos || !end || std::strncmp(end, ",3)", 3) != 0)
-      throw Error(ErrorKind::BadInput, file_ + ": .npy points must have shape (n, 3)");
+    // (n, 3) with n a plain count: strtoull took "-1" as 2^64 - 1.
+    const size_t digits = shape.find_first_not_of("0123456789", 1);
+    errno = 0;
+    const unsigned long long n = std::strtoull(shape.c_str() + 1, nullptr, 10);
+    if (shape.size() < 5 || shape[0] != '(' || digits == 1 || digits == std::string::npos ||
+        shape.compare(digits, std::string::npos, ",3)") != 0 || errno == ERANGE)
+      throw Error(ErrorKind::BadInput, file_ + ": .npy points must have shape (n, 3), not " + shape);
+    // A count the file cannot hold is said up front (a regular file).
+    struct stat st {};
+    const long here = std::ftell(f_);
+    const unsigned long long item = npy_f4_ ? 12 : 24;
+    if (here >= 0 && ::fstat(::fileno(f_), &st) == 0 && S_ISREG(st.st_mode) &&
+        (n > (1ULL << 58) / item || static_cast<unsigned long long>(st.st_size - here) < n * item))
+      throw Error(ErrorKind::BadInput, file_ + ": the .npy header's shape (" + std::to_string(n) + ", 3) needs " +
+                                           std::to_string(n) + " x " + std::to_string(item) + " bytes; the file holds " +
+                                           std::to_string(st.st_size - here));
     npy_ = true;
     npy_left_ = n;
   }

@@ -147,6 +147,25 @@ def test_locate_equals_query_points(cli, sphere_store, tmp_path):
     np.save(tmp_path / "bad.npy", pts[:, :2])
     code, msg = cli.error("query", sphere_store, "--points", str(tmp_path / "bad.npy"))
     assert code == 3 and "must have shape (n, 3)" in msg
+    # Hand-made headers: each key read as its own value (a '<f8' in another
+    # field passed for the dtype; a missing fortran_order read as Fortran
+    # order; shape (-1, 3) and counts the file cannot hold read as huge).
+    def npy(header, payload=b""):
+        text = header + " " * (63 - (10 + len(header)) % 64) + "\n"
+        return b"\x93NUMPY\x01\x00" + len(text).to_bytes(2, "little") + text.encode() + payload
+    two = np.zeros((2, 3)).tobytes()
+    cases = [("{'descr': '<f8', 'shape': (2, 3), }", two, "has no 'fortran_order'"),
+             ("{'descr': '<f8', 'fortran_order': False, 'shape': (-1, 3), }", two, "not (-1,3)"),
+             ("{'descr': '<f8', 'fortran_order': False, 'shape': (1000000000000, 3), }", two,
+              "shape (1000000000000, 3) needs 1000000000000 x 24 bytes; the file holds 48")]
+    for k, (header, payload, says) in enumerate(cases):
+        (tmp_path / f"h{k}.npy").write_bytes(npy(header, payload))
+        code, msg = cli.error("query", sphere_store, "--points", str(tmp_path / f"h{k}.npy"))
+        assert code == 3 and says in msg, (header, msg)
+    f4 = np.zeros((2, 3), dtype="<f4").tobytes()
+    (tmp_path / "ok.npy").write_bytes(npy("{'descr': '<f4', 'fortran_order': False, 'shape': (2, 3), "
+                                          "'note': \"'descr': '<f8'\"}", f4))
+    assert len(cli.json_lines("query", sphere_store, "--points", str(tmp_path / "ok.npy"))) == 2
     # max_distance would be ignored on a volume store: refused, as the
     # command line refuses --max-distance.
     with pytest.raises(dicer.UsageError, match="is a volume store"):
