@@ -2,8 +2,11 @@
 #include <malloc.h>
 
 #include <cstdio>
+#include <fstream>
 #include <functional>
+#include <iterator>
 #include <optional>
+#include <string_view>
 
 #include "command.hpp"
 #include "common.hpp"
@@ -115,6 +118,13 @@ int cmd_dice(const std::vector<std::string>& argv) {
     const std::string nothing_written = "nothing written to " + out;
     std::optional<FineMesh> diced;
     SecondOrderReport quad;
+    // Under mpirun with --geometry every rank reads MESH, the CAD and the
+    // intervals file itself: copies local to each node must agree, or the
+    // ranks' shares of the CAD work would not fit together.
+    std::string fingerprint;
+    auto fold = [&](const void* data, size_t bytes) {
+      fingerprint += std::to_string(std::hash<std::string_view>{}({static_cast<const char*>(data), bytes})) + " ";
+    };
     step([&] {
       req = intervals.request();
       if (cmd.given(o_tol) && !with_cad) throw Error(ErrorKind::Usage, "--geometry-tol needs --geometry CAD");
@@ -125,6 +135,14 @@ int cmd_dice(const std::vector<std::string>& argv) {
           std::fprintf(stderr, "dicer dice: warning: %s: %s\n", printable(in).c_str(), printable(w).c_str());
       // Intervals by entity name the CAD's entities when a CAD is given.
       if (with_cad && (!req.entities.empty() || !req.entity_bias.empty())) classify_on_geometry(mesh, cad, copt);
+      if (shared) {
+        for (const auto* a : {&mesh.x, &mesh.y, &mesh.z}) fold(a->data(), a->size() * sizeof(double));
+        fold(mesh.conn.data(), mesh.conn.size() * sizeof(Id));
+        std::ifstream file(cad, std::ios::binary);
+        const std::string bytes((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
+        if (!file.good() && !file.eof()) throw Error(ErrorKind::Io, cad + ": cannot read the CAD file");
+        fold(bytes.data(), bytes.size());
+      }
       std::vector<std::string> notes;
       const bool second_order = mesh.second_order();
       diced.emplace(FineMesh::dice(std::move(mesh), req, &notes));
@@ -141,7 +159,13 @@ int cmd_dice(const std::vector<std::string>& argv) {
         quad = apply_second_order(*diced);
         throw_if_cancelled(nothing_written);
       }
+      fingerprint += std::to_string(diced->num_nodes()) + " " + std::to_string(diced->num_elements());
     });
+    if (shared)
+      dicer::mpi::require_same(mpi.comm(), fingerprint, [&](int q, const std::string&) {
+        return "rank " + std::to_string(q) + " read other contents than rank 0 from " + in + ", " + cad +
+               " or the intervals: every rank must read the same files (copies local to each node that differ?)";
+      });
     FineMesh& fine = *diced;
     ConformReport geo;
     if (with_cad) {

@@ -428,9 +428,10 @@ int query(const std::vector<std::string>& argv, long long* chunk_count = nullptr
 // agreed before the sum); every other query runs on rank 0.
 int cmd_query(const std::vector<std::string>& argv) {
   mpi::Session& mpi = session();
-  const bool has_box = std::find(argv.begin(), argv.end(), "--box") != argv.end() ||
-                       std::any_of(argv.begin(), argv.end(), [](const std::string& a) { return a.rfind("--box=", 0) == 0; });
-  const bool has_count = std::find(argv.begin(), argv.end(), "--count") != argv.end();
+  const std::vector<std::string> options = options_part(argv);
+  const bool has_box = std::find(options.begin(), options.end(), "--box") != options.end() ||
+                       std::any_of(options.begin(), options.end(), [](const std::string& a) { return a.rfind("--box=", 0) == 0; });
+  const bool has_count = std::find(options.begin(), options.end(), "--count") != options.end();
   if (!mpi.active() || !(has_box && has_count)) return on_rank0([&] { return query(argv); });
   long long mine = 0, sum = 0;
   bool json = false;

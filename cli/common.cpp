@@ -51,16 +51,11 @@ int on_rank0(const std::function<int()>& fn) {
 
 void check_same_store(const std::string& path, const std::string& uuid) {
   dicer::mpi::Session& s = session();
-  if (!s.active()) return;
-  std::string first;
-  const int q = dicer::mpi::first_rank_differing(s.comm(), uuid, &first);
-  dicer::mpi::collectively(s.comm(), [&] {
-    if (s.rank() == q)
-      throw Error(ErrorKind::BadInput, path + ": rank " + std::to_string(q) + " read another store than rank 0 (uuid " +
-                                           uuid + ", rank 0's " + first +
-                                           "): every rank must read the same file (copies local to each node that "
-                                           "differ?)");
-  });
+  if (s.active()) dicer::mpi::require_same_store(s.comm(), path, uuid);
+}
+
+std::vector<std::string> options_part(const std::vector<std::string>& args) {
+  return {args.begin(), std::find(args.begin(), args.end(), std::string("--"))};
 }
 
 std::int64_t parse_int(const std::string& what, const std::string& text) { return parse_whole(what, text); }

@@ -31,12 +31,13 @@ void agree(const std::function<void()>& fn);
 // `dicer-cad`: does nothing (cli/cad/with.cpp).
 void hand_over_if_cad(char** argv, const std::vector<std::string>& args);
 
-// Under mpirun, after an agree() in which every rank read `m` from `path`:
-// every rank must have read the same store (node-local copies that differ
-// gave silent wrong answers). Collective; the first rank whose store's uuid
-// differs from rank 0's throws Error{BadInput}, the others PeerFailed. Does
-// nothing without MPI.
+// Under mpirun, after an agree() in which every rank read a store from
+// `path`: mpi::require_same_store. Does nothing without MPI.
 void check_same_store(const std::string& path, const std::string& uuid);
+
+// The words before the first "--" (after it every word is an argument):
+// what a scan of the command line for an option looks at.
+std::vector<std::string> options_part(const std::vector<std::string>& args);
 
 std::int64_t parse_int(const std::string& what, const std::string& text);
 // A --threads value: 1 to 1024 (Error{Usage} otherwise).

@@ -150,25 +150,33 @@ int main(int argc, char** argv) {
     // (mpirun -np 2 dicer sweep S : -np 1 dicer verify S) waited for each
     // other for ever in different collectives.
     if (mpi.active()) {
-      auto line = [](const std::string& nul_separated) {
-        std::string s = "dicer";
+      auto words = [](const std::string& nul_separated) {
+        std::vector<std::string> w;
         for (size_t at = 0; at < nul_separated.size();) {
           const size_t end = nul_separated.find('\0', at);
-          s += " " + nul_separated.substr(at, end - at), at = end + 1;
+          w.push_back(nul_separated.substr(at, end - at)), at = end + 1;
         }
-        return s.size() > 200 ? s.substr(0, 197) + "..." : s;
+        return w;
       };
+      auto cut = [](const std::string& s) { return s.size() > 60 ? s.substr(0, 57) + "..." : s; };
       std::string mine, first;
       for (const auto& a : args) mine += a + '\0';
       const int q = dicer::mpi::first_rank_differing(mpi.comm(), mine, &first);
       agree([&] {
-        if (mpi.rank() == q)
-          throw dicer::Error(ErrorKind::Usage, "rank " + std::to_string(q) + " runs `" + line(mine) + "`, rank 0 `" +
-                                                   line(first) + "`: every rank must run the same command line");
+        if (mpi.rank() != q) return;
+        // The first word that differs, so that long lines are told apart.
+        const std::vector<std::string> a = words(mine), b = words(first);
+        size_t k = 0;
+        while (k < a.size() && k < b.size() && a[k] == b[k]) ++k;
+        const std::string here = k < a.size() ? "\"" + cut(a[k]) + "\"" : "nothing";
+        const std::string there = k < b.size() ? "\"" + cut(b[k]) + "\"" : "nothing";
+        throw dicer::Error(ErrorKind::Usage, "rank " + std::to_string(q) + " runs another command line than rank 0 (word " +
+                                                 std::to_string(k + 1) + " after dicer: " + here + " against " + there +
+                                                 "): every rank must run the same command line");
       });
     }
     bool help = false;
-    for (const auto& a : rest) help = help || a == "--help" || a == "-h";
+    for (const auto& a : options_part(rest)) help = help || a == "--help" || a == "-h";
     code = command->distributed && !help ? command->run(rest) : on_rank0([&] { return command->run(rest); });
   } catch (const dicer::mpi::PeerFailed& e) {
     const int k = static_cast<int>(e.kind());
@@ -177,14 +185,17 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "dicer %s: error: %s\n", command->name, printable(e.what()).c_str());
     code = exit_code(e.kind(), received_signal()), caught = true;
   } catch (const std::bad_alloc&) {
-    // Say which limit: a user's ulimit -v (batch systems set one) or the machine.
+    // Say which limit: a user's ulimit -v (batch systems set one) or the
+    // machine. Nothing allocated here: memory may still be short.
     struct rlimit as {};
-    std::string limit = "the machine's free memory";
-    if (::getrlimit(RLIMIT_AS, &as) == 0 && as.rlim_cur != RLIM_INFINITY)
-      limit = "this process's address-space limit, " + human_bytes(static_cast<std::uint64_t>(as.rlim_cur)) +
-              " (ulimit -v)";
+    char limit[96] = "the machine's free memory";
+    if (::getrlimit(RLIMIT_AS, &as) == 0 && as.rlim_cur != RLIM_INFINITY) {
+      const double mib = static_cast<double>(as.rlim_cur) / (1 << 20);
+      std::snprintf(limit, sizeof limit, "this process's address-space limit, %.1f %s (ulimit -v)",
+                    mib >= 1024 ? mib / 1024 : mib, mib >= 1024 ? "GiB" : "MiB");
+    }
     std::fprintf(stderr, "dicer %s: error: out of memory: the command needs more than %s allows\n", command->name,
-                 limit.c_str());
+                 limit);
     code = kExitInternal, caught = true;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "dicer %s: internal error: %s\n", command->name, printable(e.what()).c_str());

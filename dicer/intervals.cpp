@@ -1,6 +1,7 @@
 #include "dicer/intervals.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -58,7 +59,8 @@ void check_bias(const std::string& what, const BiasRequest& b) {
 double parse_real(const std::string& what, const std::string& text) {
   char* end = nullptr;
   const double v = std::strtod(text.c_str(), &end);
-  if (text.empty() || *end != '\0' || !std::isfinite(v))
+  // The whole text: a NUL inside (from Python) ended strtod's reading early.
+  if (text.empty() || end != text.c_str() + text.size() || !std::isfinite(v))
     throw Error(ErrorKind::Usage, what + ": \"" + text + "\" is not a finite number");
   return v;
 }
@@ -67,7 +69,9 @@ std::int64_t parse_whole(const std::string& what, const std::string& text) {
   errno = 0;
   char* end = nullptr;
   const long long v = std::strtoll(text.c_str(), &end, 10);
-  if (text.empty() || *end != '\0') throw Error(ErrorKind::Usage, what + ": \"" + text + "\" is not a whole number");
+  // Leading blanks are strtoll's, not a number's; a NUL inside ends it early.
+  if (text.empty() || std::isspace(static_cast<unsigned char>(text[0])) || end != text.c_str() + text.size())
+    throw Error(ErrorKind::Usage, what + ": \"" + text + "\" is not a whole number");
   // A bad value (2), like any other: exit 6 is for counts the mesh would overflow.
   if (errno == ERANGE) throw Error(ErrorKind::Usage, what + ": \"" + text + "\" does not fit in 64 bits");
   return v;
@@ -81,7 +85,8 @@ BiasRequest parse_bias(const std::string& what, const std::string& text, tfi::Sp
     const std::string v = text.substr(at + 1);
     char* end = nullptr;
     const long long id = std::strtoll(v.c_str(), &end, 10);
-    if (v.empty() || *end != '\0') throw Error(ErrorKind::Usage, what + ": \"" + v + "\" after @ is not a node id");
+    if (v.empty() || end != v.c_str() + v.size())
+      throw Error(ErrorKind::Usage, what + ": \"" + v + "\" after @ is not a node id");
     b.start = id;
     body = text.substr(0, at);
   }
@@ -101,7 +106,7 @@ EntityTag parse_entity(const std::string& what, const std::string& text) {
   const std::string tag = colon == std::string::npos ? "" : text.substr(colon + 1);
   char* tend = nullptr;
   const long long t = std::strtoll(tag.c_str(), &tend, 10);
-  if (dim < 1 || dim > 3 || tag.empty() || *tend != '\0' || t < -2147483647LL || t > 2147483647LL)
+  if (dim < 1 || dim > 3 || tag.empty() || tend != tag.c_str() + tag.size() || t < -2147483647LL || t > 2147483647LL)
     throw Error(ErrorKind::Usage, what + ": \"" + text + "\" is not DIM:TAG (DIM 1 curve, 2 surface, 3 volume)");
   return {static_cast<int>(dim), static_cast<int>(t)};
 }

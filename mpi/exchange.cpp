@@ -110,6 +110,24 @@ int first_rank_differing(MPI_Comm comm, const std::string& mine, std::string* ra
   return -1;
 }
 
+void require_same(MPI_Comm comm, const std::string& mine,
+                  const std::function<std::string(int rank, const std::string& rank0)>& message) {
+  int rank = 0;
+  MPI_Comm_rank(comm, &rank);
+  std::string first;
+  const int q = first_rank_differing(comm, mine, &first);
+  collectively(comm, [&] {
+    if (rank == q) throw Error(ErrorKind::BadInput, message(q, first));
+  });
+}
+
+void require_same_store(MPI_Comm comm, const std::string& path, const std::string& uuid) {
+  require_same(comm, uuid, [&](int q, const std::string& first) {
+    return path + ": rank " + std::to_string(q) + " read another store than rank 0 (uuid " + uuid + ", rank 0's " +
+           first + "): every rank must read the same file (copies local to each node that differ?)";
+  });
+}
+
 std::vector<std::string> gather_bytes(MPI_Comm comm, std::string mine, std::int64_t piece) {
   int rank = 0, P = 1;
   MPI_Comm_rank(comm, &rank);

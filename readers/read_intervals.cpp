@@ -97,11 +97,14 @@ IntervalRequest read_interval_file(const std::string& path) {
           if (n) r.entities.emplace_back(e, *n);
           if (bias) r.entity_bias.emplace_back(e, *bias);
         } else {
-          // Digits only: strtoll would take " 2" and "+2" as 2 and saturate past 2^63.
+          // Digits only, no leading zero: strtoll would take " 2", "+2" and
+          // "02" as 2 (beside a "2", the key check above misses it) and
+          // saturate past 2^63.
           const std::string& key = b.key();
           errno = 0;
           const long long s = std::strtoll(key.c_str(), nullptr, 10);
-          if (key.empty() || key.find_first_not_of("0123456789") != std::string::npos || errno == ERANGE)
+          if (key.empty() || key.find_first_not_of("0123456789") != std::string::npos || errno == ERANGE ||
+              (key.size() > 1 && key[0] == '0'))
             throw Error(ErrorKind::Usage, path + ": sheets: \"" + key + "\" is not a sheet id");
           if (n) r.sheets.emplace_back(s, *n);
           if (bias) r.sheet_bias.emplace_back(s, *bias);

@@ -21,7 +21,8 @@
 namespace dicer::cli {
 namespace {
 
-bool needs_cad(const std::vector<std::string>& args) {
+bool needs_cad(const std::vector<std::string>& all) {
+  const std::vector<std::string> args = options_part(all);  // "-- -h" names a file
   if (args.empty()) return false;
   // Help is dicer's own table (dicer help mesh-coarse works without dicer-cad).
   for (const auto& a : args)

@@ -15,6 +15,7 @@
 
 #include <cstdint>
 #include <exception>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -109,6 +110,20 @@ std::vector<std::string> allgather_bytes(MPI_Comm comm, const std::string& mine)
 // `rank0` (if given) receives rank 0's value. Collective (allgather_bytes):
 // how the CLI refuses ranks given other command lines or other stores.
 int first_rank_differing(MPI_Comm comm, const std::string& mine, std::string* rank0 = nullptr);
+
+// Every rank must hold the same `mine` (a fingerprint of what it read):
+// the first rank whose value differs from rank 0's throws Error{BadInput}
+// with message(that rank, rank 0's value), the others PeerFailed.
+// Collective.
+void require_same(MPI_Comm comm, const std::string& mine,
+                  const std::function<std::string(int rank, const std::string& rank0)>& message);
+
+// Every rank must have read the same store (`uuid`, FineMesh::info().uuid):
+// node-local copies under one name that differ gave wrong answers. The
+// first rank whose uuid differs from rank 0's throws Error{BadInput} naming
+// `path` and both uuids, the others PeerFailed (checkpoint). Collective:
+// call it where every rank holds its store (after an agreed read).
+void require_same_store(MPI_Comm comm, const std::string& path, const std::string& uuid);
 
 // Every rank's bytes, in rank order, on rank 0 (empty elsewhere): parts of
 // any size, sent point to point in pieces of at most `piece` bytes (MPI's

@@ -207,10 +207,17 @@ def _pairs(what, mapping, key, value=None, noun="interval"):
     return out
 
 
+def _no_nul(what, text):
+    # A NUL would end the C++ reading early, or the argv of dicer-cad.
+    if "\0" in text:
+        raise UsageError(f"{what}: {text!r} holds a NUL character")
+    return text
+
+
 def _entity_key(what, k):
     # "DIM:TAG" as on the command line, or (DIM, TAG).
     if isinstance(k, str):
-        return k
+        return _no_nul(what, k)
     if isinstance(k, (tuple, list)) and len(k) == 2:
         return f"{_whole(what, k[0])}:{_whole(what, k[1])}"
     raise UsageError(f"{what}: an entity is \"DIM:TAG\" or (DIM, TAG)")
@@ -219,7 +226,7 @@ def _entity_key(what, k):
 def _bias(what, value):
     # A ratio, or the command line's text: "1.2@17", "first:0.01", "last:0.5@17".
     if isinstance(value, str):
-        return value
+        return _no_nul(what, value)
     return repr(_finite(what, value))
 
 
@@ -233,7 +240,7 @@ def _block_key(what, k):
     # A block is named by its id (any whole number, numpy's too) or its
     # name, as on the command line.
     if isinstance(k, str):
-        return k
+        return _no_nul(what, k)
     try:
         return str(_whole(what, k))
     except UsageError:
@@ -342,7 +349,8 @@ def dice(mesh, out, interval=None, sheet_intervals=None, block_intervals=None, s
     Grading, as the command's bias options: sheet_bias {sheet: R},
     block_bias {block: R}, entity_bias {entity: R}, sheet_dual_bias
     {sheet: R}, where R is a ratio or the command line's text: "1.2@17"
-    (from node 17 of the mesh file), "first:0.01", "last:0.5@17". So
+    (from node 17 of the mesh file), "first:0.01", "last:0.5@17" (a dual
+    bias takes a ratio or "first:h", its end cells). So
     sheet_bias={3: "1.2@17"} is --sheet-bias 3=1.2@17. Conflicts are
     reported as DicerWarning and kept in Store.notes.
 

@@ -649,6 +649,7 @@ std::unique_ptr<PartitionBox> make_partition_mpi(const Store& s, const py::objec
     p->mesh = store->get();
     path = store->reread();
   });
+  mpi::require_same_store(c, path, p->mesh->info().uuid);
   mpi::collectively(c, [&] { sets = store_sets(*p->mesh, path); });
   p->part = std::make_unique<Partition>(mpi::make_partition(*p->mesh, c, sets));
   p->xyz = interleave(p->part->x(), p->part->y(), p->part->z());

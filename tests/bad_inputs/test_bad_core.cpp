@@ -237,7 +237,7 @@ TEST(BadCore, IntervalFileErrors) {
               std::string::npos)
         << twice;
   }
-  for (const char* bent : {" 2", "+2", "99999999999999999999", "2 "}) {
+  for (const char* bent : {" 2", "+2", "99999999999999999999", "2 ", "02"}) {
     test::write_file(p, std::string("{\"sheets\": {\"") + bent + "\": 3}}");
     EXPECT_NE(error_of([&] { read_interval_file(p); }, ErrorKind::Usage).find("is not a sheet id"), std::string::npos)
         << bent;

@@ -133,6 +133,24 @@ set -e
 [ "$code" = 7 ] || fail "dice with the wrong CAD: exit $code, expected 7: $out"
 [ "$(printf '%s\n' "$out" | grep -c 'error')" = 1 ] || fail "dice with the wrong CAD: not one message: $out"
 [ ! -e wrong.dice.h5 ] || fail "dice with the wrong CAD wrote a store"
+# Rank 1 reading another coarse mesh under the same name: the ranks' shares
+# of the CAD work would not fit together. Exit 3, one message, no store.
+if [ "$P" -gt 1 ]; then
+  mkdir -p cadother
+  cp torus.brep cadother/
+  cp split.msh cadother/torus.msh  # any valid mesh: the check comes before the CAD work
+  printf '#!/bin/bash\n[ "$OMPI_COMM_WORLD_RANK" = 1 ] && cd cadother\nexec "%s" "$@"\n' "$dicer" > cadother.sh
+  chmod +x cadother.sh
+  set +e
+  out=$(timeout 120 mpirun -q --oversubscribe -n "$P" ./cadother.sh dice torus.msh --geometry torus.brep --interval 2 \
+        -o $PWD/mixed.dice.h5 2>&1)
+  code=$?
+  set -e
+  [ "$code" = 3 ] || fail "dice --geometry, another mesh on rank 1: exit $code, expected 3: $out"
+  [ "$(printf '%s\n' "$out" | grep -c 'error')" = 1 ] || fail "dice --geometry, another mesh on rank 1: $out"
+  printf '%s\n' "$out" | grep -q 'rank 1 read other contents than rank 0' || fail "dice --geometry: $out"
+  [ ! -e mixed.dice.h5 ] || fail "dice --geometry, another mesh on rank 1: wrote a store"
+fi
 
 # A page that one rank alone reads, damaged (Fletcher32 catches it): the
 # corner coordinates of the middle elements (opening the store and planning

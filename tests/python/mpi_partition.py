@@ -72,6 +72,28 @@ def test_an_error_on_one_rank_is_raised_on_every_rank(store_path):
     assert comm.allreduce(1) == comm.size
 
 
+def test_ranks_that_opened_other_stores_are_refused(store_path):
+    """A rank whose store is another dicing (node-local copies that differ)
+    made a partition that did not fit the others': BadInputError naming it
+    on that rank, the same kind on the others, nobody left waiting."""
+    path, tmp = store_path, None
+    if comm.rank == 1:
+        tmp = tempfile.mkdtemp()
+        path = os.path.join(tmp, "other.dice.h5")
+        dicer.dice(DATA / "cardinal_prism.exo", path, interval=2).close()
+    s = dicer.open(path)
+    with pytest.raises(dicer.BadInputError) as e:
+        s.partition(comm)
+    if comm.rank == 1:
+        assert "rank 1 read another store than rank 0" in str(e.value)
+    else:
+        assert "rank 1 failed" in str(e.value)
+    s.close()
+    assert comm.allreduce(1) == comm.size
+    if tmp:
+        shutil.rmtree(tmp)
+
+
 def test_not_a_communicator(store_path):
     s = dicer.open(store_path)
     with pytest.raises(dicer.UsageError, match="mpi4py communicator"):

@@ -338,3 +338,14 @@ def test_names_and_paths_that_are_not_utf8(cli, tmp_path):
     with pytest.raises(dicer.BadInputError) as e:
         dicer.open(bad)
     assert "not\ufffda.dice.h5" in str(e.value), str(e.value)
+
+
+def test_dice_grading_strings_with_a_nul_are_refused(tmp_path):
+    """A NUL ended the C++ reading early ("1.2\\0junk" read as 1.2) and broke
+    dicer-cad's argv (ValueError): a UsageError naming the option."""
+    mesh = DATA / "cardinal_sphere.e"
+    for kw in (dict(sheet_bias={0: "1.2\0junk"}), dict(block_intervals={"a\0b": 2}),
+               dict(entity_intervals={"2:1\0": 3})):
+        with pytest.raises(dicer.UsageError, match="holds a NUL character"):
+            dicer.dice(mesh, tmp_path / "n.dice.h5", **kw)
+    assert not (tmp_path / "n.dice.h5").exists()

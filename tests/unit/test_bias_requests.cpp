@@ -308,3 +308,22 @@ TEST(BiasRequests, EdgeEntitiesFromTheNodesAlone) {
   m.vertex_geo_dim.clear();
   EXPECT_EQ(edge_entities(m, t), std::vector<std::int64_t>(static_cast<size_t>(t.num_edges()), -1));
 }
+
+// The parsers read the whole text: a NUL inside (a Python str) ended
+// strtod and strtoll early ("1.2\0junk" was 1.2), and strtoll's leading
+// blanks made " 2" a sheet id.
+TEST(BiasRequests, ParsersReadTheWholeText) {
+  const std::string nul("1.2\0junk", 8);
+  EXPECT_THROW(parse_real("--size", nul), Error);
+  EXPECT_THROW(parse_bias("--sheet-bias 0=x", nul, tfi::Spacing::Geometric), Error);
+  EXPECT_THROW(parse_bias("--sheet-bias 0=x", std::string("1.2@17\0", 7), tfi::Spacing::Geometric), Error);
+  EXPECT_THROW(parse_whole("--interval", std::string("2\0", 2)), Error);
+  EXPECT_THROW(parse_whole("--interval", " 2"), Error);
+  EXPECT_THROW(parse_entity("--entity-interval", std::string("2:5\0", 4)), Error);
+  EXPECT_EQ(parse_whole("--interval", "+2"), 2);
+  EXPECT_EQ(parse_real("--size", "1.5"), 1.5);
+  EXPECT_EQ(parse_entity("--entity-interval", "2:5"), (EntityTag{2, 5}));
+  IntervalOptionText text;
+  text.sheet_interval = {std::string("0=3\0", 4)};
+  EXPECT_THROW(parse_interval_options(text), Error);
+}
