@@ -1,12 +1,14 @@
 // dicer dice: read a coarse mesh, resolve intervals, write the store.
 #include <malloc.h>
 
+#include <cerrno>
 #include <cstdio>
-#include <fstream>
+#include <cstring>
 #include <functional>
-#include <iterator>
+#include <memory>
 #include <optional>
 #include <string_view>
+#include <vector>
 
 #include "command.hpp"
 #include "common.hpp"
@@ -119,8 +121,8 @@ int cmd_dice(const std::vector<std::string>& argv) {
     std::optional<FineMesh> diced;
     SecondOrderReport quad;
     // Under mpirun with --geometry every rank reads MESH, the CAD and the
-    // intervals file itself: copies local to each node must agree, or the
-    // ranks' shares of the CAD work would not fit together.
+    // intervals file itself: copies local to each node must agree (checked
+    // before the nodes are placed), or the ranks' shares would not fit.
     std::string fingerprint;
     auto fold = [&](const void* data, size_t bytes) {
       fingerprint += std::to_string(std::hash<std::string_view>{}({static_cast<const char*>(data), bytes})) + " ";
@@ -138,10 +140,12 @@ int cmd_dice(const std::vector<std::string>& argv) {
       if (shared) {
         for (const auto* a : {&mesh.x, &mesh.y, &mesh.z}) fold(a->data(), a->size() * sizeof(double));
         fold(mesh.conn.data(), mesh.conn.size() * sizeof(Id));
-        std::ifstream file(cad, std::ios::binary);
-        const std::string bytes((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
-        if (!file.good() && !file.eof()) throw Error(ErrorKind::Io, cad + ": cannot read the CAD file");
-        fold(bytes.data(), bytes.size());
+        // The CAD's bytes, a block at a time.
+        const std::unique_ptr<std::FILE, int (*)(std::FILE*)> file(std::fopen(cad.c_str(), "rb"), &std::fclose);
+        if (!file) throw Error(ErrorKind::Io, cad + ": cannot open: " + std::strerror(errno));
+        std::vector<char> block(1 << 20);
+        for (size_t n; (n = std::fread(block.data(), 1, block.size(), file.get())) > 0;) fold(block.data(), n);
+        if (std::ferror(file.get())) throw Error(ErrorKind::Io, cad + ": read failed");
       }
       std::vector<std::string> notes;
       const bool second_order = mesh.second_order();
@@ -159,7 +163,17 @@ int cmd_dice(const std::vector<std::string>& argv) {
         quad = apply_second_order(*diced);
         throw_if_cancelled(nothing_written);
       }
-      fingerprint += std::to_string(diced->num_nodes()) + " " + std::to_string(diced->num_elements());
+      // The intervals and gradings the request resolved to (an intervals
+      // file that differs shows there).
+      if (shared) {
+        fold(diced->sheet_intervals().data(), diced->sheet_intervals().size() * sizeof(Id));
+        char g[96];
+        for (const SheetGrading& s : diced->sheet_gradings()) {
+          std::snprintf(g, sizeof g, "%d %d %.17g %lld;", static_cast<int>(s.grading.kind), s.grading.flip ? 1 : 0,
+                        s.grading.ratio, static_cast<long long>(s.start));
+          fingerprint += g;
+        }
+      }
     });
     if (shared)
       dicer::mpi::require_same(mpi.comm(), fingerprint, [&](int q, const std::string&) {

@@ -184,6 +184,7 @@ int export_ranks(const std::string& path, const std::string& out, const std::str
         pending->commit();
       } catch (const Error& e) {
         // The other ranks rename theirs meanwhile: say what the set holds.
+        if (P == 1) throw;
         throw Error(e.kind(), std::string(e.what()) + "; the other ranks' pieces of " + out + "." + std::to_string(P) +
                                   ".* may be replaced already: the set may mix new and old pieces (export again)");
       }
@@ -334,10 +335,14 @@ int cmd_export(const std::vector<std::string>& argv) {
           pieces[k]->commit();
         } catch (const Error& e) {
           if (k == 0) throw;
-          // Only a rename fails here (everything else was flushed first).
-          throw Error(e.kind(), std::string(e.what()) + "; pieces " + nemesis_path(out, static_cast<Id>(pieces.size()), 0) +
-                                    " to " + nemesis_path(out, static_cast<Id>(pieces.size()), static_cast<Id>(k) - 1) +
-                                    " were replaced already: the set mixes new and old pieces (export again)");
+          // Everything was flushed first: what fails here is a rename (or
+          // opening the folder again), after pieces 0..k-1 were renamed.
+          const Id n = static_cast<Id>(pieces.size());
+          const std::string done = k == 1 ? "piece " + nemesis_path(out, n, 0) + " was"
+                                          : "pieces " + nemesis_path(out, n, 0) + " to " +
+                                                nemesis_path(out, n, static_cast<Id>(k) - 1) + " were";
+          throw Error(e.kind(), std::string(e.what()) + "; " + done +
+                                    " replaced already: the set mixes new and old pieces (export again)");
         }
       }
     } else if (format == "vtkhdf") {

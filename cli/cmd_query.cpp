@@ -190,11 +190,11 @@ class PointReader {
     else if (descr == "'<f4'") npy_f4_ = true;
     else throw Error(ErrorKind::BadInput, file_ + ": .npy points must be little-endian float64 or float32 ('<f8', '<f4')");
     // (n, 3) with n a plain count: strtoull took "-1" as 2^64 - 1.
-    const size_t digits = shape.find_first_not_of("0123456789", 1);
+    const size_t digits = shape.size() < 5 || shape[0] != '(' ? 1 : shape.find_first_not_of("0123456789", 1);
     errno = 0;
-    const unsigned long long n = std::strtoull(shape.c_str() + 1, nullptr, 10);
-    if (shape.size() < 5 || shape[0] != '(' || digits == 1 || digits == std::string::npos ||
-        shape.compare(digits, std::string::npos, ",3)") != 0 || errno == ERANGE)
+    const unsigned long long n = digits == 1 ? 0 : std::strtoull(shape.c_str() + 1, nullptr, 10);
+    if (digits == 1 || digits == std::string::npos || shape.compare(digits, std::string::npos, ",3)") != 0 ||
+        errno == ERANGE)
       throw Error(ErrorKind::BadInput, file_ + ": .npy points must have shape (n, 3), not " + shape);
     // A count the file cannot hold is said up front (a regular file).
     struct stat st {};

@@ -30,11 +30,15 @@ int hex_handedness(const CoarseMesh& m, const Id* c) {
     for (int d = 0; d < 3; ++d) {
       const Vec3 p = m.vertex(c[kHexCornerNbr[k][d]]);
       e[d] = {p.x - o.x, p.y - o.y, p.z - o.z};
-      // Each edge scaled to a largest component of 1 (a positive factor:
-      // the sign stays): a cube of side 1e-110 has a determinant of 1e-330,
+      // Each edge scaled by a power of two to a largest component near 1
+      // (exact: the determinant's sign, zero included, stays as computed
+      // unscaled): a cube of side 1e-110 has a determinant of 1e-330,
       // which underflows to 0 and read as degenerate.
       const double s = std::max({std::fabs(e[d].x), std::fabs(e[d].y), std::fabs(e[d].z)});
-      if (s > 0) e[d] = {e[d].x / s, e[d].y / s, e[d].z / s};
+      if (s > 0 && std::isfinite(s)) {
+        const int k = std::ilogb(s);
+        e[d] = {std::ldexp(e[d].x, -k), std::ldexp(e[d].y, -k), std::ldexp(e[d].z, -k)};
+      }
     }
     const double det = e[0].x * (e[1].y * e[2].z - e[1].z * e[2].y) -
                        e[0].y * (e[1].x * e[2].z - e[1].z * e[2].x) +

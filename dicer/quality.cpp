@@ -18,7 +18,7 @@ double norm(const Vec3& a) { return std::sqrt(dot(a, a)); }
 // scales such as 1e-110 or 1e160); zero for a zero vector.
 Vec3 unit(const Vec3& a) {
   const double s = std::max({std::fabs(a.x), std::fabs(a.y), std::fabs(a.z)});
-  if (!(s > 0)) return {0, 0, 0};
+  if (!(s > 0) || !std::isfinite(s)) return {0, 0, 0};
   const Vec3 b{a.x / s, a.y / s, a.z / s};
   const double n = norm(b);
   return {b.x / n, b.y / n, b.z / n};
@@ -36,8 +36,11 @@ double hex_scaled_jacobian(const Vec3 (&p)[8]) {
     const Vec3 e1 = sub(p[kHexCornerNbr[c][0]], p[c]), e2 = sub(p[kHexCornerNbr[c][1]], p[c]),
                e3 = sub(p[kHexCornerNbr[c][2]], p[c]);
     const double l = norm(e1) * norm(e2) * norm(e3);
-    // A collapsed edge counts as degenerate (unit() gives it length 0).
-    const double j = in_range(l) ? dot(cross(e1, e2), e3) / l : dot(cross(unit(e1), unit(e2)), unit(e3));
+    // A collapsed edge counts as degenerate (unit() gives it length 0), and
+    // so does a corner that is not finite (NaN: l != l).
+    const double j = in_range(l) ? dot(cross(e1, e2), e3) / l
+                     : l == l    ? dot(cross(unit(e1), unit(e2)), unit(e3))
+                                 : 0.0;
     worst = std::min(worst, j);
   }
   return worst;
@@ -45,14 +48,15 @@ double hex_scaled_jacobian(const Vec3 (&p)[8]) {
 
 double quad_scaled_jacobian(const Vec3 (&p)[4], const Vec3& normal) {
   const double ln = norm(normal);
-  const Vec3 un = unit(normal);  // a normal too small to square is still one
-  if (un.x == 0 && un.y == 0 && un.z == 0) return 0.0;
+  // A normal too small to square (ln 0) is still one; NaN is none.
+  if (!(ln >= 0) || (normal.x == 0 && normal.y == 0 && normal.z == 0)) return 0.0;
   double worst = 1.0;
   for (int k = 0; k < 4; ++k) {
     const Vec3 e1 = sub(p[(k + 1) % 4], p[k]), e2 = sub(p[(k + 3) % 4], p[k]);
     const double l = norm(e1) * norm(e2) * ln;
     worst = std::min(worst, in_range(l) ? dot(cross(e1, e2), normal) / l
-                                        : dot(cross(unit(e1), unit(e2)), un));
+                            : l == l    ? dot(cross(unit(e1), unit(e2)), unit(normal))
+                                        : 0.0);
   }
   return worst;
 }

@@ -106,6 +106,19 @@ TEST(BadCore, HandednessHoldsAtTinyScales) {
   tangled.x[tangled.conn[6]] = -0.5e-110, tangled.y[tangled.conn[6]] = -0.5e-110;
   const std::string msg = error_of([&] { validate_coarse_mesh(tangled); }, ErrorKind::BadInput);
   EXPECT_NE(msg.find("element 1 is inverted or degenerate"), std::string::npos) << msg;
+  // A flat parallelepiped in a tilted plane (e3 = e1 + e2, small whole
+  // numbers: every corner determinant exactly 0). Scaling the edges must
+  // not turn that 0 into rounding noise of either sign.
+  CoarseMesh flat = unit_cubes(1);
+  const double e1[3] = {1, 2, 3}, e3[3] = {2, 1, 5}, e4[3] = {3, 3, 8};  // corner 0's edges to 1, 3, 4
+  const int use[8][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
+  for (int k = 0; k < 8; ++k) {
+    double p[3];
+    for (int d = 0; d < 3; ++d) p[d] = use[k][0] * e1[d] + use[k][1] * e3[d] + use[k][2] * e4[d];
+    flat.x[flat.conn[k]] = p[0], flat.y[flat.conn[k]] = p[1], flat.z[flat.conn[k]] = p[2];
+  }
+  const std::string f = error_of([&] { validate_coarse_mesh(flat); }, ErrorKind::BadInput);
+  EXPECT_NE(f.find("element 1 is inverted or degenerate"), std::string::npos) << f;
 }
 
 TEST(BadCore, RepeatedNodeDuplicateElementAndNaNAreRefused) {

@@ -84,4 +84,15 @@ TEST(QualityMerge, ScaledJacobianIsTheSameAtAnyScale) {
     EXPECT_LE(hex_scaled_jacobian(tt), 0.0) << s;
     EXPECT_NEAR(quad_scaled_jacobian(qq), want_quad, 1e-15) << s;
   }
+  // A corner that is not a number is no element (it scored 0.98 once the
+  // out-of-range path took the NaN products).
+  for (const int axis : {0, 1, 2}) {
+    Vec3 nan_hex[8], nan_quad[4];
+    std::copy(std::begin(sheared), std::end(sheared), nan_hex);
+    std::copy(std::begin(quad), std::end(quad), nan_quad);
+    (axis == 0 ? nan_hex[6].x : axis == 1 ? nan_hex[6].y : nan_hex[6].z) = std::nan("");
+    (axis == 0 ? nan_quad[2].x : axis == 1 ? nan_quad[2].y : nan_quad[2].z) = std::nan("");
+    EXPECT_FALSE(hex_scaled_jacobian(nan_hex) > 0) << axis;
+    EXPECT_FALSE(quad_scaled_jacobian(nan_quad) > 0) << axis;
+  }
 }

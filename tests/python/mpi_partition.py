@@ -76,22 +76,31 @@ def test_ranks_that_opened_other_stores_are_refused(store_path):
     """A rank whose store is another dicing (node-local copies that differ)
     made a partition that did not fit the others': BadInputError naming it
     on that rank, the same kind on the others, nobody left waiting."""
-    path, tmp = store_path, None
+    path, tmp, error = store_path, None, None
     if comm.rank == 1:
         tmp = tempfile.mkdtemp()
         path = os.path.join(tmp, "other.dice.h5")
-        dicer.dice(DATA / "cardinal_prism.exo", path, interval=2).close()
-    s = dicer.open(path)
-    with pytest.raises(dicer.BadInputError) as e:
-        s.partition(comm)
-    if comm.rank == 1:
-        assert "rank 1 read another store than rank 0" in str(e.value)
-    else:
-        assert "rank 1 failed" in str(e.value)
-    s.close()
-    assert comm.allreduce(1) == comm.size
-    if tmp:
-        shutil.rmtree(tmp)
+        try:
+            dicer.dice(DATA / "cardinal_prism.exo", path, interval=2).close()
+        except Exception as e:  # noqa: BLE001 - reported on every rank below
+            error = f"{type(e).__name__}: {e}"
+    # Rank 1's failure fails every rank, not the others waiting in partition.
+    errors = [x for x in comm.allgather(error) if x]
+    try:
+        if errors:
+            pytest.fail(f"rank 1 could not dice its store: {errors[0]}")
+        s = dicer.open(path)
+        with pytest.raises(dicer.BadInputError) as e:
+            s.partition(comm)
+        if comm.rank == 1:
+            assert "rank 1 read another store than rank 0" in str(e.value)
+        else:
+            assert "rank 1 failed" in str(e.value)
+        s.close()
+        assert comm.allreduce(1) == comm.size
+    finally:
+        if tmp:
+            shutil.rmtree(tmp)
 
 
 def test_not_a_communicator(store_path):
