@@ -230,7 +230,7 @@ def _bias(what, value):
     return repr(_finite(what, value))
 
 
-def _option_text(what, pairs):
+def _option_text(pairs):
     # The command line's KEY=VALUE words, read by the library's one parser
     # (parse_interval_options) with or without dicer-cad.
     return [f"{k}={v}" for k, v in pairs]
@@ -380,16 +380,13 @@ def dice(mesh, out, interval=None, sheet_intervals=None, block_intervals=None, s
     size = None if size is None else _finite("--size", size)
     grading = "bias (a ratio or text)"
     options = {
-        "block_interval": _option_text("--block-interval", _pairs("--block-interval", block_intervals, _block_key)),
-        "sheet_interval": _option_text("--sheet-interval", _pairs("--sheet-interval", sheet_intervals, _sheet_key)),
-        "entity_interval": _option_text("--entity-interval",
-                                        _pairs("--entity-interval", entity_intervals, _entity_key)),
-        "sheet_bias": _option_text("--sheet-bias", _pairs("--sheet-bias", sheet_bias, _sheet_key, _bias, grading)),
-        "sheet_dual_bias": _option_text("--sheet-dual-bias", _pairs("--sheet-dual-bias", sheet_dual_bias,
-                                                                    _sheet_key, _bias, grading)),
-        "block_bias": _option_text("--block-bias", _pairs("--block-bias", block_bias, _block_key, _bias, grading)),
-        "entity_bias": _option_text("--entity-bias", _pairs("--entity-bias", entity_bias, _entity_key, _bias,
-                                                            grading)),
+        "block_interval": _option_text(_pairs("--block-interval", block_intervals, _block_key)),
+        "sheet_interval": _option_text(_pairs("--sheet-interval", sheet_intervals, _sheet_key)),
+        "entity_interval": _option_text(_pairs("--entity-interval", entity_intervals, _entity_key)),
+        "sheet_bias": _option_text(_pairs("--sheet-bias", sheet_bias, _sheet_key, _bias, grading)),
+        "sheet_dual_bias": _option_text(_pairs("--sheet-dual-bias", sheet_dual_bias, _sheet_key, _bias, grading)),
+        "block_bias": _option_text(_pairs("--block-bias", block_bias, _block_key, _bias, grading)),
+        "entity_bias": _option_text(_pairs("--entity-bias", entity_bias, _entity_key, _bias, grading)),
     }
     if geometry_tol is not None and geometry is None:
         raise UsageError("--geometry-tol needs --geometry CAD")
