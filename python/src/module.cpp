@@ -828,10 +828,11 @@ py::dict dice_to_store(const std::string& mesh_path, const std::string& out, std
       {"entity_interval", &option_text.entity_interval}, {"sheet_bias", &option_text.sheet_bias},
       {"sheet_dual_bias", &option_text.sheet_dual_bias}, {"block_bias", &option_text.block_bias},
       {"entity_bias", &option_text.entity_bias}};
-  for (const auto& [name, words] : options) {
+  for (const auto& option : options) {  // not a structured binding: clang 14 does not capture one
+    const std::string& name = option.first;
     const auto f = std::find_if(std::begin(fields), std::end(fields), [&](const auto& x) { return name == x.first; });
     if (f == std::end(fields)) throw Error(ErrorKind::Usage, "_dice: unknown option " + name);
-    *f->second = words;
+    *f->second = option.second;
   }
   std::vector<std::string> warnings, notes;
   Id coarse = 0, nodes = 0, elements = 0;
