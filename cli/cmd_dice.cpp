@@ -167,12 +167,16 @@ int cmd_dice(const std::vector<std::string>& argv) {
       // file that differs shows there).
       if (shared) {
         fold(diced->sheet_intervals().data(), diced->sheet_intervals().size() * sizeof(Id));
+        // As text, then hashed: the fingerprint stays a few hashes long
+        // however many sheets (every rank gathers every rank's).
+        std::string gradings;
         char g[96];
         for (const SheetGrading& s : diced->sheet_gradings()) {
           std::snprintf(g, sizeof g, "%d %d %.17g %lld;", static_cast<int>(s.grading.kind), s.grading.flip ? 1 : 0,
                         s.grading.ratio, static_cast<long long>(s.start));
-          fingerprint += g;
+          gradings += g;
         }
+        fold(gradings.data(), gradings.size());
       }
     });
     if (shared)
