@@ -180,7 +180,7 @@ int cmd_dice(const std::vector<std::string>& argv) {
       }
     });
     if (shared)
-      dicer::mpi::require_same(mpi.comm(), fingerprint, [&](int q, const std::string&) {
+      dicer::mpi::require_same(mpi.comm(), fingerprint, ErrorKind::BadInput, [&](int q, const std::string&) {
         return "rank " + std::to_string(q) + " read other contents than rank 0 from " + in + ", " + cad +
                " or the intervals: every rank must read the same files (copies local to each node that differ?)";
       });

@@ -159,20 +159,17 @@ int main(int argc, char** argv) {
         return w;
       };
       auto cut = [](const std::string& s) { return s.size() > 60 ? s.substr(0, 57) + "..." : s; };
-      std::string mine, first;
+      std::string mine;
       for (const auto& a : args) mine += a + '\0';
-      const int q = dicer::mpi::first_rank_differing(mpi.comm(), mine, &first);
-      agree([&] {
-        if (mpi.rank() != q) return;
+      dicer::mpi::require_same(mpi.comm(), mine, ErrorKind::Usage, [&](int q, const std::string& first) {
         // The first word that differs, so that long lines are told apart.
         const std::vector<std::string> a = words(mine), b = words(first);
         size_t k = 0;
         while (k < a.size() && k < b.size() && a[k] == b[k]) ++k;
         const std::string here = k < a.size() ? "\"" + cut(a[k]) + "\"" : "nothing";
         const std::string there = k < b.size() ? "\"" + cut(b[k]) + "\"" : "nothing";
-        throw dicer::Error(ErrorKind::Usage, "rank " + std::to_string(q) + " runs another command line than rank 0 (word " +
-                                                 std::to_string(k + 1) + " after dicer: " + here + " against " + there +
-                                                 "): every rank must run the same command line");
+        return "rank " + std::to_string(q) + " runs another command line than rank 0 (word " + std::to_string(k + 1) +
+               " after dicer: " + here + " against " + there + "): every rank must run the same command line";
       });
     }
     bool help = false;

@@ -102,27 +102,21 @@ std::vector<std::string> allgather_bytes(MPI_Comm comm, const std::string& mine)
   return out;
 }
 
-int first_rank_differing(MPI_Comm comm, const std::string& mine, std::string* rank0) {
-  const std::vector<std::string> all = allgather_bytes(comm, mine);
-  if (rank0) *rank0 = all.front();
-  for (size_t q = 1; q < all.size(); ++q)
-    if (all[q] != all.front()) return static_cast<int>(q);
-  return -1;
-}
-
-void require_same(MPI_Comm comm, const std::string& mine,
+void require_same(MPI_Comm comm, const std::string& mine, ErrorKind kind,
                   const std::function<std::string(int rank, const std::string& rank0)>& message) {
   int rank = 0;
   MPI_Comm_rank(comm, &rank);
-  std::string first;
-  const int q = first_rank_differing(comm, mine, &first);
+  const std::vector<std::string> all = allgather_bytes(comm, mine);
+  int q = -1;
+  for (size_t r = 1; r < all.size() && q < 0; ++r)
+    if (all[r] != all.front()) q = static_cast<int>(r);
   collectively(comm, [&] {
-    if (rank == q) throw Error(ErrorKind::BadInput, message(q, first));
+    if (rank == q) throw Error(kind, message(q, all.front()));
   });
 }
 
 void require_same_store(MPI_Comm comm, const std::string& path, const std::string& uuid) {
-  require_same(comm, uuid, [&](int q, const std::string& first) {
+  require_same(comm, uuid, ErrorKind::BadInput, [&](int q, const std::string& first) {
     return path + ": rank " + std::to_string(q) + " read another store than rank 0 (uuid " + uuid + ", rank 0's " +
            first + "): every rank must read the same file (copies local to each node that differ?)";
   });

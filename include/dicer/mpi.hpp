@@ -106,16 +106,11 @@ void collectively(MPI_Comm comm, Fn&& fn) {
 // left waiting). Collective; what ConformOptions::share needs.
 std::vector<std::string> allgather_bytes(MPI_Comm comm, const std::string& mine);
 
-// The lowest rank whose `mine` differs from rank 0's, -1 when all agree;
-// `rank0` (if given) receives rank 0's value. Collective (allgather_bytes):
-// how the CLI refuses ranks given other command lines or other stores.
-int first_rank_differing(MPI_Comm comm, const std::string& mine, std::string* rank0 = nullptr);
-
-// Every rank must hold the same `mine` (a fingerprint of what it read):
-// the first rank whose value differs from rank 0's throws Error{BadInput}
-// with message(that rank, rank 0's value), the others PeerFailed.
-// Collective.
-void require_same(MPI_Comm comm, const std::string& mine,
+// Every rank must hold the same `mine` (its command line, a fingerprint of
+// what it read): the lowest rank whose value differs from rank 0's throws
+// Error{kind} with message(that rank, rank 0's value), the others
+// PeerFailed. Collective (allgather_bytes).
+void require_same(MPI_Comm comm, const std::string& mine, ErrorKind kind,
                   const std::function<std::string(int rank, const std::string& rank0)>& message);
 
 // Every rank must have read the same store (`uuid`, FineMesh::info().uuid):

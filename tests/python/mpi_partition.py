@@ -16,23 +16,28 @@ from conftest import DATA, bits
 comm = MPI.COMM_WORLD
 
 
-@pytest.fixture(scope="module")
-def store_path():
-    # Diced by the package on rank 0 (the dicer command, started from inside
-    # an MPI rank, would see mpirun's environment and try to join the job).
-    # Rank 0 broadcasts the path or its error, so a failure here fails every
-    # rank instead of leaving the others waiting in bcast.
+def dice_on(rank, name):
+    """The prism diced by the package on `rank` alone, in a folder of its
+    own: its path there, None elsewhere (the dicer command, started from
+    inside an MPI rank, would see mpirun's environment and try to join the
+    job). A failure fails every rank instead of leaving the others waiting
+    in a collective."""
     path, error = None, None
-    if comm.rank == 0:
-        tmp = tempfile.mkdtemp()
-        path = os.path.join(tmp, "prism.dice.h5")
+    if comm.rank == rank:
+        path = os.path.join(tempfile.mkdtemp(), name)
         try:
             dicer.dice(DATA / "cardinal_prism.exo", path, interval=2).close()
         except Exception as e:  # noqa: BLE001 - reported on every rank below
             error = f"{type(e).__name__}: {e}"
-    path, error = comm.bcast((path, error), root=0)
-    if error:
-        pytest.fail(f"rank 0 could not dice the store: {error}")
+    errors = [x for x in comm.allgather(error) if x]
+    if errors:
+        pytest.fail(f"rank {rank} could not dice {name}: {errors[0]}")
+    return path
+
+
+@pytest.fixture(scope="module")
+def store_path():
+    path = comm.bcast(dice_on(0, "prism.dice.h5"), root=0)
     yield path
     comm.Barrier()
     if comm.rank == 0:
@@ -76,20 +81,9 @@ def test_ranks_that_opened_other_stores_are_refused(store_path):
     """A rank whose store is another dicing (node-local copies that differ)
     made a partition that did not fit the others': BadInputError naming it
     on that rank, the same kind on the others, nobody left waiting."""
-    path, tmp, error = store_path, None, None
-    if comm.rank == 1:
-        tmp = tempfile.mkdtemp()
-        path = os.path.join(tmp, "other.dice.h5")
-        try:
-            dicer.dice(DATA / "cardinal_prism.exo", path, interval=2).close()
-        except Exception as e:  # noqa: BLE001 - reported on every rank below
-            error = f"{type(e).__name__}: {e}"
-    # Rank 1's failure fails every rank, not the others waiting in partition.
-    errors = [x for x in comm.allgather(error) if x]
+    other = dice_on(1, "other.dice.h5")
     try:
-        if errors:
-            pytest.fail(f"rank 1 could not dice its store: {errors[0]}")
-        s = dicer.open(path)
+        s = dicer.open(other or store_path)
         with pytest.raises(dicer.BadInputError) as e:
             s.partition(comm)
         if comm.rank == 1:
@@ -99,8 +93,8 @@ def test_ranks_that_opened_other_stores_are_refused(store_path):
         s.close()
         assert comm.allreduce(1) == comm.size
     finally:
-        if tmp:
-            shutil.rmtree(tmp)
+        if other:
+            shutil.rmtree(os.path.dirname(other))
 
 
 def test_not_a_communicator(store_path):
