@@ -13,6 +13,7 @@
 #include "command.hpp"
 #include "common.hpp"
 #include "dicer/coarse_mesh.hpp"
+#include "dicer/diced_rows.hpp"
 #include "dicer/error.hpp"
 #include "dicer/fine_mesh.hpp"
 #include "dicer/geometry.hpp"
@@ -49,6 +50,11 @@ file's classification, or of the CAD with --geometry.
 Under mpirun, --geometry shares out the CAD work (each of P ranks places
 every P-th curve and face and checks every P-th coarse element; rank 0
 writes the same store one process writes); without it rank 0 dices alone.
+
+Memory: about 1.2 KB per coarse hex (the coarse mesh, its topology and
+numbering; the store's rows are written as they are made), whatever the
+intervals; --geometry and second-order input hold the store's tables
+too (about 2.6 KB per hex), since they move nodes in them.
 
 STORE is written under a temporary name in its folder and renamed when
 complete: an interrupted dice (Ctrl-C, SIGTERM, SIGHUP: exit 130, 143,
@@ -118,6 +124,10 @@ int cmd_dice(const std::vector<std::string>& argv) {
     mallopt(M_MMAP_THRESHOLD, 1 << 30);
     mallopt(M_TRIM_THRESHOLD, 1 << 30);
     const std::string nothing_written = "nothing written to " + out;
+    // Plain dicing streams the tables' rows into the store (DicedRows: a
+    // third of the memory); the CAD and second-order input move nodes in
+    // tables compiled into memory first.
+    std::optional<DicedRows> rows;
     std::optional<FineMesh> diced;
     SecondOrderReport quad;
     // Under mpirun with --geometry every rank reads MESH, the CAD and the
@@ -149,7 +159,8 @@ int cmd_dice(const std::vector<std::string>& argv) {
       }
       std::vector<std::string> notes;
       const bool second_order = mesh.second_order();
-      diced.emplace(FineMesh::dice(std::move(mesh), req, &notes));
+      if (with_cad || second_order) diced.emplace(FineMesh::dice(std::move(mesh), req, &notes));
+      else rows.emplace(std::move(mesh), req, &notes);
       if (lead)
         for (const auto& n : notes) std::fprintf(stderr, "dicer dice: note: %s\n", printable(n).c_str());
       throw_if_cancelled(nothing_written);
@@ -184,9 +195,9 @@ int cmd_dice(const std::vector<std::string>& argv) {
         return "rank " + std::to_string(q) + " read other contents than rank 0 from " + in + ", " + cad +
                " or the intervals: every rank must read the same files (copies local to each node that differ?)";
       });
-    FineMesh& fine = *diced;
     ConformReport geo;
     if (with_cad) {
+      FineMesh& fine = *diced;
       step([&] {
         Progress bar("dice: geometry", 1, quiet || !lead);
         copt.progress = [&](const char*, Id done, Id total) { bar.update(done, total); };
@@ -202,17 +213,20 @@ int cmd_dice(const std::vector<std::string>& argv) {
       if (!lead) return;
       Progress bar("dice: writing", 1, quiet);
       // Thrown from the page callback: write_store removes its temporary file.
-      write_store(fine, out, [&](std::int64_t done, std::int64_t total) {
+      const auto page_written = [&](std::int64_t done, std::int64_t total) {
         throw_if_cancelled(nothing_written);
         bar.update(done, total);
-      });
+      };
+      if (rows) write_store(*rows, out, page_written);
+      else write_store(*diced, out, page_written);
     });
     if (!lead) return 0;
+    const MeshInfo& info = rows ? rows->info() : diced->info();
     if (!quiet)
       std::printf("diced %s: %lld coarse %s -> %s fine nodes, %s fine elements (%lld sheets); wrote %s\n", printable(in).c_str(),
-                  static_cast<long long>(fine.num_coarse_elements()), fine.mode() == Mode::Volume ? "hexes" : "quads",
-                  human_count(fine.num_nodes()).c_str(), human_count(fine.num_elements()).c_str(),
-                  static_cast<long long>(fine.info().sheets), printable(out).c_str());
+                  static_cast<long long>(info.coarse_elements), info.mode == Mode::Volume ? "hexes" : "quads",
+                  human_count(info.nodes).c_str(), human_count(info.elements).c_str(),
+                  static_cast<long long>(info.sheets), printable(out).c_str());
     if (quad.second_order && !quiet)
       std::printf("second order %s: %lld edges and %lld faces curved = %s bounding nodes; min scaled Jacobian %.4f over "
                   "%s elements checked\n",

@@ -1,8 +1,10 @@
-// Dicing: coarse mesh + intervals -> the mesh tables (tables.hpp), in
-// memory; and the edits geometry-conforming dicing makes to them.
+// Dicing: coarse mesh + intervals -> the mesh tables' rows (DicedRows),
+// compiled into memory (FineMesh::dice) or streamed to a store
+// (write_store); and the edits geometry-conforming dicing makes to them.
 #include <algorithm>
 #include <atomic>
 
+#include "dicer/diced_rows.hpp"
 #include "dicer/error.hpp"
 #include "dicer/fine_mesh.hpp"
 #include "dicer/orientation.hpp"
@@ -13,140 +15,9 @@
 #include "evaluate.hpp"
 
 namespace dicer {
-namespace {
 
-// Ordered coarse mesh + owner-order topology + numbering -> tables + info.
-FineMesh compile(std::shared_ptr<const CoarseMesh> cm, const Topology& t, const Numbering& num,
-                 const std::vector<Id>& edge_sheet, const std::vector<tfi::Grading>& edge_grading, Id num_sheets) {
-  const CoarseMesh& m = *cm;
-  const Mode mode = m.mode;
-  const bool vol = mode == Mode::Volume;
-  // edge_grading: one per edge, or empty when no sheet is graded.
-  auto graded = [&](Id e) { return edge_grading.empty() ? tfi::Grading{} : edge_grading[static_cast<size_t>(e)]; };
-  MeshTables tab;
-  tab.mode = mode;
-  tab.fine_nodes = num.num_nodes();
-  tab.fine_elements = num.num_elements();
-  tab.sheets = num_sheets;
-  tab.blocks = static_cast<Id>(m.blocks.size());
-  const Id nv = m.num_vertices(), ne = t.num_edges(), nf = t.num_faces(), nh = m.num_elements();
-  auto make = [&](auto tag, RowTable kind, Id rows) {
-    using T = decltype(tag);
-    const std::int64_t w = row_width(kind, mode);
-    std::vector<T> v;
-    v.reserve(static_cast<size_t>(rows * w));
-    return Table<T>(w, std::move(v));
-  };
-  tab.vertex_nodes = make(std::int64_t{}, RowTable::VertexNodes, nv);
-  tab.edges = make(std::int64_t{}, RowTable::Edges, ne);
-  tab.faces = make(std::int64_t{}, RowTable::Faces, nf);
-  tab.elements = make(std::int64_t{}, RowTable::Elements, nh);
-  tab.corners = make(double{}, RowTable::Corners, nh);
-  tab.bounds = make(double{}, RowTable::Bounds, nh);
-  tab.bounding = Table<std::int64_t>(3, {});
-  std::vector<std::int32_t> vowner(static_cast<size_t>(nv) * 2, -1);
-  for (size_t v = 0; v < m.vertex_geo_dim.size() && v < m.vertex_geo_tag.size(); ++v)
-    vowner[2 * v] = m.vertex_geo_dim[v], vowner[2 * v + 1] = m.vertex_geo_tag[v];
-  tab.vertex_owner = Table<std::int32_t>(2, std::move(vowner));
-
-  const int nc = m.corners_per_element();
-  for (Id v = 0; v < nv; ++v) {
-    const Id h = t.vertex_owner_elem[v];
-    int slot = 0;
-    while (slot < nc && m.conn[static_cast<size_t>(h) * nc + slot] != v) ++slot;
-    write_row(tab, v, VertexRow{h, slot, num.vertex_node(v)});
-  }
-  // Surface mode: the quad across each edge from its owner (neighbour
-  // queries read it instead of searching); -1 where a non-manifold edge has
-  // no single other quad.
-  std::vector<Id> edge_other(static_cast<size_t>(ne), -1);
-  if (!vol) {
-    std::vector<std::int8_t> uses(static_cast<size_t>(ne), 0);
-    for (Id h = 0; h < nh; ++h)
-      for (int k = 0; k < 4; ++k) {
-        const Id e = t.elem_edge[static_cast<size_t>(h) * 4 + k];
-        if (uses[e] < 3) ++uses[e];
-        if (h != t.edge_owner_elem[e]) edge_other[e] = h;
-      }
-    for (Id e = 0; e < ne; ++e)
-      if (uses[e] > 2) edge_other[e] = -1;
-  }
-  for (Id e = 0; e < ne; ++e)
-    write_row(tab, e, EdgeRow{t.edge_v[2 * e], t.edge_v[2 * e + 1], num.edge_n(e), num.edge_node(e), edge_sheet[e],
-                              t.edge_owner_elem[e], -1, -1, edge_other[e], graded(e)});
-  for (Id f = 0; f < nf; ++f) {
-    FaceRow r;
-    for (int k = 0; k < 4; ++k) r.v[k] = t.face_v[4 * f + k], r.e[k] = t.face_edge[4 * f + k];
-    r.nu = num.face_n(f)[0], r.nv = num.face_n(f)[1];
-    r.node = num.face_node(f), r.owner_element = t.face_owner_elem[f];
-    if (vol) {
-      const Id a = t.face_elem[2 * f], b = t.face_elem[2 * f + 1];
-      r.other_element = b < 0 ? -1 : (a == r.owner_element ? b : a);
-    }
-    write_row(tab, f, r);
-  }
-  MeshInfo info;
-  info.mode = mode;
-  info.source = m.source;
-  info.source_order = m.second_order() ? 2 : 1;
-  info.blocks = m.blocks;
-  info.block_coarse_elements.assign(m.blocks.size(), 0);
-  info.block_fine_elements.assign(m.blocks.size(), 0);
-  const int epe = t.edges_per_element(), fpe = t.faces_per_element();
-  for (Id h = 0; h < nh; ++h) {
-    ElementRow r;
-    Vec3 xyz[8];
-    for (int k = 0; k < nc; ++k) {
-      const Id v = m.conn[static_cast<size_t>(h) * nc + k];
-      r.corner[k] = v, r.corner_node[k] = num.vertex_node(v);
-      xyz[k] = m.vertex(v);
-    }
-    for (int k = 0; k < epe; ++k) {
-      const Id e = t.elem_edge[static_cast<size_t>(h) * epe + k];
-      r.edge[k] = e, r.edge_node[k] = num.edge_node(e);
-      r.flags |= static_cast<std::uint64_t>(t.elem_edge_rev[static_cast<size_t>(h) * epe + k]) << k;
-    }
-    for (int k = 0; k < fpe; ++k) {
-      const Id f = t.elem_face[static_cast<size_t>(h) * fpe + k];
-      r.face[k] = f, r.face_node[k] = num.face_node(f);
-      r.flags |= static_cast<std::uint64_t>(t.elem_face_code[static_cast<size_t>(h) * fpe + k]) << (12 + 3 * k);
-    }
-    r.node_first = num.node_first(h);
-    r.element_first = num.element_first(h);
-    r.cell_node = num.cell_node(h);
-    r.block = m.element_block[h];
-    r.file_id = m.element_file_id[h];
-    r.n = num.elem_n(h);
-    if (!vol) r.n[2] = 1;
-    // Each axis' grading in its increasing direction: its edges' (one sheet,
-    // one direction across it: they agree).
-    for (int k = 0; k < epe; ++k) {
-      const int axis = vol ? k / 4 : k / 2;
-      const tfi::Grading g = r.rev(k) ? tfi::reversed(graded(r.edge[k])) : graded(r.edge[k]);
-      if (k % (vol ? 4 : 2) == 0) r.grading[axis] = g;
-      DICER_ASSERT(r.grading[axis] == g, "the edges along one axis of an element run one way across their sheet");
-    }
-    write_row(tab, h, r);
-    write_corners(tab, h, xyz);
-    write_bounds(tab, h, corner_bounds(xyz, nc));
-    ++info.block_coarse_elements[r.block];
-    info.block_fine_elements[r.block] += r.n[0] * r.n[1] * r.n[2];
-  }
-  info.coarse_vertices = nv;
-  info.coarse_edges = ne;
-  info.coarse_faces = nf;
-  info.coarse_elements = nh;
-  info.sheets = num_sheets;
-  info.nodes = num.num_nodes();
-  info.elements = num.num_elements();
-  tab.group_bounds = group_bounds(tab);
-  return FineMesh(std::move(info), std::move(tab), std::move(cm));
-}
-
-}  // namespace
-
-FineMesh FineMesh::dice(CoarseMesh coarse, const IntervalRequest& request, std::vector<std::string>* notes,
-                        bool locality_order) {
+DicedRows::DicedRows(CoarseMesh coarse, const IntervalRequest& request, std::vector<std::string>* notes,
+                     bool locality_order) {
   // Sheets and intervals on the input numbering, so sheet ids are the input
   // file's (the topology validation built, when the mesh is unchanged).
   std::shared_ptr<const Topology> t0 = topology_of(coarse);
@@ -154,6 +25,11 @@ FineMesh FineMesh::dice(CoarseMesh coarse, const IntervalRequest& request, std::
   const Sheets s0 = find_sheets(coarse, *t0);
   IntervalPlan plan = resolve_intervals(coarse, *t0, s0, request);
   if (notes) *notes = plan.notes;
+  sheet_gradings_.resize(plan.sheet_grading.size());
+  for (size_t s = 0; s < plan.sheet_grading.size(); ++s) {
+    const Id v = plan.sheet_start[s];
+    sheet_gradings_[s] = {plan.sheet_grading[s], v < 0 ? -1 : coarse.vertex_file_id.empty() ? v + 1 : coarse.vertex_file_id[v]};
+  }
   // The sheet of each element's local edges; then t0 can go before the
   // second topology is built (peak memory).
   const int epe = t0->edges_per_element();
@@ -175,38 +51,205 @@ FineMesh FineMesh::dice(CoarseMesh coarse, const IntervalRequest& request, std::
   }
   t0.reset();
   // Store order (Morton, or the file's), vertices in first use, then the
-  // owner-order topology the fine mesh is numbered by.
+  // owner-order topology the fine mesh is numbered by. The input's arrays
+  // go first (peak memory).
   std::vector<Id> old_vertex, old_element;
-  auto ordered = std::make_shared<CoarseMesh>(sfc_order(coarse, &old_vertex, &old_element, locality_order));
-  Topology t = build_topology(*ordered);
-  to_owner_order(t, ordered->conn);
+  mesh_ = std::make_shared<CoarseMesh>(sfc_order(coarse, &old_vertex, &old_element, locality_order));
+  coarse = CoarseMesh{};
+  const CoarseMesh& m = *mesh_;
+  t_ = build_topology(m);
+  to_owner_order(t_, m.conn);
+  Topology& t = t_;
   // sfc_order keeps each element's corner order, so local edge k of new
   // element h is local edge k of the input's element old_element[h].
   // A graded edge keeps its series' physical direction: it flips when the
   // new vertex numbering reverses the edge's canonical direction.
-  std::vector<Id> edge_sheet(static_cast<size_t>(t.num_edges()), -1), edge_n(static_cast<size_t>(t.num_edges()));
-  std::vector<tfi::Grading> edge_grading(slot_grading.empty() ? 0 : static_cast<size_t>(t.num_edges()));
+  edge_sheet_.assign(static_cast<size_t>(t.num_edges()), -1);
+  std::vector<Id> edge_n(static_cast<size_t>(t.num_edges()));
+  edge_grading_.assign(slot_grading.empty() ? 0 : static_cast<size_t>(t.num_edges()), tfi::Grading{});
   for (size_t h = 0; h < old_element.size(); ++h)
     for (int k = 0; k < epe; ++k) {
       const size_t slot = static_cast<size_t>(old_element[h]) * epe + k;
       const Id e = t.elem_edge[h * epe + k];
-      edge_sheet[e] = slot_sheet[slot];
+      edge_sheet_[e] = slot_sheet[slot];
       if (!slot_grading.empty())
-        edge_grading[e] = old_vertex[t.edge_v[2 * e]] == slot_start[slot] ? slot_grading[slot] : tfi::reversed(slot_grading[slot]);
+        edge_grading_[e] = old_vertex[t.edge_v[2 * e]] == slot_start[slot] ? slot_grading[slot] : tfi::reversed(slot_grading[slot]);
     }
   slot_sheet = {};
   slot_grading = {};
   slot_start = {};
-  for (Id e = 0; e < t.num_edges(); ++e) edge_n[e] = plan.sheet_interval[edge_sheet[e]];
-  const Numbering num(t, std::move(edge_n));
-  FineMesh f = compile(ordered, t, num, edge_sheet, edge_grading, s0.num_sheets());
-  f.sheet_intervals_ = std::move(plan.sheet_interval);
-  f.sheet_gradings_.resize(plan.sheet_grading.size());
-  for (size_t s = 0; s < plan.sheet_grading.size(); ++s) {
-    const Id v = plan.sheet_start[s];
-    f.sheet_gradings_[s] = {plan.sheet_grading[s], v < 0 ? -1 : coarse.vertex_file_id.empty() ? v + 1 : coarse.vertex_file_id[v]};
+  old_vertex = {};
+  old_element = {};
+  for (Id e = 0; e < t.num_edges(); ++e) edge_n[e] = plan.sheet_interval[edge_sheet_[e]];
+  num_ = Numbering(t, std::move(edge_n));
+  sheet_intervals_ = std::move(plan.sheet_interval);
+
+  const Mode mode = m.mode;
+  const Id ne = t.num_edges(), nh = m.num_elements();
+  // Surface mode: the quad across each edge from its owner (neighbour
+  // queries read it instead of searching); -1 where a non-manifold edge has
+  // no single other quad.
+  if (mode != Mode::Volume) {
+    edge_other_.assign(static_cast<size_t>(ne), -1);
+    std::vector<std::int8_t> uses(static_cast<size_t>(ne), 0);
+    for (Id h = 0; h < nh; ++h)
+      for (int k = 0; k < 4; ++k) {
+        const Id e = t.elem_edge[static_cast<size_t>(h) * 4 + k];
+        if (uses[e] < 3) ++uses[e];
+        if (h != t.edge_owner_elem[e]) edge_other_[e] = h;
+      }
+    for (Id e = 0; e < ne; ++e)
+      if (uses[e] > 2) edge_other_[e] = -1;
   }
+  MeshInfo& info = info_;
+  info.mode = mode;
+  info.source = m.source;
+  info.source_order = m.second_order() ? 2 : 1;
+  info.blocks = m.blocks;
+  info.block_coarse_elements.assign(m.blocks.size(), 0);
+  info.block_fine_elements.assign(m.blocks.size(), 0);
+  for (Id h = 0; h < nh; ++h) {
+    const std::array<Id, 3> n = num_.elem_n(h);
+    const Id b = m.element_block[h];
+    ++info.block_coarse_elements[b];
+    info.block_fine_elements[b] += n[0] * n[1] * (mode == Mode::Volume ? n[2] : 1);
+  }
+  info.coarse_vertices = m.num_vertices();
+  info.coarse_edges = ne;
+  info.coarse_faces = t.num_faces();
+  info.coarse_elements = nh;
+  info.sheets = s0.num_sheets();
+  info.nodes = num_.num_nodes();
+  info.elements = num_.num_elements();
+}
+
+VertexRow DicedRows::vertex(Id v) const {
+  const CoarseMesh& m = *mesh_;
+  const Id h = t_.vertex_owner_elem[v];
+  const int nc = m.corners_per_element();
+  int slot = 0;
+  while (slot < nc && m.conn[static_cast<size_t>(h) * nc + slot] != v) ++slot;
+  return VertexRow{h, slot, num_.vertex_node(v)};
+}
+
+EdgeRow DicedRows::edge(Id e) const {
+  const tfi::Grading g = edge_grading_.empty() ? tfi::Grading{} : edge_grading_[static_cast<size_t>(e)];
+  return EdgeRow{t_.edge_v[2 * e], t_.edge_v[2 * e + 1], num_.edge_n(e), num_.edge_node(e), edge_sheet_[e],
+                 t_.edge_owner_elem[e], -1, -1, edge_other_.empty() ? -1 : edge_other_[e], g};
+}
+
+FaceRow DicedRows::face(Id f) const {
+  FaceRow r;
+  for (int k = 0; k < 4; ++k) r.v[k] = t_.face_v[4 * f + k], r.e[k] = t_.face_edge[4 * f + k];
+  r.nu = num_.face_n(f)[0], r.nv = num_.face_n(f)[1];
+  r.node = num_.face_node(f), r.owner_element = t_.face_owner_elem[f];
+  if (mode() == Mode::Volume) {
+    const Id a = t_.face_elem[2 * f], b = t_.face_elem[2 * f + 1];
+    r.other_element = b < 0 ? -1 : (a == r.owner_element ? b : a);
+  }
+  return r;
+}
+
+ElementRow DicedRows::element(Id h) const {
+  const CoarseMesh& m = *mesh_;
+  const Topology& t = t_;
+  const bool vol = mode() == Mode::Volume;
+  const int nc = m.corners_per_element(), epe = t.edges_per_element(), fpe = t.faces_per_element();
+  ElementRow r;
+  for (int k = 0; k < nc; ++k) {
+    const Id v = m.conn[static_cast<size_t>(h) * nc + k];
+    r.corner[k] = v, r.corner_node[k] = num_.vertex_node(v);
+  }
+  for (int k = 0; k < epe; ++k) {
+    const Id e = t.elem_edge[static_cast<size_t>(h) * epe + k];
+    r.edge[k] = e, r.edge_node[k] = num_.edge_node(e);
+    r.flags |= static_cast<std::uint64_t>(t.elem_edge_rev[static_cast<size_t>(h) * epe + k]) << k;
+  }
+  for (int k = 0; k < fpe; ++k) {
+    const Id f = t.elem_face[static_cast<size_t>(h) * fpe + k];
+    r.face[k] = f, r.face_node[k] = num_.face_node(f);
+    r.flags |= static_cast<std::uint64_t>(t.elem_face_code[static_cast<size_t>(h) * fpe + k]) << (12 + 3 * k);
+  }
+  r.node_first = num_.node_first(h);
+  r.element_first = num_.element_first(h);
+  r.cell_node = num_.cell_node(h);
+  r.block = m.element_block[h];
+  r.file_id = m.element_file_id[h];
+  r.n = num_.elem_n(h);
+  if (!vol) r.n[2] = 1;
+  // Each axis' grading in its increasing direction: its edges' (one sheet,
+  // one direction across it: they agree).
+  for (int k = 0; k < epe; ++k) {
+    const int axis = vol ? k / 4 : k / 2;
+    const Id e = r.edge[k];
+    const tfi::Grading ge = edge_grading_.empty() ? tfi::Grading{} : edge_grading_[static_cast<size_t>(e)];
+    const tfi::Grading g = r.rev(k) ? tfi::reversed(ge) : ge;
+    if (k % (vol ? 4 : 2) == 0) r.grading[axis] = g;
+    DICER_ASSERT(r.grading[axis] == g, "the edges along one axis of an element run one way across their sheet");
+  }
+  return r;
+}
+
+void DicedRows::corners(Id h, Vec3* xyz) const {
+  const CoarseMesh& m = *mesh_;
+  const int nc = m.corners_per_element();
+  for (int k = 0; k < nc; ++k) xyz[k] = m.vertex(m.conn[static_cast<size_t>(h) * nc + k]);
+}
+
+std::vector<std::int32_t> DicedRows::vertex_owners() const {
+  const CoarseMesh& m = *mesh_;
+  const Id nv = m.num_vertices();
+  std::vector<std::int32_t> o(static_cast<size_t>(nv) * 2, -1);
+  for (size_t v = 0; v < m.vertex_geo_dim.size() && v < m.vertex_geo_tag.size(); ++v)
+    o[2 * v] = m.vertex_geo_dim[v], o[2 * v + 1] = m.vertex_geo_tag[v];
+  return o;
+}
+
+FineMesh DicedRows::compile() && {
+  const Mode mode = info_.mode;
+  MeshTables tab;
+  tab.mode = mode;
+  tab.fine_nodes = info_.nodes;
+  tab.fine_elements = info_.elements;
+  tab.sheets = info_.sheets;
+  tab.blocks = static_cast<Id>(info_.blocks.size());
+  const Id nv = info_.coarse_vertices, ne = info_.coarse_edges, nf = info_.coarse_faces, nh = info_.coarse_elements;
+  auto make = [&](auto tag, RowTable kind, Id rows) {
+    using T = decltype(tag);
+    const std::int64_t w = row_width(kind, mode);
+    std::vector<T> v;
+    v.reserve(static_cast<size_t>(rows * w));
+    return Table<T>(w, std::move(v));
+  };
+  tab.vertex_nodes = make(std::int64_t{}, RowTable::VertexNodes, nv);
+  tab.edges = make(std::int64_t{}, RowTable::Edges, ne);
+  tab.faces = make(std::int64_t{}, RowTable::Faces, nf);
+  tab.elements = make(std::int64_t{}, RowTable::Elements, nh);
+  tab.corners = make(double{}, RowTable::Corners, nh);
+  tab.bounds = make(double{}, RowTable::Bounds, nh);
+  tab.bounding = Table<std::int64_t>(3, {});
+  tab.vertex_owner = Table<std::int32_t>(2, vertex_owners());
+  for (Id v = 0; v < nv; ++v) write_row(tab, v, vertex(v));
+  for (Id e = 0; e < ne; ++e) write_row(tab, e, edge(e));
+  for (Id f = 0; f < nf; ++f) write_row(tab, f, face(f));
+  const int nc = mesh_->corners_per_element();
+  for (Id h = 0; h < nh; ++h) {
+    Vec3 xyz[8];
+    corners(h, xyz);
+    write_row(tab, h, element(h));
+    write_corners(tab, h, xyz);
+    write_bounds(tab, h, corner_bounds(xyz, nc));
+  }
+  tab.group_bounds = group_bounds(tab);
+  FineMesh f(std::move(info_), std::move(tab), std::move(mesh_));
+  f.set_sheet_intervals(std::move(sheet_intervals_));
+  f.set_sheet_gradings(std::move(sheet_gradings_));
   return f;
+}
+
+FineMesh FineMesh::dice(CoarseMesh coarse, const IntervalRequest& request, std::vector<std::string>* notes,
+                        bool locality_order) {
+  return DicedRows(std::move(coarse), request, notes, locality_order).compile();
 }
 
 // ---------------------------------------------------------------- geometry

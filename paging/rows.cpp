@@ -6,6 +6,7 @@
 #include <bit>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <limits>
 
 #include "dicer/error.hpp"
@@ -518,28 +519,24 @@ T* row_for_write(Table<T>& t, Id i) {
 }
 }  // namespace
 
-void write_row(MeshTables& t, Id v, const VertexRow& r) {
-  std::int64_t* o = row_for_write(t.vertex_nodes, v);
+void encode_row(Mode, const VertexRow& r, std::int64_t* o) {
   o[kVertexOwner] = r.owner_element, o[kVertexCorner] = r.corner, o[kVertexNode] = r.node;
 }
 
-void write_row(MeshTables& t, Id e, const EdgeRow& r) {
-  std::int64_t* o = row_for_write(t.edges, e);
+void encode_row(Mode, const EdgeRow& r, std::int64_t* o) {
   o[kEdgeLo] = r.lo, o[kEdgeHi] = r.hi, o[kEdgeN] = r.n, o[kEdgeNode] = r.node, o[kEdgeSheet] = r.sheet;
   o[kEdgeOwner] = r.owner_element, o[kEdgeGeo] = r.geo, o[kEdgeBound] = r.bound, o[kEdgeOther] = r.other_element;
   o[kEdgeGrade] = grade_code(r.grading), o[kEdgeRatio] = std::bit_cast<std::int64_t>(r.grading.ratio);
 }
 
-void write_row(MeshTables& t, Id f, const FaceRow& r) {
-  std::int64_t* o = row_for_write(t.faces, f);
+void encode_row(Mode, const FaceRow& r, std::int64_t* o) {
   for (int k = 0; k < 4; ++k) o[kFaceV + k] = r.v[k], o[kFaceE + k] = r.e[k];
   o[kFaceNu] = r.nu, o[kFaceNv] = r.nv, o[kFaceNode] = r.node, o[kFaceOwner] = r.owner_element;
   o[kFaceGeo] = r.geo, o[kFaceBound] = r.bound, o[kFaceOther] = r.other_element;
 }
 
-void write_row(MeshTables& t, Id h, const ElementRow& r) {
-  const ElementCols L = ElementCols::of(t.mode);
-  std::int64_t* o = row_for_write(t.elements, h);
+void encode_row(Mode mode, const ElementRow& r, std::int64_t* o) {
+  const ElementCols L = ElementCols::of(mode);
   for (int k = 0; k < L.c; ++k) o[L.corner() + k] = r.corner[k], o[L.corner_node() + k] = r.corner_node[k];
   for (int k = 0; k < L.e; ++k) o[L.edge() + k] = r.edge[k], o[L.edge_node() + k] = r.edge_node[k];
   for (int k = 0; k < L.f; ++k) o[L.face() + k] = r.face[k], o[L.face_node() + k] = r.face_node[k];
@@ -553,6 +550,22 @@ void write_row(MeshTables& t, Id h, const ElementRow& r) {
   }
   o[L.grade()] = grade;
 }
+
+void encode_corners(Mode mode, const Vec3* xyz, double* o) {
+  const int c = ElementCols::of(mode).c;
+  for (int k = 0; k < c; ++k) o[3 * k] = xyz[k].x, o[3 * k + 1] = xyz[k].y, o[3 * k + 2] = xyz[k].z;
+}
+
+void encode_bounds(const ElementBounds& b, double* o) {
+  for (int d = 0; d < 3; ++d) o[d] = b.lo[d], o[3 + d] = b.hi[d];
+}
+
+void write_row(MeshTables& t, Id v, const VertexRow& r) { encode_row(t.mode, r, row_for_write(t.vertex_nodes, v)); }
+void write_row(MeshTables& t, Id e, const EdgeRow& r) { encode_row(t.mode, r, row_for_write(t.edges, e)); }
+void write_row(MeshTables& t, Id f, const FaceRow& r) { encode_row(t.mode, r, row_for_write(t.faces, f)); }
+void write_row(MeshTables& t, Id h, const ElementRow& r) { encode_row(t.mode, r, row_for_write(t.elements, h)); }
+void write_corners(MeshTables& t, Id h, const Vec3* xyz) { encode_corners(t.mode, xyz, row_for_write(t.corners, h)); }
+void write_bounds(MeshTables& t, Id h, const ElementBounds& b) { encode_bounds(b, row_for_write(t.bounds, h)); }
 
 ElementBounds corner_bounds(const Vec3* xyz, int n) {
   ElementBounds b;
@@ -571,31 +584,24 @@ ElementBounds corner_bounds(const Vec3* xyz, int n) {
   return b;
 }
 
-std::vector<double> group_bounds(const MeshTables& t) {
-  const Id nh = t.bounds.rows(), groups = (nh + kBoundsGroup - 1) / kBoundsGroup;
+std::vector<double> group_bounds(Id elements, const std::function<ElementBounds(Id)>& bounds) {
+  const Id groups = (elements + kBoundsGroup - 1) / kBoundsGroup;
   std::vector<double> out(static_cast<size_t>(groups) * 6);
-  MeshCursor cur;
-  const RowReader R(t, cur);
   for (Id g = 0; g < groups; ++g) {
     double* o = &out[static_cast<size_t>(g) * 6];
     for (int d = 0; d < 3; ++d) o[d] = INFINITY, o[3 + d] = -INFINITY;
-    for (Id h = g * kBoundsGroup; h < std::min(nh, (g + 1) * kBoundsGroup); ++h) {
-      const ElementBounds b = R.bounds(h);
+    for (Id h = g * kBoundsGroup; h < std::min(elements, (g + 1) * kBoundsGroup); ++h) {
+      const ElementBounds b = bounds(h);
       for (int d = 0; d < 3; ++d) o[d] = std::min(o[d], b.lo[d]), o[3 + d] = std::max(o[3 + d], b.hi[d]);
     }
   }
   return out;
 }
 
-void write_bounds(MeshTables& t, Id h, const ElementBounds& b) {
-  double* o = row_for_write(t.bounds, h);
-  for (int d = 0; d < 3; ++d) o[d] = b.lo[d], o[3 + d] = b.hi[d];
-}
-
-void write_corners(MeshTables& t, Id h, const Vec3* xyz) {
-  double* o = row_for_write(t.corners, h);
-  const int c = ElementCols::of(t.mode).c;
-  for (int k = 0; k < c; ++k) o[3 * k] = xyz[k].x, o[3 * k + 1] = xyz[k].y, o[3 * k + 2] = xyz[k].z;
+std::vector<double> group_bounds(const MeshTables& t) {
+  MeshCursor cur;
+  const RowReader R(t, cur);
+  return group_bounds(t.bounds.rows(), [&](Id h) { return R.bounds(h); });
 }
 
 }  // namespace dicer

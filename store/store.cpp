@@ -14,6 +14,7 @@
 #include <mutex>
 
 #include "dicer/atomic_output.hpp"
+#include "dicer/diced_rows.hpp"
 #include "dicer/error.hpp"
 #include "dicer/numbering.hpp"
 #include "dicer/rows.hpp"
@@ -73,8 +74,11 @@ struct WriteProgress {
 };
 thread_local WriteProgress* g_write_progress = nullptr;
 
-template <class T>
-void write_paged(const h5::File& f, const std::string& name, const T* data, std::int64_t rows, std::int64_t width) {
+// fill(first, n, out) writes rows first .. first + n - 1 into out (n rows
+// of `width` values), a page at a time: the rows need not exist anywhere
+// else (DicedRows makes them as they are written).
+template <class T, class Fill>
+void write_paged(const h5::File& f, const std::string& name, std::int64_t rows, std::int64_t width, const Fill& fill) {
   const int rank = 2;
   // Ids, offsets and bounding codes are small numbers in 8-byte words: the
   // byte shuffle groups their zero high bytes, which LZ4 then squeezes
@@ -94,15 +98,16 @@ void write_paged(const h5::File& f, const std::string& name, const T* data, std:
   h5::Handle ds(H5Dcreate2(f.id(), name.c_str(), h5_type<T>(), space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT),
                 H5Dclose);
   if (!ds) throw Error(ErrorKind::Io, f.name() + ": " + name + ": cannot create dataset: " + f.write_failure());
-  std::vector<std::uint8_t> page(static_cast<size_t>(rpp * width) * sizeof(T));
+  std::vector<T> values(static_cast<size_t>(rpp * width));
+  const std::span<const std::uint8_t> page(reinterpret_cast<const std::uint8_t*>(values.data()), values.size() * sizeof(T));
   std::vector<std::uint32_t> crcs;
   std::vector<std::uint8_t> shuffled;
   for (std::int64_t first = 0; first < rows; first += rpp) {
     const std::int64_t n = std::min(rpp, rows - first);
-    std::fill(page.begin(), page.end(), 0);  // a partial last page is padded
-    std::memcpy(page.data(), data + first * width, static_cast<size_t>(n * width) * sizeof(T));
+    std::fill(values.begin(), values.end(), T{});  // a partial last page is padded
+    fill(first, n, values.data());
     if (shuffle) store::shuffle_bytes(page, sizeof(T), shuffled);
-    const std::vector<std::uint8_t> stored = store::encode_page(shuffle ? shuffled : page);
+    const std::vector<std::uint8_t> stored = store::encode_page(shuffle ? std::span<const std::uint8_t>(shuffled) : page);
     crcs.push_back(store::page_crc(page));
     hsize_t offset[2] = {static_cast<hsize_t>(first), 0};
     if (H5Dwrite_chunk(ds.get(), H5P_DEFAULT, 0, offset, stored.size(), stored.data()) < 0)
@@ -127,7 +132,9 @@ void write_paged(const h5::File& f, const std::string& name, const T* data, std:
 
 template <class T>
 void write_paged(const h5::File& f, const std::string& name, const std::vector<T>& v, std::int64_t width = 1) {
-  write_paged(f, name, v.data(), static_cast<std::int64_t>(v.size()) / width, width);
+  write_paged<T>(f, name, static_cast<std::int64_t>(v.size()) / width, width, [&](std::int64_t first, std::int64_t n, T* out) {
+    std::memcpy(out, v.data() + first * width, static_cast<size_t>(n * width) * sizeof(T));
+  });
 }
 
 void write_strings(h5::File& f, const std::string& base, const std::vector<std::string>& names) {
@@ -437,12 +444,45 @@ std::shared_ptr<OpenStore> open_store(const std::string& path, StoreHeader& h) {
 }
 }  // namespace
 
-void write_store(const FineMesh& mesh, const std::string& path,
-                 const std::function<void(std::int64_t, std::int64_t)>& progress) {
-  const CoarseMesh* c = mesh.coarse();
-  if (!c) throw Error(ErrorKind::Usage, path + ": write_store needs a mesh diced in this process");
-  const MeshInfo& info = mesh.info();
-  const MeshTables& t = mesh.tables();
+namespace {
+
+// What a store holds, whoever makes its rows: a FineMesh's tables in memory
+// or a DicedRows' rows made as each page is written. One writer for both, so
+// the two stores are the same bytes but for the uuid.
+template <class T>
+struct PagedRows {
+  std::int64_t rows = 0, width = 1;
+  std::function<void(std::int64_t first, std::int64_t n, T* out)> fill;
+};
+
+template <class T>
+void paged(const h5::File& f, const std::string& name, const PagedRows<T>& r) {
+  write_paged<T>(f, name, r.rows, r.width, r.fill);
+}
+
+template <class T>
+PagedRows<T> rows_of(const Table<T>& t) {
+  return {t.rows(), t.width(), [&t](std::int64_t first, std::int64_t n, T* out) {
+            std::memcpy(out, t.memory().data() + first * t.width(), static_cast<size_t>(n * t.width()) * sizeof(T));
+          }};
+}
+
+struct StoreContent {
+  const MeshInfo* info = nullptr;
+  const CoarseMesh* coarse = nullptr;
+  const std::vector<Id>* sheet_intervals = nullptr;
+  const std::vector<SheetGrading>* sheet_gradings = nullptr;
+  PagedRows<std::int64_t> vertex_nodes, edges, faces, elements, bounding;
+  PagedRows<double> corners, bounds;
+  const std::vector<std::int32_t>* vertex_owner = nullptr;
+  std::vector<double> group_bounds;
+  // (node_first, element_first) of element row h.
+  std::function<std::array<Id, 2>(Id h)> firsts;
+};
+
+void write_content(const StoreContent& c, const std::string& path,
+                   const std::function<void(std::int64_t, std::int64_t)>& progress) {
+  const MeshInfo& info = *c.info;
   AtomicOutput out(path);
   const std::string& tmp = out.temp_path();
   std::unique_lock lock(hdf5_mutex());
@@ -450,12 +490,14 @@ void write_store(const FineMesh& mesh, const std::string& path,
   WriteProgress wp;
   wp.fn = &progress;
   wp.hdf5 = &lock;
-  auto pages = [](const auto& tab) {
-    const std::int64_t rpp = rows_per_page(tab.width(), sizeof(tab.memory()[0]));
-    return (tab.rows() + rpp - 1) / rpp;
+  auto pages = [](std::int64_t rows, std::int64_t width, std::size_t elem) {
+    const std::int64_t rpp = rows_per_page(width, elem);
+    return (rows + rpp - 1) / rpp;
   };
-  wp.total = pages(t.vertex_nodes) + pages(t.edges) + pages(t.faces) + pages(t.elements) +
-             pages(t.corners) + pages(t.bounds) + pages(t.bounding) + pages(t.vertex_owner) + 40;
+  auto table_pages = [&](const auto& r) { return pages(r.rows, r.width, 8); };
+  wp.total = table_pages(c.vertex_nodes) + table_pages(c.edges) + table_pages(c.faces) + table_pages(c.elements) +
+             table_pages(c.corners) + table_pages(c.bounds) + table_pages(c.bounding) +
+             pages(static_cast<std::int64_t>(c.vertex_owner->size() / 2), 2, 4) + 40;
   g_write_progress = &wp;
   struct Reset {
     ~Reset() { g_write_progress = nullptr; }
@@ -476,36 +518,36 @@ void write_store(const FineMesh& mesh, const std::string& path,
       f.write_attr("sheets", info.sheets);
       f.write_attr("fine_nodes", info.nodes);
       f.write_attr("fine_elements", info.elements);
-      f.write_attr("bounding_nodes", t.bounding.rows());
+      f.write_attr("bounding_nodes", c.bounding.rows);
       f.write_attr("page_bytes", static_cast<std::int64_t>(kStorePageBytes));
       for (const char* g : {"coarse", "topology", "sheets", "numbering", "geometry", "sets", "index"}) f.group(g);
-      write_paged(f, "coarse/vertex_file_id", c->vertex_file_id);
-      write_paged(f, row_dataset(RowTable::VertexNodes), t.vertex_nodes.memory(), t.vertex_nodes.width());
-      write_paged(f, "geometry/vertex_owner", t.vertex_owner.memory(), 2);
-      write_paged(f, "geometry/bounding", t.bounding.memory(), 3);
-      write_paged(f, row_dataset(RowTable::Edges), t.edges.memory(), t.edges.width());
-      write_paged(f, row_dataset(RowTable::Faces), t.faces.memory(), t.faces.width());
-      write_paged(f, row_dataset(RowTable::Elements), t.elements.memory(), t.elements.width());
-      write_paged(f, row_dataset(RowTable::Corners), t.corners.memory(), t.corners.width());
-      write_paged(f, row_dataset(RowTable::Bounds), t.bounds.memory(), t.bounds.width());
-      write_paged(f, "index/group_bounds", t.group_bounds);
+      write_paged(f, "coarse/vertex_file_id", c.coarse->vertex_file_id);
+      paged(f, row_dataset(RowTable::VertexNodes), c.vertex_nodes);
+      write_paged(f, "geometry/vertex_owner", *c.vertex_owner, 2);
+      paged(f, "geometry/bounding", c.bounding);
+      paged(f, row_dataset(RowTable::Edges), c.edges);
+      paged(f, row_dataset(RowTable::Faces), c.faces);
+      paged(f, row_dataset(RowTable::Elements), c.elements);
+      paged(f, row_dataset(RowTable::Corners), c.corners);
+      paged(f, row_dataset(RowTable::Bounds), c.bounds);
+      write_paged(f, "index/group_bounds", c.group_bounds);
       // Page index of the elements table: the first row's first owned node
       // and first fine element on every page (id -> element reads one page).
       {
-        const std::int64_t rpp = std::min(rows_per_page(t.elements.width(), 8), std::max<std::int64_t>(t.elements.rows(), 1));
+        const std::int64_t rpp = std::min(rows_per_page(c.elements.width, 8), std::max<std::int64_t>(c.elements.rows, 1));
         std::vector<std::int64_t> node_first, element_first;
-        MeshCursor cur;
-        const RowReader R(t, cur);
-        for (std::int64_t r = 0; r < t.elements.rows(); r += rpp)
-          node_first.push_back(R.node_first(r)), element_first.push_back(R.element_first(r));
+        for (std::int64_t r = 0; r < c.elements.rows; r += rpp) {
+          const std::array<Id, 2> firsts = c.firsts(r);
+          node_first.push_back(firsts[0]), element_first.push_back(firsts[1]);
+        }
         write_paged(f, "numbering/element_page_node", node_first);
         write_paged(f, "numbering/element_page_element", element_first);
       }
-      write_paged(f, "sheets/sheet_interval", mesh.sheet_intervals());
+      write_paged(f, "sheets/sheet_interval", *c.sheet_intervals);
       {
         // Per sheet: spacing kind, ratio (IEEE bits), start node's file id.
         std::vector<std::int64_t> grading;
-        for (const SheetGrading& g : mesh.sheet_gradings())
+        for (const SheetGrading& g : *c.sheet_gradings)
           grading.insert(grading.end(), {static_cast<std::int64_t>(g.grading.kind),
                                          std::bit_cast<std::int64_t>(g.grading.ratio), g.start});
         if (grading.empty())  // a mesh built without dice(): every sheet equally spaced
@@ -522,12 +564,12 @@ void write_store(const FineMesh& mesh, const std::string& path,
       // Side and node sets: ids, names, CSR offsets, members (element, side) / vertex.
       std::vector<std::int64_t> ss_id, ss_off{0}, ss_member, ns_id, ns_off{0}, ns_vert;
       std::vector<std::string> ss_name, ns_name;
-      for (const auto& s : c->side_sets) {
+      for (const auto& s : c.coarse->side_sets) {
         ss_id.push_back(s.id), ss_name.push_back(s.name);
         for (size_t i = 0; i < s.element.size(); ++i) ss_member.push_back(s.element[i]), ss_member.push_back(s.side[i]);
         ss_off.push_back(static_cast<std::int64_t>(ss_member.size() / 2));
       }
-      for (const auto& s : c->node_sets) {
+      for (const auto& s : c.coarse->node_sets) {
         ns_id.push_back(s.id), ns_name.push_back(s.name);
         ns_vert.insert(ns_vert.end(), s.vertex.begin(), s.vertex.end());
         ns_off.push_back(static_cast<std::int64_t>(ns_vert.size()));
@@ -543,6 +585,74 @@ void write_store(const FineMesh& mesh, const std::string& path,
     }
     out.commit();  // an exception before this leaves the temporary to `out`, which removes it
   }
+}
+
+}  // namespace
+
+void write_store(const FineMesh& mesh, const std::string& path,
+                 const std::function<void(std::int64_t, std::int64_t)>& progress) {
+  const CoarseMesh* coarse = mesh.coarse();
+  if (!coarse) throw Error(ErrorKind::Usage, path + ": write_store needs a mesh diced in this process");
+  const MeshTables& t = mesh.tables();
+  StoreContent c;
+  c.info = &mesh.info();
+  c.coarse = coarse;
+  c.sheet_intervals = &mesh.sheet_intervals();
+  c.sheet_gradings = &mesh.sheet_gradings();
+  c.vertex_nodes = rows_of(t.vertex_nodes), c.edges = rows_of(t.edges), c.faces = rows_of(t.faces);
+  c.elements = rows_of(t.elements), c.bounding = rows_of(t.bounding);
+  c.corners = rows_of(t.corners), c.bounds = rows_of(t.bounds);
+  c.vertex_owner = &t.vertex_owner.memory();
+  c.group_bounds = t.group_bounds;
+  MeshCursor cur;
+  const RowReader R(t, cur);
+  c.firsts = [&](Id h) { return std::array<Id, 2>{R.node_first(h), R.element_first(h)}; };
+  write_content(c, path, progress);
+}
+
+void write_store(const DicedRows& rows, const std::string& path,
+                 const std::function<void(std::int64_t, std::int64_t)>& progress) {
+  const MeshInfo& info = rows.info();
+  const Mode mode = info.mode;
+  StoreContent c;
+  c.info = &info;
+  c.coarse = &rows.coarse();
+  c.sheet_intervals = &rows.sheet_intervals();
+  c.sheet_gradings = &rows.sheet_gradings();
+  // Each table's rows straight into the page being written.
+  auto table = [&](RowTable kind, Id count, auto row) {
+    const std::int64_t w = row_width(kind, mode);
+    return PagedRows<std::int64_t>{count, w, [&rows, mode, w, row](std::int64_t first, std::int64_t n, std::int64_t* out) {
+                                     for (std::int64_t i = 0; i < n; ++i) encode_row(mode, (rows.*row)(first + i), out + i * w);
+                                   }};
+  };
+  c.vertex_nodes = table(RowTable::VertexNodes, info.coarse_vertices, &DicedRows::vertex);
+  c.edges = table(RowTable::Edges, info.coarse_edges, &DicedRows::edge);
+  c.faces = table(RowTable::Faces, info.coarse_faces, &DicedRows::face);
+  c.elements = table(RowTable::Elements, info.coarse_elements, &DicedRows::element);
+  c.bounding = {0, 3, [](std::int64_t, std::int64_t, std::int64_t*) {}};
+  const int nc = rows.coarse().corners_per_element();
+  auto bounds_of = [&rows, nc](Id h) {
+    Vec3 xyz[8];
+    rows.corners(h, xyz);
+    return corner_bounds(xyz, nc);
+  };
+  const std::int64_t wc = row_width(RowTable::Corners, mode), wb = row_width(RowTable::Bounds, mode);
+  c.corners = {info.coarse_elements, wc, [&rows, mode, wc](std::int64_t first, std::int64_t n, double* out) {
+                 Vec3 xyz[8];
+                 for (std::int64_t i = 0; i < n; ++i) rows.corners(first + i, xyz), encode_corners(mode, xyz, out + i * wc);
+               }};
+  c.bounds = {info.coarse_elements, wb, [bounds_of, wb](std::int64_t first, std::int64_t n, double* out) {
+                for (std::int64_t i = 0; i < n; ++i) encode_bounds(bounds_of(first + i), out + i * wb);
+              }};
+  const std::vector<std::int32_t> owners = rows.vertex_owners();
+  c.vertex_owner = &owners;
+  c.group_bounds = group_bounds(info.coarse_elements, bounds_of);
+  c.firsts = [&rows](Id h) {
+    const ElementRow r = rows.element(h);
+    return std::array<Id, 2>{r.node_first, r.element_first};
+  };
+  write_content(c, path, progress);
 }
 
 namespace {

@@ -19,6 +19,7 @@
 // Cost: a read is one row pointer (TableCursor) and a copy of the row.
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -250,6 +251,16 @@ class RowReader {
 // search_first reads them there when the table has them.
 std::vector<int> element_search_columns(Mode mode);
 
+// Encoders: a row into `out`, row_width(kind, mode) values (corners: 3
+// per corner; bounds: 6), as the table holds it. write_store streams pages
+// of them (DicedRows) without building the tables.
+void encode_row(Mode mode, const VertexRow& r, std::int64_t* out);
+void encode_row(Mode mode, const EdgeRow& r, std::int64_t* out);
+void encode_row(Mode mode, const FaceRow& r, std::int64_t* out);
+void encode_row(Mode mode, const ElementRow& r, std::int64_t* out);
+void encode_corners(Mode mode, const Vec3* xyz, double* out);
+void encode_bounds(const ElementBounds& b, double* out);
+
 // Writers, for in-memory tables only (dicing, geometry-conforming moves):
 // row i of the table, which grows by one row when i == rows().
 void write_row(MeshTables& t, Id v, const VertexRow& r);
@@ -262,7 +273,9 @@ void write_bounds(MeshTables& t, Id h, const ElementBounds& b);
 // The box of n points padded by 1e-12 of their magnitude (a straight
 // element's bounds from its corners: its nodes' rounding stays inside).
 ElementBounds corner_bounds(const Vec3* xyz, int n);
-// MeshTables::group_bounds from the bounds rows: O(H) reads.
+// MeshTables::group_bounds from the bounds rows: O(H) reads; or from the
+// bounds of elements 0 .. elements-1 as bounds(h) gives them.
 std::vector<double> group_bounds(const MeshTables& t);
+std::vector<double> group_bounds(Id elements, const std::function<ElementBounds(Id)>& bounds);
 
 }  // namespace dicer

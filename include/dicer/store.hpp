@@ -24,6 +24,7 @@
 #include <string>
 
 #include "dicer/cache.hpp"
+#include "dicer/diced_rows.hpp"
 #include "dicer/fine_mesh.hpp"
 
 namespace dicer {
@@ -35,6 +36,11 @@ inline constexpr std::uint64_t kStorePageBytes = 64 * 1024;  // target page size
 // Precondition: mesh was diced in this process (mesh.coarse() != nullptr).
 // progress(done, total) is called after each page written, when given.
 void write_store(const FineMesh& mesh, const std::string& path,
+                 const std::function<void(std::int64_t, std::int64_t)>& progress = {});
+// The same store from rows made as each page is written: memory is `rows`
+// and one page per table, not the tables (diced_rows.hpp). The same bytes
+// as write_store(std::move(rows).compile(), ...) but for the uuid.
+void write_store(const DicedRows& rows, const std::string& path,
                  const std::function<void(std::int64_t, std::int64_t)>& progress = {});
 
 struct StoreOptions {

@@ -25,6 +25,7 @@
 
 #include "arrays.hpp"
 #include "dicer/coarse_mesh.hpp"
+#include "dicer/diced_rows.hpp"
 #include "dicer/error.hpp"
 #include "dicer/export.hpp"
 #include "dicer/fine_mesh.hpp"
@@ -847,14 +848,25 @@ py::dict dice_to_store(const std::string& mesh_path, const std::string& out, std
     const IntervalRequest request = merge(file, flags);
     CoarseMesh mesh = read_coarse_mesh(mesh_path);
     warnings = mesh.warnings;
-    FineMesh fine = FineMesh::dice(std::move(mesh), request, &notes);
-    apply_second_order(fine);  // as the CLI does without --geometry (quadratic.hpp)
-    if (poll.poll()) throw Error(ErrorKind::Cancelled, "interrupted; nothing written to " + out);
-    write_store(fine, out, [&](std::int64_t, std::int64_t) {
+    const auto page_written = [&](std::int64_t, std::int64_t) {
       // Thrown from the page callback: write_store removes its temporary.
       if (poll.poll()) throw Error(ErrorKind::Cancelled, "interrupted; nothing written to " + out);
-    });
-    coarse = fine.num_coarse_elements(), nodes = fine.num_nodes(), elements = fine.num_elements();
+    };
+    // As the CLI without --geometry: second-order input moves nodes in
+    // tables compiled into memory (quadratic.hpp); a linear mesh's rows
+    // stream into the store (diced_rows.hpp).
+    if (mesh.second_order()) {
+      FineMesh fine = FineMesh::dice(std::move(mesh), request, &notes);
+      apply_second_order(fine);
+      if (poll.poll()) throw Error(ErrorKind::Cancelled, "interrupted; nothing written to " + out);
+      write_store(fine, out, page_written);
+      coarse = fine.num_coarse_elements(), nodes = fine.num_nodes(), elements = fine.num_elements();
+    } else {
+      const DicedRows rows(std::move(mesh), request, &notes);
+      if (poll.poll()) throw Error(ErrorKind::Cancelled, "interrupted; nothing written to " + out);
+      write_store(rows, out, page_written);
+      coarse = rows.info().coarse_elements, nodes = rows.info().nodes, elements = rows.info().elements;
+    }
   });
   py::dict d;
   py::list w, n;

@@ -198,6 +198,30 @@ TEST(ExportMemory, StreamingExportPeakMemoryDoesNotGrowWithTheMesh) {
   }
 }
 
+// `dicer dice` without --geometry writes the tables' rows as it makes them
+// (DicedRows): its peak grows by the coarse mesh, topology and numbering,
+// ~1.2 KB a coarse hex, where compiling the tables first added ~1.4 KB
+// more (2.7 KB a hex measured from 8,000 to 64,000 hexes before). Release
+// only, as above.
+TEST(ExportMemory, DiceStraightToAStoreHoldsNoTables) {
+#ifdef DICER_SANITIZER_BUILD
+  GTEST_SKIP() << "sanitizer builds shadow every allocation (the Release suite runs this)";
+#endif
+  test::TempDir d;
+  double peak[2] = {0, 0};
+  const int k[2] = {20, 40};
+  for (int q = 0; q < 2; ++q) {
+    const auto [status, rss] =
+        run_measured({DICER_CLI, "dice", box_msh(d, k[q]), "--interval", "2", "-o", d.path("box.dice.h5"), "--quiet"});
+    ASSERT_EQ(status, 0) << k[q];
+    peak[q] = rss;
+  }
+  const double per_hex = (peak[1] - peak[0]) / (k[1] * k[1] * k[1] - k[0] * k[0] * k[0]);
+  EXPECT_LT(per_hex, 1700) << "peak RSS " << peak[0] / (1 << 20) << " -> " << peak[1] / (1 << 20)
+                           << " MiB: bytes per coarse hex";
+  EXPECT_GT(per_hex, 200) << "the coarse mesh itself is more than this: is the measure working?";
+}
+
 // A box query meeting one coarse element of interval 300 (2.7e7 fine
 // elements) held the element's whole grid, ~2.6 GB (a probe saw 6.1 GB at
 // interval 400); it is read in slabs of grid planes now, O(n^2). The count
