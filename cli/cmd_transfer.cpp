@@ -3,12 +3,14 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <numeric>
 #include <optional>
 
 #include "command.hpp"
 #include "common.hpp"
 #include "dicer/coarse_mesh.hpp"
 #include "dicer/error.hpp"
+#include "dicer/rows.hpp"
 #include "dicer/store.hpp"
 #include "dicer/transfer.hpp"
 #include "exit_codes.hpp"
@@ -22,7 +24,9 @@ static const CommandDoc kDoc = {
 mesh file itself: it is then diced at interval 1 in memory). They are
 nested when every sheet's interval in FINE is a multiple of its interval in
 COARSE; then every FINE node lies in a COARSE cell at a known position, and
-the prolongation P (fine nodes x coarse nodes, both in id order) gives it
+the prolongation P (fine nodes x coarse nodes, both in id order; for a
+mesh file, the file's nodes in increasing node id: Exodus node i, or MSH
+tag i when the tags run 1..N, is column i-1) gives it
 the trilinear (bilinear for quads) weights of that cell's corners: at most
 8 (4) non-zeros per row, a unit row where the nodes coincide. Graded
 sheets (--sheet-bias) are not nested: P's weights assume equal spacing.
@@ -37,10 +41,12 @@ moved COARSE node with its FINE twin (exit 1 when one differs). -o FILE of
 two stores that are not nested has no P to write: exit 3, naming the sheet.
 
 -o FILE writes P, streaming the rows in id order (memory stays bounded
-whatever the size): --format hdf5 (default) is CSR in HDF5, datasets indptr,
-indices, data and attribute shape, which scipy reads as
-csr_matrix((data, indices, indptr), shape); --format petsc is PETSc's
-binary matrix format for MatLoad (32-bit indices unless --petsc-int 64).
+whatever the size): --format hdf5 (the default, and for any other name
+than .bin or .petsc) is CSR in HDF5, datasets indptr, indices, data and
+attribute shape, which scipy reads as csr_matrix((data, indices, indptr),
+shape); --format petsc (the default for FILE.bin and FILE.petsc) is
+PETSc's binary matrix format for MatLoad (32-bit indices unless
+--petsc-int 64).
 The file appears under FILE only when complete.
 )",
     R"(dicer transfer sphere2.dice.h5 sphere4.dice.h5 --check
@@ -61,6 +67,25 @@ FineMesh open_level(const std::string& path, const StoreOptions& options) {
   FineMesh m = FineMesh::dice(read_coarse_mesh(path), one);
   m.set_origin(path);
   return m;
+}
+
+// P's columns for a mesh file: its nodes in increasing file node id (an
+// Exodus file without a node map, or MSH tags 1..N: column = node id - 1),
+// the order a solver reading the file gives its nodal vectors, not the
+// order of the store dicing it at interval 1 (space-filling curve).
+std::vector<Id> file_columns(const FineMesh& m) {
+  const CoarseMesh& c = *m.coarse();
+  const Id nv = c.num_vertices();
+  DICER_ASSERT(m.num_nodes() == nv, "a mesh diced at interval 1 has a node per vertex");
+  std::vector<Id> by_id(static_cast<size_t>(nv));
+  std::iota(by_id.begin(), by_id.end(), Id{0});
+  auto file_id = [&](Id v) { return c.vertex_file_id.empty() ? v + 1 : c.vertex_file_id[v]; };
+  std::sort(by_id.begin(), by_id.end(), [&](Id a, Id b) { return file_id(a) < file_id(b); });
+  MeshCursor cur;
+  const RowReader R(m.tables(), cur);
+  std::vector<Id> columns(static_cast<size_t>(nv));
+  for (Id k = 0; k < nv; ++k) columns[static_cast<size_t>(R.vertex(by_id[k]).node)] = k;
+  return columns;
 }
 
 }  // namespace
@@ -85,6 +110,12 @@ int cmd_transfer(const std::vector<std::string>& argv) {
   if (!cmd.parse(argv)) return 0;
   if (cmd.given(o_check) == cmd.given(o_out))
     throw Error(ErrorKind::Usage, "give either --check or -o FILE (see dicer transfer --help)");
+  if (!cmd.given(o_format) && !check) {
+    // The extension tells, as export's does: P.bin written as HDF5 by a
+    // forgotten --format was a trap.
+    const std::string ext = std::filesystem::path(out).extension().string();
+    if (ext == ".bin" || ext == ".petsc") format = "petsc";
+  }
   if (format != "hdf5" && format != "petsc")
     throw Error(ErrorKind::Usage, "--format: \"" + format + "\" is neither hdf5 nor petsc");
   if (petsc_int != "32" && petsc_int != "64") throw Error(ErrorKind::Usage, "--petsc-int: 32 or 64, not " + petsc_int);
@@ -96,6 +127,7 @@ int cmd_transfer(const std::vector<std::string>& argv) {
     throw Error(ErrorKind::Usage, "--petsc-int is for --format petsc (the hdf5 format stores 64-bit indices)");
 
   const FineMesh coarse = open_level(coarse_path, store.options());
+  const bool mesh_file = coarse.coarse() != nullptr;
   const FineMesh fine = read_store(fine_path, store.options());
   const Nesting n = check_nesting(coarse, fine);
   auto report = [&](Json extra) {
@@ -131,8 +163,11 @@ int cmd_transfer(const std::vector<std::string>& argv) {
     throw_if_cancelled("nothing was written");
   };
   const auto start = std::chrono::steady_clock::now();
-  if (format == "hdf5") write_prolongation_hdf5(p, out, progress);
-  else write_prolongation_petsc(p, out, petsc_int == "64" ? 8 : 4, progress);
+  const std::vector<Id> columns = mesh_file ? file_columns(coarse) : std::vector<Id>{};
+  if (format == "hdf5")
+    write_prolongation_hdf5(p, out, progress, columns,
+                            mesh_file ? "the mesh file's nodes in increasing node id" : "coarse store node ids");
+  else write_prolongation_petsc(p, out, petsc_int == "64" ? 8 : 4, progress, columns);
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   const auto bytes = static_cast<std::uint64_t>(std::filesystem::file_size(out));
   if (json) {

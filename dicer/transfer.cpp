@@ -197,7 +197,8 @@ Nesting check_nesting(const FineMesh& coarse, const FineMesh& fine) {
                 ") of its interval in " + cn;
   if (out.moved_nodes_differ > 0)
     out.message += "; but " + std::to_string(out.moved_nodes_differ) + " of " + std::to_string(out.moved_nodes_checked) +
-                   " nodes moved onto the CAD differ from their fine twins (first: coarse node " +
+                   " moved nodes (onto the CAD, or onto second-order curves and surfaces) differ from their fine "
+                   "twins (first: coarse node " +
                    std::to_string(out.first_differing_coarse_node) + ")";
   return out;
 }

@@ -41,8 +41,19 @@ std::string store_name(const FineMesh& m) {
 
 // The rows of P, batch by batch, with a check that they tile [0, rows)
 // and hold exactly nonzeros() entries (the writers sized their files by it).
+// columns: what the writers' columns are (transfer.hpp), checked here.
 template <class Fn>
-void stream_rows(const Prolongation& p, const std::string& path, const std::function<void(Id, Id)>& progress, Fn&& fn) {
+void stream_rows(const Prolongation& p, const std::string& path, const std::function<void(Id, Id)>& progress,
+                 std::span<const Id> columns, Fn&& fn) {
+  if (!columns.empty()) {
+    if (static_cast<Id>(columns.size()) != p.cols())
+      throw Error(ErrorKind::Usage, path + ": a column order of " + std::to_string(columns.size()) + " entries for " +
+                                        std::to_string(p.cols()) + " columns");
+    std::vector<char> seen(columns.size(), 0);
+    for (const Id c : columns)
+      if (c < 0 || c >= p.cols() || seen[static_cast<size_t>(c)]++)
+        throw Error(ErrorKind::Usage, path + ": the column order is not a permutation of 0.." + std::to_string(p.cols() - 1));
+  }
   ProlongationCursor cur(p);
   ProlongationBatch b;
   Id next_row = 0, entries = 0;
@@ -55,6 +66,8 @@ void stream_rows(const Prolongation& p, const std::string& path, const std::func
     // AIJ kernels; scipy's has_sorted_indices); the generator gives them in
     // corner order. At most 8 per row: insertion sort.
     cols.assign(b.cols.begin(), b.cols.end());
+    if (!columns.empty())
+      for (Id& c : cols) c = columns[static_cast<size_t>(c)];
     weights.assign(b.weights.begin(), b.weights.end());
     for (Id r = 0; r < b.num_rows(); ++r)
       for (Id i = b.offsets[static_cast<size_t>(r)] + 1; i < b.offsets[static_cast<size_t>(r) + 1]; ++i)
@@ -189,7 +202,8 @@ class Section {
 
 }  // namespace
 
-void write_prolongation_hdf5(const Prolongation& p, const std::string& path, const std::function<void(Id, Id)>& progress) {
+void write_prolongation_hdf5(const Prolongation& p, const std::string& path, const std::function<void(Id, Id)>& progress,
+                             std::span<const Id> columns, const std::string& columns_are) {
   if (!std::filesystem::path(path).has_filename()) throw Error(ErrorKind::Usage, path + ": not a file name");
   AtomicOutput out(path);  // destroyed last: the file is closed before an unfinished temporary goes
   H5Csr w;
@@ -208,12 +222,13 @@ void write_prolongation_hdf5(const Prolongation& p, const std::string& path, con
     w.attr("format", std::string("csr"));
     w.attr("coarse", store_name(p.coarse()));
     w.attr("fine", store_name(p.fine()));
+    w.attr("columns", columns_are.empty() ? std::string("coarse store node ids") : columns_are);
   }
   std::vector<std::int64_t> ip, ix;
   std::vector<double> dv;
   ip.reserve(kSliceValues), ix.reserve(kSliceValues), dv.reserve(kSliceValues);
   Id base = 0;
-  stream_rows(p, path, progress, [&](const ProlongationBatch& b) {
+  stream_rows(p, path, progress, columns, [&](const ProlongationBatch& b) {
     for (Id r = 0; r < b.num_rows(); ++r) {
       ip.push_back(base + b.offsets[static_cast<size_t>(r)]);
       if (ip.size() >= kSliceValues) w.put(w.indptr, ip);
@@ -231,7 +246,7 @@ void write_prolongation_hdf5(const Prolongation& p, const std::string& path, con
 }
 
 void write_prolongation_petsc(const Prolongation& p, const std::string& path, int index_bytes,
-                              const std::function<void(Id, Id)>& progress) {
+                              const std::function<void(Id, Id)>& progress, std::span<const Id> columns) {
   if (index_bytes != 4 && index_bytes != 8)
     throw Error(ErrorKind::Usage, path + ": PETSc indices are 4 or 8 bytes, not " + std::to_string(index_bytes));
   if (index_bytes == 4)
@@ -255,7 +270,7 @@ void write_prolongation_petsc(const Prolongation& p, const std::string& path, in
       values(fd, path, 4 * ib + rows * ib + nnz * ib);
   header.index(1211216, index_bytes);  // MAT_FILE_CLASSID
   header.index(p.rows(), index_bytes), header.index(p.cols(), index_bytes), header.index(p.nonzeros(), index_bytes);
-  stream_rows(p, path, progress, [&](const ProlongationBatch& b) {
+  stream_rows(p, path, progress, columns, [&](const ProlongationBatch& b) {
     for (Id r = 0; r < b.num_rows(); ++r)
       lengths.index(b.offsets[static_cast<size_t>(r + 1)] - b.offsets[static_cast<size_t>(r)], index_bytes);
     for (size_t e = 0; e < b.cols.size(); ++e) cols.index(b.cols[e], index_bytes), values.big_endian(b.weights[e]);

@@ -192,9 +192,17 @@ class Prolongation {
 // indptr), shape)): datasets indptr [rows + 1] int64, indices [nnz] int64,
 // data [nnz] float64, chunked, shuffled and deflated (HDF5's built-in
 // filters only); root attributes shape = [rows, cols] (int64), nnz, format
-// = "csr", coarse and fine (the stores' paths and uuids). Error{Io}.
+// = "csr", coarse and fine (the stores' paths and uuids), columns (what
+// they number: `columns_are`, by default "coarse store node ids"). Error{Io}.
+//
+// columns (both writers): the column written for coarse node c is
+// columns[c], a permutation of 0 .. cols-1 (each row's entries stay
+// ascending); empty: c itself. `dicer transfer MESHFILE FINE` numbers
+// them by the mesh file's node ids (cli/cmd_transfer.cpp). Error{Usage}
+// for a columns span that is not such a permutation.
 void write_prolongation_hdf5(const Prolongation& p, const std::string& path,
-                             const std::function<void(Id, Id)>& progress = {});
+                             const std::function<void(Id, Id)>& progress = {}, std::span<const Id> columns = {},
+                             const std::string& columns_are = {});
 // PETSc's binary matrix format (what MatLoad reads, MATAIJ): big-endian
 // int header [1211216 (MAT_FILE_CLASSID), rows, cols, nnz], rows row
 // lengths, nnz column indices, then nnz float64 values. Ints are int32
@@ -203,6 +211,6 @@ void write_prolongation_hdf5(const Prolongation& p, const std::string& path,
 // naming it. The three sections are written at their offsets as the rows
 // stream (nnz is known from the tables beforehand). Error{Io}.
 void write_prolongation_petsc(const Prolongation& p, const std::string& path, int index_bytes = 4,
-                              const std::function<void(Id, Id)>& progress = {});
+                              const std::function<void(Id, Id)>& progress = {}, std::span<const Id> columns = {});
 
 }  // namespace dicer

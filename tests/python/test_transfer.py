@@ -74,6 +74,37 @@ def test_hdf5_csr_is_read_by_scipy_and_interpolates(levels, cli, tmp_path):
     assert doc["nested"] and doc["nonzeros"] == P.nnz and doc["bytes"] == os.path.getsize(out)
 
 
+def test_a_mesh_files_columns_are_its_nodes_in_file_order(levels, cli, tmp_path):
+    """COARSE given as the mesh file: P's columns are the file's nodes (node
+    i of the Exodus file is column i-1), so P multiplies a nodal vector read
+    from the file as a solver reads it. They were the nodes of the interval-1
+    dicing (space-filling-curve order): P @ (coordinates in file order) was
+    off by the mesh's size. The coordinates come from netCDF4, not dicer."""
+    netCDF4 = pytest.importorskip("netCDF4")
+    with netCDF4.Dataset(SPHERE) as nc:
+        if "coord" in nc.variables:
+            xc = np.asarray(nc.variables["coord"][:]).T
+        else:
+            xc = np.stack([np.asarray(nc.variables[f"coord{a}"][:]) for a in "xyz"], axis=1)
+        if "node_num_map" in nc.variables:  # columns follow the file's node ids
+            xc = xc[np.argsort(np.asarray(nc.variables["node_num_map"][:]), kind="stable")]
+    cli.run("transfer", SPHERE, levels[4], "-o", tmp_path / "P.h5", "--quiet")
+    P = read_csr(tmp_path / "P.h5")
+    with h5py.File(tmp_path / "P.h5", "r") as f:
+        assert b"mesh file" in f.attrs["columns"]
+    with dicer.open(levels[4]) as fine:
+        xf = fine.nodes(0, fine.num_nodes)
+    assert P.shape == (len(xf), len(xc))
+    assert np.abs(P @ xc - xf).max() <= 1e-12 * np.abs(xf).max()
+    # P.bin without --format: PETSc's binary format (the extension says it), the same matrix.
+    cli.run("transfer", SPHERE, levels[4], "-o", tmp_path / "P.bin", "--quiet")
+    raw = (tmp_path / "P.bin").read_bytes()
+    assert np.frombuffer(raw[:16], dtype=">i4").tolist() == [1211216, P.shape[0], P.shape[1], P.nnz]
+    rows = np.frombuffer(raw[16:16 + 4 * P.shape[0]], dtype=">i4")
+    cols = np.frombuffer(raw[16 + 4 * P.shape[0]:16 + 4 * (P.shape[0] + P.nnz)], dtype=">i4")
+    assert (rows == np.diff(P.indptr)).all() and (cols == P.indices).all()
+
+
 def test_hdf5_file_is_the_same_bytes_a_second_later(levels, cli, tmp_path):
     """Reproducible output: HDF5's object times (whole seconds) are off."""
     import time
