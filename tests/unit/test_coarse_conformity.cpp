@@ -3,6 +3,8 @@
 // construction, and the warning `dice` prints with file ids.
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <numbers>
 #include <random>
 #include <set>
 #include <sstream>
@@ -166,4 +168,39 @@ TEST(CoarseConformity, DiceWarnsWithFileIds) {
   EXPECT_NE(r.err.find("of element 1"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("node 1"), std::string::npos) << "file ids are 101..: " << r.err;
   EXPECT_NE(r.err.find("inside the boundary face [102 "), std::string::npos) << "the big hex's corners are 101..108: " << r.err;
+}
+
+// Surface meshes whose quads do not all run one way round: a Moebius strip
+// (no orientation exists: the half twist reverses one edge, the strip's
+// closing one) and a strip with its middle quad flipped (both of its inner
+// edges). Each is said when read; a consistently numbered strip and a
+// random sheet are not. Counts by construction.
+TEST(CoarseConformity, QuadsRunningBothWaysRoundAreSaid) {
+  auto warned = [](const CoarseMesh& m) {
+    for (const auto& w : m.warnings)
+      if (w.find("do not all run one way round") != std::string::npos) return w;
+    return std::string();
+  };
+  // Moebius: k quads round a ring of radius 3, the strip's width vector
+  // turning half a turn on the way.
+  const int k = 8;
+  std::vector<std::array<double, 3>> pts;
+  for (int i = 0; i < k; ++i) {
+    const double t = 2 * std::numbers::pi * i / k, c = std::cos(t), s = std::sin(t), w = 0.5 * std::cos(t / 2), h = 0.5 * std::sin(t / 2);
+    pts.push_back({(3 + w) * c, (3 + w) * s, h});  // vertex 2i: one side
+    pts.push_back({(3 - w) * c, (3 - w) * s, -h});  // 2i + 1: the other
+  }
+  std::vector<Id> conn;
+  for (int i = 0; i < k - 1; ++i) conn.insert(conn.end(), {2 * i, 2 * i + 2, 2 * i + 3, 2 * i + 1});
+  conn.insert(conn.end(), {2 * (k - 1), 1, 0, 2 * (k - 1) + 1});  // the twist: side 0 meets side 1
+  const std::string moebius = warned(make(Mode::Surface, pts, conn));
+  EXPECT_NE(moebius.find(": 1 coarse edge(s)"), std::string::npos) << moebius;
+  // A flat strip of three quads; then its middle quad numbered the other way round.
+  const std::vector<std::array<double, 3>> flat = {{0, 0, 0}, {1, 0, 0}, {2, 0, 0}, {3, 0, 0},
+                                                   {0, 1, 0}, {1, 1, 0}, {2, 1, 0}, {3, 1, 0}};
+  EXPECT_EQ(warned(make(Mode::Surface, flat, {0, 1, 5, 4, 1, 2, 6, 5, 2, 3, 7, 6})), "");
+  const std::string flipped = warned(make(Mode::Surface, flat, {0, 1, 5, 4, 1, 5, 6, 2, 2, 3, 7, 6}));
+  EXPECT_NE(flipped.find(": 2 coarse edge(s)"), std::string::npos) << flipped;
+  std::mt19937_64 rng(3);
+  EXPECT_EQ(warned(test::random_quad_sheet(4, 3, true, rng)), "");
 }
