@@ -85,7 +85,7 @@ BiasRequest parse_bias(const std::string& what, const std::string& text, tfi::Sp
     const std::string v = text.substr(at + 1);
     char* end = nullptr;
     const long long id = std::strtoll(v.c_str(), &end, 10);
-    if (v.empty() || end != v.c_str() + v.size())
+    if (v.empty() || std::isspace(static_cast<unsigned char>(v[0])) || end != v.c_str() + v.size())
       throw Error(ErrorKind::Usage, what + ": \"" + v + "\" after @ is not a node id");
     b.start = id;
     body = text.substr(0, at);
@@ -106,8 +106,16 @@ EntityTag parse_entity(const std::string& what, const std::string& text) {
   const std::string tag = colon == std::string::npos ? "" : text.substr(colon + 1);
   char* tend = nullptr;
   const long long t = std::strtoll(tag.c_str(), &tend, 10);
-  if (dim < 1 || dim > 3 || tag.empty() || tend != tag.c_str() + tag.size() || t < -2147483647LL || t > 2147483647LL)
-    throw Error(ErrorKind::Usage, what + ": \"" + text + "\" is not DIM:TAG (DIM 1 curve, 2 surface, 3 volume)");
+  // The tag as Gmsh writes it: strtoll's blanks, '+' and leading zeros
+  // would make "2:05" and "2:5" two keys of an intervals file for one
+  // entity (both applied, the last winning).
+  const size_t digits = !tag.empty() && tag[0] == '-' ? 1 : 0;
+  const bool canonical = tag.size() > digits && std::isdigit(static_cast<unsigned char>(tag[digits])) &&
+                         !(tag[digits] == '0' && tag.size() > digits + 1);
+  if (dim < 1 || dim > 3 || !canonical || tend != tag.c_str() + tag.size() || t < -2147483647LL || t > 2147483647LL)
+    throw Error(ErrorKind::Usage, what + ": \"" + text +
+                                      "\" is not DIM:TAG (DIM 1 curve, 2 surface, 3 volume; TAG a whole number as "
+                                      "Gmsh writes it: no '+', blank or leading zero)");
   return {static_cast<int>(dim), static_cast<int>(t)};
 }
 

@@ -86,7 +86,7 @@ TEST(BiasRequests, ParseAndCheck) {
   b = parse_bias("f", "first:0.1", tfi::Spacing::Dual);
   EXPECT_EQ(b.kind, tfi::Spacing::Dual);
   EXPECT_EQ(b.first_cell, 0.1);
-  for (const char* bad : {"", "abc", "0", "-1.2", "1000", "nan", "1.2@", "1.2@x", "first:", "first:-1", "last:0"})
+  for (const char* bad : {"", "abc", "0", "-1.2", "1000", "nan", "1.2@", "1.2@x", "1.2@ 17", "first:", "first:-1", "last:0"})
     EXPECT_NE(error_of([&] { parse_bias("--sheet-bias 3=" + std::string(bad), bad, tfi::Spacing::Geometric); },
                        ErrorKind::Usage).find("--sheet-bias 3="),
               std::string::npos) << bad;
@@ -95,7 +95,10 @@ TEST(BiasRequests, ParseAndCheck) {
   EXPECT_NE(error_of([&] { parse_bias("d", "last:0.1", tfi::Spacing::Dual); }, ErrorKind::Usage).find("first:h"),
             std::string::npos);
   EXPECT_EQ(parse_entity("e", "2:15"), (EntityTag{2, 15}));
-  for (const char* bad : {"2", "0:3", "4:1", "2:", "2:x", "22:1", ":3"})
+  EXPECT_EQ(parse_entity("e", "1:0"), (EntityTag{1, 0}));
+  EXPECT_EQ(parse_entity("e", "3:-4"), (EntityTag{3, -4}));
+  // Tags as Gmsh writes them: "2:05" would be a second key for 2:5.
+  for (const char* bad : {"2", "0:3", "4:1", "2:", "2:x", "22:1", ":3", "2:05", "2:+5", "2: 5", "2:-", "2:-05"})
     EXPECT_NE(error_of([&] { parse_entity("e", bad); }, ErrorKind::Usage).find("DIM:TAG"), std::string::npos) << bad;
 }
 
