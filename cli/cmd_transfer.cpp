@@ -25,8 +25,10 @@ mesh file itself: it is then diced at interval 1 in memory). They are
 nested when every sheet's interval in FINE is a multiple of its interval in
 COARSE; then every FINE node lies in a COARSE cell at a known position, and
 the prolongation P (fine nodes x coarse nodes, both in id order; for a
-mesh file, the file's nodes in increasing node id: Exodus node i, or MSH
-tag i when the tags run 1..N, is column i-1) gives it
+mesh file, its corner nodes in increasing file node id: a second-order
+file's mid nodes and nodes no element uses are not columns, so for a
+linear file whose nodes are all used and numbered 1..N (Exodus without a
+node map, MSH tags 1..N) node i is column i-1) gives it
 the trilinear (bilinear for quads) weights of that cell's corners: at most
 8 (4) non-zeros per row, a unit row where the nodes coincide. Graded
 sheets (--sheet-bias) are not nested: P's weights assume equal spacing.
@@ -64,15 +66,23 @@ FineMesh open_level(const std::string& path, const StoreOptions& options) {
   if (std::string(sig, sizeof sig) == std::string("\x89HDF\r\n\x1a\n", 8)) return read_store(path, options);
   IntervalRequest one;
   one.global = 1;
-  FineMesh m = FineMesh::dice(read_coarse_mesh(path), one);
+  CoarseMesh c = read_coarse_mesh(path);
+  // What the reader dropped (nodes no element uses) is not among P's columns.
+  for (const auto& w : c.warnings)
+    std::fprintf(stderr, "dicer transfer: warning: %s: %s\n", printable(path).c_str(), printable(w).c_str());
+  if (c.second_order())
+    std::fprintf(stderr, "dicer transfer: note: %s is second order: P's columns are its %lld corner nodes, not its mid nodes\n",
+                 printable(path).c_str(), static_cast<long long>(c.num_vertices()));
+  FineMesh m = FineMesh::dice(std::move(c), one);
   m.set_origin(path);
   return m;
 }
 
-// P's columns for a mesh file: its nodes in increasing file node id (an
-// Exodus file without a node map, or MSH tags 1..N: column = node id - 1),
-// the order a solver reading the file gives its nodal vectors, not the
-// order of the store dicing it at interval 1 (space-filling curve).
+// P's columns for a mesh file: its corner nodes (the vertices elements
+// use) in increasing file node id (Exodus: the node map's ids; MSH: the
+// tags), so that a linear file numbered 1..N has node i at column i-1, as
+// a solver reading it numbers its nodal vectors; not the order of the
+// store dicing it at interval 1 (space-filling curve).
 std::vector<Id> file_columns(const FineMesh& m) {
   const CoarseMesh& c = *m.coarse();
   const Id nv = c.num_vertices();
@@ -166,7 +176,7 @@ int cmd_transfer(const std::vector<std::string>& argv) {
   const std::vector<Id> columns = mesh_file ? file_columns(coarse) : std::vector<Id>{};
   if (format == "hdf5")
     write_prolongation_hdf5(p, out, progress, columns,
-                            mesh_file ? "the mesh file's nodes in increasing node id" : "coarse store node ids");
+                            mesh_file ? "the mesh file's corner nodes in increasing node id" : "coarse store node ids");
   else write_prolongation_petsc(p, out, petsc_int == "64" ? 8 : 4, progress, columns);
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   const auto bytes = static_cast<std::uint64_t>(std::filesystem::file_size(out));

@@ -22,7 +22,7 @@ DicedRows::DicedRows(CoarseMesh coarse, const IntervalRequest& request, std::vec
   // file's (the topology validation built, when the mesh is unchanged).
   std::shared_ptr<const Topology> t0 = topology_of(coarse);
   coarse.topology.reset();
-  const Sheets s0 = find_sheets(coarse, *t0);
+  Sheets s0 = find_sheets(coarse, *t0);
   IntervalPlan plan = resolve_intervals(coarse, *t0, s0, request);
   if (notes) *notes = plan.notes;
   sheet_gradings_.resize(plan.sheet_grading.size());
@@ -50,6 +50,10 @@ DicedRows::DicedRows(CoarseMesh coarse, const IntervalRequest& request, std::vec
     }
   }
   t0.reset();
+  const Id num_sheets = s0.num_sheets();
+  s0 = Sheets{};
+  sheet_intervals_ = std::move(plan.sheet_interval);
+  plan = IntervalPlan{};
   // Store order (Morton, or the file's), vertices in first use, then the
   // owner-order topology the fine mesh is numbered by. The input's arrays
   // go first (peak memory).
@@ -80,9 +84,8 @@ DicedRows::DicedRows(CoarseMesh coarse, const IntervalRequest& request, std::vec
   slot_start = {};
   old_vertex = {};
   old_element = {};
-  for (Id e = 0; e < t.num_edges(); ++e) edge_n[e] = plan.sheet_interval[edge_sheet_[e]];
+  for (Id e = 0; e < t.num_edges(); ++e) edge_n[e] = sheet_intervals_[edge_sheet_[e]];
   num_ = Numbering(t, std::move(edge_n));
-  sheet_intervals_ = std::move(plan.sheet_interval);
 
   const Mode mode = m.mode;
   const Id ne = t.num_edges(), nh = m.num_elements();
@@ -118,7 +121,7 @@ DicedRows::DicedRows(CoarseMesh coarse, const IntervalRequest& request, std::vec
   info.coarse_edges = ne;
   info.coarse_faces = t.num_faces();
   info.coarse_elements = nh;
-  info.sheets = s0.num_sheets();
+  info.sheets = num_sheets;
   info.nodes = num_.num_nodes();
   info.elements = num_.num_elements();
 }

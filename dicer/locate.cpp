@@ -3,6 +3,7 @@
 #include "dicer/locate.hpp"
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cmath>
 #include <new>
@@ -534,8 +535,9 @@ struct Searcher {
     // far (a bilinear cell lies in its nodes' convex hull); the element's
     // nodes are filled once and kept for the next point, O(n^2) memory, as
     // a surface export holds.
-    const FineBlock& b = element_nodes(h, r.n);
-    for (Id j = 0; j < r.n[1]; ++j)
+    const Way& w = element_nodes(h, r.n);
+    const FineBlock& b = w.block;
+    auto scan_row = [&](Id j) {
       for (Id i = 0; i < r.n[0]; ++i) {
         Quad q;
         double box[6] = {INFINITY, INFINITY, INFINITY, -INFINITY, -INFINITY, -INFINITY};
@@ -550,27 +552,73 @@ struct Searcher {
         const double d = std::sqrt(near.d2);
         if (d <= reach && d <= max_distance) offer(best, ids::element(r.element_first, r.n, i, j, 0), near.xi, d, tol);
       }
+    };
+    // The row of cells whose box is nearest first (a close answer prunes
+    // the rest), then every row whose box is within reach, in id order.
+    Id first = 0;
+    double first_d2 = INFINITY;
+    for (Id j = 0; j < r.n[1]; ++j)
+      if (const double d2 = dist2(&w.row_box[static_cast<size_t>(j) * 6], p); d2 < first_d2) first = j, first_d2 = d2;
+    scan_row(first);
+    for (Id j = 0; j < r.n[1]; ++j)
+      if (j != first && std::sqrt(dist2(&w.row_box[static_cast<size_t>(j) * 6], p)) <= bound(best) + tol) scan_row(j);
   }
 
-  // Coarse element h's nodes (coordinates), filled when h is not the one
-  // filled last. Refused by name when they cannot fit (check_element_memory).
-  FineBlock block;
-  Id filled = -1;  // the element `block` holds
-  const FineBlock& element_nodes(Id h, const std::array<Id, 3>& n) {
-    if (filled != h) {
-      filled = -1;
-      const char* how = "is searched whole by point location (a curved quad)";
-      const double need = 40.0 * static_cast<double>(n[0] + 1) * static_cast<double>(n[1] + 1);
-      check_element_memory(mesh, h, n, how, need, static_cast<double>(block.held_bytes()));
-      try {
-        mesh.fill_block(h, block, /*nodes_only=*/true);
-      } catch (const std::bad_alloc&) {
-        block = FineBlock{};
-        throw element_too_big(mesh, h, n, how, need);
+  // Curved quads' nodes, the last few filled: a point near a coarse edge
+  // or vertex has two to four candidates, and a stream of nearby points
+  // meets the same ones. The other ways are given up when keeping them
+  // would pass 64 MiB. Each refused by name when it cannot fit.
+  static constexpr int kWays = 4;
+  struct Way {
+    FineBlock block;
+    std::vector<double> row_box;  // per row j of cells: the box of grid rows j and j + 1
+    Id element = -1;
+    std::uint64_t used = 0;
+  };
+  std::array<Way, kWays> ways;
+  std::uint64_t clock = 0;
+  const Way& element_nodes(Id h, const std::array<Id, 3>& n) {
+    for (Way& w : ways)
+      if (w.element == h) {
+        w.used = ++clock;
+        return w;
       }
-      filled = h;
+    Way* w = &ways[0];
+    for (Way& x : ways)
+      if (x.used < w->used) w = &x;
+    w->element = -1;
+    const char* how = "is searched whole by point location (a curved quad)";
+    // fill_slab's measure (for_each_slab): 32 B a point, 56 B a boundary
+    // point, and every point of a quad is one.
+    const double need = 88.0 * static_cast<double>(n[0] + 1) * static_cast<double>(n[1] + 1) + 48.0 * static_cast<double>(n[1]);
+    double others = 0;
+    for (const Way& x : ways)
+      if (&x != w) others += static_cast<double>(x.block.held_bytes());
+    if (others + need > double(64u << 20))
+      for (Way& x : ways)
+        if (&x != w) x = Way{};
+    check_element_memory(mesh, h, n, how, need, static_cast<double>(w->block.held_bytes()));
+    try {
+      mesh.fill_block(h, w->block, /*nodes_only=*/true);
+    } catch (const std::bad_alloc&) {
+      w->block = FineBlock{};
+      if (need < double(1u << 28)) throw;  // a small element: memory ran out elsewhere
+      throw element_too_big(mesh, h, n, how, need);
     }
-    return block;
+    const FineBlock& b = w->block;
+    w->row_box.assign(static_cast<size_t>(n[1]) * 6, 0.0);
+    for (Id j = 0; j < n[1]; ++j) {
+      double* box = &w->row_box[static_cast<size_t>(j) * 6];
+      for (int d = 0; d < 3; ++d) box[d] = INFINITY, box[3 + d] = -INFINITY;
+      for (Id jj = j; jj <= j + 1; ++jj)
+        for (Id i = 0; i <= n[0]; ++i) {
+          const Id g = b.point_index(i, jj, 0);
+          const double x[3] = {b.x[g], b.y[g], b.z[g]};
+          for (int d = 0; d < 3; ++d) box[d] = std::min(box[d], x[d]), box[3 + d] = std::max(box[3 + d], x[d]);
+        }
+    }
+    w->element = h, w->used = ++clock;
+    return *w;
   }
 
   // The group's elements nearest box first, while a box is nearer than
@@ -650,7 +698,7 @@ Located locate_point(const FineMesh& mesh, const std::array<double, 3>& p, doubl
     throw Error(ErrorKind::Usage, "point location: the point has a coordinate that is not finite");
   if (mesh.num_coarse_elements() == 0) return missed(mesh);
   const Tree tree(mesh.tables());
-  Searcher s{mesh, tree, max_distance, {}, {}, {}, {}, {}, -1};
+  Searcher s{mesh, tree, max_distance, {}, {}, {}, {}, {}, 0};
   return s.locate(p);
 }
 
@@ -668,7 +716,7 @@ std::vector<Located> locate_points(const FineMesh& mesh, const std::vector<doubl
   threads = std::max(1, std::min<int>(threads, static_cast<int>(std::max<size_t>(1, n / 64))));
   const Tree tree(mesh.tables());
   auto work = [&](size_t first, size_t end) {
-    Searcher s{mesh, tree, max_distance, {}, {}, {}, {}, {}, -1};
+    Searcher s{mesh, tree, max_distance, {}, {}, {}, {}, {}, 0};
     for (size_t i = first; i < end; ++i) out[i] = s.locate({xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]});
   };
   if (threads == 1) {

@@ -8,8 +8,8 @@
 // compiles them all into memory, which geometry-conforming dicing and
 // second-order input need (they move nodes in them); write_store(const
 // DicedRows&, ...) (store.hpp) writes them a page at a time, so dicing
-// straight to a store holds this object and one page per table: about 1 KB
-// per coarse hex in all, where the compiled tables add ~1.4 KB more
+// straight to a store holds this object and one page per table: about 1.2
+// KB per coarse hex at the peak, where the compiled tables add ~1.4 KB more
 // (bench/README.md, "Dicing straight to a store").
 //
 // Invariant: every row, and so every store byte but the uuid, is the same

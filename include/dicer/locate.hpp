@@ -23,8 +23,9 @@
 // each cell skipped when the box of its four nodes is farther than the
 // answer so far: exact, where a walk from that guess stopped in a local
 // minimum of the distance (the nearest quad missed by up to 3e-3 on a
-// QUAD9 patch, stop 55). Its nodes are filled once (fill_block) and kept
-// for the next point.
+// QUAD9 patch, stop 55). Its nodes are filled once (fill_block); the last
+// four filled are kept for the next points (a point near a coarse edge has
+// several candidates), fewer when they would pass 64 MiB.
 //
 // Invariants: volume: a found element's trilinear map at xi returns the
 // point to kLocateTolerance of the element's size, and xi lies in [0,1]^3
@@ -39,11 +40,12 @@
 // per coarse element of those groups, and for each candidate one element
 // row, its corners and a Newton solve (curved volume elements: plus a
 // few fine cells, 8 grid nodes each; a curved quad of interval n: its
-// (n+1)^2 nodes unless it was the last one filled, and n^2 cell boxes,
-// about 0.7 ms a point at interval 100 on one core where a straight quad
-// takes microseconds). Memory: a curved quad's nodes, ~40 B a node,
-// refused by name (Usage) when they cannot fit. Pages come through the
-// store's cache.
+// (n+1)^2 nodes unless it is one of the last four filled, a box per row
+// of cells and a box per cell of the rows within reach: about 0.5 ms a
+// point at interval 100 on one core, points in random order, where a
+// straight quad takes microseconds). Memory: a curved quad's nodes, ~88 B a node (up to
+// four quads kept, 64 MiB together unless one alone is larger), refused by
+// name (Usage) when they cannot fit. Pages come through the store's cache.
 // Thread-safe (a cursor per thread).
 //
 // Errors: Usage for a negative or NaN max_distance (or a finite one on a

@@ -127,7 +127,9 @@ TEST(DicedRows, RandomBoxesGiveTheCompiledStore) {
       b.ratio = 0.6 + 0.1 * static_cast<double>(rng() % 12);
       req.sheet_bias.emplace_back(q, b);
     }
-    // Many pages per table: the box's own few elements fit on one.
+    // Graded sheets: gradings in the edge and element rows and the sheets'
+    // table. (These boxes fit on one page per table; the real meshes below
+    // have many.)
     EXPECT_GT(expect_same_store(m, req, "box " + std::to_string(round)), 60u);
   }
 }
@@ -145,6 +147,7 @@ TEST(DicedRows, RealMeshesWithSetsGiveTheCompiledStore) {
     const CoarseMesh m = read_coarse_mesh(test::data_path(name));
     IntervalRequest req;
     req.global = 2;
+    // Tables of many pages (pincell: 5,310 element rows, 126 a page).
     const size_t entries = expect_same_store(m, req, name);
     EXPECT_GT(entries, 80u) << name;
   }
