@@ -124,8 +124,8 @@ int cmd_dice(const std::vector<std::string>& argv) {
     mallopt(M_MMAP_THRESHOLD, 1 << 30);
     mallopt(M_TRIM_THRESHOLD, 1 << 30);
     const std::string nothing_written = "nothing written to " + out;
-    // Plain dicing streams the tables' rows into the store (DicedRows: a
-    // third of the memory); the CAD and second-order input move nodes in
+    // Plain dicing streams the tables' rows into the store (DicedRows: less
+    // than half the memory); the CAD and second-order input move nodes in
     // tables compiled into memory first.
     std::optional<DicedRows> rows;
     std::optional<FineMesh> diced;
