@@ -313,7 +313,6 @@ void validate_coarse_mesh(CoarseMesh& m) {
   // quads) are diced as they are, but verify fails them (misoriented
   // edges): said up front, as verify counts them.
   if (m.mode == Mode::Surface) {
-    constexpr int kCyclic[4] = {1, -1, -1, 1};  // kQuadEdge[k] along (+1) or against the corners' cycle
     const Id edges = topo->num_edges();
     std::vector<std::int8_t> uses(static_cast<size_t>(edges), 0), way(static_cast<size_t>(edges), 0);
     for (Id h = 0; h < ne; ++h)
@@ -321,7 +320,7 @@ void validate_coarse_mesh(CoarseMesh& m) {
         const Id e = topo->elem_edge[static_cast<size_t>(h) * 4 + k];
         const Id a = m.conn[static_cast<size_t>(h) * 4 + kQuadEdge[k][0]], b = m.conn[static_cast<size_t>(h) * 4 + kQuadEdge[k][1]];
         if (uses[e] < 3) ++uses[e];
-        way[e] = static_cast<std::int8_t>(way[e] + (a < b ? 1 : -1) * kCyclic[k]);
+        way[e] = static_cast<std::int8_t>(way[e] + (a < b ? 1 : -1) * kQuadEdgeCyclic[k]);
       }
     Id bad = 0, first = -1;
     for (Id e = 0; e < edges; ++e)

@@ -136,9 +136,8 @@ VertexRow DicedRows::vertex(Id v) const {
 }
 
 EdgeRow DicedRows::edge(Id e) const {
-  const tfi::Grading g = edge_grading_.empty() ? tfi::Grading{} : edge_grading_[static_cast<size_t>(e)];
   return EdgeRow{t_.edge_v[2 * e], t_.edge_v[2 * e + 1], num_.edge_n(e), num_.edge_node(e), edge_sheet_[e],
-                 t_.edge_owner_elem[e], -1, -1, edge_other_.empty() ? -1 : edge_other_[e], g};
+                 t_.edge_owner_elem[e], -1, -1, edge_other_.empty() ? -1 : edge_other_[e], edge_grading(e)};
 }
 
 FaceRow DicedRows::face(Id f) const {
@@ -184,9 +183,7 @@ ElementRow DicedRows::element(Id h) const {
   // one direction across it: they agree).
   for (int k = 0; k < epe; ++k) {
     const int axis = vol ? k / 4 : k / 2;
-    const Id e = r.edge[k];
-    const tfi::Grading ge = edge_grading_.empty() ? tfi::Grading{} : edge_grading_[static_cast<size_t>(e)];
-    const tfi::Grading g = r.rev(k) ? tfi::reversed(ge) : ge;
+    const tfi::Grading g = r.rev(k) ? tfi::reversed(edge_grading(r.edge[k])) : edge_grading(r.edge[k]);
     if (k % (vol ? 4 : 2) == 0) r.grading[axis] = g;
     DICER_ASSERT(r.grading[axis] == g, "the edges along one axis of an element run one way across their sheet");
   }

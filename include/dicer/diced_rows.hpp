@@ -63,6 +63,9 @@ class DicedRows {
   FineMesh compile() &&;
 
  private:
+  tfi::Grading edge_grading(Id e) const {
+    return edge_grading_.empty() ? tfi::Grading{} : edge_grading_[static_cast<size_t>(e)];
+  }
   std::shared_ptr<const CoarseMesh> mesh_;
   Topology t_;
   Numbering num_;

@@ -54,6 +54,10 @@ inline constexpr int kHexFaceAxes[6][2] = {{1, 2}, {1, 2}, {0, 2}, {0, 2}, {0, 1
 
 // Quad (and surface-mode element) local edges: 0,1 along i; 2,3 along j.
 inline constexpr int kQuadEdge[4][2] = {{0, 1}, {3, 2}, {0, 3}, {1, 2}};
+// Whether quad edge k runs along (+1) or against (-1) the corners' cycle
+// 0 -> 1 -> 2 -> 3 -> 0: a consistently oriented surface traverses each
+// inner edge once each way.
+inline constexpr int kQuadEdgeCyclic[4] = {1, -1, -1, 1};
 
 // Exodus sides (0-based). HEX8 side s is the face with local corners
 // kHexSideCorners[s] (outward normal for a right-handed hex); SHELL4/QUAD4
