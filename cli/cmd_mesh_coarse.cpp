@@ -23,7 +23,9 @@ boundary nodes on the model.
 Gmsh meshes transfinitely where every surface is a 4-sided patch and every
 volume 6-sided (a box, a swept block); otherwise it meshes with tetrahedra
 (triangles) and subdivides each into hexahedra (quads): valid, all-hex,
-but with more and less regular elements. Runs in dicer-cad (with Gmsh).
+but with more and less regular elements. With --surface, a surface between
+two volumes is left out: the mesh is the model's skin. Runs in dicer-cad
+(with Gmsh).
 )",
     R"(dicer mesh-coarse part.step --size 4 -o coarse.msh
 dicer dice coarse.msh --geometry part.step --interval 10 -o part.dice.h5
@@ -37,9 +39,8 @@ int cmd_mesh_coarse(const std::vector<std::string>& argv) {
   cmd.output(out, "MESH", "the MSH 4.1 file to write (temporary name, then renamed)");
   auto* o_size = cmd.value("--size", size, "H",
                            "target coarse element size, in the model's units: an upper "
-                           "bound; sizes the CAD file gives its points still apply "
-                           "(Gmsh's Mesh.MeshSizeFromPoints), so a larger --size may "
-                           "change nothing");
+                           "bound (curves shorter than H get one element); a size that "
+                           "would make more than 5e6 coarse elements is refused");
   cmd.require(o_size, "the coarse element size");
   cmd.flag("--surface", surface, "all-quad surface mesh of the model's surfaces");
   cmd.flag("--subdivide", subdivide, "skip the transfinite attempt");
@@ -60,11 +61,15 @@ int cmd_mesh_coarse(const std::vector<std::string>& argv) {
   opt.surface = surface;
   opt.subdivide = subdivide;
   const CoarseMeshReport r = mesh_coarse(cad, out, opt);
-  if (!quiet)
+  if (!quiet) {
     std::printf("meshed %s (%lld volumes, %lld surfaces) by %s: %lld coarse %s, %lld vertices; wrote %s\n", printable(cad).c_str(),
                 static_cast<long long>(r.volumes), static_cast<long long>(r.surfaces), r.method.c_str(),
                 static_cast<long long>(r.elements), opt.surface ? "quads" : "hexes", static_cast<long long>(r.vertices),
                 printable(out).c_str());
+    if (r.interfaces_left_out > 0)
+      std::printf("left out %lld surface%s between two volumes (the skin only)\n", static_cast<long long>(r.interfaces_left_out),
+                  r.interfaces_left_out == 1 ? "" : "s");
+  }
   return 0;
 }
 

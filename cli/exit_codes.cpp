@@ -24,7 +24,8 @@ constexpr Row kTable[] = {
     {4, ErrorKind::Unsupported, 0, "unsupported content (element types, store version)"},
     {5, ErrorKind::Io, 0, "I/O error (a missing file among them)"},
     {6, ErrorKind::Overflow, 0, "counts would overflow 64-bit ids"},
-    {7, ErrorKind::Geometry, 0, "mesh and CAD do not fit, or an element would invert"},
+    {7, ErrorKind::Geometry, 0, "mesh and CAD do not fit, an element would invert, or Gmsh\n"
+     "cannot mesh the CAD model as asked (mesh-coarse)"},
     {8, ErrorKind::Corrupt, 0, "corrupt store (a checksum fails, tables disagree)"},
     {kExitInternal, std::nullopt, 0, "internal error, or out of memory"},
     {128 + SIGHUP, ErrorKind::Cancelled, SIGHUP, "hung up (SIGHUP)"},

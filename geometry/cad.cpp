@@ -58,6 +58,8 @@ void gmsh_call(ErrorKind kind, const std::string& context, const std::function<v
     return;
   } catch (const Error&) {
     throw;
+  } catch (const std::bad_alloc&) {
+    throw;  // out of memory is said as such (exit 70), not as Gmsh failing
   } catch (const std::exception& e) {
     why = e.what();
   } catch (...) {

@@ -461,8 +461,11 @@ class Conformer {
     std::set<int> covered;
     for (const Owner& o : fowner_)
       if (o.dim == 2) covered.insert(o.tag);
+    // A surface mesh is of the model's skin (mesh-coarse --surface leaves a
+    // surface between two volumes out): such a surface needs no face.
+    const bool skin = mesh_.mode() == Mode::Surface;
     for (const CadEntity& e : cad_.entities(2))
-      if (!covered.count(e.tag))
+      if (!covered.count(e.tag) && !(skin && e.up.size() >= 2))
         throw Error(ErrorKind::Geometry, cad_.path() + ": CAD surface " + std::to_string(e.tag) + " (" + e.type +
                                              ") has no coarse face of " + src() +
                                              " on it: the mesh does not cover this CAD model");
@@ -821,7 +824,8 @@ class Conformer {
       throw Error(ErrorKind::Geometry,
                   src() + ": moving the boundary onto " + cad_.path() + " would invert " + std::to_string(q.inverted) +
                       " fine element(s); the worst is fine element " + std::to_string(q.worst_element) +
-                      " in coarse element " + std::to_string(file_id) + " (scaled Jacobian " + fmt(q.min_scaled_jacobian) +
+                      " (the store's id) in coarse element " + std::to_string(file_id) + " (" + src() +
+                      "'s element id; scaled Jacobian " + fmt(q.min_scaled_jacobian) +
                       "): refine the coarse mesh there or check that it matches the CAD; nothing was written");
     }
   }
@@ -831,7 +835,8 @@ class Conformer {
 
 ConformReport conform_to_geometry(FineMesh& mesh, const std::string& cad_path, const ConformOptions& options) {
   if (!(options.tolerance > 0 && options.tolerance < 1))
-    throw Error(ErrorKind::Usage, "geometry tolerance " + fmt(options.tolerance) + " must be in (0, 1)");
+    throw Error(ErrorKind::Usage, "geometry tolerance (--geometry-tol) " + fmt(options.tolerance) +
+                                      " must be in (0, 1): a fraction of the CAD model's diagonal");
   if (options.parts > 1 && !options.share) throw Error(ErrorKind::Usage, "conform: parts > 1 without share");
   if (options.parts <= 1) {
     const Cad cad(cad_path);
@@ -853,7 +858,8 @@ ConformReport conform_to_geometry(FineMesh& mesh, const std::string& cad_path, c
 
 void classify_on_geometry(CoarseMesh& mesh, const std::string& cad_path, const ConformOptions& options) {
   if (!(options.tolerance > 0 && options.tolerance < 1))
-    throw Error(ErrorKind::Usage, "geometry tolerance " + fmt(options.tolerance) + " must be in (0, 1)");
+    throw Error(ErrorKind::Usage, "geometry tolerance (--geometry-tol) " + fmt(options.tolerance) +
+                                      " must be in (0, 1): a fraction of the CAD model's diagonal");
   const Cad cad(cad_path);
   // The owners as conform_to_geometry finds them, on the mesh diced once
   // (interval 1: its tables are the coarse mesh's), mapped back by file id.

@@ -2,10 +2,14 @@
 // CAD allows, Gmsh's all-hex subdivision otherwise.
 #include <gmsh.h>
 
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <filesystem>
-#include <unistd.h>
+#include <set>
 
 #include "cad.hpp"
+#include "dicer/atomic_output.hpp"
 #include "dicer/coarse_mesh.hpp"
 #include "dicer/error.hpp"
 #include "dicer/geometry.hpp"
@@ -30,30 +34,64 @@ bool only(int dim, int type) {
   return any;
 }
 
-// Every surface bounded by 4 curves, and (volume) every volume by 6 surfaces.
+// Distinct entities of a boundary: a seam (a sphere's or a torus's) is
+// listed twice and a pole's degenerate curve is no side, so a sphere's one
+// face is no 4-sided patch although Gmsh lists 4 curves around it.
+size_t distinct(const gmsh::vectorpair& b) {
+  std::set<int> tags;
+  for (const auto& [d, t] : b) tags.insert(std::abs(t));
+  return tags.size();
+}
+
+bool four_sided(int surface) {
+  gmsh::vectorpair curves;
+  gmsh::model::getBoundary({{2, surface}}, curves, false, false, false);
+  if (curves.size() != 4 || distinct(curves) != 4) return false;
+  for (const auto& [d, t] : curves) {
+    gmsh::vectorpair ends;
+    gmsh::model::getBoundary({{1, std::abs(t)}}, ends, false, false, false);
+    if (distinct(ends) != 2) return false;  // a closed or degenerate curve
+  }
+  return true;
+}
+
+// Every surface a 4-sided patch, and (volume) every volume bounded by 6 of
+// them.
 bool transfinite_shaped(int dim) {
   gmsh::vectorpair ents;
   gmsh::model::getEntities(ents, dim);
   if (ents.empty()) return false;
   for (const auto& e : ents) {
-    gmsh::vectorpair faces;
-    gmsh::model::getBoundary({e}, faces, false, false, false);
-    if (dim == 3 && faces.size() != 6) return false;
-    if (dim == 2 && faces.size() != 4) return false;
-    if (dim == 3)
-      for (const auto& f : faces) {
-        gmsh::vectorpair curves;
-        gmsh::model::getBoundary({{2, std::abs(f.second)}}, curves, false, false, false);
-        if (curves.size() != 4) return false;
-      }
+    if (dim == 2 && !four_sided(e.second)) return false;
+    if (dim == 3) {
+      gmsh::vectorpair faces;
+      gmsh::model::getBoundary({e}, faces, false, false, false);
+      if (faces.size() != 6 || distinct(faces) != 6) return false;
+      for (const auto& f : faces)
+        if (!four_sided(std::abs(f.second))) return false;
+    }
   }
   return true;
 }
 
+std::string number(double x) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%g", x);
+  return b;
+}
+
+// At most this many coarse elements, estimated from the model's box before
+// Gmsh runs: a coarse mesh is small by purpose (dice refines it), and Gmsh
+// asked for 1e9 elements grows by hundreds of MB a second, while a size far
+// below the model's tolerance gave one hex silently.
+constexpr double kMaxCoarseElements = 5e6;
+
 }  // namespace
 
 CoarseMeshReport mesh_coarse(const std::string& cad_path, const std::string& msh_path, const CoarseMeshOptions& opt) {
-  if (!(opt.size > 0)) throw Error(ErrorKind::Usage, "--size must be a positive element size");
+  if (!(opt.size > 0) || !std::isfinite(opt.size))
+    throw Error(ErrorKind::Usage, "--size must be a positive element size");
+  AtomicOutput output(msh_path);  // a folder that cannot be written is said before Gmsh runs
   const geometry::Cad cad(cad_path);  // checks the file, loads it as dicing will (same tags)
   const int dim = opt.surface ? 2 : 3;
   if (!opt.surface && cad.entities(3).empty())
@@ -61,14 +99,38 @@ CoarseMeshReport mesh_coarse(const std::string& cad_path, const std::string& msh
   CoarseMeshReport rep;
   rep.volumes = static_cast<Id>(cad.entities(3).size());
   rep.surfaces = static_cast<Id>(cad.entities(2).size());
-  const std::filesystem::path out(msh_path);
-  const std::filesystem::path tmp =
-      (out.has_parent_path() ? out.parent_path() : std::filesystem::path(".")) /
-      ("." + out.filename().string() + ".tmp-" + std::to_string(::getpid()) + ".msh");
+  {
+    double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
+    for (int d = 0; d <= 3; ++d)
+      for (const auto& e : cad.entities(d))
+        for (int i = 0; i < 3; ++i) lo[i] = std::min(lo[i], e.box[i]), hi[i] = std::max(hi[i], e.box[i + 3]);
+    double n[3];
+    for (int i = 0; i < 3; ++i) n[i] = std::max((hi[i] - lo[i]) / opt.size, 1.0);
+    const double estimate = opt.surface ? 2 * (n[0] * n[1] + n[1] * n[2] + n[2] * n[0]) : n[0] * n[1] * n[2];
+    if (estimate > kMaxCoarseElements)
+      throw Error(ErrorKind::Usage, "--size " + number(opt.size) + " would make about " + number(estimate) + " coarse " +
+                                        (opt.surface ? "quads" : "hexes") + " for " + cad_path + " (" +
+                                        number(hi[0] - lo[0]) + " x " + number(hi[1] - lo[1]) + " x " +
+                                        number(hi[2] - lo[2]) + "), more than " + number(kMaxCoarseElements) +
+                                        ": a coarse mesh is meant to be small; give a larger --size and refine "
+                                        "with dice --interval");
+  }
+  // In surface mode a surface between two volumes would give edges of three
+  // or four quads, which no dicing of a shell takes: the model's skin only.
+  std::vector<int> skin;
+  for (const auto& e : cad.entities(2))
+    if (!opt.surface || e.up.size() < 2) skin.push_back(e.tag);
+  rep.interfaces_left_out = static_cast<Id>(cad.entities(2).size() - skin.size());
+  // Gmsh needs the .msh extension to write MSH; the file is moved onto the
+  // output's temporary once written.
+  const std::string scratch = output.temp_path() + ".msh";
   try {
   geometry::gmsh_call(ErrorKind::Geometry, cad_path + ": Gmsh could not mesh the model", [&] {
     gmsh::option::setNumber("Mesh.MeshSizeMax", opt.size);
     gmsh::option::setNumber("Mesh.MeshSizeMin", 0.0);
+    // Gmsh gives imported CAD points a size of its own (a fraction of the
+    // model), which capped every larger --size.
+    gmsh::option::setNumber("Mesh.MeshSizeFromPoints", 0);
     gmsh::option::setNumber("Mesh.MeshSizeFromCurvature", 0);
     gmsh::option::setNumber("Mesh.ElementOrder", 1);
     // Transfinite when every surface is a 4-sided patch and every volume is
@@ -92,54 +154,53 @@ CoarseMeshReport mesh_coarse(const std::string& cad_path, const std::string& msh
     if (!(opt.surface ? only(2, 3) : (only(3, 5) && only(2, 3))))
       throw Error(ErrorKind::Geometry, cad_path + ": Gmsh's " + rep.method + " meshing did not give an all-" +
                                            (opt.surface ? "quad" : "hex") + " mesh");
-    // Blocks per volume (surface mode: per surface), side sets per surface.
-    gmsh::vectorpair ents;
-    gmsh::model::getEntities(ents, dim);
-    for (const auto& [d, t] : ents) {
-      const int pg = gmsh::model::addPhysicalGroup(d, {t}, t);
-      gmsh::model::setPhysicalName(d, pg, (d == 3 ? "volume_" : "surface_") + std::to_string(t));
-    }
+    // Blocks per volume (surface mode: per surface of the skin), side sets
+    // per surface. Only elements of physical groups are written (SaveAll 0).
     if (!opt.surface) {
-      gmsh::model::getEntities(ents, 2);
+      gmsh::vectorpair ents;
+      gmsh::model::getEntities(ents, 3);
       for (const auto& [d, t] : ents) {
         const int pg = gmsh::model::addPhysicalGroup(d, {t}, t);
-        gmsh::model::setPhysicalName(d, pg, "surface_" + std::to_string(t));
+        gmsh::model::setPhysicalName(d, pg, "volume_" + std::to_string(t));
       }
+    }
+    for (const int t : skin) {
+      const int pg = gmsh::model::addPhysicalGroup(2, {t}, t);
+      gmsh::model::setPhysicalName(2, pg, "surface_" + std::to_string(t));
     }
     gmsh::option::setNumber("Mesh.MshFileVersion", 4.1);
     gmsh::option::setNumber("Mesh.Binary", 0);
     gmsh::option::setNumber("Mesh.SaveAll", 0);
-    gmsh::write(tmp.string());
-    std::vector<std::size_t> nt;
-    std::vector<double> xyz, par;
-    gmsh::model::mesh::getNodes(nt, xyz, par, -1, -1, false, false);
-    rep.vertices = static_cast<Id>(nt.size());
-    std::vector<int> types;
-    std::vector<std::vector<std::size_t>> et, en;
-    gmsh::model::mesh::getElements(types, et, en, dim, -1);
-    for (const auto& v : et) rep.elements += static_cast<Id>(v.size());
+    gmsh::write(scratch);
   });
   } catch (...) {
     std::error_code ec;
-    std::filesystem::remove(tmp, ec);
+    std::filesystem::remove(scratch, ec);
     throw;
   }
-  // Gmsh's subdivision can leave hexes inverted where a coarse size is large
-  // against the curvature; dicer's own reader is the judge.
-  try {
-    (void)read_coarse_mesh(tmp.string());
-  } catch (const Error& e) {
+  {
     std::error_code ec;
-    std::filesystem::remove(tmp, ec);
-    throw Error(ErrorKind::Geometry, cad_path + ": Gmsh's " + rep.method + " mesh at --size " + std::to_string(opt.size) +
-                                         " is not valid (" + e.what() + "); try a smaller --size");
+    std::filesystem::rename(scratch, output.temp_path(), ec);
+    if (ec) {
+      std::filesystem::remove(scratch, ec);
+      throw Error(ErrorKind::Io, msh_path + ": cannot write the coarse mesh (" + ec.message() + ")");
+    }
   }
-  std::error_code ec;
-  std::filesystem::rename(tmp, out, ec);
-  if (ec) {
-    std::filesystem::remove(tmp, ec);
-    throw Error(ErrorKind::Io, msh_path + ": cannot write the coarse mesh");
+  // Gmsh's subdivision can leave hexes inverted where a coarse size is large
+  // against the curvature; dicer's own reader is the judge, and counts what
+  // was written.
+  try {
+    const CoarseMesh written = read_coarse_mesh(output.temp_path());
+    rep.vertices = written.num_vertices();
+    rep.elements = written.num_elements();
+  } catch (const Error& e) {
+    std::string why = e.what();
+    for (size_t at = why.find(output.temp_path()); at != std::string::npos; at = why.find(output.temp_path()))
+      why.replace(at, output.temp_path().size(), "the mesh");
+    throw Error(ErrorKind::Geometry, cad_path + ": Gmsh's " + rep.method + " mesh at --size " + number(opt.size) +
+                                         " is not valid (" + why + "); try a smaller --size");
   }
+  output.commit();
   return rep;
 }
 

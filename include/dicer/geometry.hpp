@@ -126,12 +126,21 @@ struct CoarseMeshOptions {
 struct CoarseMeshReport {
   std::string method;      // "transfinite" or "subdivision"
   Id vertices = 0, elements = 0, volumes = 0, surfaces = 0;
+  Id interfaces_left_out = 0;  // surface mode: surfaces between two volumes, not meshed
 };
 // CAD -> coarse all-hex (or all-quad) mesh with Gmsh, written as MSH 4.1
 // with a physical group per volume (blocks) and per surface (side sets) and
 // node classification, ready for `dicer dice --geometry` with the same CAD.
 // Transfinite where every volume (surface) admits it, else Gmsh's all-hex
-// (all-quad) subdivision.
+// (all-quad) subdivision. Surface mode meshes the model's skin: a surface
+// between two volumes is left out (its edges would have three quads).
+// Error{Usage} for a size that would make more than 5e6 coarse elements
+// (estimated from the model's box, before Gmsh runs), Error{Io} for an
+// output folder that cannot be written, Error{Geometry} where Gmsh fails
+// or its mesh is not valid for dicing. One call per process: Gmsh keeps
+// state between models (Gmsh 4.11 put 3 elements on every curve of a box
+// meshed a second time in one process, whatever the size); dicer-cad
+// runs one.
 CoarseMeshReport mesh_coarse(const std::string& cad_path, const std::string& msh_path, const CoarseMeshOptions& options);
 
 }  // namespace dicer

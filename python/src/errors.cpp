@@ -60,7 +60,7 @@ void register_errors(py::module_& m) {
       {ErrorKind::Overflow, "IdOverflowError", "overflow", 6, PyExc_OverflowError,
        "Fine counts would overflow 64-bit ids (exit 6)."},
       {ErrorKind::Geometry, "GeometryError", "geometry", 7, nullptr,
-       "Mesh and CAD do not fit, or a projection would invert an element (exit 7)."},
+       "Mesh and CAD do not fit, a projection would invert an element, or Gmsh cannot mesh the CAD as asked (exit 7)."},
       {ErrorKind::Corrupt, "CorruptError", "corrupt", 8, nullptr, "A damaged or inconsistent store (exit 8)."},
       {ErrorKind::Cancelled, "CancelledError", "cancelled", 130, nullptr,
        "The work was cancelled; nothing was written (exit 130 for Ctrl-C)."},

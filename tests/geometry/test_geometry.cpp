@@ -23,6 +23,7 @@
 #include "dicer/store.hpp"
 #include "dicer/sweep.hpp"
 #include "dicer/tfi.hpp"
+#include "dicer/topology.hpp"
 #include "dicer/transfer.hpp"
 #include "dicer/batch.hpp"
 #include "dicer/verify.hpp"
@@ -762,6 +763,179 @@ TEST(Geometry, IntervalsByEntity) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto n = per_axis(read_store(store));
   EXPECT_EQ(n, (std::array<S, 3>{S{7}, S{1}, S{1}}));
+}
+
+// --size is what sizes the mesh: Gmsh's own sizes at the imported CAD
+// points capped every size above a tenth or so of the model (a 2 x 1 x 1
+// box got 225 hexes at --size 5, 1, 0.5 and 0.25 alike). A box whose edges
+// are all shorter than the size needs one element per edge: one hex.
+TEST(MeshCoarse, SizeSetsTheElementCountUpToOneHex) {
+  TempDir tmp;
+  const std::string cad = tmp.path("box.step");
+  make_cad(cad, [] { gmsh::model::occ::addBox(0, 0, 0, 2, 1, 1); });
+  Id previous = 0;
+  // Through the command (one dicer-cad per size): see mesh_coarse on Gmsh's
+  // state between models in one process.
+  for (const double size : {0.25, 0.5, 1.0, 5.0}) {
+    const std::string msh = tmp.path("b" + std::to_string(size) + ".msh");
+    const test::CliResult r = test::run_cli({"mesh-coarse", cad, "--size", std::to_string(size), "-o", msh, "--quiet"});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const CoarseMesh m = read_coarse_mesh(msh);
+    // Every edge at most `size` long (a transfinite box: axis-aligned hexes).
+    double longest = 0;
+    for (Id e = 0; e < m.num_elements(); ++e)
+      for (int k = 0; k < 12; ++k) {
+        const Id a = m.conn[e * 8 + kHexEdge[k][0]], b = m.conn[e * 8 + kHexEdge[k][1]];
+        longest = std::max(longest, std::hypot(m.x[a] - m.x[b], m.y[a] - m.y[b], m.z[a] - m.z[b]));
+      }
+    EXPECT_LE(longest, size * (1 + 1e-9)) << "size " << size;
+    if (previous > 0) {
+      EXPECT_LT(m.num_elements(), previous) << "size " << size;
+    }
+    previous = m.num_elements();
+  }
+  EXPECT_EQ(previous, 1);
+}
+
+// A size that would make a huge "coarse" mesh is refused before Gmsh runs
+// (it grew by hundreds of MB a second at 1e-3 of this box, and wrote one
+// hex at 1e-12; 1e7 quads took it a minute), and so is an output folder
+// that does not exist.
+TEST(MeshCoarse, HugeCountsAndMissingFoldersAreRefusedBeforeMeshing) {
+  TempDir tmp;
+  const std::string cad = tmp.path("box.step"), msh = tmp.path("x.msh");
+  make_cad(cad, [] { gmsh::model::occ::addBox(0, 0, 0, 2, 1, 1); });
+  for (const bool surface : {false, true})
+    for (const double size : {surface ? 2e-4 : 1e-3, 1e-12}) {
+      CoarseMeshOptions mo;
+      mo.size = size;
+      mo.surface = surface;
+      try {
+        mesh_coarse(cad, msh, mo);
+        ADD_FAILURE() << "size " << size << " meshed";
+      } catch (const Error& e) {
+        EXPECT_EQ(e.kind(), ErrorKind::Usage) << e.what();
+        EXPECT_NE(std::string(e.what()).find("--size"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("2 x 1 x 1"), std::string::npos) << e.what();
+      }
+    }
+  EXPECT_FALSE(std::filesystem::exists(msh));
+  CoarseMeshOptions mo;
+  mo.size = 1;
+  try {
+    mesh_coarse(cad, tmp.path("no-such-folder/x.msh"), mo);
+    ADD_FAILURE() << "wrote into a missing folder";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.kind(), ErrorKind::Io) << e.what();
+    EXPECT_NE(std::string(e.what()).find("no-such-folder"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(std::distance(std::filesystem::directory_iterator(tmp.path("")), {}), 1);  // box.step alone
+}
+
+// A sphere's one face has 4 curves in Gmsh's list (its seam twice and two
+// degenerate pole curves) but is no 4-sided patch: --surface used to try
+// transfinite meshing and fail; it subdivides, and the quads are on the
+// sphere.
+TEST(MeshCoarse, SurfaceOfASphereIsSubdivided) {
+  TempDir tmp;
+  const std::string cad = tmp.path("sphere.step"), msh = tmp.path("s.msh");
+  make_cad(cad, [] { gmsh::model::occ::addSphere(0, 0, 0, 1); });
+  CoarseMeshOptions mo;
+  mo.size = 0.5;
+  mo.surface = true;
+  EXPECT_EQ(mesh_coarse(cad, msh, mo).method, "subdivision");
+  const CoarseMesh m = read_coarse_mesh(msh);
+  ASSERT_EQ(m.mode, Mode::Surface);
+  EXPECT_GT(m.num_elements(), 24);
+  for (Id v = 0; v < m.num_vertices(); ++v) EXPECT_NEAR(std::hypot(m.x[v], m.y[v], m.z[v]), 1.0, 1e-9) << v;
+  // A closed shell: V - E + F = 2.
+  const Topology t = build_topology(m);
+  EXPECT_EQ(t.num_vertices - t.num_edges() + m.num_elements(), 2);
+}
+
+// --surface on two boxes sharing a face: the shared face would give edges
+// of three quads (refused as non-manifold, "try a smaller --size", at any
+// size). The skin is meshed and diced on the CAD, which has a surface no
+// quad covers.
+TEST(MeshCoarse, SurfaceOfTwoVolumesIsTheirSkin) {
+  TempDir tmp;
+  const std::string cad = tmp.path("two.step"), msh = tmp.path("t.msh");
+  make_cad(cad, [] {
+    gmsh::model::occ::addBox(0, 0, 0, 1, 1, 1, 1);
+    gmsh::model::occ::addBox(1, 0, 0, 1, 1, 1, 2);
+    gmsh::vectorpair out;
+    std::vector<gmsh::vectorpair> map;
+    gmsh::model::occ::fragment({{3, 1}}, {{3, 2}}, out, map);
+  });
+  CoarseMeshOptions mo;
+  mo.size = 0.5;
+  mo.surface = true;
+  const CoarseMeshReport r = mesh_coarse(cad, msh, mo);
+  EXPECT_EQ(r.interfaces_left_out, 1);
+  const CoarseMesh m = read_coarse_mesh(msh);
+  // The skin of a 2 x 1 x 1 box: area 10, no quad inside at x = 1.
+  double area = 0;
+  for (Id e = 0; e < m.num_elements(); ++e) {
+    const Id* c = &m.conn[e * 4];
+    double cx = 0;
+    for (int q = 0; q < 4; ++q) cx += 0.25 * m.x[c[q]];
+    const bool across_x = std::abs(m.x[c[0]] - m.x[c[2]]) > 1e-9 || std::abs(m.x[c[1]] - m.x[c[3]]) > 1e-9;
+    EXPECT_FALSE(!across_x && std::abs(cx - 1) < 1e-9) << "a quad on the interface, element " << e;
+    const double ux = m.x[c[1]] - m.x[c[0]], uy = m.y[c[1]] - m.y[c[0]], uz = m.z[c[1]] - m.z[c[0]];
+    const double vx = m.x[c[3]] - m.x[c[0]], vy = m.y[c[3]] - m.y[c[0]], vz = m.z[c[3]] - m.z[c[0]];
+    area += std::hypot(uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx);  // planar rectangles
+  }
+  EXPECT_NEAR(area, 10.0, 1e-9);
+  IntervalRequest req;
+  req.global = 3;
+  FineMesh fine = FineMesh::dice(read_coarse_mesh(msh), req);
+  const ConformReport rep = conform_to_geometry(fine, cad);
+  EXPECT_GT(rep.faces_on_surfaces, 0);
+  EXPECT_TRUE(verify(fine).ok());
+}
+
+// A STEP file with one line deleted (a dangling reference) crashes
+// OpenCASCADE's reader (SIGSEGV) on Debian 12: dicer-cad said nothing and
+// died by the signal (exit 139), for mesh-coarse and dice --geometry alike.
+// Now one message names the model and the exit code is 70 or, should
+// OpenCASCADE refuse the file cleanly one day, 3; never a signal, and no
+// output left behind.
+TEST(MeshCoarse, CadThatCrashesOpenCascadeIsAnErrorNamingIt) {
+  TempDir tmp;
+  const std::string good = tmp.path("sphere.step"), bad = tmp.path("broken.step");
+  make_cad(good, [] { gmsh::model::occ::addSphere(0, 0, 0, 1); });
+  {
+    std::ifstream in(good);
+    std::ofstream out(bad);
+    std::string line;
+    int dropped = 0;
+    while (std::getline(in, line)) {
+      if (line.find("= VERTEX_LOOP(") != std::string::npos && dropped++ == 0) continue;
+      out << line << "\n";
+    }
+    ASSERT_EQ(dropped, 1) << "no VERTEX_LOOP in Gmsh's STEP of a sphere";
+  }
+  const std::string msh = tmp.path("c.msh"), store = tmp.path("c.dice.h5");
+  CoarseMeshOptions mo;
+  mo.size = 0.5;
+  mesh_coarse(good, msh, mo);
+  const std::vector<std::vector<std::string>> runs = {
+      {"mesh-coarse", bad, "--size", "0.5", "-o", tmp.path("x.msh")},
+      {"dice", msh, "--geometry", bad, "--interval", "2", "-o", tmp.path("x.dice.h5")}};
+  for (const auto& args : runs) {
+    const test::CliResult r = test::run_cli(args);
+    SCOPED_TRACE(args[0]);
+    EXPECT_TRUE(r.exit_code == 70 || r.exit_code == 3) << r.exit_code << " " << r.err;
+    EXPECT_NE(r.err.find("dicer " + args[0] + ": error: "), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find(bad), std::string::npos) << r.err;
+    if (r.exit_code == 70) {
+      EXPECT_NE(r.err.find("crashed with SIGSEGV"), std::string::npos) << r.err;
+    }
+  }
+  std::vector<std::string> left;
+  for (const auto& e : std::filesystem::directory_iterator(tmp.path(""))) left.push_back(e.path().filename().string());
+  std::sort(left.begin(), left.end());
+  EXPECT_EQ(left, (std::vector<std::string>{"broken.step", "c.msh", "sphere.step"}));
 }
 
 }  // namespace
