@@ -34,41 +34,42 @@ bool only(int dim, int type) {
   return any;
 }
 
-// Distinct entities of a boundary: a seam (a sphere's or a torus's) is
-// listed twice and a pole's degenerate curve is no side, so a sphere's one
-// face is no 4-sided patch although Gmsh lists 4 curves around it.
+// Distinct entities of a boundary.
 size_t distinct(const gmsh::vectorpair& b) {
   std::set<int> tags;
   for (const auto& [d, t] : b) tags.insert(std::abs(t));
   return tags.size();
 }
 
-bool four_sided(int surface) {
+// Four sides: a seam may be two of them (a tube's side: two circles and its
+// seam, twice), but a pole's degenerate curve is none (a sphere's one face
+// lists its seam twice and two poles) and two seams are not four sides (a
+// torus's face). `tiny`: a curve whose box is smaller is degenerate.
+bool four_sided(int surface, double tiny) {
   gmsh::vectorpair curves;
   gmsh::model::getBoundary({{2, surface}}, curves, false, false, false);
-  if (curves.size() != 4 || distinct(curves) != 4) return false;
+  if (curves.size() != 4 || distinct(curves) < 3) return false;
   for (const auto& [d, t] : curves) {
-    gmsh::vectorpair ends;
-    gmsh::model::getBoundary({{1, std::abs(t)}}, ends, false, false, false);
-    if (distinct(ends) != 2) return false;  // a closed or degenerate curve
+    double x0, y0, z0, x1, y1, z1;
+    gmsh::model::getBoundingBox(1, std::abs(t), x0, y0, z0, x1, y1, z1);
+    if (std::max({x1 - x0, y1 - y0, z1 - z0}) < tiny) return false;
   }
   return true;
 }
 
-// Every surface a 4-sided patch, and (volume) every volume bounded by 6 of
-// them.
-bool transfinite_shaped(int dim) {
+// Every surface 4-sided, and (volume) every volume bounded by 6 of them.
+bool transfinite_shaped(int dim, double tiny) {
   gmsh::vectorpair ents;
   gmsh::model::getEntities(ents, dim);
   if (ents.empty()) return false;
   for (const auto& e : ents) {
-    if (dim == 2 && !four_sided(e.second)) return false;
+    if (dim == 2 && !four_sided(e.second, tiny)) return false;
     if (dim == 3) {
       gmsh::vectorpair faces;
       gmsh::model::getBoundary({e}, faces, false, false, false);
       if (faces.size() != 6 || distinct(faces) != 6) return false;
       for (const auto& f : faces)
-        if (!four_sided(std::abs(f.second))) return false;
+        if (!four_sided(std::abs(f.second), tiny)) return false;
     }
   }
   return true;
@@ -80,12 +81,16 @@ std::string number(double x) {
   return b;
 }
 
-// At most this many coarse elements, estimated from the model's box before
-// Gmsh runs: a coarse mesh is small by purpose (dice refines it), and Gmsh
-// asked for 1e9 elements grows by hundreds of MB a second, while a size far
-// below the model's tolerance gave one hex silently.
+// At most this many coarse elements, estimated before Gmsh runs: a coarse
+// mesh is small by purpose (dice refines it), and Gmsh asked for 1e9
+// elements grows by hundreds of MB a second (1e7 quads took it a minute),
+// while a size far below the model's tolerance gave one hex silently.
 constexpr double kMaxCoarseElements = 5e6;
-
+// Elements per size^3 (size^2) of the model's volume (area) when Gmsh
+// subdivides: ~6 tetrahedra of edge `size` per size^3, 4 hexes each
+// (measured: 18-19 on a sphere and a box); ~2.3 triangles per size^2, 3
+// quads each (7.9 on a sphere). Transfinite: ~1.
+constexpr double kSubdividedHexesPerCube = 20, kSubdividedQuadsPerSquare = 8;
 }  // namespace
 
 CoarseMeshReport mesh_coarse(const std::string& cad_path, const std::string& msh_path, const CoarseMeshOptions& opt) {
@@ -99,28 +104,44 @@ CoarseMeshReport mesh_coarse(const std::string& cad_path, const std::string& msh
   CoarseMeshReport rep;
   rep.volumes = static_cast<Id>(cad.entities(3).size());
   rep.surfaces = static_cast<Id>(cad.entities(2).size());
-  {
-    double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
-    for (int d = 0; d <= 3; ++d)
-      for (const auto& e : cad.entities(d))
-        for (int i = 0; i < 3; ++i) lo[i] = std::min(lo[i], e.box[i]), hi[i] = std::max(hi[i], e.box[i + 3]);
-    double n[3];
-    for (int i = 0; i < 3; ++i) n[i] = std::max((hi[i] - lo[i]) / opt.size, 1.0);
-    const double estimate = opt.surface ? 2 * (n[0] * n[1] + n[1] * n[2] + n[2] * n[0]) : n[0] * n[1] * n[2];
-    if (estimate > kMaxCoarseElements)
-      throw Error(ErrorKind::Usage, "--size " + number(opt.size) + " would make about " + number(estimate) + " coarse " +
-                                        (opt.surface ? "quads" : "hexes") + " for " + cad_path + " (" +
-                                        number(hi[0] - lo[0]) + " x " + number(hi[1] - lo[1]) + " x " +
-                                        number(hi[2] - lo[2]) + "), more than " + number(kMaxCoarseElements) +
-                                        ": a coarse mesh is meant to be small; give a larger --size and refine "
-                                        "with dice --interval");
-  }
   // In surface mode a surface between two volumes would give edges of three
   // or four quads, which no dicing of a shell takes: the model's skin only.
   std::vector<int> skin;
   for (const auto& e : cad.entities(2))
     if (!opt.surface || e.up.size() < 2) skin.push_back(e.tag);
   rep.interfaces_left_out = static_cast<Id>(cad.entities(2).size() - skin.size());
+  // Transfinite when every surface is a 4-sided patch and every volume is
+  // bounded by 6 of them, decided before meshing: Gmsh 4.8 crashes when
+  // asked to clear a failed transfinite attempt. Then the element count
+  // expected from the model's volume (area), refused when huge.
+  bool transfinite = false;
+  double measure = 0;
+  geometry::gmsh_call(ErrorKind::Geometry, cad_path + ": measuring the model", [&] {
+    transfinite = !opt.subdivide && transfinite_shaped(dim, 1e-6 * std::max(cad.diagonal(), 1.0));
+    if (opt.surface) {
+      for (const int t : skin) {
+        double m = 0;
+        gmsh::model::occ::getMass(2, t, m);
+        measure += m;
+      }
+    } else {
+      for (const auto& e : cad.entities(3)) {
+        double m = 0;
+        gmsh::model::occ::getMass(3, e.tag, m);
+        measure += m;
+      }
+    }
+  });
+  const double per = transfinite ? 1 : opt.surface ? kSubdividedQuadsPerSquare : kSubdividedHexesPerCube;
+  const double estimate = std::max(1.0, per * std::abs(measure) / std::pow(opt.size, dim));
+  if (estimate > kMaxCoarseElements)
+    throw Error(ErrorKind::Usage, "--size " + number(opt.size) + " would make about " + number(estimate) + " coarse " +
+                                      (opt.surface ? "quads" : "hexes") + " of " + cad_path + " (its " +
+                                      (opt.surface ? "area " : "volume ") + number(std::abs(measure)) + " / size^" +
+                                      std::to_string(dim) + (transfinite ? "" : ", times ~" + number(per) + " by Gmsh's subdivision") +
+                                      "), more than " + number(kMaxCoarseElements) +
+                                      ": a coarse mesh is meant to be small; give a larger --size and refine "
+                                      "with dice --interval");
   // Gmsh needs the .msh extension to write MSH; the file is moved onto the
   // output's temporary once written.
   const std::string scratch = output.temp_path() + ".msh";
@@ -133,10 +154,7 @@ CoarseMeshReport mesh_coarse(const std::string& cad_path, const std::string& msh
     gmsh::option::setNumber("Mesh.MeshSizeFromPoints", 0);
     gmsh::option::setNumber("Mesh.MeshSizeFromCurvature", 0);
     gmsh::option::setNumber("Mesh.ElementOrder", 1);
-    // Transfinite when every surface is a 4-sided patch and every volume is
-    // bounded by 6 of them, decided before meshing: Gmsh 4.8 crashes when
-    // asked to clear a failed transfinite attempt.
-    if (!opt.subdivide && transfinite_shaped(dim)) {
+    if (transfinite) {
       gmsh::model::mesh::setTransfiniteAutomatic({}, 2.35, true);
       gmsh::option::setNumber("Mesh.RecombineAll", 1);
       gmsh::option::setNumber("Mesh.SubdivisionAlgorithm", 0);

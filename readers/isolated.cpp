@@ -120,6 +120,9 @@ std::uint64_t child_budget(std::int64_t file_size) {
 
 [[noreturn]] void child(int fd, std::int64_t file_size, const std::function<CoarseMesh()>& read) {
   hdf5_lock().unlock();  // held by the parent across fork(): this copy is ours alone
+  // A crash here is the parent's to report, naming the file: a handler the
+  // program installed (dicer-cad's blames the CAD model) is not ours.
+  for (const int s : {SIGSEGV, SIGBUS, SIGILL, SIGFPE, SIGABRT}) ::signal(s, SIG_DFL);
   const struct rlimit no_core = {0, 0};  // a crash here is reported, not dumped
   setrlimit(RLIMIT_CORE, &no_core);
 #if !defined(DICER_ASAN)  // ASan's shadow memory cannot live under an address-space limit

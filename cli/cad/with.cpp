@@ -22,7 +22,7 @@ namespace {
 // exit code is 70 (internal error) rather than a signal's death.
 constexpr int kCrashSignals[] = {SIGSEGV, SIGBUS, SIGILL, SIGFPE, SIGABRT};
 std::string g_crash[std::size(kCrashSignals)];
-alignas(16) char g_alt_stack[1 << 16];  // a stack overflow's SIGSEGV still runs the handler
+alignas(16) char g_alt_stack[1 << 16];  // the main thread's stack overflow still runs the handler (not Gmsh's threads')
 
 extern "C" void on_crash(int sig) {
   AtomicOutput::remove_uncommitted();
@@ -34,14 +34,17 @@ extern "C" void on_crash(int sig) {
   ::_exit(kExitInternal);
 }
 
-// The CAD model of the command line: dice/verify --geometry's value, or
-// mesh-coarse's first argument that is no option's value.
+// The CAD model of the command line: dice/verify --geometry's value (the
+// last, as the commands take it), or mesh-coarse's first argument that is
+// no option's value.
 std::string cad_of(const std::vector<std::string>& all) {
   const std::vector<std::string> args = options_part(all);
+  std::string geometry;
   for (size_t i = 1; i < args.size(); ++i) {
-    if (args[i] == "--geometry" && i + 1 < args.size()) return args[i + 1];
-    if (args[i].rfind("--geometry=", 0) == 0) return args[i].substr(11);
+    if (args[i] == "--geometry" && i + 1 < args.size()) geometry = args[++i];
+    else if (args[i].rfind("--geometry=", 0) == 0) geometry = args[i].substr(11);
   }
+  if (!geometry.empty()) return geometry;
   if (!all.empty() && all[0] == "mesh-coarse") {
     bool after_dashes = false;
     for (size_t i = 1; i < all.size(); ++i) {

@@ -135,12 +135,13 @@ struct CoarseMeshReport {
 // (all-quad) subdivision. Surface mode meshes the model's skin: a surface
 // between two volumes is left out (its edges would have three quads).
 // Error{Usage} for a size that would make more than 5e6 coarse elements
-// (estimated from the model's box, before Gmsh runs), Error{Io} for an
+// (estimated from the model's volume or area and the method, before Gmsh
+// runs), Error{Io} for an
 // output folder that cannot be written, Error{Geometry} where Gmsh fails
-// or its mesh is not valid for dicing. One call per process: Gmsh keeps
-// state between models (Gmsh 4.11 put 3 elements on every curve of a box
-// meshed a second time in one process, whatever the size); dicer-cad
-// runs one.
+// or its mesh is not valid for dicing. Gmsh keeps state between models: a
+// second call in one process may size curves otherwise (Gmsh 4.11 put 3
+// elements on every curve of a box meshed a second time, whatever the
+// size); dicer-cad makes one call per process.
 CoarseMeshReport mesh_coarse(const std::string& cad_path, const std::string& msh_path, const CoarseMeshOptions& options);
 
 }  // namespace dicer
