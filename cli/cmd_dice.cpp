@@ -227,22 +227,31 @@ int cmd_dice(const std::vector<std::string>& argv) {
                   static_cast<long long>(info.coarse_elements), info.mode == Mode::Volume ? "hexes" : "quads",
                   human_count(info.nodes).c_str(), human_count(info.elements).c_str(),
                   static_cast<long long>(info.sheets), printable(out).c_str());
+    // The quality dice checks is of the fine elements in coarse elements
+    // whose nodes moved (verify checks every element: its minimum may be
+    // lower, from elements that never moved).
+    auto moved_quality = [](double min_jacobian, Id checked) {
+      if (checked == 0) return std::string("no element moved");
+      char b[160];
+      std::snprintf(b, sizeof b, "min scaled Jacobian %.4f over the %s fine elements of coarse elements that moved",
+                    min_jacobian, human_count(checked).c_str());
+      return std::string(b);
+    };
     if (quad.second_order && !quiet)
-      std::printf("second order %s: %lld edges and %lld faces curved = %s bounding nodes; min scaled Jacobian %.4f over "
-                  "%s elements checked\n",
-                  printable(in).c_str(), static_cast<long long>(quad.edges_curved), static_cast<long long>(quad.faces_curved),
-                  human_count(quad.bounding_nodes).c_str(), quad.min_scaled_jacobian,
-                  human_count(quad.elements_checked).c_str());
+      std::printf("second order %s: %lld edges and %lld faces curved = %s bounding nodes; %s\n", printable(in).c_str(),
+                  static_cast<long long>(quad.edges_curved), static_cast<long long>(quad.faces_curved),
+                  human_count(quad.bounding_nodes).c_str(),
+                  moved_quality(quad.min_scaled_jacobian, quad.elements_checked).c_str());
     if (with_cad && !quiet)
       std::printf("geometry %s: %lld vertices on the CAD (largest snap %.3g), %lld edges on curves, %lld on surfaces, "
                   "%lld faces on surfaces; moved %lld edges + %lld faces = %s bounding nodes (%lld by closest point); "
-                  "min scaled Jacobian %.4f over %s elements checked\n",
+                  "%s\n",
                   printable(cad).c_str(), static_cast<long long>(geo.vertices_on_cad), geo.max_vertex_snap,
                   static_cast<long long>(geo.edges_on_curves), static_cast<long long>(geo.edges_on_surfaces),
                   static_cast<long long>(geo.faces_on_surfaces), static_cast<long long>(geo.edges_moved),
                   static_cast<long long>(geo.faces_moved), human_count(geo.bounding_nodes).c_str(),
-                  static_cast<long long>(geo.closest_point_fallbacks), geo.min_scaled_jacobian,
-                  human_count(geo.elements_checked).c_str());
+                  static_cast<long long>(geo.closest_point_fallbacks),
+                  moved_quality(geo.min_scaled_jacobian, geo.elements_checked).c_str());
     return 0;
   };
   if (mpi.active() && !with_cad) return on_rank0(body);
