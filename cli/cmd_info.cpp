@@ -27,7 +27,8 @@ int cmd_info(const std::vector<std::string>& argv) {
   bool json = false;
   cmd.input("STORE", path, "the store to describe (.dice.h5, written by dicer dice)");
   cmd.flag("--json", json,
-           "one JSON object with keys mode, source, source_order (1 or 2), format_version, "
+           "one JSON object with keys mode, source, source_order (1 or 2), geometry (the "
+           "CAD file of dice --geometry, or null), format_version, "
            "store_bytes, coarse_vertices, coarse_edges, coarse_faces, "
            "coarse_elements, sheets, sheet_intervals (one per sheet, "
            "in dicer sheets' numbering), sheet_gradings (one per sheet: "
@@ -61,6 +62,7 @@ int cmd_info(const std::vector<std::string>& argv) {
     print_json({{"mode", mode_name(m.mode())},
                 {"source", c.source},
                 {"source_order", c.source_order},
+                {"geometry", c.geometry.empty() ? Json(nullptr) : Json(c.geometry)},
                 {"format_version", s.format_version},
                 {"store_bytes", s.file_bytes},
                 {"coarse_vertices", c.coarse_vertices},
@@ -77,6 +79,7 @@ int cmd_info(const std::vector<std::string>& argv) {
     std::printf("store      %s (%s, format version %d)\n", printable(path).c_str(), human_bytes(s.file_bytes).c_str(), s.format_version);
     std::printf("source     %s%s\nmode       %s\n", printable(c.source).c_str(),
                 c.source_order == 2 ? " (second order: HEX20/27 or QUAD8/9)" : "", mode_name(m.mode()));
+    if (!c.geometry.empty()) std::printf("geometry   %s (the CAD its boundary was put on)\n", printable(c.geometry).c_str());
     std::printf("coarse     %lld vertices, %lld edges, %lld faces, %lld %s\n", ll(c.coarse_vertices), ll(c.coarse_edges),
                 ll(c.coarse_faces), ll(c.coarse_elements), m.mode() == Mode::Volume ? "hexes" : "quads");
     std::printf("sheets     %lld%s%s\n", ll(c.sheets), graded.empty() ? "" : "; graded (ratio@start node): ",

@@ -224,6 +224,7 @@ class Conformer {
     move_faces();
     mesh_.finish_moves();
     check_inversion();
+    mesh_.set_geometry_source(cad_.path());
     rep_.bounding_nodes = mesh_.num_bounding_nodes();
     return rep_;
   }

@@ -424,6 +424,8 @@ std::shared_ptr<OpenStore> open_store(const std::string& path, StoreHeader& h) {
   if (mode != "volume" && mode != "surface") throw Error(ErrorKind::Corrupt, path + ": unknown mode \"" + mode + "\"");
   info.mode = mode == "volume" ? Mode::Volume : Mode::Surface;
   info.source = s->file.read_attr_string("source");
+  // Optional: absent when diced without a CAD (and before it was recorded).
+  if (H5Aexists(s->file.id(), "geometry_source") > 0) info.geometry = s->file.read_attr_string("geometry_source");
   // Optional (absent before second-order input: a first-order source).
   if (H5Aexists(s->file.id(), "source_order") > 0) {
     const std::int64_t order = s->file.read_attr_int("source_order");
@@ -511,6 +513,7 @@ void write_content(const StoreContent& c, const std::string& path,
       f.write_attr("mode", std::string(mode_name(info.mode)));
       f.write_attr("source", info.source);
       f.write_attr("source_order", static_cast<std::int64_t>(info.source_order));
+      if (!info.geometry.empty()) f.write_attr("geometry_source", info.geometry);
       f.write_attr("coarse_vertices", info.coarse_vertices);
       f.write_attr("coarse_edges", info.coarse_edges);
       f.write_attr("coarse_faces", info.coarse_faces);

@@ -121,6 +121,7 @@ struct SheetGrading {
 struct MeshInfo {
   Mode mode = Mode::Volume;
   std::string source;                    // the coarse mesh file it was diced from
+  std::string geometry;                  // the CAD file its boundary was put on (dice --geometry), or empty
   int source_order = 1;                  // 2: the file was second order (HEX20/27, QUAD8/9; quadratic.hpp)
   std::string uuid;                      // the store's identity (store/FORMAT.md); empty for a mesh diced here
   Id coarse_vertices = 0, coarse_edges = 0, coarse_faces = 0, coarse_elements = 0, sheets = 0;
@@ -232,6 +233,8 @@ class FineMesh {
   void move_nodes(EntityKind kind, Id entity, std::span<const Vec3> xyz);
   // Flags the elements that touch moved nodes (their interiors read them).
   void finish_moves();
+  // Records the CAD file the boundary was put on (MeshInfo::geometry).
+  void set_geometry_source(std::string cad_path) { info_.geometry = std::move(cad_path); }
   // Number of fine nodes moved (onto the CAD, or a second-order mesh's
   // quadratic edges and faces): rows of the bounding arrays.
   Id num_bounding_nodes() const { return tables_.bounding.rows(); }

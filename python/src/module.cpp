@@ -132,6 +132,8 @@ py::dict info_dict(const Store& s) {
   d["mode"] = mode_name(m->mode());
   d["source"] = path_text(c.source);
   d["source_order"] = c.source_order;
+  if (c.geometry.empty()) d["geometry"] = py::none();
+  else d["geometry"] = path_text(c.geometry);
   d["format_version"] = sum.format_version;
   d["store_bytes"] = sum.file_bytes;
   d["coarse_vertices"] = c.coarse_vertices;

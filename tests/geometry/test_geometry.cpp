@@ -998,5 +998,31 @@ TEST(MeshCoarse, ReaderCrashUnderDicerCadIsNotBlamedOnTheCad) {
   }
 }
 
+// Which CAD a store's boundary was put on was nowhere in the store: info
+// now says it (text and JSON), from the geometry_source attribute; a store
+// diced without a CAD has none (JSON null).
+TEST(Geometry, StoreRecordsTheCadItWasDicedOn) {
+  TempDir tmp;
+  const std::string cad = tmp.path("cyl.brep"), msh = tmp.path("cyl.msh");
+  const std::string on = tmp.path("on.dice.h5"), off = tmp.path("off.dice.h5");
+  make_cad(cad, [] { gmsh::model::occ::addCylinder(0, 0, 0, 0, 0, 2, 1); });
+  CoarseMeshOptions mo;
+  mo.size = 0.8;
+  mesh_coarse(cad, msh, mo);
+  ASSERT_EQ(test::run_cli({"dice", msh, "--geometry", cad, "--interval", "2", "-o", on, "--quiet"}).exit_code, 0);
+  ASSERT_EQ(test::run_cli({"dice", msh, "--interval", "2", "-o", off, "--quiet"}).exit_code, 0);
+  EXPECT_EQ(read_store(on, StoreOptions{8ull << 20, 0}).info().geometry, cad);
+  EXPECT_EQ(read_store(off, StoreOptions{8ull << 20, 0}).info().geometry, "");
+  test::CliResult r = test::run_cli({"info", on});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("geometry   " + cad), std::string::npos) << r.out;
+  r = test::run_cli({"info", on, "--json"});
+  EXPECT_NE(r.out.find("\"geometry\":\"" + cad + "\""), std::string::npos) << r.out;
+  r = test::run_cli({"info", off, "--json"});
+  EXPECT_NE(r.out.find("\"geometry\":null"), std::string::npos) << r.out;
+  r = test::run_cli({"info", off});
+  EXPECT_EQ(r.out.find("geometry "), std::string::npos) << r.out;
+}
+
 }  // namespace
 }  // namespace dicer
