@@ -28,7 +28,7 @@ int cmd_info(const std::vector<std::string>& argv) {
   cmd.input("STORE", path, "the store to describe (.dice.h5, written by dicer dice)");
   cmd.flag("--json", json,
            "one JSON object with keys mode, source, source_order (1 or 2), geometry (the "
-           "CAD file of dice --geometry, or null), format_version, "
+           "CAD file the boundary was put on, or null), format_version, "
            "store_bytes, coarse_vertices, coarse_edges, coarse_faces, "
            "coarse_elements, sheets, sheet_intervals (one per sheet, "
            "in dicer sheets' numbering), sheet_gradings (one per sheet: "
