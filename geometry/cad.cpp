@@ -12,6 +12,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 
 namespace dicer::geometry {
 namespace {
@@ -49,6 +50,13 @@ void gmsh_start() {
 }
 
 bool Cad::gmsh_initialised() { return g_started; }
+
+std::string fmt(double x) {
+  std::ostringstream s;
+  s.precision(3);
+  s << x;
+  return s.str();
+}
 
 void gmsh_call(ErrorKind kind, const std::string& context, const std::function<void()>& fn) {
   std::lock_guard lock(gmsh_mutex());

@@ -78,4 +78,7 @@ bool needs_fragment(const std::vector<std::pair<int, int>>& shapes);
 // Process-wide Gmsh start (idempotent, quiet: General.Terminal 0).
 void gmsh_start();
 
+// A number in messages: 3 significant digits.
+std::string fmt(double x);
+
 }  // namespace dicer::geometry

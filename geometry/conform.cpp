@@ -25,6 +25,7 @@ namespace {
 
 using geometry::Cad;
 using geometry::CadEntity;
+using geometry::fmt;  // and fmt(Vec3) below
 
 double dist(const Vec3& a, const Vec3& b) { return std::hypot(a.x - b.x, a.y - b.y, a.z - b.z); }
 Vec3 at(const std::vector<double>& v, size_t i) { return {v[3 * i], v[3 * i + 1], v[3 * i + 2]}; }
@@ -33,12 +34,6 @@ void push(std::vector<double>& v, const Vec3& p) { v.push_back(p.x), v.push_back
 const char* dim_name(int d) {
   static const char* k[4] = {"point", "curve", "surface", "volume"};
   return d >= 0 && d <= 3 ? k[d] : "entity";
-}
-std::string fmt(double x) {
-  std::ostringstream s;
-  s.precision(3);
-  s << x;
-  return s.str();
 }
 std::string fmt(const Vec3& p) {
   std::ostringstream s;

@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <filesystem>
 #include <set>
 
@@ -75,12 +74,6 @@ bool transfinite_shaped(int dim, double tiny) {
   return true;
 }
 
-std::string number(double x) {
-  char b[32];
-  std::snprintf(b, sizeof b, "%g", x);
-  return b;
-}
-
 // At most this many coarse elements, estimated before Gmsh runs: a coarse
 // mesh is small by purpose (dice refines it), and Gmsh asked for 1e9
 // elements grows by hundreds of MB a second (1e7 quads took it a minute),
@@ -118,28 +111,25 @@ CoarseMeshReport mesh_coarse(const std::string& cad_path, const std::string& msh
   double measure = 0;
   geometry::gmsh_call(ErrorKind::Geometry, cad_path + ": measuring the model", [&] {
     transfinite = !opt.subdivide && transfinite_shaped(dim, 1e-6 * std::max(cad.diagonal(), 1.0));
-    if (opt.surface) {
-      for (const int t : skin) {
-        double m = 0;
-        gmsh::model::occ::getMass(2, t, m);
-        measure += m;
-      }
-    } else {
-      for (const auto& e : cad.entities(3)) {
-        double m = 0;
-        gmsh::model::occ::getMass(3, e.tag, m);
-        measure += m;
-      }
+    std::vector<int> meshed = skin;
+    if (!opt.surface) {
+      meshed.clear();
+      for (const auto& e : cad.entities(3)) meshed.push_back(e.tag);
+    }
+    for (const int t : meshed) {
+      double m = 0;
+      gmsh::model::occ::getMass(dim, t, m);
+      measure += m;
     }
   });
   const double per = transfinite ? 1 : opt.surface ? kSubdividedQuadsPerSquare : kSubdividedHexesPerCube;
   const double estimate = std::max(1.0, per * std::abs(measure) / std::pow(opt.size, dim));
   if (estimate > kMaxCoarseElements)
-    throw Error(ErrorKind::Usage, "--size " + number(opt.size) + " would make about " + number(estimate) + " coarse " +
+    throw Error(ErrorKind::Usage, "--size " + geometry::fmt(opt.size) + " would make about " + geometry::fmt(estimate) + " coarse " +
                                       (opt.surface ? "quads" : "hexes") + " of " + cad_path + " (its " +
-                                      (opt.surface ? "area " : "volume ") + number(std::abs(measure)) + " / size^" +
-                                      std::to_string(dim) + (transfinite ? "" : ", times ~" + number(per) + " by Gmsh's subdivision") +
-                                      "), more than " + number(kMaxCoarseElements) +
+                                      (opt.surface ? "area " : "volume ") + geometry::fmt(std::abs(measure)) + " / size^" +
+                                      std::to_string(dim) + (transfinite ? "" : ", times ~" + geometry::fmt(per) + " by Gmsh's subdivision") +
+                                      "), more than " + geometry::fmt(kMaxCoarseElements) +
                                       ": a coarse mesh is meant to be small; give a larger --size and refine "
                                       "with dice --interval");
   // Gmsh needs the .msh extension to write MSH; the file is moved onto the
@@ -215,7 +205,7 @@ CoarseMeshReport mesh_coarse(const std::string& cad_path, const std::string& msh
     std::string why = e.what();
     for (size_t at = why.find(output.temp_path()); at != std::string::npos; at = why.find(output.temp_path()))
       why.replace(at, output.temp_path().size(), "the mesh");
-    throw Error(ErrorKind::Geometry, cad_path + ": Gmsh's " + rep.method + " mesh at --size " + number(opt.size) +
+    throw Error(ErrorKind::Geometry, cad_path + ": Gmsh's " + rep.method + " mesh at --size " + geometry::fmt(opt.size) +
                                          " is not valid (" + why + "); try a smaller --size");
   }
   output.commit();
