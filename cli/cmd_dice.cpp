@@ -221,6 +221,7 @@ int cmd_dice(const std::vector<std::string>& argv) {
       else write_store(*diced, out, page_written);
     });
     if (!lead) return 0;
+    if (with_cad) warn_cad_reader("dice", cad, geo.cad_reader_said);
     const MeshInfo& info = rows ? rows->info() : diced->info();
     if (!quiet)
       std::printf("diced %s: %lld coarse %s -> %s fine nodes, %s fine elements (%lld sheets); wrote %s\n", printable(in).c_str(),

@@ -61,6 +61,7 @@ int cmd_mesh_coarse(const std::vector<std::string>& argv) {
   opt.surface = surface;
   opt.subdivide = subdivide;
   const CoarseMeshReport r = mesh_coarse(cad, out, opt);
+  warn_cad_reader("mesh-coarse", cad, r.cad_reader_said);
   if (!quiet) {
     std::printf("meshed %s (%lld volumes, %lld surfaces) by %s: %lld coarse %s, %lld vertices; wrote %s\n", printable(cad).c_str(),
                 static_cast<long long>(r.volumes), static_cast<long long>(r.surfaces), r.method.c_str(),

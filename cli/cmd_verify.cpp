@@ -105,6 +105,7 @@ int report(const std::string& path, bool with_cad, const std::string& cad, bool 
   if (with_cad) {
     Progress bar("verify: geometry", 1, quiet);
     g = check_geometry(m, cad, [&](Id done, Id total) { bar.update(done, total); });
+    warn_cad_reader("verify", cad, g.cad_reader_said);
     geo_ok = g.ok();
   }
   const bool ok = r.ok() && geo_ok;

@@ -280,6 +280,14 @@ std::string printable(const std::string& name) {
   return out;
 }
 
+void warn_cad_reader(const std::string& command, const std::string& cad, const std::string& said) {
+  if (said.empty()) return;
+  std::fprintf(stderr,
+               "dicer %s: warning: %s: OpenCASCADE reported problems reading it: %s; the model may be missing parts "
+               "(check it in Gmsh)\n",
+               command.c_str(), printable(cad).c_str(), printable(said).c_str());
+}
+
 std::string human_bytes(std::uint64_t b) {
   const char* unit[] = {"B", "KiB", "MiB", "GiB", "TiB", "PiB"};
   double v = static_cast<double>(b);

@@ -85,6 +85,9 @@ void throw_if_cancelled(const std::string& outcome);
 void print_cache_stats(const FineMesh& mesh, const std::string& command);
 
 std::string human_bytes(std::uint64_t bytes);
+// "dicer COMMAND: warning: CAD: OpenCASCADE reported problems reading it:
+// SAID; ..." on stderr when said (a report's cad_reader_said) is not empty.
+void warn_cad_reader(const std::string& command, const std::string& cad, const std::string& said);
 // Text from a file or an argument for a terminal (a name in a table, an
 // error message): control characters (a line break in a block name, ESC)
 // as \n, \t, \xHH or \u00HH (C1), bytes that are not well-formed UTF-8

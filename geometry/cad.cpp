@@ -3,11 +3,14 @@
 
 #include <gmsh.h>
 
+#include <sys/mman.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cstdio>
+#include <cstring>
 #include <iostream>
 #include <cmath>
 #include <filesystem>
@@ -83,30 +86,181 @@ void gmsh_call(ErrorKind kind, const std::string& context, const std::function<v
 }
 
 namespace {
-// Standard output goes to stderr for the life of this object (fd level: the
-// kernel's own printf/cout included). Single-threaded use: dicer-cad prints
-// nothing else meanwhile.
-class StdoutToStderr {
+
+// What OpenCASCADE prints while it reads a CAD file. Its readers write
+// their complaints ("**** ERR StepFile : Undefined Parsing: Line 83: ...",
+// in ANSI colours) straight to the standard streams, not through Gmsh's
+// logger: they came before dicer's message, coloured, and the error itself
+// said only Gmsh's "Could not read file". A damaged STEP file often reads
+// "successfully" with parts missing, and only those lines said so. So both
+// streams go to an anonymous in-memory file (memfd) while OpenCASCADE
+// reads, and what it said becomes part of dicer's messages. The crash
+// handler of dicer-cad reads the same file (cad_reader_said), as
+// OpenCASCADE crashes on some of the files it complains about.
+std::atomic<int> g_capture_fd{-1};   // the memfd while a read runs
+std::atomic<int> g_real_stderr{-1};  // where stderr went before it
+char g_last_said[1024];              // the last read's text, for a later crash
+std::atomic<size_t> g_last_said_size{0};
+std::atomic<std::int64_t> g_read_started_ns{0};  // steady clock; 0: no read under way
+static_assert(std::atomic<std::int64_t>::is_always_lock_free);
+
+std::int64_t steady_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+void flush_streams() {
+  std::cout.flush();
+  std::cerr.flush();
+  std::fflush(stdout);
+  std::fflush(stderr);
+}
+
+// The file's read itself, timed for a watchdog (cad_reader_seconds); the
+// fragment of an assembly that follows may take long and is not timed.
+struct TimedRead {
+  TimedRead() { g_read_started_ns.store(std::max<std::int64_t>(1, steady_ns())); }
+  ~TimedRead() { g_read_started_ns.store(0); }
+  TimedRead(const TimedRead&) = delete;
+  TimedRead& operator=(const TimedRead&) = delete;
+};
+
+class ReaderOutput {
  public:
-  StdoutToStderr() {
-    std::fflush(stdout);
-    saved_ = ::dup(STDOUT_FILENO);
-    if (saved_ >= 0) ::dup2(STDERR_FILENO, STDOUT_FILENO);
+  ReaderOutput() {
+    flush_streams();
+    fd_ = ::memfd_create("dicer-opencascade-output", MFD_CLOEXEC);
+    out_ = ::dup(STDOUT_FILENO);
+    err_ = ::dup(STDERR_FILENO);
+    if (fd_ < 0 || out_ < 0 || err_ < 0) {
+      // Nothing captured; standard output still must not take OpenCASCADE's
+      // lines (--json's document goes there).
+      if (out_ >= 0) ::dup2(STDERR_FILENO, STDOUT_FILENO);
+      return;
+    }
+    g_real_stderr.store(err_);
+    g_capture_fd.store(fd_);
+    ::dup2(fd_, STDOUT_FILENO);
+    ::dup2(fd_, STDERR_FILENO);
   }
-  ~StdoutToStderr() {
-    if (saved_ < 0) return;
-    std::fflush(stdout);
-    std::cout.flush();
-    ::dup2(saved_, STDOUT_FILENO);
-    ::close(saved_);
+  // Restores the streams; returns what was said, cleaned (one line).
+  std::string finish() {
+    if (done_) return {};
+    done_ = true;
+    flush_streams();
+    if (out_ >= 0) ::dup2(out_, STDOUT_FILENO), ::close(out_);
+    if (err_ >= 0) ::dup2(err_, STDERR_FILENO);
+    g_capture_fd.store(-1);
+    g_real_stderr.store(-1);
+    if (err_ >= 0) ::close(err_);
+    if (fd_ < 0) return {};
+    std::string raw(64 << 10, '\0');  // the first 64 KiB say what went wrong
+    const ssize_t n = ::pread(fd_, raw.data(), raw.size(), 0);
+    ::close(fd_);
+    fd_ = -1;
+    std::string said(2048, '\0');
+    said.resize(clean_reader_text(raw.data(), n > 0 ? static_cast<size_t>(n) : 0, said.data(), said.size()));
+    const size_t keep = std::min(said.size(), sizeof g_last_said);
+    std::memcpy(g_last_said, said.data(), keep);
+    g_last_said_size.store(keep);
+    return said;
   }
-  StdoutToStderr(const StdoutToStderr&) = delete;
-  StdoutToStderr& operator=(const StdoutToStderr&) = delete;
+  ~ReaderOutput() {
+    try {
+      finish();
+    } catch (...) {
+    }
+  }
+  ReaderOutput(const ReaderOutput&) = delete;
+  ReaderOutput& operator=(const ReaderOutput&) = delete;
 
  private:
-  int saved_ = -1;
+  int fd_ = -1, out_ = -1, err_ = -1;
+  bool done_ = false;
 };
+
 }  // namespace
+
+size_t clean_reader_text(const char* in, size_t n, char* out, size_t cap) noexcept {
+  // Async-signal-safe (the crash handler calls it): plain loops, no
+  // allocation. Lines are joined by "; ", ANSI escapes dropped, the
+  // asterisks OpenCASCADE frames its lines with and runs of blanks
+  // removed, " : " written ": ".
+  if (cap == 0) return 0;
+  size_t o = 0, line_start = 0;
+  const size_t room = cap - 1;
+  auto trim_line = [&] {
+    // Drop the line's trailing blanks and asterisks; an empty line is undone.
+    while (o > line_start && (out[o - 1] == ' ' || out[o - 1] == '*')) --o;
+    if (o == line_start && line_start >= 2) o = line_start - 2, line_start = o;  // remove the "; "
+  };
+  bool at_line_start = true;
+  for (size_t i = 0; i < n && o < room; ++i) {
+    unsigned char c = static_cast<unsigned char>(in[i]);
+    if (c == 0x1b) {  // ESC [ parameters final, or ESC and one byte
+      if (i + 1 < n && in[i + 1] == '[') {
+        i += 2;
+        while (i < n && !(static_cast<unsigned char>(in[i]) >= 0x40 && static_cast<unsigned char>(in[i]) <= 0x7e)) ++i;
+      } else {
+        ++i;
+      }
+      continue;
+    }
+    if (c == '\n' || c == '\r') {
+      trim_line();
+      at_line_start = true;
+      continue;
+    }
+    if (c == '\t') c = ' ';
+    if (c < 0x20 || c == 0x7f) c = '?';  // no control byte reaches a terminal
+    if (at_line_start) {
+      if (c == ' ' || c == '*') continue;
+      if (o > 0) {
+        if (o + 2 >= room) break;
+        out[o++] = ';', out[o++] = ' ';
+      }
+      line_start = o;
+      at_line_start = false;
+    }
+    if (c == ' ' && o > line_start && out[o - 1] == ' ') continue;
+    if (c == ':' && o > line_start && out[o - 1] == ' ') --o;
+    out[o++] = static_cast<char>(c);
+  }
+  if (!at_line_start) trim_line();
+  out[o] = '\0';
+  return o;
+}
+
+}  // namespace dicer::geometry
+
+namespace dicer {
+
+double cad_reader_seconds() noexcept {
+  const std::int64_t t0 = geometry::g_read_started_ns.load();
+  return t0 == 0 ? 0.0 : static_cast<double>(geometry::steady_ns() - t0) * 1e-9;
+}
+
+int cad_reader_stderr() noexcept {
+  const int fd = geometry::g_real_stderr.load();
+  return fd >= 0 ? fd : STDERR_FILENO;
+}
+
+size_t cad_reader_said(char* buf, size_t cap) noexcept {
+  if (cap == 0) return 0;
+  const int fd = geometry::g_capture_fd.load();
+  if (fd >= 0) {
+    char raw[4096];
+    const ssize_t n = ::pread(fd, raw, sizeof raw, 0);
+    return geometry::clean_reader_text(raw, n > 0 ? static_cast<size_t>(n) : 0, buf, cap);
+  }
+  const size_t n = std::min(geometry::g_last_said_size.load(), cap - 1);
+  std::memcpy(buf, geometry::g_last_said, n);
+  buf[n] = '\0';
+  return n;
+}
+
+}  // namespace dicer
+
+namespace dicer::geometry {
 
 Cad::Cad(const std::string& path) : path_(path), lock_(gmsh_mutex()) {
   const std::string ext = lower_ext(path);
@@ -121,16 +275,34 @@ Cad::Cad(const std::string& path) : path_(path), lock_(gmsh_mutex()) {
   gmsh_start();
   static int counter = 0;
   model_ = "dicer_cad_" + std::to_string(++counter);
-  gmsh_call(ErrorKind::BadInput, path + ": OpenCASCADE cannot read the CAD file", [&] {
-    gmsh::model::add(model_);
-    gmsh::vectorpair out;
-    // OpenCASCADE's STEP reader prints its complaints ("**** ERR StepFile")
-    // to standard output, where --json's document goes: onto stderr.
-    const StdoutToStderr occ_talks_to_stderr;
-    gmsh::model::occ::importShapes(path, out, /*highestDimOnly=*/false);
-    if (needs_fragment(out)) gmsh::model::occ::removeAllDuplicates();
-    gmsh::model::occ::synchronize();
-  });
+  g_last_said_size.store(0);
+  {
+    ReaderOutput talk;
+    try {
+      gmsh_call(ErrorKind::BadInput, path + ": OpenCASCADE cannot read the CAD file", [&] {
+        gmsh::model::add(model_);
+        gmsh::vectorpair out;
+        {
+          const TimedRead timed;
+          gmsh::model::occ::importShapes(path, out, /*highestDimOnly=*/false);
+        }
+        if (needs_fragment(out)) gmsh::model::occ::removeAllDuplicates();
+        gmsh::model::occ::synchronize();
+      });
+    } catch (const Error& e) {
+      // OpenCASCADE's own words say where ("Line 83: Incorrect syntax");
+      // Gmsh's ("Could not read file 'X'") only that it failed.
+      said_ = talk.finish();
+      if (said_.empty()) throw;
+      throw Error(e.kind(), path + ": OpenCASCADE cannot read the CAD file: " + said_);
+    }
+    said_ = talk.finish();
+  }
+  with_reader_said([&] { load_entities(); });
+}
+
+void Cad::load_entities() {
+  const std::string& path = path_;
   gmsh_call(ErrorKind::Geometry, path + ": reading the CAD entities", [&] {
     double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
     for (int d = 0; d <= 3; ++d) {

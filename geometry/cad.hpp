@@ -60,8 +60,26 @@ class Cad {
   // (tests check that reading a store never does it).
   static bool gmsh_initialised();
 
+  // What OpenCASCADE printed reading the file, cleaned to one line
+  // (clean_reader_text): empty for a sound file. Its complaints mean the
+  // model may be missing parts ("Unresolved Reference: Fails Count: 1").
+  const std::string& reader_said() const { return said_; }
+  // Runs fn; an Error from it gains reader_said(), as a damaged STEP file
+  // reads with parts missing and the error that follows ("no solid",
+  // "holds no curve or surface") rarely says why.
+  template <class F>
+  decltype(auto) with_reader_said(F&& fn) const {
+    try {
+      return fn();
+    } catch (const Error& e) {
+      if (said_.empty() || std::string(e.what()).find(said_) != std::string::npos) throw;
+      throw Error(e.kind(), std::string(e.what()) + " (reading " + path_ + ", OpenCASCADE reported: " + said_ + ")");
+    }
+  }
+
  private:
-  std::string path_, model_;
+  void load_entities();
+  std::string path_, model_, said_;
   std::array<std::vector<CadEntity>, 4> ents_;
   double diag_ = 0;
   std::unique_lock<std::recursive_mutex> lock_;
@@ -77,6 +95,12 @@ bool needs_fragment(const std::vector<std::pair<int, int>>& shapes);
 
 // Process-wide Gmsh start (idempotent, quiet: General.Terminal 0).
 void gmsh_start();
+
+// OpenCASCADE's output as one line of a message: ANSI escapes dropped,
+// its lines joined by "; ", the asterisks framing them and runs of blanks
+// removed, " : " as ": ", other control bytes as '?'. Writes at most cap - 1 bytes and a NUL; returns
+// the length. Async-signal-safe.
+size_t clean_reader_text(const char* in, size_t n, char* out, size_t cap) noexcept;
 
 // A number in messages: 3 significant digits.
 std::string fmt(double x);

@@ -834,10 +834,12 @@ ConformReport conform_to_geometry(FineMesh& mesh, const std::string& cad_path, c
     throw Error(ErrorKind::Usage, "geometry tolerance (--geometry-tol) " + fmt(options.tolerance) +
                                       " must be in (0, 1): a fraction of the CAD model's diagonal");
   if (options.parts > 1 && !options.share) throw Error(ErrorKind::Usage, "conform: parts > 1 without share");
-  if (options.parts <= 1) {
-    const Cad cad(cad_path);
-    return Conformer(mesh, cad, options).run();
-  }
+  auto run = [&](const Cad& cad) {
+    ConformReport r = cad.with_reader_said([&] { return Conformer(mesh, cad, options).run(); });
+    r.cad_reader_said = cad.reader_said();
+    return r;
+  };
+  if (options.parts <= 1) return run(Cad(cad_path));
   // A part that cannot load the CAD still takes part in the first
   // exchange, where every part throws (the others wait there otherwise).
   std::unique_ptr<Cad> cad;
@@ -847,7 +849,7 @@ ConformReport conform_to_geometry(FineMesh& mesh, const std::string& cad_path, c
   } catch (...) {
     early = std::current_exception();
   }
-  if (cad) return Conformer(mesh, *cad, options).run();
+  if (cad) return run(*cad);
   exchange(options, {}, early, 0);
   std::rethrow_exception(early);  // not reached: the exchange throws it
 }
@@ -860,7 +862,7 @@ void classify_on_geometry(CoarseMesh& mesh, const std::string& cad_path, const C
   // The owners as conform_to_geometry finds them, on the mesh diced once
   // (interval 1: its tables are the coarse mesh's), mapped back by file id.
   FineMesh once = FineMesh::dice(mesh, IntervalRequest{});
-  const auto owners = Conformer(once, cad, options).vertex_owners();
+  const auto owners = cad.with_reader_said([&] { return Conformer(once, cad, options).vertex_owners(); });
   const Id V = mesh.num_vertices();
   std::map<Id, Id> vertex_of_file_id;
   for (Id v = 0; v < V; ++v) vertex_of_file_id.emplace(mesh.vertex_file_id[v], v);
@@ -891,8 +893,9 @@ void classify_on_geometry(CoarseMesh& mesh, const std::string& cad_path, const C
 
 // ---------------------------------------------------------------- verify
 
-GeometryCheck check_geometry(const FineMesh& mesh, const std::string& cad_path, const std::function<void(Id, Id)>& progress) {
-  const Cad cad(cad_path);
+namespace {
+GeometryCheck check_with(const FineMesh& mesh, const Cad& cad, const std::string& cad_path,
+                         const std::function<void(Id, Id)>& progress) {
   GeometryCheck g;
   g.diagonal = cad.diagonal();
   g.tolerance = std::max(1e-9 * g.diagonal, kKernelTolerance);
@@ -1003,6 +1006,14 @@ GeometryCheck check_geometry(const FineMesh& mesh, const std::string& cad_path, 
   }
   measure_loose();
   if (progress) progress(total, total);
+  return g;
+}
+}  // namespace
+
+GeometryCheck check_geometry(const FineMesh& mesh, const std::string& cad_path, const std::function<void(Id, Id)>& progress) {
+  const Cad cad(cad_path);
+  GeometryCheck g = cad.with_reader_said([&] { return check_with(mesh, cad, cad_path, progress); });
+  g.cad_reader_said = cad.reader_said();
   return g;
 }
 

@@ -86,11 +86,10 @@ constexpr double kMaxCoarseElements = 5e6;
 constexpr double kSubdividedHexesPerCube = 20, kSubdividedQuadsPerSquare = 8;
 }  // namespace
 
-CoarseMeshReport mesh_coarse(const std::string& cad_path, const std::string& msh_path, const CoarseMeshOptions& opt) {
-  if (!(opt.size > 0) || !std::isfinite(opt.size))
-    throw Error(ErrorKind::Usage, "--size must be a positive element size");
-  AtomicOutput output(msh_path);  // a folder that cannot be written is said before Gmsh runs
-  const geometry::Cad cad(cad_path);  // checks the file, loads it as dicing will (same tags)
+namespace {
+// Everything after the CAD is read: its errors gain what OpenCASCADE said.
+CoarseMeshReport mesh_from(const geometry::Cad& cad, const std::string& cad_path, const std::string& msh_path,
+                           AtomicOutput& output, const CoarseMeshOptions& opt) {
   const int dim = opt.surface ? 2 : 3;
   if (!opt.surface && cad.entities(3).empty())
     throw Error(ErrorKind::Geometry, cad_path + ": the CAD model has no solid to fill with hexahedra (use --surface for a shell)");
@@ -208,6 +207,17 @@ CoarseMeshReport mesh_coarse(const std::string& cad_path, const std::string& msh
     throw Error(ErrorKind::Geometry, cad_path + ": Gmsh's " + rep.method + " mesh at --size " + geometry::fmt(opt.size) +
                                          " is not valid (" + why + "); try a smaller --size");
   }
+  return rep;
+}
+}  // namespace
+
+CoarseMeshReport mesh_coarse(const std::string& cad_path, const std::string& msh_path, const CoarseMeshOptions& opt) {
+  if (!(opt.size > 0) || !std::isfinite(opt.size))
+    throw Error(ErrorKind::Usage, "--size must be a positive element size");
+  AtomicOutput output(msh_path);  // a folder that cannot be written is said before Gmsh runs
+  const geometry::Cad cad(cad_path);  // checks the file, loads it as dicing will (same tags)
+  CoarseMeshReport rep = cad.with_reader_said([&] { return mesh_from(cad, cad_path, msh_path, output, opt); });
+  rep.cad_reader_said = cad.reader_said();
   output.commit();
   return rep;
 }

@@ -77,6 +77,9 @@ struct ConformReport {
   double min_scaled_jacobian = 1;      // over the elements of coarse elements with moved nodes
   Id elements_checked = 0;
   bool tags_matched = false;           // every classified vertex kept its MSH entity
+  // What OpenCASCADE reported reading the CAD file (one line; empty for a
+  // sound file): a complaint means the model may be missing parts.
+  std::string cad_reader_said;
 };
 
 // Moves the boundary of a mesh diced in this process onto the CAD file
@@ -104,6 +107,7 @@ struct GeometryCheck {
   // no CAD surface (a store diced without the CAD): their fine nodes are
   // measured against the nearest surface.
   Id unplaced_faces = 0;
+  std::string cad_reader_said;  // as ConformReport's
   bool ok() const { return max_distance <= tolerance && nodes_checked > 0; }
 };
 // OpenCASCADE's Precision::Confusion(), the distance under which its
@@ -127,6 +131,7 @@ struct CoarseMeshReport {
   std::string method;      // "transfinite" or "subdivision"
   Id vertices = 0, elements = 0, volumes = 0, surfaces = 0;
   Id interfaces_left_out = 0;  // surface mode: surfaces between two volumes, not meshed
+  std::string cad_reader_said;  // as ConformReport's
 };
 // CAD -> coarse all-hex (or all-quad) mesh with Gmsh, written as MSH 4.1
 // with a physical group per volume (blocks) and per surface (side sets) and
@@ -143,5 +148,21 @@ struct CoarseMeshReport {
 // elements on every curve of a box meshed a second time, whatever the
 // size); dicer-cad makes one call per process.
 CoarseMeshReport mesh_coarse(const std::string& cad_path, const std::string& msh_path, const CoarseMeshOptions& options);
+
+// For a crash handler (both async-signal-safe). While OpenCASCADE reads a
+// CAD file, the standard streams go to an in-memory file, as its readers
+// print their complaints there in colour and not through Gmsh; dicer's
+// messages then say them (an unreadable file's error, the reports'
+// cad_reader_said). cad_reader_stderr() is where standard error really
+// goes (STDERR_FILENO outside a read); cad_reader_said() copies what
+// OpenCASCADE said in the read under way, or else the last one, cleaned to
+// one line, into buf (NUL-terminated) and returns its length.
+int cad_reader_stderr() noexcept;
+size_t cad_reader_said(char* buf, size_t cap) noexcept;
+// How long the CAD read under way has run, in seconds (0 when none), for a
+// watchdog: OpenCASCADE's BREP reader can loop for hours on a truncated
+// file (a shape count read from a stream that had failed), and nothing
+// stops it from inside. dicer-cad ends such a read (cli/cad/with.cpp).
+double cad_reader_seconds() noexcept;
 
 }  // namespace dicer

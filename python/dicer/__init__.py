@@ -422,7 +422,8 @@ def dice(mesh, out, interval=None, sheet_intervals=None, block_intervals=None, s
 def mesh_coarse(cad, out, size, surface=False, subdivide=False):
     """CAD (STEP/BREP) -> coarse all-hex (surface=True: all-quad) MSH 4.1 mesh,
     as `dicer mesh-coarse CAD --size H -o OUT`: run in dicer-cad (Gmsh).
-    Returns the path written."""
+    Returns the path written. What OpenCASCADE reported reading a damaged
+    file comes as a DicerWarning (the model may be missing parts)."""
     cad, out = _path(cad), _path(out)
     _check_input(cad, "CAD")
     _check_output(out, "-o", [(cad, "CAD")])
@@ -432,7 +433,9 @@ def mesh_coarse(cad, out, size, surface=False, subdivide=False):
             raise UsageError("%s: %s must be True or False, not %r" % (flag, flag[2:], value))
         if value:
             args.append(flag)
-    _run_dicer_cad(args)
+    warns, notes = _run_dicer_cad(args)
+    for text in warns + notes:  # OpenCASCADE's complaints about the model among them
+        _warnings.warn(text, DicerWarning, stacklevel=2)
     return out
 
 

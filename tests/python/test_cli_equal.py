@@ -579,3 +579,32 @@ def test_batches_of_a_chunk_are_the_chunks_elements(sphere_store):
         assert np.array_equal(elems, s.chunk(k, 3).global_element_ids)
     with pytest.raises(dicer.UsageError):
         s.batches(slab_points=0)
+
+
+def test_mesh_coarse_says_what_opencascade_reported(tmp_path):
+    """OpenCASCADE's complaints about a STEP file reach Python in dicer's words:
+    a warning when the file reads with a broken entity (they were lost: mesh_coarse
+    dropped dicer-cad's warnings), the parser's line in the error when it cannot read."""
+    gmsh = pytest.importorskip("gmsh")
+    good = str(tmp_path / "box.step")
+    gmsh.initialize(readConfigFiles=False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.model.add("box")
+        gmsh.model.occ.addBox(0, 0, 0, 2, 1, 1)
+        gmsh.model.occ.synchronize()
+        gmsh.write(good)
+    finally:
+        gmsh.finalize()
+    text = open(good).read()
+    lines = text.splitlines(keepends=True)
+    at = next(i for i, ln in enumerate(lines) if "APPLICATION_PROTOCOL_DEFINITION(" in ln)
+    assert not lines[at + 1].startswith("#"), "the entity must go on on the next line"
+    (tmp_path / "syntax.step").write_text("".join(lines[:at] + lines[at + 1:]))
+    with pytest.warns(dicer.DicerWarning, match="OpenCASCADE reported problems reading it: .*Incorrect Syntax"):
+        assert dicer.mesh_coarse(tmp_path / "syntax.step", tmp_path / "s.msh", size=0.5) == str(tmp_path / "s.msh")
+    (tmp_path / "cut.step").write_text(text[: len(text) // 2])
+    with pytest.raises(dicer.BadInputError, match=r"OpenCASCADE cannot read the CAD file: .*Line \d+") as e:
+        dicer.mesh_coarse(tmp_path / "cut.step", tmp_path / "c.msh", size=0.5)
+    assert "\x1b" not in str(e.value)
+    assert not (tmp_path / "c.msh").exists()
