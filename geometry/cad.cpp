@@ -3,6 +3,7 @@
 
 #include <gmsh.h>
 
+#include <fcntl.h>
 #include <sys/mman.h>
 #include <unistd.h>
 
@@ -98,10 +99,12 @@ namespace {
 // handler of dicer-cad reads the same file (cad_reader_said), as
 // OpenCASCADE crashes on some of the files it complains about.
 std::atomic<int> g_capture_fd{-1};   // the memfd while a read runs
-std::atomic<int> g_real_stderr{-1};  // where stderr went before it
 char g_last_said[1024];              // the last read's text, for a later crash
 std::atomic<size_t> g_last_said_size{0};
-std::atomic<std::int64_t> g_read_started_ns{0};  // steady clock; 0: no read under way
+// Steady clock at the read's start; 0: no read under way; kClaimed: a
+// watchdog ended it (cad_reader_claim_overdue), and it must not return.
+std::atomic<std::int64_t> g_read_started_ns{0};
+constexpr std::int64_t kClaimed = -1;
 static_assert(std::atomic<std::int64_t>::is_always_lock_free);
 
 std::int64_t steady_ns() {
@@ -119,25 +122,29 @@ void flush_streams() {
 // fragment of an assembly that follows may take long and is not timed.
 struct TimedRead {
   TimedRead() { g_read_started_ns.store(std::max<std::int64_t>(1, steady_ns())); }
-  ~TimedRead() { g_read_started_ns.store(0); }
+  ~TimedRead() {
+    // A read the watchdog has claimed waits for the process to end, so
+    // that nothing is written after the watchdog said nothing was.
+    if (g_read_started_ns.exchange(0) == kClaimed)
+      for (;;) ::pause();
+  }
   TimedRead(const TimedRead&) = delete;
   TimedRead& operator=(const TimedRead&) = delete;
 };
 
 class ReaderOutput {
  public:
-  ReaderOutput() {
+  ReaderOutput() : raw_(64 << 10, '\0'), said_(2048, '\0') {  // allocated before the streams move
     flush_streams();
     fd_ = ::memfd_create("dicer-opencascade-output", MFD_CLOEXEC);
-    out_ = ::dup(STDOUT_FILENO);
-    err_ = ::dup(STDERR_FILENO);
+    out_ = ::fcntl(STDOUT_FILENO, F_DUPFD_CLOEXEC, 0);
+    err_ = ::fcntl(STDERR_FILENO, F_DUPFD_CLOEXEC, 0);
     if (fd_ < 0 || out_ < 0 || err_ < 0) {
       // Nothing captured; standard output still must not take OpenCASCADE's
       // lines (--json's document goes there).
       if (out_ >= 0) ::dup2(STDERR_FILENO, STDOUT_FILENO);
       return;
     }
-    g_real_stderr.store(err_);
     g_capture_fd.store(fd_);
     ::dup2(fd_, STDOUT_FILENO);
     ::dup2(fd_, STDERR_FILENO);
@@ -148,21 +155,18 @@ class ReaderOutput {
     done_ = true;
     flush_streams();
     if (out_ >= 0) ::dup2(out_, STDOUT_FILENO), ::close(out_);
-    if (err_ >= 0) ::dup2(err_, STDERR_FILENO);
+    if (err_ >= 0) ::dup2(err_, STDERR_FILENO), ::close(err_);
     g_capture_fd.store(-1);
-    g_real_stderr.store(-1);
-    if (err_ >= 0) ::close(err_);
     if (fd_ < 0) return {};
-    std::string raw(64 << 10, '\0');  // the first 64 KiB say what went wrong
-    const ssize_t n = ::pread(fd_, raw.data(), raw.size(), 0);
+    // The first 64 KiB say what went wrong; no allocation until fd_ is closed.
+    const ssize_t n = ::pread(fd_, raw_.data(), raw_.size(), 0);
     ::close(fd_);
     fd_ = -1;
-    std::string said(2048, '\0');
-    said.resize(clean_reader_text(raw.data(), n > 0 ? static_cast<size_t>(n) : 0, said.data(), said.size()));
-    const size_t keep = std::min(said.size(), sizeof g_last_said);
-    std::memcpy(g_last_said, said.data(), keep);
+    said_.resize(clean_reader_text(raw_.data(), n > 0 ? static_cast<size_t>(n) : 0, said_.data(), said_.size()));
+    const size_t keep = std::min(said_.size(), sizeof g_last_said);
+    std::memcpy(g_last_said, said_.data(), keep);
     g_last_said_size.store(keep);
-    return said;
+    return said_;
   }
   ~ReaderOutput() {
     try {
@@ -174,6 +178,7 @@ class ReaderOutput {
   ReaderOutput& operator=(const ReaderOutput&) = delete;
 
  private:
+  std::string raw_, said_;
   int fd_ = -1, out_ = -1, err_ = -1;
   bool done_ = false;
 };
@@ -234,14 +239,11 @@ size_t clean_reader_text(const char* in, size_t n, char* out, size_t cap) noexce
 
 namespace dicer {
 
-double cad_reader_seconds() noexcept {
-  const std::int64_t t0 = geometry::g_read_started_ns.load();
-  return t0 == 0 ? 0.0 : static_cast<double>(geometry::steady_ns() - t0) * 1e-9;
-}
-
-int cad_reader_stderr() noexcept {
-  const int fd = geometry::g_real_stderr.load();
-  return fd >= 0 ? fd : STDERR_FILENO;
+bool cad_reader_claim_overdue(double limit_seconds, double& seconds) noexcept {
+  std::int64_t t0 = geometry::g_read_started_ns.load();
+  if (t0 <= 0) return false;
+  seconds = static_cast<double>(geometry::steady_ns() - t0) * 1e-9;
+  return seconds > limit_seconds && geometry::g_read_started_ns.compare_exchange_strong(t0, geometry::kClaimed);
 }
 
 size_t cad_reader_said(char* buf, size_t cap) noexcept {
@@ -291,10 +293,14 @@ Cad::Cad(const std::string& path) : path_(path), lock_(gmsh_mutex()) {
       });
     } catch (const Error& e) {
       // OpenCASCADE's own words say where ("Line 83: Incorrect syntax");
-      // Gmsh's ("Could not read file 'X'") only that it failed.
+      // Gmsh's "Could not read file 'X'" only that it failed, and goes.
       said_ = talk.finish();
       if (said_.empty()) throw;
-      throw Error(e.kind(), path + ": OpenCASCADE cannot read the CAD file: " + said_);
+      const std::string context = path + ": OpenCASCADE cannot read the CAD file: ";
+      std::string gmsh = e.what();
+      if (gmsh.rfind(context, 0) == 0) gmsh.erase(0, context.size());
+      if (gmsh.rfind("Could not read file", 0) == 0) gmsh.clear();
+      throw Error(e.kind(), context + said_ + (gmsh.empty() ? "" : " (Gmsh: " + gmsh + ")"));
     }
     said_ = talk.finish();
   }

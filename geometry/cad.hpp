@@ -64,15 +64,18 @@ class Cad {
   // (clean_reader_text): empty for a sound file. Its complaints mean the
   // model may be missing parts ("Unresolved Reference: Fails Count: 1").
   const std::string& reader_said() const { return said_; }
-  // Runs fn; an Error from it gains reader_said(), as a damaged STEP file
-  // reads with parts missing and the error that follows ("no solid",
-  // "holds no curve or surface") rarely says why.
+  // Runs fn; an error about the model (Geometry, BadInput, Unsupported)
+  // gains reader_said(), as a damaged STEP file reads with parts missing
+  // and the error that follows ("no solid", "holds no curve or surface")
+  // rarely says why. Others (Io, Usage, Cancelled) are not about the file.
   template <class F>
   decltype(auto) with_reader_said(F&& fn) const {
     try {
       return fn();
     } catch (const Error& e) {
-      if (said_.empty() || std::string(e.what()).find(said_) != std::string::npos) throw;
+      const bool about_model =
+          e.kind() == ErrorKind::Geometry || e.kind() == ErrorKind::BadInput || e.kind() == ErrorKind::Unsupported;
+      if (!about_model || said_.empty() || std::string(e.what()).find(said_) != std::string::npos) throw;
       throw Error(e.kind(), std::string(e.what()) + " (reading " + path_ + ", OpenCASCADE reported: " + said_ + ")");
     }
   }

@@ -1,4 +1,5 @@
 // Linked into `dicer-cad` (the commands with Gmsh): every command runs here.
+#include <fcntl.h>
 #include <signal.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -7,6 +8,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <exception>
 #include <string>
 #include <thread>
 #include <vector>
@@ -28,6 +30,9 @@ namespace {
 constexpr int kCrashSignals[] = {SIGSEGV, SIGBUS, SIGILL, SIGFPE, SIGABRT};
 std::string g_crash[std::size(kCrashSignals)][2];  // before and after what OpenCASCADE said
 alignas(16) char g_alt_stack[1 << 16];  // the main thread's stack overflow still runs the handler (not Gmsh's threads')
+// A copy of standard error made at the start: while OpenCASCADE reads, fd 2
+// is the in-memory file that holds its complaints (geometry.hpp).
+int g_stderr = STDERR_FILENO;
 
 void say(int fd, const char* text, size_t n) {
   while (n > 0) {
@@ -43,7 +48,7 @@ extern "C" void on_crash(int sig) {
   // (held back while it reads, geometry.hpp) say what is wrong with them.
   char said[1024];
   const size_t n = cad_reader_said(said, sizeof said);
-  const int fd = cad_reader_stderr();
+  const int fd = g_stderr;
   for (size_t i = 0; i < std::size(kCrashSignals); ++i)
     if (kCrashSignals[i] == sig) {
       say(fd, g_crash[i][0].data(), g_crash[i][0].size());
@@ -86,6 +91,7 @@ std::string cad_of(const std::vector<std::string>& all) {
 }
 
 void say_crashes_as_errors(const std::vector<std::string>& args) {
+  if (const int copy = ::fcntl(STDERR_FILENO, F_DUPFD_CLOEXEC, 3); copy >= 0) g_stderr = copy;
   const std::string command = args.empty() ? "" : args[0];
   const std::string cad = cad_of(args);
   const std::string model = cad.empty() ? "the CAD model" : "the CAD model " + printable(cad);
@@ -105,6 +111,11 @@ void say_crashes_as_errors(const std::vector<std::string>& args) {
   sigemptyset(&sa.sa_mask);
   sa.sa_flags = SA_ONSTACK | SA_RESETHAND;
   for (const int s : kCrashSignals) ::sigaction(s, &sa, nullptr);
+  // libstdc++'s own terminate handler prints "terminate called after
+  // throwing an instance of ..." before it aborts (Gmsh throws a
+  // std::string from its OpenMP threads on some damaged models): a second
+  // line before dicer's. The SIGABRT handler says the crash.
+  std::set_terminate([] { std::abort(); });
 }
 
 // A CAD read that does not end: OpenCASCADE's BREP reader loops for hours
@@ -120,33 +131,39 @@ void watch_cad_reads(const std::string& command, const std::string& cad) {
   struct stat st {};
   const double bytes = ::stat(cad.c_str(), &st) == 0 ? static_cast<double>(st.st_size) : 0.0;
   double limit = 30.0 + 60.0 * bytes / (1 << 20);
+  bool from_env = false;
   if (const char* e = std::getenv("DICER_CAD_READ_SECONDS"); e && *e) {
     char* end = nullptr;
     const double v = std::strtod(e, &end);
     if (end != e && *end == '\0' && v > 0 && std::isfinite(v))
-      limit = v;
+      limit = v, from_env = true;
     else
       std::fprintf(stderr, "dicer %s: warning: DICER_CAD_READ_SECONDS=%s is not a positive number of seconds; the limit stays %.0f s\n",
                    command.c_str(), printable(e).c_str(), limit);
   }
-  std::thread([command, cad, limit, bytes] {
-    const auto poll = std::chrono::milliseconds(std::clamp<long>(std::lround(limit * 250), 10, 500));
-    for (;;) {
+  char why[160];
+  if (from_env)
+    std::snprintf(why, sizeof why, "limit %.3f s, from DICER_CAD_READ_SECONDS", limit);
+  else
+    std::snprintf(why, sizeof why, "limit %.0f s: 30 s + 60 s per MiB of its %s; DICER_CAD_READ_SECONDS sets it", limit,
+                  human_bytes(static_cast<std::uint64_t>(bytes)).c_str());
+  std::thread([command, cad, limit, why = std::string(why)] {
+    const auto poll = std::chrono::milliseconds(static_cast<long>(std::clamp(limit * 250, 10.0, 500.0)));
+    for (double s = 0;;) {
       std::this_thread::sleep_for(poll);
-      const double s = cad_reader_seconds();
-      if (s <= limit) continue;
+      // Claimed, the read never returns: nothing is committed after this.
+      if (!cad_reader_claim_overdue(limit, s)) continue;
       AtomicOutput::remove_uncommitted();
       char said[1024];
       const size_t n = cad_reader_said(said, sizeof said);
       char when[64];
-      std::snprintf(when, sizeof when, "%.3g s", s);
+      std::snprintf(when, sizeof when, "%.1f s", s);
       const std::string m =
           "dicer " + command + ": error: " + printable(cad) + ": OpenCASCADE did not finish reading the CAD file in " + when +
-          (n > 0 ? " (it reported: " + std::string(said, n) + ")" : std::string()) + ", the limit for a file of " +
-          human_bytes(static_cast<std::uint64_t>(bytes)) +
-          " (30 s + 60 s per MiB; DICER_CAD_READ_SECONDS sets it): its readers loop on some truncated or malformed "
-          "files; check that Gmsh opens it (gmsh " + printable(cad) + "). No output file was written.\n";
-      say(cad_reader_stderr(), m.data(), m.size());
+          " (" + why + ")" + (n > 0 ? "; it reported: " + std::string(said, n) : std::string()) +
+          ". Its readers loop on some truncated or malformed files; check that Gmsh opens it (gmsh " + printable(cad) +
+          "). No output file was written.\n";
+      say(g_stderr, m.data(), m.size());
       ::_exit(exit_code(ErrorKind::BadInput, 0));
     }
   }).detach();

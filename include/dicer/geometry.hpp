@@ -149,20 +149,21 @@ struct CoarseMeshReport {
 // size); dicer-cad makes one call per process.
 CoarseMeshReport mesh_coarse(const std::string& cad_path, const std::string& msh_path, const CoarseMeshOptions& options);
 
-// For a crash handler (both async-signal-safe). While OpenCASCADE reads a
-// CAD file, the standard streams go to an in-memory file, as its readers
-// print their complaints there in colour and not through Gmsh; dicer's
-// messages then say them (an unreadable file's error, the reports'
-// cad_reader_said). cad_reader_stderr() is where standard error really
-// goes (STDERR_FILENO outside a read); cad_reader_said() copies what
-// OpenCASCADE said in the read under way, or else the last one, cleaned to
-// one line, into buf (NUL-terminated) and returns its length.
-int cad_reader_stderr() noexcept;
+// For a crash handler and a watchdog (both async-signal-safe). While
+// OpenCASCADE reads a CAD file, the standard streams (fds 1 and 2) go to an
+// in-memory file, as its readers print their complaints there in colour
+// and not through Gmsh; dicer's messages then say them (an unreadable
+// file's error, the reports' cad_reader_said), so a handler must write to
+// a copy of fd 2 it made before. cad_reader_said() copies what OpenCASCADE
+// said in the read under way, or else the last one, cleaned to one line,
+// into buf (NUL-terminated) and returns its length.
 size_t cad_reader_said(char* buf, size_t cap) noexcept;
-// How long the CAD read under way has run, in seconds (0 when none), for a
-// watchdog: OpenCASCADE's BREP reader can loop for hours on a truncated
-// file (a shape count read from a stream that had failed), and nothing
-// stops it from inside. dicer-cad ends such a read (cli/cad/with.cpp).
-double cad_reader_seconds() noexcept;
+// For a watchdog: OpenCASCADE's BREP reader can loop for hours on a
+// truncated file (a shape count read from a stream that had failed), and
+// nothing stops it from inside. When a read is under way and has run more
+// than limit_seconds, claims it and returns true with its time in seconds:
+// the read then never returns (it waits for the process to end), so the
+// caller must say so and end the process (dicer-cad, cli/cad/with.cpp).
+bool cad_reader_claim_overdue(double limit_seconds, double& seconds) noexcept;
 
 }  // namespace dicer
