@@ -1,5 +1,6 @@
 // Gmsh (OpenCASCADE) behind a small batched interface.
 #include "cad.hpp"
+#include "dicer/geometry.hpp"
 
 #include <gmsh.h>
 
@@ -101,10 +102,17 @@ namespace {
 std::atomic<int> g_capture_fd{-1};   // the memfd while a read runs
 char g_last_said[1024];              // the last read's text, for a later crash
 std::atomic<size_t> g_last_said_size{0};
-// Steady clock at the read's start; 0: no read under way; kClaimed: a
-// watchdog ended it (cad_reader_claim_overdue), and it must not return.
-std::atomic<std::int64_t> g_read_started_ns{0};
+// The timed call under way (TimedCall): the steady clock at its start, 0
+// when none, kClaimed once a watchdog has ended it (cad_claim_overdue);
+// what it is, written before its start is stored and read by the watchdog
+// only after it claimed the call, which then never returns.
+std::atomic<std::int64_t> g_call_started_ns{0};
 constexpr std::int64_t kClaimed = -1;
+struct CallInWords {
+  ErrorKind kind = ErrorKind::BadInput;
+  double limit = 0;
+  std::string what, how, advice;
+} g_call;
 static_assert(std::atomic<std::int64_t>::is_always_lock_free);
 
 std::int64_t steady_ns() {
@@ -118,19 +126,33 @@ void flush_streams() {
   std::fflush(stderr);
 }
 
-// The file's read itself, timed for a watchdog (cad_reader_seconds); the
-// fragment of an assembly that follows may take long and is not timed.
-struct TimedRead {
-  TimedRead() { g_read_started_ns.store(std::max<std::int64_t>(1, steady_ns())); }
-  ~TimedRead() {
-    // A read the watchdog has claimed waits for the process to end, so
-    // that nothing is written after the watchdog said nothing was.
-    if (g_read_started_ns.exchange(0) == kClaimed)
-      for (;;) ::pause();
-  }
-  TimedRead(const TimedRead&) = delete;
-  TimedRead& operator=(const TimedRead&) = delete;
-};
+}  // namespace
+
+double time_limit(const char* variable, double computed) {
+  const char* e = std::getenv(variable);
+  if (!e || !*e) return computed;
+  char* end = nullptr;
+  const double v = std::strtod(e, &end);
+  if (end == e || *end != '\0' || !(v > 0) || !std::isfinite(v))
+    throw Error(ErrorKind::Usage, std::string(variable) + "=" + e + ": not a positive number of seconds");
+  return v;
+}
+
+TimedCall::TimedCall(ErrorKind kind, double limit, std::string what, std::string how, std::string advice) {
+  g_call.kind = kind;
+  g_call.limit = limit;
+  g_call.what = std::move(what), g_call.how = std::move(how), g_call.advice = std::move(advice);
+  g_call_started_ns.store(std::max<std::int64_t>(1, steady_ns()));
+}
+
+TimedCall::~TimedCall() {
+  // A call the watchdog has claimed waits for the process to end, so that
+  // nothing is written after the watchdog said nothing was.
+  if (g_call_started_ns.exchange(0) == kClaimed)
+    for (;;) ::pause();
+}
+
+namespace {
 
 class ReaderOutput {
  public:
@@ -239,11 +261,21 @@ size_t clean_reader_text(const char* in, size_t n, char* out, size_t cap) noexce
 
 namespace dicer {
 
-bool cad_reader_claim_overdue(double limit_seconds, double& seconds) noexcept {
-  std::int64_t t0 = geometry::g_read_started_ns.load();
+bool cad_claim_overdue(std::string& message, ErrorKind& kind) {
+  std::int64_t t0 = geometry::g_call_started_ns.load();
   if (t0 <= 0) return false;
-  seconds = static_cast<double>(geometry::steady_ns() - t0) * 1e-9;
-  return seconds > limit_seconds && geometry::g_read_started_ns.compare_exchange_strong(t0, geometry::kClaimed);
+  const double seconds = static_cast<double>(geometry::steady_ns() - t0) * 1e-9;
+  if (seconds <= geometry::g_call.limit || !geometry::g_call_started_ns.compare_exchange_strong(t0, geometry::kClaimed))
+    return false;
+  const auto& c = geometry::g_call;
+  char said[1024];
+  const size_t n = cad_reader_said(said, sizeof said);
+  char took[64];
+  std::snprintf(took, sizeof took, " in %.1f s", seconds);
+  message = c.what + took + " (" + c.how + ")" + (n > 0 ? "; reading it, OpenCASCADE reported: " + std::string(said, n) : "") +
+            ". " + c.advice;
+  kind = c.kind;
+  return true;
 }
 
 size_t cad_reader_said(char* buf, size_t cap) noexcept {
@@ -278,6 +310,22 @@ Cad::Cad(const std::string& path) : path_(path), lock_(gmsh_mutex()) {
   static int counter = 0;
   model_ = "dicer_cad_" + std::to_string(++counter);
   g_last_said_size.store(0);
+  // OpenCASCADE's BREP reader loops for hours on some truncated files
+  // (TopTools_ShapeSet::Read runs up to a shape count it never read, the
+  // stream having failed: a 500-byte head of a valid cylinder did, in about
+  // half the runs), and nothing stops it from inside. 30 s + 60 s per MiB:
+  // a 3.2 MiB STEP file of 800 solids read in 9 s on a busy 2-core VM
+  // (0.35 MiB/s), its BREP at 15 MiB/s.
+  std::error_code size_error;
+  const auto bytes = std::filesystem::file_size(path, size_error);
+  const double mib = size_error ? 0.0 : static_cast<double>(bytes) / (1 << 20);
+  const double computed = 30.0 + 60.0 * mib;
+  const double limit = time_limit("DICER_CAD_READ_SECONDS", computed);
+  char how[160];
+  if (const char* e = std::getenv("DICER_CAD_READ_SECONDS"); e && *e)
+    std::snprintf(how, sizeof how, "limit %.3g s, from DICER_CAD_READ_SECONDS", limit);
+  else
+    std::snprintf(how, sizeof how, "limit %.0f s: 30 s + 60 s per MiB of its %.3g MiB; DICER_CAD_READ_SECONDS sets it", limit, mib);
   {
     ReaderOutput talk;
     try {
@@ -285,7 +333,9 @@ Cad::Cad(const std::string& path) : path_(path), lock_(gmsh_mutex()) {
         gmsh::model::add(model_);
         gmsh::vectorpair out;
         {
-          const TimedRead timed;
+          const TimedCall timed(ErrorKind::BadInput, limit, path + ": OpenCASCADE did not finish reading the CAD file", how,
+                                "Its readers loop on some truncated or malformed files; check that Gmsh opens it (gmsh " +
+                                    path + ")");
           gmsh::model::occ::importShapes(path, out, /*highestDimOnly=*/false);
         }
         if (needs_fragment(out)) gmsh::model::occ::removeAllDuplicates();

@@ -9,6 +9,7 @@
 // STEP assembly whose solids repeat their shared faces becomes conformal
 // (entity tags change; owners are matched geometrically, never by tag alone).
 #include <array>
+#include <cstdlib>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -104,6 +105,23 @@ void gmsh_start();
 // removed, " : " as ": ", other control bytes as '?'. Writes at most cap - 1 bytes and a NUL; returns
 // the length. Async-signal-safe.
 size_t clean_reader_text(const char* in, size_t n, char* out, size_t cap) noexcept;
+
+// A Gmsh or OpenCASCADE call that may run for ever on a damaged model,
+// for dicer-cad's watchdog (cad_claim_overdue, geometry.hpp): set up before
+// the call, with its limit in seconds and its words ("X: OpenCASCADE did
+// not finish reading the CAD file", how the limit was set, what to do).
+// One at a time, in the thread that calls Gmsh. If the watchdog claims it,
+// the destructor never returns (the watchdog ends the process).
+class TimedCall {
+ public:
+  TimedCall(ErrorKind kind, double limit, std::string what, std::string how, std::string advice);
+  ~TimedCall();
+  TimedCall(const TimedCall&) = delete;
+  TimedCall& operator=(const TimedCall&) = delete;
+};
+// The value of the environment variable (seconds) when set, else computed;
+// Error{Usage} for a value that is not a positive number.
+double time_limit(const char* variable, double computed);
 
 // A number in messages: 3 significant digits.
 std::string fmt(double x);

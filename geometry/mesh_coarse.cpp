@@ -131,6 +131,23 @@ CoarseMeshReport mesh_from(const geometry::Cad& cad, const std::string& cad_path
                                       "), more than " + geometry::fmt(kMaxCoarseElements) +
                                       ": a coarse mesh is meant to be small; give a larger --size and refine "
                                       "with dice --interval");
+  // Gmsh's meshing of a damaged model may not end (a cylinder whose STEP
+  // file lost one edge ran for minutes in its Delaunay): 60 s + 1 ms per
+  // expected element (Gmsh made 1.24e6 hexes in 61 s on a 2-core VM,
+  // 0.05 ms each, and estimates run to about 2x the count).
+  const double mesh_limit = geometry::time_limit("DICER_CAD_MESH_SECONDS", 60.0 + 1e-3 * estimate);
+  char how[200];
+  if (const char* e = std::getenv("DICER_CAD_MESH_SECONDS"); e && *e)
+    std::snprintf(how, sizeof how, "limit %.3g s, from DICER_CAD_MESH_SECONDS", mesh_limit);
+  else
+    std::snprintf(how, sizeof how, "limit %.0f s: 60 s + 1 ms per expected element, about %.3g here; DICER_CAD_MESH_SECONDS sets it",
+                  mesh_limit, estimate);
+  const auto generate = [&] {
+    const geometry::TimedCall timed(ErrorKind::Geometry, mesh_limit,
+                                    cad_path + ": Gmsh did not finish meshing the model at --size " + geometry::fmt(opt.size),
+                                    how, "Gmsh loops on some damaged models; check the model in Gmsh, or try another --size");
+    gmsh::model::mesh::generate(dim);
+  };
   // Gmsh needs the .msh extension to write MSH; the file is moved onto the
   // output's temporary once written.
   const std::string scratch = output.temp_path() + ".msh";
@@ -147,7 +164,7 @@ CoarseMeshReport mesh_from(const geometry::Cad& cad, const std::string& cad_path
       gmsh::model::mesh::setTransfiniteAutomatic({}, 2.35, true);
       gmsh::option::setNumber("Mesh.RecombineAll", 1);
       gmsh::option::setNumber("Mesh.SubdivisionAlgorithm", 0);
-      gmsh::model::mesh::generate(dim);
+      generate();
       rep.method = "transfinite";
     } else {
       // Triangles / tetrahedra, each split into quads / hexes. (Gmsh 4.8's
@@ -155,7 +172,7 @@ CoarseMeshReport mesh_from(const geometry::Cad& cad, const std::string& cad_path
       gmsh::option::setNumber("Mesh.RecombineAll", opt.surface ? 1 : 0);
       gmsh::option::setNumber("Mesh.Algorithm", 6);
       gmsh::option::setNumber("Mesh.SubdivisionAlgorithm", opt.surface ? 1 : 2);  // all quads / all hexes
-      gmsh::model::mesh::generate(dim);
+      generate();
       rep.method = "subdivision";
     }
     if (!(opt.surface ? only(2, 3) : (only(3, 5) && only(2, 3))))

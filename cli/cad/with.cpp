@@ -1,11 +1,9 @@
 // Linked into `dicer-cad` (the commands with Gmsh): every command runs here.
 #include <fcntl.h>
 #include <signal.h>
-#include <sys/stat.h>
 #include <unistd.h>
 
 #include <chrono>
-#include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <exception>
@@ -118,53 +116,28 @@ void say_crashes_as_errors(const std::vector<std::string>& args) {
   std::set_terminate([] { std::abort(); });
 }
 
-// A CAD read that does not end: OpenCASCADE's BREP reader loops for hours
-// on some truncated files (TopTools_ShapeSet::Read runs up to a shape count
-// it never read, the stream having failed: a 500-byte head of a valid
-// cylinder did, in about half the runs), and nothing stops it from inside.
-// A watchdog thread gives each read 30 s + 60 s per MiB of the file (a
-// 3.2 MiB STEP file of 800 solids read in 9 s on a busy 2-core VM, 0.35
-// MiB/s, its BREP at 15 MiB/s), then says so as an error on the file (exit
-// 3), the temporaries gone. DICER_CAD_READ_SECONDS sets the limit.
-void watch_cad_reads(const std::string& command, const std::string& cad) {
-  if (cad.empty()) return;
-  struct stat st {};
-  const double bytes = ::stat(cad.c_str(), &st) == 0 ? static_cast<double>(st.st_size) : 0.0;
-  double limit = 30.0 + 60.0 * bytes / (1 << 20);
-  bool from_env = false;
-  if (const char* e = std::getenv("DICER_CAD_READ_SECONDS"); e && *e) {
-    char* end = nullptr;
-    const double v = std::strtod(e, &end);
-    if (end != e && *end == '\0' && v > 0 && std::isfinite(v))
-      limit = v, from_env = true;
-    else
-      std::fprintf(stderr, "dicer %s: warning: DICER_CAD_READ_SECONDS=%s is not a positive number of seconds; the limit stays %.0f s\n",
-                   command.c_str(), printable(e).c_str(), limit);
-  }
-  char why[160];
-  if (from_env)
-    std::snprintf(why, sizeof why, "limit %.3f s, from DICER_CAD_READ_SECONDS", limit);
-  else
-    std::snprintf(why, sizeof why, "limit %.0f s: 30 s + 60 s per MiB of its %s; DICER_CAD_READ_SECONDS sets it", limit,
-                  human_bytes(static_cast<std::uint64_t>(bytes)).c_str());
-  std::thread([command, cad, limit, why = std::string(why)] {
-    const auto poll = std::chrono::milliseconds(static_cast<long>(std::clamp(limit * 250, 10.0, 500.0)));
-    for (double s = 0;;) {
-      std::this_thread::sleep_for(poll);
-      // Claimed, the read never returns: nothing is committed after this.
-      if (!cad_reader_claim_overdue(limit, s)) continue;
+// Gmsh and OpenCASCADE calls that do not end (OpenCASCADE's BREP reader on
+// some truncated files, Gmsh's meshing of some damaged models) cannot be
+// stopped from inside: the library times them (geometry.hpp,
+// cad_claim_overdue) and this thread ends the process when one runs past
+// its limit, with one error naming the file (exit 3 for a read, 7 for
+// meshing), the temporaries gone.
+void watch_cad_calls(const std::string& command) {
+  std::thread([command] {
+    for (;;) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      std::string message;
+      ErrorKind kind{};
+      try {
+        if (!cad_claim_overdue(message, kind)) continue;
+      } catch (...) {  // out of memory for the words: the exit code still says it
+        message = "a Gmsh or OpenCASCADE call ran past its time limit";
+        kind = ErrorKind::Geometry;
+      }
       AtomicOutput::remove_uncommitted();
-      char said[1024];
-      const size_t n = cad_reader_said(said, sizeof said);
-      char when[64];
-      std::snprintf(when, sizeof when, "%.1f s", s);
-      const std::string m =
-          "dicer " + command + ": error: " + printable(cad) + ": OpenCASCADE did not finish reading the CAD file in " + when +
-          " (" + why + ")" + (n > 0 ? "; it reported: " + std::string(said, n) : std::string()) +
-          ". Its readers loop on some truncated or malformed files; check that Gmsh opens it (gmsh " + printable(cad) +
-          "). No output file was written.\n";
+      const std::string m = "dicer " + command + ": error: " + printable(message) + ". No output file was written.\n";
       say(g_stderr, m.data(), m.size());
-      ::_exit(exit_code(ErrorKind::BadInput, 0));
+      ::_exit(exit_code(kind, 0));
     }
   }).detach();
 }
@@ -176,7 +149,7 @@ void watch_cad_reads(const std::string& command, const std::string& cad) {
 void hand_over_if_cad(char**, const std::vector<std::string>& args) {
   ::unsetenv("DICER_CAD_HANDED_OVER");
   say_crashes_as_errors(args);
-  if (!args.empty()) watch_cad_reads(args[0], cad_of(args));
+  if (!cad_of(args).empty()) watch_cad_calls(args[0]);
 }
 
 }  // namespace dicer::cli

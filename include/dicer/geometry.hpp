@@ -45,6 +45,7 @@
 #include <string>
 #include <vector>
 
+#include "dicer/error.hpp"
 #include "dicer/fine_mesh.hpp"
 
 namespace dicer {
@@ -158,12 +159,18 @@ CoarseMeshReport mesh_coarse(const std::string& cad_path, const std::string& msh
 // said in the read under way, or else the last one, cleaned to one line,
 // into buf (NUL-terminated) and returns its length.
 size_t cad_reader_said(char* buf, size_t cap) noexcept;
-// For a watchdog: OpenCASCADE's BREP reader can loop for hours on a
-// truncated file (a shape count read from a stream that had failed), and
-// nothing stops it from inside. When a read is under way and has run more
-// than limit_seconds, claims it and returns true with its time in seconds:
-// the read then never returns (it waits for the process to end), so the
-// caller must say so and end the process (dicer-cad, cli/cad/with.cpp).
-bool cad_reader_claim_overdue(double limit_seconds, double& seconds) noexcept;
+// For a watchdog. Gmsh and OpenCASCADE calls that can run for ever on a
+// damaged model are timed, and nothing stops them from inside:
+// OpenCASCADE's BREP reader looped for hours on truncated files, Gmsh's
+// meshing of a cylinder whose STEP file lost one edge did not end. A CAD
+// file's read gets 30 s + 60 s per MiB of the file (DICER_CAD_READ_SECONDS
+// sets it), mesh_coarse's meshing 60 s + 1 ms per coarse element it expects
+// (DICER_CAD_MESH_SECONDS). When the call under way has run past its limit,
+// claims it and returns true with the error in words (naming the file, the
+// time, the limit, what OpenCASCADE reported) and its kind (BadInput for a
+// read, Geometry for meshing): the call then never returns (it waits for
+// the process to end), so the caller must say so and end the process
+// (dicer-cad's watchdog thread, cli/cad/with.cpp). Thread-safe.
+bool cad_claim_overdue(std::string& message, ErrorKind& kind);
 
 }  // namespace dicer
