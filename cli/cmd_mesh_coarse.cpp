@@ -25,7 +25,10 @@ volume 6-sided (a box, a swept block); otherwise it meshes with tetrahedra
 (triangles) and subdivides each into hexahedra (quads): valid, all-hex,
 but with more and less regular elements. With --surface, a surface between
 two volumes is left out: the mesh is the model's skin. Runs in dicer-cad
-(with Gmsh).
+(with Gmsh). Gmsh loops on some damaged models: the meshing ends as an error
+(exit 7) after 300 s + 1 ms per expected element of CPU time
+(DICER_CAD_MESH_SECONDS=S sets it), the read of CAD after 30 s + 60 s per
+MiB (DICER_CAD_READ_SECONDS=S; exit 3).
 )",
     R"(dicer mesh-coarse part.step --size 4 -o coarse.msh
 dicer dice coarse.msh --geometry part.step --interval 10 -o part.dice.h5

@@ -67,9 +67,9 @@ Commands (in the order you use them):
 mesh-coarse and --geometry run dicer-cad (the same commands built with Gmsh),
 installed beside dicer; DICER_CAD=PATH overrides where it is found. A CAD
 file's read ends as an error after 30 s + 60 s per MiB of the file, and
-mesh-coarse's meshing after 60 s + 1 ms per expected element (OpenCASCADE and
-Gmsh loop on some damaged files); DICER_CAD_READ_SECONDS=S and
-DICER_CAD_MESH_SECONDS=S set them.
+mesh-coarse's meshing after 300 s + 1 ms per expected element, of CPU time
+(OpenCASCADE and Gmsh loop on some damaged files); DICER_CAD_READ_SECONDS=S
+and DICER_CAD_MESH_SECONDS=S set them.
 
 MESH is an Exodus II file (.e .exo .ex2 .g) or a Gmsh MSH 2.2/4.1 file
 (ASCII or binary) holding hexahedra (volume dicing) or quadrilaterals

@@ -6,11 +6,11 @@
 
 #include <fcntl.h>
 #include <sys/mman.h>
+#include <time.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
-#include <chrono>
 #include <cstdio>
 #include <cstring>
 #include <iostream>
@@ -102,21 +102,26 @@ namespace {
 std::atomic<int> g_capture_fd{-1};   // the memfd while a read runs
 char g_last_said[1024];              // the last read's text, for a later crash
 std::atomic<size_t> g_last_said_size{0};
-// The timed call under way (TimedCall): the steady clock at its start, 0
-// when none, kClaimed once a watchdog has ended it (cad_claim_overdue);
-// what it is, written before its start is stored and read by the watchdog
-// only after it claimed the call, which then never returns.
+// The timed call under way (TimedCall): the process's CPU time at its
+// start, 0 when none, kClaimed once a watchdog has ended it
+// (cad_claim_overdue); its limit; what it is, written before its start is
+// stored and read by the watchdog only after it claimed the call, which
+// then never returns. CPU time, not wall time: a call that loops spends
+// it, while a process stopped (Ctrl-Z) or starved on a busy machine does
+// not, and is not taken for one that loops.
 std::atomic<std::int64_t> g_call_started_ns{0};
+std::atomic<double> g_call_limit{0};
 constexpr std::int64_t kClaimed = -1;
 struct CallInWords {
   ErrorKind kind = ErrorKind::BadInput;
-  double limit = 0;
   std::string what, how, advice;
 } g_call;
 static_assert(std::atomic<std::int64_t>::is_always_lock_free);
 
-std::int64_t steady_ns() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch()).count();
+std::int64_t cpu_ns() {
+  timespec t{};
+  ::clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return static_cast<std::int64_t>(t.tv_sec) * 1000000000 + t.tv_nsec;
 }
 
 void flush_streams() {
@@ -127,6 +132,20 @@ void flush_streams() {
 }
 
 }  // namespace
+
+std::string seconds_text(double s) {
+  char b[48];
+  std::snprintf(b, sizeof b, s >= 10 ? "%.0f s" : "%.3g s", s);
+  return b;
+}
+
+std::string bytes_text(std::uintmax_t n) {
+  char b[48];
+  if (n < 1024) std::snprintf(b, sizeof b, "%ju B", n);
+  else if (n < (1u << 20)) std::snprintf(b, sizeof b, "%.1f KiB", static_cast<double>(n) / 1024);
+  else std::snprintf(b, sizeof b, "%.1f MiB", static_cast<double>(n) / (1 << 20));
+  return b;
+}
 
 double time_limit(const char* variable, double computed) {
   const char* e = std::getenv(variable);
@@ -139,10 +158,11 @@ double time_limit(const char* variable, double computed) {
 }
 
 TimedCall::TimedCall(ErrorKind kind, double limit, std::string what, std::string how, std::string advice) {
+  DICER_ASSERT(g_call_started_ns.load() == 0, "one timed Gmsh call at a time");
   g_call.kind = kind;
-  g_call.limit = limit;
   g_call.what = std::move(what), g_call.how = std::move(how), g_call.advice = std::move(advice);
-  g_call_started_ns.store(std::max<std::int64_t>(1, steady_ns()));
+  g_call_limit.store(limit);
+  g_call_started_ns.store(std::max<std::int64_t>(1, cpu_ns()));
 }
 
 TimedCall::~TimedCall() {
@@ -264,17 +284,17 @@ namespace dicer {
 bool cad_claim_overdue(std::string& message, ErrorKind& kind) {
   std::int64_t t0 = geometry::g_call_started_ns.load();
   if (t0 <= 0) return false;
-  const double seconds = static_cast<double>(geometry::steady_ns() - t0) * 1e-9;
-  if (seconds <= geometry::g_call.limit || !geometry::g_call_started_ns.compare_exchange_strong(t0, geometry::kClaimed))
+  const double seconds = static_cast<double>(geometry::cpu_ns() - t0) * 1e-9;
+  if (seconds <= geometry::g_call_limit.load() || !geometry::g_call_started_ns.compare_exchange_strong(t0, geometry::kClaimed))
     return false;
   const auto& c = geometry::g_call;
+  kind = c.kind;  // before anything that allocates
   char said[1024];
   const size_t n = cad_reader_said(said, sizeof said);
   char took[64];
-  std::snprintf(took, sizeof took, " in %.1f s", seconds);
+  std::snprintf(took, sizeof took, " in %.1f s of CPU time", seconds);
   message = c.what + took + " (" + c.how + ")" + (n > 0 ? "; reading it, OpenCASCADE reported: " + std::string(said, n) : "") +
             ". " + c.advice;
-  kind = c.kind;
   return true;
 }
 
@@ -319,13 +339,11 @@ Cad::Cad(const std::string& path) : path_(path), lock_(gmsh_mutex()) {
   std::error_code size_error;
   const auto bytes = std::filesystem::file_size(path, size_error);
   const double mib = size_error ? 0.0 : static_cast<double>(bytes) / (1 << 20);
-  const double computed = 30.0 + 60.0 * mib;
-  const double limit = time_limit("DICER_CAD_READ_SECONDS", computed);
-  char how[160];
-  if (const char* e = std::getenv("DICER_CAD_READ_SECONDS"); e && *e)
-    std::snprintf(how, sizeof how, "limit %.3g s, from DICER_CAD_READ_SECONDS", limit);
-  else
-    std::snprintf(how, sizeof how, "limit %.0f s: 30 s + 60 s per MiB of its %.3g MiB; DICER_CAD_READ_SECONDS sets it", limit, mib);
+  const double limit = time_limit("DICER_CAD_READ_SECONDS", 30.0 + 60.0 * mib);
+  const std::string how = std::getenv("DICER_CAD_READ_SECONDS") && *std::getenv("DICER_CAD_READ_SECONDS")
+                              ? "limit " + seconds_text(limit) + ", from DICER_CAD_READ_SECONDS"
+                              : "limit " + seconds_text(limit) + ": 30 s + 60 s per MiB of its " +
+                                    bytes_text(size_error ? 0 : bytes) + "; DICER_CAD_READ_SECONDS sets it";
   {
     ReaderOutput talk;
     try {

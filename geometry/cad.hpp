@@ -110,8 +110,9 @@ size_t clean_reader_text(const char* in, size_t n, char* out, size_t cap) noexce
 // for dicer-cad's watchdog (cad_claim_overdue, geometry.hpp): set up before
 // the call, with its limit in seconds and its words ("X: OpenCASCADE did
 // not finish reading the CAD file", how the limit was set, what to do).
-// One at a time, in the thread that calls Gmsh. If the watchdog claims it,
-// the destructor never returns (the watchdog ends the process).
+// One at a time, in the thread that calls Gmsh. Timed in the process's CPU
+// time. If the watchdog claims it, the destructor never returns (the
+// watchdog ends the process).
 class TimedCall {
  public:
   TimedCall(ErrorKind kind, double limit, std::string what, std::string how, std::string advice);
@@ -122,6 +123,8 @@ class TimedCall {
 // The value of the environment variable (seconds) when set, else computed;
 // Error{Usage} for a value that is not a positive number.
 double time_limit(const char* variable, double computed);
+std::string seconds_text(double s);       // "7200 s", "2.5 s"
+std::string bytes_text(std::uintmax_t n);  // "700 B", "3.2 KiB", "3.2 MiB"
 
 // A number in messages: 3 significant digits.
 std::string fmt(double x);

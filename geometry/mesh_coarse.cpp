@@ -132,16 +132,17 @@ CoarseMeshReport mesh_from(const geometry::Cad& cad, const std::string& cad_path
                                       ": a coarse mesh is meant to be small; give a larger --size and refine "
                                       "with dice --interval");
   // Gmsh's meshing of a damaged model may not end (a cylinder whose STEP
-  // file lost one edge ran for minutes in its Delaunay): 60 s + 1 ms per
-  // expected element (Gmsh made 1.24e6 hexes in 61 s on a 2-core VM,
-  // 0.05 ms each, and estimates run to about 2x the count).
-  const double mesh_limit = geometry::time_limit("DICER_CAD_MESH_SECONDS", 60.0 + 1e-3 * estimate);
-  char how[200];
+  // file lost one edge ran for minutes in its Delaunay): 300 s + 1 ms of
+  // CPU time per expected element (Gmsh made 1.24e6 hexes in 61 s on a
+  // 2-core VM, 0.05 ms each). The floor is large because the estimate
+  // comes from the volume: a thin plate makes far more elements than its
+  // volume says.
+  const double mesh_limit = geometry::time_limit("DICER_CAD_MESH_SECONDS", 300.0 + 1e-3 * estimate);
+  std::string how = "limit " + geometry::seconds_text(mesh_limit);
   if (const char* e = std::getenv("DICER_CAD_MESH_SECONDS"); e && *e)
-    std::snprintf(how, sizeof how, "limit %.3g s, from DICER_CAD_MESH_SECONDS", mesh_limit);
+    how += ", from DICER_CAD_MESH_SECONDS";
   else
-    std::snprintf(how, sizeof how, "limit %.0f s: 60 s + 1 ms per expected element, about %.3g here; DICER_CAD_MESH_SECONDS sets it",
-                  mesh_limit, estimate);
+    how += ": 300 s + 1 ms per expected element, about " + geometry::fmt(estimate) + " here; DICER_CAD_MESH_SECONDS sets it";
   const auto generate = [&] {
     const geometry::TimedCall timed(ErrorKind::Geometry, mesh_limit,
                                     cad_path + ": Gmsh did not finish meshing the model at --size " + geometry::fmt(opt.size),

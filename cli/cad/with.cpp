@@ -127,12 +127,11 @@ void watch_cad_calls(const std::string& command) {
     for (;;) {
       std::this_thread::sleep_for(std::chrono::milliseconds(100));
       std::string message;
-      ErrorKind kind{};
+      ErrorKind kind = ErrorKind::Geometry;  // set by a claim before it allocates
       try {
         if (!cad_claim_overdue(message, kind)) continue;
       } catch (...) {  // out of memory for the words: the exit code still says it
         message = "a Gmsh or OpenCASCADE call ran past its time limit";
-        kind = ErrorKind::Geometry;
       }
       AtomicOutput::remove_uncommitted();
       const std::string m = "dicer " + command + ": error: " + printable(message) + ". No output file was written.\n";
