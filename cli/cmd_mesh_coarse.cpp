@@ -59,6 +59,9 @@ int cmd_mesh_coarse(const std::vector<std::string>& argv) {
         throw Error(ErrorKind::Usage, "-o " + out + ": mesh-coarse writes Gmsh MSH 4.1, and a " + ext +
                                           " name says another format; give a .msh name");
   }
+  // Past a file size limit the write fails (EFBIG) instead of SIGXFSZ
+  // killing dicer-cad with its temporary left behind.
+  ignore_file_size_signal();
   CoarseMeshOptions opt;
   opt.size = parse_double("--size", size);
   opt.surface = surface;

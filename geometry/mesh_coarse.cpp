@@ -1,6 +1,7 @@
 // CAD -> coarse all-hex (or all-quad) mesh with Gmsh: transfinite where the
 // CAD allows, Gmsh's all-hex subdivision otherwise.
 #include <gmsh.h>
+#include <sys/resource.h>
 
 #include <algorithm>
 #include <cmath>
@@ -197,6 +198,15 @@ CoarseMeshReport mesh_from(const geometry::Cad& cad, const std::string& cad_path
     gmsh::option::setNumber("Mesh.Binary", 0);
     gmsh::option::setNumber("Mesh.SaveAll", 0);
     gmsh::write(scratch);
+    // Gmsh does not check its writes: past the file size limit (ulimit -f,
+    // with SIGXFSZ ignored) the file is cut short without a word, and dicer's
+    // reader then blamed the mesh.
+    struct rlimit fsize {};
+    std::error_code ec;
+    const auto written = std::filesystem::file_size(scratch, ec);
+    if (!ec && ::getrlimit(RLIMIT_FSIZE, &fsize) == 0 && fsize.rlim_cur != RLIM_INFINITY && written >= fsize.rlim_cur)
+      throw Error(ErrorKind::Io, msh_path + ": cannot write the coarse mesh: it reached the file size limit (ulimit -f) of " +
+                                     std::to_string(static_cast<unsigned long long>(fsize.rlim_cur)) + " bytes");
   });
   } catch (...) {
     std::error_code ec;

@@ -1162,6 +1162,26 @@ TEST(MeshCoarse, MeshingThatDoesNotEndIsEndedByTheWatchdog) {
   }
 }
 
+// Under a file size limit SIGXFSZ killed dicer-cad (exit 153) with its
+// temporary left, and once ignored, Gmsh's unchecked write would cut the
+// file short for the reader to blame the mesh. Now: exit 5, one line
+// naming the output and the limit, nothing left.
+TEST(MeshCoarse, FileSizeLimitIsAnIoErrorAndLeavesNothing) {
+  TempDir tmp;
+  const std::string cad = tmp.path("box.step"), out = tmp.path("out.msh");
+  make_cad(cad, [] { gmsh::model::occ::addBox(0, 0, 0, 1, 1, 1); });
+  const test::CliResult r = test::run_process(
+      {"/bin/sh", "-c", "ulimit -f 2 && exec \"$0\" mesh-coarse \"$1\" --size 0.2 -o \"$2\"", DICER_CLI, cad, out});
+  EXPECT_EQ(r.exit_code, 5) << r.err;
+  // (dash counts ulimit -f in 512-byte blocks, bash in 1024.)
+  EXPECT_NE(r.err.find("dicer mesh-coarse: error: " + out + ": cannot write the coarse mesh: it reached the file size limit (ulimit -f) of "),
+            std::string::npos) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  std::vector<std::string> left;
+  for (const auto& e : std::filesystem::directory_iterator(tmp.path(""))) left.push_back(e.path().filename().string());
+  EXPECT_EQ(left, std::vector<std::string>{"box.step"});
+}
+
 TEST(MeshCoarse, ReaderTextIsOneCleanLine) {
   auto clean = [](const std::string& in, size_t cap = 256) {
     std::string out(cap, '?');
