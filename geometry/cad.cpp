@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <iostream>
 #include <cmath>
@@ -139,22 +140,15 @@ std::string seconds_text(double s) {
   return b;
 }
 
-std::string bytes_text(std::uintmax_t n) {
-  char b[48];
-  if (n < 1024) std::snprintf(b, sizeof b, "%ju B", n);
-  else if (n < (1u << 20)) std::snprintf(b, sizeof b, "%.1f KiB", static_cast<double>(n) / 1024);
-  else std::snprintf(b, sizeof b, "%.1f MiB", static_cast<double>(n) / (1 << 20));
-  return b;
-}
-
-double time_limit(const char* variable, double computed) {
+TimeLimit time_limit(const char* variable, double computed, const std::string& formula) {
   const char* e = std::getenv(variable);
-  if (!e || !*e) return computed;
+  if (!e || !*e)
+    return {computed, "limit " + seconds_text(computed) + ": " + formula + "; " + variable + " sets it"};
   char* end = nullptr;
   const double v = std::strtod(e, &end);
   if (end == e || *end != '\0' || !(v > 0) || !std::isfinite(v))
     throw Error(ErrorKind::Usage, std::string(variable) + "=" + e + ": not a positive number of seconds");
-  return v;
+  return {v, "limit " + seconds_text(v) + ", from " + variable};
 }
 
 TimedCall::TimedCall(ErrorKind kind, double limit, std::string what, std::string how, std::string advice) {
@@ -235,10 +229,8 @@ size_t clean_reader_text(const char* in, size_t n, char* out, size_t cap) noexce
   if (cap == 0) return 0;
   size_t o = 0, line_start = 0;
   const size_t room = cap - 1;
-  auto trim_line = [&] {
-    // Drop the line's trailing blanks and asterisks; an empty line is undone.
+  auto trim_line = [&] {  // a line starts with neither, so it never empties
     while (o > line_start && (out[o - 1] == ' ' || out[o - 1] == '*')) --o;
-    if (o == line_start && line_start >= 2) o = line_start - 2, line_start = o;  // remove the "; "
   };
   bool at_line_start = true;
   for (size_t i = 0; i < n && o < room; ++i) {
@@ -339,11 +331,7 @@ Cad::Cad(const std::string& path) : path_(path), lock_(gmsh_mutex()) {
   std::error_code size_error;
   const auto bytes = std::filesystem::file_size(path, size_error);
   const double mib = size_error ? 0.0 : static_cast<double>(bytes) / (1 << 20);
-  const double limit = time_limit("DICER_CAD_READ_SECONDS", 30.0 + 60.0 * mib);
-  const std::string how = std::getenv("DICER_CAD_READ_SECONDS") && *std::getenv("DICER_CAD_READ_SECONDS")
-                              ? "limit " + seconds_text(limit) + ", from DICER_CAD_READ_SECONDS"
-                              : "limit " + seconds_text(limit) + ": 30 s + 60 s per MiB of its " +
-                                    bytes_text(size_error ? 0 : bytes) + "; DICER_CAD_READ_SECONDS sets it";
+  const TimeLimit limit = time_limit("DICER_CAD_READ_SECONDS", 30.0 + 60.0 * mib, "30 s + 60 s per MiB of the file");
   {
     ReaderOutput talk;
     try {
@@ -351,7 +339,7 @@ Cad::Cad(const std::string& path) : path_(path), lock_(gmsh_mutex()) {
         gmsh::model::add(model_);
         gmsh::vectorpair out;
         {
-          const TimedCall timed(ErrorKind::BadInput, limit, path + ": OpenCASCADE did not finish reading the CAD file", how,
+          const TimedCall timed(ErrorKind::BadInput, limit.seconds, path + ": OpenCASCADE did not finish reading the CAD file", limit.how,
                                 "Its readers loop on some truncated or malformed files; check that Gmsh opens it (gmsh " +
                                     path + ")");
           gmsh::model::occ::importShapes(path, out, /*highestDimOnly=*/false);

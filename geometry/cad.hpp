@@ -9,7 +9,6 @@
 // STEP assembly whose solids repeat their shared faces becomes conformal
 // (entity tags change; owners are matched geometrically, never by tag alone).
 #include <array>
-#include <cstdlib>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -120,11 +119,17 @@ class TimedCall {
   TimedCall(const TimedCall&) = delete;
   TimedCall& operator=(const TimedCall&) = delete;
 };
-// The value of the environment variable (seconds) when set, else computed;
-// Error{Usage} for a value that is not a positive number.
-double time_limit(const char* variable, double computed);
-std::string seconds_text(double s);       // "7200 s", "2.5 s"
-std::string bytes_text(std::uintmax_t n);  // "700 B", "3.2 KiB", "3.2 MiB"
+// A TimedCall's limit: the environment variable's value (seconds) when
+// set, else computed by formula; how says which, for the message ("limit
+// 30 s: 30 s + 60 s per MiB of the file; DICER_CAD_READ_SECONDS sets it",
+// "limit 2 s, from DICER_CAD_MESH_SECONDS"). Error{Usage} for a value that
+// is not a positive number.
+struct TimeLimit {
+  double seconds;
+  std::string how;
+};
+TimeLimit time_limit(const char* variable, double computed, const std::string& formula);
+std::string seconds_text(double s);  // "7200 s", "2.5 s"
 
 // A number in messages: 3 significant digits.
 std::string fmt(double x);

@@ -138,16 +138,13 @@ CoarseMeshReport mesh_from(const geometry::Cad& cad, const std::string& cad_path
   // 2-core VM, 0.05 ms each). The floor is large because the estimate
   // comes from the volume: a thin plate makes far more elements than its
   // volume says.
-  const double mesh_limit = geometry::time_limit("DICER_CAD_MESH_SECONDS", 300.0 + 1e-3 * estimate);
-  std::string how = "limit " + geometry::seconds_text(mesh_limit);
-  if (const char* e = std::getenv("DICER_CAD_MESH_SECONDS"); e && *e)
-    how += ", from DICER_CAD_MESH_SECONDS";
-  else
-    how += ": 300 s + 1 ms per expected element, about " + geometry::fmt(estimate) + " here; DICER_CAD_MESH_SECONDS sets it";
+  const geometry::TimeLimit limit = geometry::time_limit(
+      "DICER_CAD_MESH_SECONDS", 300.0 + 1e-3 * estimate,
+      "300 s + 1 ms per expected element, about " + geometry::fmt(estimate) + " here");
   const auto generate = [&] {
-    const geometry::TimedCall timed(ErrorKind::Geometry, mesh_limit,
+    const geometry::TimedCall timed(ErrorKind::Geometry, limit.seconds,
                                     cad_path + ": Gmsh did not finish meshing the model at --size " + geometry::fmt(opt.size),
-                                    how, "Gmsh loops on some damaged models; check the model in Gmsh, or try another --size");
+                                    limit.how, "Gmsh loops on some damaged models; check the model in Gmsh, or try another --size");
     gmsh::model::mesh::generate(dim);
   };
   // Gmsh needs the .msh extension to write MSH; the file is moved onto the
