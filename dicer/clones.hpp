@@ -13,6 +13,9 @@
 // (and tests) the code other machines run. The AVX2 clones differ from
 // the AVX-512 ones in more than width: GCC 12.2 once miscompiled one of
 // them (sweep.cpp, hash_lines) while the AVX-512 clone was right.
+#ifndef DICER_CLONES_CHOSEN
+#error "dicer/clones.hpp: add this source to the kernel sources in CMakeLists.txt (set_source_files_properties beside DICER_KERNEL_CLONES), or the choice of clones never reaches it"
+#endif
 #if defined(__SANITIZE_THREAD__) || defined(DICER_CLONES_NONE)
 #define DICER_CLONES
 #define DICER_WIDE_CLONES

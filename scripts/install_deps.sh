@@ -18,7 +18,7 @@ pkgs=(cmake g++ make pkg-config libhdf5-dev liblz4-dev libdeflate-dev libexodusi
       pybind11-dev python3-dev python3-numpy python3-pytest python3-mpi4py python3-matplotlib
       python3-dolfinx python3-petsc4py python3-scipy
       help2man man-db groff-base bash-completion
-      "$@")  # more on request (run_tests.sh: clang)
+      "$@")  # more on request (run_tests.sh: ccache, clang)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

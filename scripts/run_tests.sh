@@ -10,9 +10,15 @@
 #       breaks it (a lambda capturing a structured binding, Clang < 16)
 set -euo pipefail
 cd "$(dirname "$0")/.."
-extra=()
-[ "${DICER_CXX:-}" = clang ] && extra=(clang)
+extra=(ccache)
+[ "${DICER_CXX:-}" = clang ] && extra+=(clang)
 bash scripts/install_deps.sh "${extra[@]}"
+# The Release and AVX2-clone builds differ only in the kernel sources
+# (CMakeLists.txt, DICER_KERNEL_CLONES): through ccache the second compiles
+# those alone (.ci/run runs both on a fresh machine). The paths under the
+# checkout are hashed relative to it, so build/ and build-avx2/ share.
+export CCACHE_BASEDIR="$PWD" CCACHE_NOHASHDIR=1
+cache=(-DCMAKE_C_COMPILER_LAUNCHER=ccache -DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
 if [ "${DICER_CXX:-}" = clang ]; then
   cmake -S . -B build-clang -DCMAKE_BUILD_TYPE=Release -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ \
     -DDICER_BUILD_BENCH=OFF >/dev/null
@@ -24,11 +30,12 @@ elif [ "${DICER_SANITIZE:-0}" = 1 ]; then
   cd build-asan
 elif [ -n "${DICER_KERNEL_CLONES:-}" ]; then
   dir="build-${DICER_KERNEL_CLONES}"
-  cmake -S . -B "$dir" -DCMAKE_BUILD_TYPE=Release -DDICER_KERNEL_CLONES="$DICER_KERNEL_CLONES" -DDICER_BUILD_BENCH=OFF >/dev/null
+  cmake -S . -B "$dir" -DCMAKE_BUILD_TYPE=Release -DDICER_KERNEL_CLONES="$DICER_KERNEL_CLONES" -DDICER_BUILD_BENCH=OFF \
+    "${cache[@]}" >/dev/null
   cmake --build "$dir" -j"$(nproc)"
   cd "$dir"
 else
-  bash scripts/build.sh
+  bash scripts/build.sh "${cache[@]}"
   cd build
 fi
 ctest --output-on-failure -j"$(nproc)"
