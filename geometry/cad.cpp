@@ -132,13 +132,13 @@ void flush_streams() {
   std::fflush(stderr);
 }
 
-}  // namespace
-
-std::string seconds_text(double s) {
+std::string seconds_text(double s) {  // "7200 s", "2.5 s"
   char b[48];
   std::snprintf(b, sizeof b, s >= 10 ? "%.0f s" : "%.3g s", s);
   return b;
 }
+
+}  // namespace
 
 TimeLimit time_limit(const char* variable, double computed, const std::string& formula) {
   const char* e = std::getenv(variable);

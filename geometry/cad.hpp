@@ -129,7 +129,6 @@ struct TimeLimit {
   std::string how;
 };
 TimeLimit time_limit(const char* variable, double computed, const std::string& formula);
-std::string seconds_text(double s);  // "7200 s", "2.5 s"
 
 // A number in messages: 3 significant digits.
 std::string fmt(double x);
